@@ -1,0 +1,1 @@
+"""AgriNav Gym: pybullet Summit-XL environments built from ``scenario_gen`` scenarios."""

@@ -1,0 +1,1 @@
+"""Experiments and the ``agrinav`` command line: scenarios now; training and benchmarks later."""

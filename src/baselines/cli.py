@@ -1,0 +1,169 @@
+"""``agrinav``: the command line. Bad input exits 2 with one line naming field, value and rule."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from scenario_gen.errors import ScenarioError
+
+
+def _parse_set(items: Sequence[str]) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for item in items:
+        key, sep, raw = item.partition("=")
+        if not sep or not key.strip():
+            raise ScenarioError("--set", item, "allowed: key=value, e.g. layout.row_spacing=0.76")
+        try:
+            out[key.strip()] = yaml.safe_load(raw) if raw.strip() else None
+        except yaml.YAMLError:
+            raise ScenarioError(f"--set {key}", raw, "is not a valid YAML value") from None
+    return out
+
+
+def _parse_datum(text: str) -> list[float]:
+    try:
+        vals = [float(v) for v in text.split(",")]
+    except ValueError:
+        vals = []
+    if len(vals) != 3:
+        raise ScenarioError("--datum", text, "allowed: LAT,LON,ALT in degrees and metres")
+    return vals
+
+
+def scenario_spec_from_args(args: argparse.Namespace) -> Any:
+    """preset < --config file < --dem/--mesh/--field/--lod flags < --set overrides."""
+    from scenario_gen.config import load_yaml, merge, preset
+
+    base = preset(args.preset).to_dict()
+    if args.config:
+        base = merge(base, load_yaml(args.config))
+    flags: dict[str, Any] = {}
+    if args.dem and args.mesh:
+        raise ScenarioError("--dem/--mesh", (args.dem, args.mesh), "allowed: one terrain source")
+    if args.dem:
+        flags.update({"terrain.source": "dem", "terrain.path": args.dem})
+    if args.mesh:
+        if not args.datum:
+            raise ScenarioError(
+                "--datum", None, "--mesh needs --datum LAT,LON,ALT of the mesh origin"
+            )
+        flags.update({"terrain.source": "mesh", "terrain.path": args.mesh})
+    if args.datum:
+        flags["terrain.datum"] = _parse_datum(args.datum)
+    if args.field:
+        flags["field.geojson"] = args.field
+    if args.lod is not None:
+        flags["terrain.lod"] = args.lod
+    from scenario_gen.config import ScenarioSpec
+
+    return ScenarioSpec.from_dict(merge(merge(base, flags), _parse_set(args.set)))
+
+
+def cmd_scenario(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from scenario_gen import generate
+    from scenario_gen.io import check_output_dir
+
+    if args.count < 1:
+        raise ScenarioError("--count", args.count, "allowed: an integer >= 1")
+    if args.seed < 0:
+        raise ScenarioError("--seed", args.seed, "allowed: an integer >= 0")
+    spec = scenario_spec_from_args(args)
+    out = Path(args.out)
+    if args.count == 1:
+        check_output_dir(out, args.force)
+        t0 = time.perf_counter()
+        scn = generate(spec, args.seed)
+        t_gen = time.perf_counter() - t0
+        scn.save(out, overwrite=args.force, preview=not args.no_preview)
+        t_all = time.perf_counter() - t0
+        rows = {
+            **scn.summary(),
+            "generate_s": round(t_gen, 3),
+            "total_s": round(t_all, 3),
+            "out": str(out),
+        }
+        width = max(map(len, rows))
+        for k, v in rows.items():
+            print(f"{k:<{width}}  {v}")
+        return 0
+    # A bank: one scenario per seed, generated once and reused across many episodes.
+    check_output_dir(out, args.force)
+    seeds = range(args.seed, args.seed + args.count)
+    tmp_names = []
+    out.mkdir(parents=True, exist_ok=True)
+    for seed in tqdm(seeds, desc="scenarios", unit="scn"):
+        name = f"seed-{seed:06d}"
+        generate(spec, seed).save(out / name, overwrite=True, preview=not args.no_preview)
+        tmp_names.append(name)
+    (out / "bank.yaml").write_text(
+        yaml.safe_dump(
+            {"spec": spec.to_dict(), "seeds": list(seeds), "scenarios": tmp_names}, sort_keys=False
+        )
+    )
+    print(f"{args.count} scenarios ({spec.name}, seeds {seeds.start}..{seeds.stop - 1}) in {out}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from scenario_gen.config import preset_names
+
+    parser = argparse.ArgumentParser(prog="agrinav", description=__doc__)
+    sub = parser.add_subparsers(dest="command", required=True)
+    sc = sub.add_parser(
+        "scenario",
+        help="generate a crop-field scenario on real terrain",
+        description="Generate a scenario directory (scenario.json, terrain.npz, "
+        "plants.csv, route.csv, field.geojson, preview.png).",
+    )
+    sc.add_argument("--preset", default="default", choices=preset_names())
+    sc.add_argument("--seed", type=int, default=0)
+    sc.add_argument("--out", required=True, help="output directory (must not exist, or --force)")
+    sc.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override a spec field, e.g. --set layout.row_spacing=0.76 (repeatable)",
+    )
+    sc.add_argument("--config", help="YAML file of spec overrides")
+    sc.add_argument("--dem", help="GeoTIFF DEM (any CRS)")
+    sc.add_argument("--mesh", help="terrain mesh (glTF/GLB, OBJ, PLY, DAE)")
+    sc.add_argument("--datum", help="LAT,LON,ALT of the mesh origin")
+    sc.add_argument("--field", help="GeoJSON polygon of the field (WGS84 lon/lat)")
+    sc.add_argument("--lod", type=int, help="level of detail (Web-Mercator zoom 0-22)")
+    sc.add_argument(
+        "--count",
+        type=int,
+        default=1,
+        help="generate a bank of COUNT scenarios, seeds SEED..SEED+COUNT-1",
+    )
+    sc.add_argument("--force", action="store_true", help="replace an existing output directory")
+    sc.add_argument("--no-preview", action="store_true", help="skip preview.png")
+    sc.set_defaults(func=cmd_scenario)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args))
+    except ScenarioError as exc:
+        print(f"agrinav {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("agrinav: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

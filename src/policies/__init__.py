@@ -1,0 +1,1 @@
+"""Controllers behind one interface (DWB, pure pursuit, PPO) — filled by the policies issue."""

@@ -1,0 +1,286 @@
+"""Crop catalog and procedural plant models.
+
+Each species has growth stages with a nominal height and canopy width; ``growth`` in [0, 1] moves
+continuously through them. ``crop_mesh`` builds a trimesh model whose shape follows growth (leaf
+count, leaf length and droop, canopy width, tassels, heads, fruit), coloured per face, with
+its base at the origin and +z up. ``CropModel.proxy_radius`` is the stem-level collision proxy
+used to count crop contact.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import lru_cache
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .errors import ScenarioError
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Species:
+    name: str
+    stage_names: tuple[str, ...]
+    heights: tuple[float, ...]  # nominal height per stage, m
+    canopy: tuple[float, ...]  # canopy diameter per stage, m
+    proxy_radius: float  # collision proxy at stem level, m
+    colour: tuple[int, int, int]
+
+    @property
+    def stages(self) -> int:
+        return len(self.heights)
+
+    def growth_of_stage(self, stage: float) -> float:
+        return (stage - 1.0) / (self.stages - 1.0)
+
+    def stage_of_growth(self, growth: float | FloatArray) -> Any:
+        return 1.0 + np.asarray(growth) * (self.stages - 1.0)
+
+    def height(self, growth: float | FloatArray) -> Any:
+        return np.interp(self.stage_of_growth(growth), np.arange(1, self.stages + 1), self.heights)
+
+    def canopy_width(self, growth: float | FloatArray) -> Any:
+        return np.interp(self.stage_of_growth(growth), np.arange(1, self.stages + 1), self.canopy)
+
+
+CATALOG: dict[str, Species] = {
+    s.name: s
+    for s in (
+        # Maize: DESIGN §5 stages ≈ 0.3 (early), 1.2 (intermediate), 2.5 m (mature).
+        Species(
+            "corn",
+            ("V3", "V6", "V10", "V14", "R1"),
+            (0.3, 0.6, 1.2, 1.8, 2.5),
+            (0.35, 0.55, 0.8, 0.95, 1.0),
+            0.04,
+            (70, 140, 50),
+        ),
+        Species(
+            "tomato",
+            ("seedling", "vegetative", "flowering", "fruiting"),
+            (0.15, 0.4, 0.8, 1.2),
+            (0.2, 0.4, 0.6, 0.7),
+            0.06,
+            (60, 120, 45),
+        ),
+        Species(
+            "cabbage",
+            ("seedling", "rosette", "heading", "mature"),
+            (0.1, 0.2, 0.3, 0.35),
+            (0.2, 0.4, 0.6, 0.7),
+            0.12,
+            (120, 170, 110),
+        ),
+        Species(
+            "sunflower",
+            ("V4", "V10", "R1", "R5"),
+            (0.3, 0.8, 1.5, 2.0),
+            (0.3, 0.5, 0.7, 0.8),
+            0.05,
+            (80, 130, 40),
+        ),
+        Species("weed", ("small", "large"), (0.05, 0.3), (0.08, 0.35), 0.0, (150, 160, 60)),
+    )
+}
+
+
+def species(name: str) -> Species:
+    if name not in CATALOG:
+        raise ScenarioError("crop.species", name, f"allowed: one of {', '.join(CATALOG)}")
+    return CATALOG[name]
+
+
+@dataclass(frozen=True)
+class CropModel:
+    species: str
+    growth: float
+    height: float
+    canopy: float
+    proxy_radius: float
+
+
+def crop_model(name: str, growth: float) -> CropModel:
+    sp = species(name)
+    return CropModel(
+        name, growth, float(sp.height(growth)), float(sp.canopy_width(growth)), sp.proxy_radius
+    )
+
+
+# ----------------------------------------------------------------------------- geometry helpers
+def _ribbon(
+    centre: FloatArray, widths: FloatArray, side: FloatArray
+) -> tuple[FloatArray, NDArray[np.int64]]:
+    """A double-sided strip along ``centre`` (M, 3), half-width ``widths`` along ``side``."""
+    m = len(centre)
+    v = np.concatenate([centre - widths[:, None] * side, centre + widths[:, None] * side])
+    a = np.arange(m - 1)
+    f = np.concatenate(
+        [np.column_stack([a, a + 1, a + m]), np.column_stack([a + 1, a + m + 1, a + m])]
+    )
+    return v, np.concatenate([f, f[:, ::-1]])
+
+
+def _leaf(
+    base: FloatArray,
+    azimuth: float,
+    length: float,
+    width: float,
+    rise: float,
+    droop: float,
+    segments: int = 6,
+) -> tuple[FloatArray, NDArray[np.int64]]:
+    s = np.linspace(0.0, 1.0, segments + 1)
+    d = np.array([math.cos(azimuth), math.sin(azimuth), 0.0])
+    side = np.array([-math.sin(azimuth), math.cos(azimuth), 0.0])
+    centre = (
+        base + np.outer(s * length, d) + np.outer(length * (rise * s - droop * s * s), [0, 0, 1])
+    )
+    widths = width / 2 * np.sin(np.pi * np.clip(s, 0.05, 1.0)) ** 0.7
+    return _ribbon(centre, widths, np.broadcast_to(side, centre.shape).copy())
+
+
+def _mesh(parts: list[tuple[Any, tuple[int, int, int]]]) -> Any:
+    import trimesh
+
+    meshes = []
+    for part, colour in parts:
+        if isinstance(part, tuple):
+            part = trimesh.Trimesh(vertices=part[0], faces=part[1], process=False)
+        part.visual.face_colors = np.array([*colour, 255], dtype=np.uint8)
+        meshes.append(part)
+    return trimesh.util.concatenate(meshes)
+
+
+def _stalk(height: float, r0: float, r1: float) -> Any:
+    import trimesh
+
+    m = trimesh.creation.cylinder(radius=r0, height=height, sections=8)
+    m.apply_translation([0, 0, height / 2])
+    v = m.vertices.copy()
+    v[:, :2] *= 1 - (1 - r1 / r0) * v[:, 2:3] / height
+    m.vertices = v
+    return m
+
+
+GREEN = (70, 140, 50)
+DARK = (45, 100, 35)
+
+
+@lru_cache(maxsize=256)
+def crop_mesh(name: str, growth: float) -> Any:
+    """Procedural model of ``name`` at ``growth`` in [0, 1], base at the origin, +z up."""
+    import trimesh
+
+    if not 0.0 <= growth <= 1.0:
+        raise ScenarioError("crop.growth", growth, "allowed: a number in [0, 1]")
+    sp = species(name)
+    h, w = float(sp.height(growth)), float(sp.canopy_width(growth))
+    parts: list[tuple[Any, tuple[int, int, int]]] = []
+    if name == "corn":
+        parts.append(
+            (_stalk(h * (0.85 if growth > 0.75 else 0.7), 0.012 + 0.012 * growth, 0.006), DARK)
+        )
+        n = round(3 + 11 * growth)
+        for i in range(n):
+            f = (i + 1) / (n + 1)
+            az = math.pi * i + 0.25 * math.sin(1.7 * i)  # distichous: leaves alternate sides
+            length = w * (0.55 + 0.45 * math.sin(math.pi * min(f + 0.15, 1.0)))
+            parts.append(
+                (
+                    _leaf(
+                        np.array([0, 0, h * 0.75 * f]),
+                        az,
+                        length,
+                        0.04 + 0.05 * growth,
+                        0.9 - 0.4 * growth,
+                        0.6 + 0.3 * growth,
+                    ),
+                    GREEN,
+                )
+            )
+        if growth > 0.75:  # tassel
+            tassel = trimesh.creation.cone(radius=0.04, height=h * 0.15, sections=6)
+            tassel.apply_translation([0, 0, h * 0.85])
+            parts.append((tassel, (190, 170, 90)))
+        if growth > 0.6:  # ear
+            ear = trimesh.creation.capsule(radius=0.025, height=0.15, count=[6, 6])
+            ear.apply_translation([0.03, 0, h * 0.45])
+            parts.append((ear, (200, 190, 110)))
+    elif name == "sunflower":
+        head_h = h * 0.92
+        parts.append((_stalk(head_h, 0.015 + 0.01 * growth, 0.01), DARK))
+        n = round(4 + 10 * growth)
+        for i in range(n):
+            f = (i + 1) / (n + 1)
+            parts.append(
+                (
+                    _leaf(
+                        np.array([0, 0, head_h * 0.85 * f]), 2.4 * i, w * 0.45, w * 0.3, 0.4, 0.5
+                    ),
+                    GREEN,
+                )
+            )
+        if growth > 0.5:
+            head = trimesh.creation.cylinder(radius=0.06 + 0.1 * growth, height=0.04, sections=16)
+            head.apply_transform(trimesh.transformations.rotation_matrix(0.8, [0, 1, 0]))
+            head.apply_translation([0.05, 0, head_h])
+            parts.append((head, (230, 190, 30)))
+    elif name == "tomato":
+        parts.append((_stalk(h * 0.8, 0.01 + 0.005 * growth, 0.005), DARK))
+        n = round(3 + 7 * growth)
+        for i in range(n):
+            f = (i + 1) / (n + 1)
+            blob = trimesh.creation.icosphere(subdivisions=1, radius=1.0)
+            blob.apply_scale([w * 0.3, w * 0.3, h * 0.18])
+            az = 2.4 * i
+            blob.apply_translation(
+                [w * 0.2 * math.cos(az), w * 0.2 * math.sin(az), h * (0.2 + 0.7 * f)]
+            )
+            parts.append((blob, GREEN))
+        if growth > 0.6:
+            for i in range(int(2 + 6 * growth)):
+                fruit = trimesh.creation.icosphere(subdivisions=1, radius=0.03)
+                az = 1.3 * i + 0.5
+                fruit.apply_translation(
+                    [w * 0.3 * math.cos(az), w * 0.3 * math.sin(az), h * (0.25 + 0.06 * i)]
+                )
+                parts.append((fruit, (210, 40, 30)))
+    elif name == "cabbage":
+        head = trimesh.creation.icosphere(subdivisions=2, radius=1.0)
+        head.apply_scale([w * 0.25, w * 0.25, h * 0.45])
+        head.apply_translation([0, 0, h * 0.5])
+        parts.append((head, (150, 195, 130)))
+        n = round(5 + 5 * growth)
+        for i in range(n):
+            parts.append(
+                (
+                    _leaf(np.array([0, 0, h * 0.15]), 2.4 * i, w * 0.5, w * 0.35, 0.5, 0.6),
+                    (110, 165, 100),
+                )
+            )
+    else:  # weed: a low rosette
+        n = 5 + round(4 * growth)
+        for i in range(n):
+            parts.append(
+                (
+                    _leaf(
+                        np.array([0, 0, 0.005]),
+                        2 * math.pi * i / n,
+                        w * 0.5,
+                        w * 0.2,
+                        h / max(w * 0.5, 1e-3) * 0.8,
+                        0.4,
+                    ),
+                    sp.colour,
+                )
+            )
+    mesh = _mesh(parts)
+    mesh.apply_translation([0, 0, -mesh.bounds[0, 2]])
+    # Parts are laid out by eye; stretch vertically so the model is exactly its nominal height.
+    mesh.apply_scale([1.0, 1.0, h / float(mesh.bounds[1, 2])])
+    return mesh

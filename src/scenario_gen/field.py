@@ -1,0 +1,127 @@
+"""The planting area: a polygon from a GeoJSON file (WGS84 lon/lat) or a rectangle at the site."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import shapely
+from shapely.geometry import MultiPolygon, Polygon, shape
+from shapely.geometry.base import BaseGeometry
+from shapely.validation import explain_validity
+
+from .config import FieldSpec
+from .errors import ScenarioError
+from .geodesy import GeoFrame
+
+MIN_FIELD_AREA = 4.0  # m²: below this not even one lane fits
+
+
+def rectangle(spec: FieldSpec, centre: tuple[float, float]) -> Polygon:
+    if spec.width <= 0 or spec.length <= 0:
+        bad = "field.width" if spec.width <= 0 else "field.length"
+        raise ScenarioError(bad, getattr(spec, bad.split(".")[1]), "allowed: a size > 0 m")
+    a = math.radians(spec.angle_deg)
+    u = np.array([math.cos(a), math.sin(a)]) * spec.length / 2
+    n = np.array([-math.sin(a), math.cos(a)]) * spec.width / 2
+    c = np.asarray(centre)
+    return Polygon([c - u - n, c + u - n, c + u + n, c - u + n])
+
+
+def read_geojson(path: str | Path) -> BaseGeometry:
+    """The (multi)polygon of a GeoJSON file, in lon/lat; several features are merged."""
+    p = Path(path)
+    if not p.is_file():
+        raise ScenarioError("field.geojson", str(path), "allowed: an existing GeoJSON file")
+    try:
+        data = json.loads(p.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise ScenarioError("field.geojson", str(path), f"is not valid JSON ({exc})") from None
+    geoms = [g for g in _geometries(data) if g.get("type") in ("Polygon", "MultiPolygon")]
+    if not geoms:
+        raise ScenarioError("field.geojson", str(path), "holds no Polygon or MultiPolygon geometry")
+    try:
+        polys = [shape(g) for g in geoms]
+    except Exception as exc:  # shapely raises several types for malformed coordinates
+        raise ScenarioError(
+            "field.geojson", str(path), f"has malformed coordinates ({exc})"
+        ) from None
+    for poly in polys:
+        _check_valid(poly, str(path))
+        lon0, lat0, lon1, lat1 = poly.bounds
+        if not (-180 <= lon0 <= lon1 <= 180 and -90 <= lat0 <= lat1 <= 90):
+            raise ScenarioError(
+                "field.geojson",
+                f"bounds {poly.bounds}",
+                "coordinates must be WGS84 longitude, latitude (RFC 7946); these look projected",
+            )
+    return shapely.union_all(polys) if len(polys) > 1 else polys[0]
+
+
+def _geometries(data: Any) -> list[dict[str, Any]]:
+    if not isinstance(data, dict):
+        return []
+    kind = data.get("type")
+    if kind == "FeatureCollection":
+        return [g for f in data.get("features") or [] for g in _geometries(f)]
+    if kind == "Feature":
+        return _geometries(data.get("geometry") or {})
+    if kind == "GeometryCollection":
+        return [g for sub in data.get("geometries") or [] for g in _geometries(sub)]
+    return [data]
+
+
+def _check_valid(poly: BaseGeometry, where: str) -> None:
+    if poly.is_empty:
+        raise ScenarioError("field.geojson", where, "the polygon is empty")
+    if not poly.is_valid:
+        raise ScenarioError(
+            "field.geojson",
+            where,
+            f"the polygon is invalid ({explain_validity(poly)}); allowed: a "
+            "simple polygon without self-intersections",
+        )
+
+
+def lonlat_to_enu(geom: BaseGeometry, geo: GeoFrame) -> BaseGeometry:
+    def tx(coords: np.ndarray) -> np.ndarray:
+        x, y, _ = geo.geodetic_to_enu(coords[:, 1], coords[:, 0], 0.0)
+        return np.column_stack([x, y])
+
+    return shapely.transform(geom, tx)
+
+
+def enu_to_lonlat(geom: BaseGeometry, geo: GeoFrame) -> BaseGeometry:
+    def tx(coords: np.ndarray) -> np.ndarray:
+        lat, lon, _ = geo.enu_to_geodetic(coords[:, 0], coords[:, 1], 0.0)
+        return np.column_stack([lon, lat])
+
+    return shapely.transform(geom, tx)
+
+
+def centroid_latlon(geom: BaseGeometry) -> tuple[float, float]:
+    c = geom.centroid
+    return float(c.y), float(c.x)
+
+
+def check_field(poly: BaseGeometry, where: str) -> Polygon | MultiPolygon:
+    if not isinstance(poly, (Polygon, MultiPolygon)) or poly.is_empty:
+        raise ScenarioError(where, poly.geom_type, "allowed: a non-empty Polygon/MultiPolygon")
+    if not poly.is_valid:
+        raise ScenarioError(where, explain_validity(poly), "allowed: a valid simple polygon")
+    if poly.area < MIN_FIELD_AREA:
+        raise ScenarioError(
+            where, f"{poly.area:.2f} m²", f"is too small; allowed: at least {MIN_FIELD_AREA} m²"
+        )
+    return poly
+
+
+def long_axis_deg(poly: BaseGeometry) -> float:
+    """Direction of the long side of the minimum rotated rectangle, degrees from east."""
+    rect = np.asarray(poly.minimum_rotated_rectangle.exterior.coords)
+    e1, e2 = rect[1] - rect[0], rect[2] - rect[1]
+    e = e1 if np.hypot(*e1) >= np.hypot(*e2) else e2
+    return float(math.degrees(math.atan2(e[1], e[0])))

@@ -1,0 +1,116 @@
+"""WGS84 geodesy: a local East-North-Up frame at a datum, through pyproj.
+
+lat/lon/alt (EPSG:4979, ellipsoidal height) -> geocentric ECEF (EPSG:4978) -> rotation into the
+tangent plane at the datum. Unlike the source paper's equirectangular approximation this is exact
+at any distance, so GPS readings simulated from ENU positions are real coordinates.
+
+Altitudes read from DEMs are orthometric; they are used as if ellipsoidal. Over a field the geoid
+separation is a constant to well under a millimetre per metre, so it shifts every height alike
+and cancels in the local frame.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from pyproj import CRS, Transformer
+
+from .errors import ScenarioError
+
+FloatArray = NDArray[np.float64]
+
+#: Web-Mercator ground sample distance at zoom 0 and the equator, metres per 256-px tile pixel.
+GSD_Z0 = 156543.03392
+
+
+def ground_sample_distance(lod: int, lat_deg: float) -> float:
+    """Metres per pixel of the Web-Mercator tile pyramid at zoom ``lod`` and ``lat_deg``."""
+    if not isinstance(lod, (int, np.integer)) or isinstance(lod, bool) or not 0 <= lod <= 22:
+        raise ScenarioError("terrain.lod", lod, "allowed: an integer zoom level 0..22")
+    if not -85.06 <= lat_deg <= 85.06:
+        raise ScenarioError("latitude", lat_deg, "allowed: -85.06..85.06 (Web-Mercator range)")
+    return GSD_Z0 * math.cos(math.radians(lat_deg)) / 2**lod
+
+
+def _check_latlon(lat: float, lon: float, alt: float, where: str) -> None:
+    if not (math.isfinite(lat) and -90.0 <= lat <= 90.0):
+        raise ScenarioError(f"{where}.lat", lat, "allowed: degrees in -90..90")
+    if not (math.isfinite(lon) and -180.0 <= lon <= 180.0):
+        raise ScenarioError(f"{where}.lon", lon, "allowed: degrees in -180..180")
+    if not math.isfinite(alt):
+        raise ScenarioError(f"{where}.alt", alt, "allowed: a finite height in metres")
+
+
+@dataclass(frozen=True)
+class GeoFrame:
+    """Local ENU tangent frame at a WGS84 datum (degrees, metres)."""
+
+    lat: float
+    lon: float
+    alt: float = 0.0
+    _to_ecef: Transformer = field(init=False, repr=False, compare=False)
+    _origin: FloatArray = field(init=False, repr=False, compare=False)
+    _rot: FloatArray = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        _check_latlon(self.lat, self.lon, self.alt, "datum")
+        to_ecef = Transformer.from_crs("EPSG:4979", "EPSG:4978", always_xy=True)
+        origin = np.array(to_ecef.transform(self.lon, self.lat, self.alt), dtype=np.float64)
+        sl, cl = math.sin(math.radians(self.lat)), math.cos(math.radians(self.lat))
+        so, co = math.sin(math.radians(self.lon)), math.cos(math.radians(self.lon))
+        # Rows are the E, N, U unit vectors in ECEF.
+        rot = np.array(
+            [[-so, co, 0.0], [-sl * co, -sl * so, cl], [cl * co, cl * so, sl]], dtype=np.float64
+        )
+        object.__setattr__(self, "_to_ecef", to_ecef)
+        object.__setattr__(self, "_origin", origin)
+        object.__setattr__(self, "_rot", rot)
+
+    # Transformers hold PROJ contexts that do not pickle; rebuild them from the datum.
+    def __getstate__(self) -> dict[str, Any]:
+        return {"lat": self.lat, "lon": self.lon, "alt": self.alt}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        for key, value in state.items():
+            object.__setattr__(self, key, value)
+        self.__post_init__()
+
+    def to_dict(self) -> dict[str, float]:
+        return {"lat": self.lat, "lon": self.lon, "alt": self.alt}
+
+    def geodetic_to_enu(
+        self, lat: ArrayLike, lon: ArrayLike, alt: ArrayLike = 0.0
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Degrees and ellipsoidal metres -> ENU metres (vectorized)."""
+        lat_a, lon_a, alt_a = np.broadcast_arrays(
+            np.asarray(lat, np.float64), np.asarray(lon, np.float64), np.asarray(alt, np.float64)
+        )
+        X, Y, Z = self._to_ecef.transform(lon_a, lat_a, alt_a)
+        d = np.stack([np.asarray(X), np.asarray(Y), np.asarray(Z)], axis=-1) - self._origin
+        enu = d @ self._rot.T
+        return enu[..., 0], enu[..., 1], enu[..., 2]
+
+    def enu_to_geodetic(
+        self, x: ArrayLike, y: ArrayLike, z: ArrayLike = 0.0
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """ENU metres -> (lat, lon, alt) in degrees and ellipsoidal metres (vectorized)."""
+        x_a, y_a, z_a = np.broadcast_arrays(
+            np.asarray(x, np.float64), np.asarray(y, np.float64), np.asarray(z, np.float64)
+        )
+        enu = np.stack([x_a, y_a, z_a], axis=-1)
+        ecef = enu @ self._rot + self._origin
+        lon, lat, alt = self._to_ecef.transform(
+            ecef[..., 0], ecef[..., 1], ecef[..., 2], direction="INVERSE"
+        )
+        return np.asarray(lat), np.asarray(lon), np.asarray(alt)
+
+    def crs_to_enu_transformer(self, crs: CRS | str) -> Transformer:
+        """Transformer from a raster's CRS (x, y order) to lon/lat, for sampling DEMs."""
+        return Transformer.from_crs(CRS.from_user_input(crs), "EPSG:4326", always_xy=True)
+
+    def gsd(self, lod: int) -> float:
+        return ground_sample_distance(lod, self.lat)

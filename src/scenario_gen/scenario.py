@@ -1,0 +1,233 @@
+"""A scenario: terrain, field, plants, rows and route, generated from a spec and a seed."""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from shapely.geometry.base import BaseGeometry
+
+from . import crops
+from .config import CropSpec, ScenarioSpec
+from .errors import ScenarioError
+from .field import (
+    centroid_latlon,
+    check_field,
+    enu_to_lonlat,
+    long_axis_deg,
+    lonlat_to_enu,
+    read_geojson,
+    rectangle,
+)
+from .furrows import add_relief
+from .geodesy import GeoFrame
+from .layout import Layout, RowFrame, layout
+from .routes import Route, lane_lines, zigzag
+from .sources import build_terrain, open_site
+from .terrain import Terrain
+
+FloatArray = NDArray[np.float64]
+
+#: Independent random streams, one per generation step, spawned from the seed so that changing
+#: one parameter (say the weed density) does not reshuffle every other random choice.
+STREAMS = ("jitter", "gaps", "weeds", "plants", "roughness")
+
+
+@dataclass(frozen=True, eq=False)
+class Plants:
+    """One entry per plant or weed; orientation R = Rz(yaw)·Ry(pitch)·Rx(roll) (URDF rpy)."""
+
+    x: FloatArray
+    y: FloatArray
+    z: FloatArray
+    roll: FloatArray
+    pitch: FloatArray
+    yaw: FloatArray
+    height: FloatArray
+    species: NDArray[np.str_]
+    stage: FloatArray  # 1 .. the species' stage count, fractional for continuous growth
+    row: NDArray[np.int64]  # row index, -1 for weeds
+
+    def __len__(self) -> int:
+        return len(self.x)
+
+    @property
+    def xyz(self) -> FloatArray:
+        return np.column_stack([self.x, self.y, self.z])
+
+    @property
+    def is_weed(self) -> NDArray[np.bool_]:
+        return self.row < 0
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        return {k: getattr(self, k) for k in self.__dataclass_fields__}
+
+
+def orientation(zx: FloatArray, zy: FloatArray, yaw: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """(roll, pitch) that, with ``yaw``, put a plant's z axis on the surface normal.
+
+    With R = Rz(yaw)·Ry(pitch)·Rx(roll), the z axis is Rz(yaw)·(cosφ·sinθ, −sinφ, cosφ·cosθ).
+    Matching the normal (−zx, −zy, 1)/‖·‖ expressed in the yaw-rotated frame gives
+    θ = atan(−zx′) and φ = atan(zy′·cosθ).
+    """
+    c, s = np.cos(yaw), np.sin(yaw)
+    zxp = zx * c + zy * s
+    zyp = -zx * s + zy * c
+    pitch = np.arctan(-zxp)
+    roll = np.arctan(zyp * np.cos(pitch))
+    return roll, pitch
+
+
+@dataclass(frozen=True, eq=False)
+class Scenario:
+    spec: ScenarioSpec
+    seed: int
+    geo: GeoFrame
+    terrain: Terrain
+    field: BaseGeometry  # ENU polygon
+    rows: RowFrame
+    plants: Plants
+    route: Route
+    info: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def lanes(self) -> FloatArray:
+        """Lane centrelines (lanes, 2, 2) in ENU, from row start to row end."""
+        return lane_lines(self.rows)
+
+    @property
+    def field_lonlat(self) -> BaseGeometry:
+        return enu_to_lonlat(self.field, self.geo)
+
+    def latlon(
+        self, x: FloatArray, y: FloatArray, z: FloatArray | float = 0.0
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        return self.geo.enu_to_geodetic(x, y, z)
+
+    def save(self, directory: str | Path, overwrite: bool = False, preview: bool = True) -> Path:
+        from .io import save
+
+        return save(self, directory, overwrite=overwrite, preview=preview)
+
+    def summary(self) -> dict[str, Any]:
+        crops_mask = ~self.plants.is_weed
+        return {
+            "name": self.spec.name,
+            "seed": self.seed,
+            "datum": f"{self.geo.lat:.6f}, {self.geo.lon:.6f}, {self.geo.alt:.1f} m",
+            "plants": int(crops_mask.sum()),
+            "weeds": int((~crops_mask).sum()),
+            "rows": len(self.rows.offsets),
+            "field_area_m2": round(float(self.field.area), 1),
+            "relief_m": round(self.terrain.relief, 2),
+            "row_spacing_m": self.spec.layout.row_spacing,
+            "plant_spacing_m": self.spec.layout.plant_spacing,
+            "grid": f"{self.terrain.shape[1]}x{self.terrain.shape[0]} @ "
+            f"{self.terrain.spacing:.3f} m (LoD {self.terrain.lod})",
+            "route_m": round(self.route.length, 1),
+        }
+
+
+def place_plants(
+    lay: Layout, terrain: Terrain, crop: CropSpec, growth: float, rng: np.random.Generator
+) -> Plants:
+    """Heights, orientation, size and species for a layout (DESIGN §4.4-4.5), vectorized."""
+    z, zx, zy = terrain.idw(lay.x, lay.y)
+    sp = crops.species(crop.species)
+    n, weed = len(lay.x), lay.is_weed
+    spread = np.clip(rng.standard_normal(n), -3.0, 3.0) * crop.height_std
+    weed_sp = crops.CATALOG["weed"]
+    weed_growth = rng.random(n)
+    yaw = rng.uniform(-math.pi, math.pi, n)
+    height = np.where(weed, weed_sp.height(weed_growth), float(sp.height(growth)) * (1 + spread))
+    stage = np.where(weed, weed_sp.stage_of_growth(weed_growth), float(sp.stage_of_growth(growth)))
+    roll, pitch = orientation(zx, zy, yaw)
+    return Plants(
+        lay.x,
+        lay.y,
+        z,
+        roll,
+        pitch,
+        yaw,
+        height,
+        np.where(weed, "weed", sp.name).astype(str),
+        stage,
+        lay.row,
+    )
+
+
+def generate(spec: ScenarioSpec, seed: int) -> Scenario:
+    """Build the scenario ``spec`` describes; the same (spec, seed) gives the same bits."""
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ScenarioError("seed", seed, "allowed: an integer >= 0")
+    t_start = time.perf_counter()
+    rng = dict(
+        zip(
+            STREAMS,
+            (
+                np.random.default_rng(s)
+                for s in np.random.SeedSequence(int(seed)).spawn(len(STREAMS))
+            ),
+            strict=True,
+        )
+    )
+    sp = crops.species(spec.crop.species)
+    if spec.crop.stage > sp.stages:
+        raise ScenarioError(
+            "crop.stage",
+            spec.crop.stage,
+            f"allowed: 1..{sp.stages} for {sp.name} ({', '.join(sp.stage_names)})",
+        )
+    growth = (
+        spec.crop.growth if spec.crop.growth is not None else sp.growth_of_stage(spec.crop.stage)
+    )
+
+    if spec.crop.model is not None:
+        from .models import load_model
+
+        load_model(spec.crop.model, float(sp.height(growth)))  # refuse a bad model up front
+    field_ll = read_geojson(spec.field.geojson) if spec.field.geojson else None
+    if (
+        field_ll is not None
+        and spec.terrain.source in ("embedded", "dem")
+        and spec.terrain.site == "latlon"
+    ):
+        raise ScenarioError(
+            "terrain.site",
+            "latlon",
+            "a GeoJSON field fixes the site; leave terrain.site at its default",
+        )
+    diag = math.hypot(spec.field.width, spec.field.length) + 2 * spec.terrain.margin
+    site = open_site(
+        spec.terrain, centroid_latlon(field_ll) if field_ll is not None else None, diag
+    )
+    if field_ll is not None:
+        poly = check_field(lonlat_to_enu(field_ll, site.geo), "field.geojson")
+        default_angle = long_axis_deg(poly)
+    else:
+        poly = check_field(rectangle(spec.field, site.centre), "field")
+        default_angle = spec.field.angle_deg
+    angle = math.radians(
+        spec.layout.row_angle_deg if spec.layout.row_angle_deg is not None else default_angle
+    )
+    m = spec.terrain.margin
+    xmin, ymin, xmax, ymax = poly.bounds
+    base = build_terrain(site, (xmin - m, ymin - m, xmax + m, ymax + m), spec.terrain.lod)
+
+    lay = layout(poly, spec.layout, angle, rng["jitter"], rng["gaps"], rng["weeds"])
+    terrain = add_relief(base, lay.rows, lay.planting_area, spec.furrows, rng["roughness"])
+    plants = place_plants(lay, terrain, spec.crop, float(growth), rng["plants"])
+    route = zigzag(lay.rows, spec.route, terrain)
+    info = {
+        "credit": site.credit,
+        **site.info,
+        "growth": float(growth),
+        "candidates": lay.candidates,
+        "generate_seconds": time.perf_counter() - t_start,
+    }
+    return Scenario(spec, int(seed), site.geo, terrain, poly, lay.rows, plants, route, info)

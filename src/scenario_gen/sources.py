@@ -1,0 +1,210 @@
+"""Where terrain heights come from: DEM (embedded or GeoTIFF), terrain mesh, or a plane.
+
+Each source is opened into a ``Site``: the ENU frame (datum) and a vectorized function giving
+ENU heights at ENU points. ``build_terrain`` then samples it on the level-of-detail grid.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial import cKDTree
+
+from .config import TerrainSpec
+from .dem import EMBEDDED_CREDIT, Dem, load_embedded, load_geotiff
+from .errors import ScenarioError
+from .geodesy import GeoFrame
+from .terrain import IDW_EPS, Terrain, grid_for_bounds
+
+FloatArray = NDArray[np.float64]
+HeightFn = Callable[[FloatArray, FloatArray], FloatArray]
+
+#: Datum used for a plane when the spec gives none: a crop field near León, Spain (42.6° N),
+#: the latitude DESIGN §3's LoD example uses. Any datum works; GPS needs one.
+DEFAULT_PLANE_DATUM = (42.6, -5.57, 830.0)
+MESH_SUFFIXES = (".glb", ".gltf", ".obj", ".ply", ".dae", ".stl")
+
+
+@dataclass
+class Site:
+    geo: GeoFrame
+    heights: HeightFn
+    centre: tuple[float, float] = (0.0, 0.0)  # ENU point a rectangular field is centred on
+    credit: str = ""
+    info: dict[str, Any] = field(default_factory=dict)
+
+
+def open_site(spec: TerrainSpec, field_lonlat: tuple[float, float] | None, extent_m: float) -> Site:
+    """Open the terrain source; ``field_lonlat`` is a GeoJSON field's centroid (lat, lon)."""
+    if spec.source in ("embedded", "dem"):
+        return _dem_site(spec, field_lonlat, extent_m)
+    if spec.source == "plane":
+        return _plane_site(spec)
+    return _mesh_site(spec)
+
+
+def build_terrain(site: Site, bounds: tuple[float, float, float, float], lod: int) -> Terrain:
+    spacing = site.geo.gsd(lod)
+    x0, y0, nx, ny = grid_for_bounds(*bounds, spacing)
+    if nx * ny > 60_000_000:
+        raise ScenarioError(
+            "terrain.lod",
+            lod,
+            f"gives a {nx}x{ny} grid over the field; "
+            "allowed: at most 60 million samples (lower the LoD or the margin)",
+        )
+    gx, gy = np.meshgrid(x0 + spacing * np.arange(nx), y0 + spacing * np.arange(ny))
+    z = site.heights(gx.ravel(), gy.ravel()).reshape(ny, nx)
+    return Terrain(z, x0, y0, spacing, lod)
+
+
+# ----------------------------------------------------------------------------- DEM
+def _dem_site(spec: TerrainSpec, field_lonlat: tuple[float, float] | None, extent_m: float) -> Site:
+    if spec.source == "embedded":
+        if spec.path is not None:
+            raise ScenarioError(
+                "terrain.path", spec.path, "is only used with terrain.source dem or mesh"
+            )
+        dem = load_embedded()
+        credit = EMBEDDED_CREDIT
+    else:
+        if spec.path is None:
+            raise ScenarioError("terrain.path", None, "terrain.source=dem needs a GeoTIFF path")
+        dem = load_geotiff(spec.path, spec.fill_max_pixels)
+        credit = f"DEM {Path(spec.path).name}"
+    if field_lonlat is not None:
+        lat, lon = field_lonlat
+        how = "field centroid"
+    elif spec.site == "latlon":
+        if spec.lat is None or spec.lon is None:
+            raise ScenarioError(
+                "terrain.lat/lon",
+                (spec.lat, spec.lon),
+                "terrain.site=latlon needs both terrain.lat and terrain.lon",
+            )
+        lat, lon = spec.lat, spec.lon
+        how = "given lat/lon"
+    else:
+        lat, lon = dem.pick_site(spec.site, extent_m, spec.max_slope_deg)
+        how = f"{spec.site} window of {extent_m:.0f} m"
+    alt = float(dem.sample_lonlat(np.array([lon]), np.array([lat]), "terrain.site")[0])
+    geo = GeoFrame(lat, lon, alt)
+    return Site(
+        geo,
+        _dem_heights(dem, geo),
+        credit=credit,
+        info={"dem": dem.source, "dem_crs": dem.crs.to_string(), "site": how},
+    )
+
+
+def _dem_heights(dem: Dem, geo: GeoFrame) -> HeightFn:
+    def heights(x: FloatArray, y: FloatArray) -> FloatArray:
+        lat, lon, _ = geo.enu_to_geodetic(x, y, 0.0)
+        h = dem.sample_lonlat(lon, lat, "field")
+        # Exact ENU height of the surface point (earth curvature included: -2 cm at 500 m).
+        _, _, z = geo.geodetic_to_enu(lat, lon, h)
+        return z
+
+    return heights
+
+
+# ----------------------------------------------------------------------------- plane
+def _plane_site(spec: TerrainSpec) -> Site:
+    lat, lon, alt = spec.datum if spec.datum is not None else DEFAULT_PLANE_DATUM
+    geo = GeoFrame(lat, lon, alt)
+    g = math.tan(math.radians(spec.slope_deg))
+    a = math.radians(spec.aspect_deg)
+    down = (math.sin(a), math.cos(a))  # unit vector pointing downhill (east, north)
+
+    def heights(x: FloatArray, y: FloatArray) -> FloatArray:
+        return -g * (x * down[0] + y * down[1])
+
+    return Site(
+        geo,
+        heights,
+        credit="procedural plane",
+        info={"slope_deg": spec.slope_deg, "aspect_deg": spec.aspect_deg},
+    )
+
+
+# ----------------------------------------------------------------------------- mesh
+def load_mesh_vertices(
+    path: str | Path, up_axis: str = "auto"
+) -> tuple[FloatArray, NDArray[np.int64]]:
+    """Vertices (N, 3) in ENU axes (x east, y north, z up) and faces of a terrain mesh."""
+    import trimesh
+
+    p = Path(path)
+    if not p.is_file():
+        raise ScenarioError("terrain.path", str(path), "allowed: an existing mesh file")
+    if p.suffix.lower() not in MESH_SUFFIXES:
+        raise ScenarioError(
+            "terrain.path", str(path), f"allowed: a mesh file ({', '.join(MESH_SUFFIXES)})"
+        )
+    try:
+        mesh: Any = trimesh.load(p, force="mesh", process=False)
+    except Exception as exc:  # trimesh raises many types for malformed files
+        raise ScenarioError(
+            "terrain.path", str(path), f"cannot be read as a mesh ({exc.__class__.__name__}: {exc})"
+        ) from None
+    v = np.asarray(getattr(mesh, "vertices", np.empty((0, 3))), dtype=np.float64)
+    if len(v) < 3 or not np.isfinite(v).all():
+        raise ScenarioError("terrain.path", str(path), "holds no usable vertices")
+    up = up_axis if up_axis != "auto" else ("y" if p.suffix.lower() in (".glb", ".gltf") else "z")
+    if up == "y":  # glTF: +Y up, +Z toward the viewer -> east = X, north = -Z, up = Y
+        v = np.column_stack([v[:, 0], -v[:, 2], v[:, 1]])
+    return v, np.asarray(mesh.faces, dtype=np.int64)
+
+
+def _mesh_site(spec: TerrainSpec) -> Site:
+    if spec.path is None:
+        raise ScenarioError("terrain.path", None, "terrain.source=mesh needs a mesh file")
+    if spec.datum is None:
+        raise ScenarioError(
+            "terrain.datum", None, "terrain.source=mesh needs the lat, lon, alt of the mesh origin"
+        )
+    v, _ = load_mesh_vertices(spec.path, spec.up_axis)
+    geo = GeoFrame(*spec.datum)
+    tree = cKDTree(v[:, :2])
+    d2, _ = tree.query(v[: min(len(v), 20000), :2], k=2)
+    step = float(np.median(d2[:, 1])) if len(v) > 1 else 1.0
+    reach = 2.5 * step
+    z = v[:, 2]
+
+    def heights(x: FloatArray, y: FloatArray) -> FloatArray:
+        dist, idx = tree.query(np.column_stack([x, y]), k=min(3, len(v)), workers=-1)
+        if (dist[:, 0] > reach).any():
+            i = int(np.argmax(dist[:, 0] > reach))
+            raise ScenarioError(
+                "field",
+                f"ENU ({x[i]:.1f}, {y[i]:.1f}) m",
+                f"lies off the terrain mesh {Path(str(spec.path)).name} "
+                f"(nearest vertex {dist[i, 0]:.1f} m away; the field and "
+                "terrain.margin must lie on the mesh)",
+            )
+        w = 1.0 / (dist * dist + IDW_EPS)
+        return (w * z[idx]).sum(axis=1) / w.sum(axis=1)
+
+    lo, hi = v[:, :2].min(axis=0), v[:, :2].max(axis=0)
+    centre = (float((lo[0] + hi[0]) / 2), float((lo[1] + hi[1]) / 2))
+    return Site(
+        geo,
+        heights,
+        centre=centre,
+        credit=f"mesh {Path(spec.path).name}",
+        info={"mesh_vertices": len(v), "mesh_vertex_spacing": step},
+    )
+
+
+def export_terrain_mesh(terrain: Terrain, path: str | Path) -> None:
+    """Write the terrain as a mesh (GLB/glTF in Y-up, anything else in ENU Z-up)."""
+    p = Path(path)
+    y_up = p.suffix.lower() in (".glb", ".gltf")
+    mesh: Any = terrain.to_trimesh(y_up=y_up)
+    mesh.export(p)

@@ -1,0 +1,96 @@
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from baselines.cli import main
+
+
+def test_cli_writes_a_scenario_and_prints_a_summary(tmp_path: Path, capsys) -> None:
+    out = tmp_path / "scn"
+    rc = main(
+        [
+            "scenario",
+            "--preset",
+            "default",
+            "--seed",
+            "2",
+            "--out",
+            str(out),
+            "--set",
+            "field.width=8",
+            "--set",
+            "field.length=12",
+            "--set",
+            "layout.headland=2",
+            "--lod",
+            "19",
+            "--no-preview",
+        ]
+    )
+    assert rc == 0
+    text = capsys.readouterr().out
+    assert "plants" in text and "LoD 19" in text and "total_s" in text
+    assert (out / "scenario.json").is_file() and not (out / "preview.png").exists()
+
+
+def test_cli_config_file_and_bank(tmp_path: Path) -> None:
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text("field: {width: 8.0, length: 12.0}\nlayout: {headland: 2.0}\n")
+    out = tmp_path / "bank"
+    assert (
+        main(
+            [
+                "scenario",
+                "--config",
+                str(cfg),
+                "--count",
+                "3",
+                "--seed",
+                "10",
+                "--out",
+                str(out),
+                "--no-preview",
+            ]
+        )
+        == 0
+    )
+    assert sorted(p.name for p in out.iterdir()) == [
+        "bank.yaml",
+        "seed-000010",
+        "seed-000011",
+        "seed-000012",
+    ]
+
+
+@pytest.mark.parametrize(
+    "args,needle",
+    [
+        (["--set", "layout.row_spacin=1"], "layout.row_spacin: got 1; unknown key"),
+        (["--set", "layout.row_spacing=-2"], "layout.row_spacing: got -2.0; allowed"),
+        (["--set", "nonsense"], "--set: got 'nonsense'; allowed: key=value"),
+        (["--dem", "/nope.tif"], "terrain.path: got '/nope.tif'; allowed: an existing GeoTIFF"),
+        (["--mesh", "/nope.glb"], "--datum"),
+        (["--datum", "1,2"], "--datum: got '1,2'"),
+        (["--config", "/nope.yaml"], "--config"),
+        (["--lod", "30"], "terrain.lod: got 30"),
+        (["--count", "0"], "--count"),
+    ],
+)
+def test_bad_input_exits_2_with_one_line_and_no_output(
+    tmp_path: Path, args: list[str], needle: str
+) -> None:
+    out = tmp_path / "never"
+    proc = subprocess.run(
+        [sys.executable, "-m", "baselines.cli", "scenario", "--out", str(out), *args],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert proc.returncode == 2
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and needle in lines[0], proc.stderr
+    assert "Traceback" not in proc.stderr
+    assert not out.exists()
+    assert list(tmp_path.iterdir()) == []

@@ -1,0 +1,181 @@
+from pathlib import Path
+
+import numpy as np
+import pytest
+import rasterio
+from rasterio.transform import from_origin
+from rasterio.warp import Resampling, calculate_default_transform, reproject
+
+from scenario_gen import ScenarioError, generate
+from scenario_gen.dem import fill_small_holes, load_embedded
+
+from .helpers import small
+
+SITE = {"site": "latlon", "lat": 36.5492, "lon": -84.1425}
+
+
+def _write_4326(
+    path: Path,
+    elev: np.ndarray,
+    west: float,
+    north: float,
+    d: float,
+    nodata: float | None = None,
+    dtype: str = "float32",
+) -> None:
+    with rasterio.open(
+        path,
+        "w",
+        driver="GTiff",
+        height=elev.shape[0],
+        width=elev.shape[1],
+        count=1,
+        dtype=dtype,
+        crs="EPSG:4326",
+        transform=from_origin(west, north, d, d),
+        nodata=nodata,
+    ) as ds:
+        ds.write(elev.astype(dtype), 1)
+
+
+@pytest.fixture(scope="module")
+def tiffs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    dem = load_embedded()
+    d = tmp_path_factory.mktemp("dem")
+    a, _, west, _, e, north = tuple(dem.transform)[:6]
+    # a 40 x 40 pixel (≈3 x 3.7 km) window around the site, as an int16 EPSG:4326 GeoTIFF
+    r0, c0 = int((north - SITE["lat"]) / -e) - 20, int((SITE["lon"] - west) / a) - 20
+    sub = dem.elevation[r0 : r0 + 40, c0 : c0 + 40]
+    geo = d / "dem_4326.tif"
+    _write_4326(geo, sub, west + c0 * a, north + r0 * e, a, dtype="int16")
+    utm = d / "dem_utm16n.tif"
+    with rasterio.open(geo) as src:
+        tr, w, h = calculate_default_transform(
+            src.crs, "EPSG:32616", src.width, src.height, *src.bounds, resolution=30.0
+        )
+        with rasterio.open(
+            utm,
+            "w",
+            driver="GTiff",
+            height=h,
+            width=w,
+            count=1,
+            dtype="float32",
+            crs="EPSG:32616",
+            transform=tr,
+            nodata=-9999.0,
+        ) as dst:
+            reproject(
+                rasterio.band(src, 1),
+                rasterio.band(dst, 1),
+                dst_nodata=-9999.0,
+                resampling=Resampling.cubic,
+            )
+    return {"geo": geo, "utm": utm}
+
+
+def test_embedded_dem_is_north_up_with_the_documented_bounds() -> None:
+    dem = load_embedded()
+    a, _b, west, _d, e, north = tuple(dem.transform)[:6]
+    rows, cols = dem.shape
+    assert (rows, cols) == (344, 403)
+    assert north == pytest.approx(36.7329, abs=1e-3) and e < 0  # row 0 is the northern edge
+    assert north + rows * e == pytest.approx(36.4463, abs=1e-3)
+    assert west == pytest.approx(-84.41375) and west + cols * a == pytest.approx(-84.0779, abs=1e-3)
+    # sampling a pixel centre returns that pixel's value (bicubic interpolates, not smooths)
+    lon, lat = dem.pixel_to_crs(np.array([100.5]), np.array([200.5]))
+    z = dem.sample_lonlat(lon, lat, "test")
+    assert z[0] == pytest.approx(dem.elevation[200, 100], abs=1e-6)
+
+
+def test_geotiff_in_4326_and_utm_give_the_same_field(tiffs: dict[str, Path]) -> None:
+    a = generate(small(terrain={"source": "dem", "path": str(tiffs["geo"]), **SITE}), seed=0)
+    b = generate(small(terrain={"source": "dem", "path": str(tiffs["utm"]), **SITE}), seed=0)
+    la, lo, al = a.geo.enu_to_geodetic(a.plants.x, a.plants.y, a.plants.z)
+    lb, lob, alb = b.geo.enu_to_geodetic(b.plants.x, b.plants.y, b.plants.z)
+    from pyproj import Geod
+
+    _, _, horizontal = Geod(ellps="WGS84").inv(lo, la, lob, lb)
+    assert len(a.plants) == len(b.plants)
+    assert np.max(horizontal) < 0.5
+    assert np.max(np.abs(al - alb)) < 0.5  # a 30 m cubic reprojection of a 90 m DEM
+    assert a.terrain.shape == b.terrain.shape
+
+
+def test_small_nodata_holes_are_filled_and_large_ones_refused(tmp_path: Path) -> None:
+    gx, gy = np.meshgrid(np.arange(60), np.arange(60))
+    elev = (300 + 0.5 * gx + 0.2 * gy).astype(np.float32)
+    elev[30:32, 30:32] = -9999  # 4 pixels: filled
+    elev[5:20, 40:55] = -9999  # 225 pixels: refused under a field
+    path = tmp_path / "holes.tif"
+    _write_4326(path, elev, -84.2, 36.6, 1 / 1200, nodata=-9999)
+    filled = generate(
+        small(
+            terrain={
+                "source": "dem",
+                "path": str(path),
+                "site": "latlon",
+                "lat": 36.6 - 30.5 / 1200,
+                "lon": -84.2 + 30.5 / 1200,
+                "fill_max_pixels": 64,
+            }
+        ),
+        seed=0,
+    )
+    assert np.isfinite(filled.terrain.heights).all()
+    # the filled surface continues the plane (inverse-distance fill), to within a metre
+    expect = 300 + 0.5 * 30.5 + 0.2 * 30.5
+    assert filled.geo.alt == pytest.approx(expect, abs=1.0)
+    with pytest.raises(ScenarioError, match="nodata hole"):
+        generate(
+            small(
+                terrain={
+                    "source": "dem",
+                    "path": str(path),
+                    "site": "latlon",
+                    "lat": 36.6 - 12 / 1200,
+                    "lon": -84.2 + 47 / 1200,
+                }
+            ),
+            seed=0,
+        )
+
+
+def test_fill_small_holes_keeps_large_ones() -> None:
+    a = np.ones((20, 20))
+    a[2, 2] = np.nan
+    a[10:18, 10:18] = np.nan
+    out = fill_small_holes(a, 4)
+    assert np.isfinite(out[2, 2]) and out[2, 2] == pytest.approx(1.0)
+    assert np.isnan(out[10:18, 10:18]).all()
+
+
+def test_field_off_the_dem_is_refused(tiffs: dict[str, Path]) -> None:
+    with pytest.raises(ScenarioError, match="off the DEM"):
+        generate(
+            small(
+                terrain={
+                    "source": "dem",
+                    "path": str(tiffs["geo"]),
+                    "site": "latlon",
+                    "lat": 40.0,
+                    "lon": -84.14,
+                }
+            ),
+            seed=0,
+        )
+
+
+def test_site_selection_flattest_and_steepest() -> None:
+    flat = generate(small(), seed=0)
+    steep = generate(
+        small(terrain={"site": "steepest", "max_slope_deg": 15.0}, furrows={"enabled": False}),
+        seed=0,
+    )
+
+    def slope(scn) -> float:
+        zy, zx = np.gradient(scn.terrain.heights, scn.terrain.spacing)
+        return float(np.degrees(np.arctan(np.hypot(zx, zy))).mean())
+
+    assert slope(steep) > 5.0 > 1.0 > slope(generate(small(furrows={"enabled": False}), 0))
+    assert flat.geo.alt < steep.geo.alt

@@ -1,0 +1,107 @@
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from scenario_gen import ScenarioError, generate, load
+from scenario_gen.io import PLANT_HEADER, ROUTE_HEADER
+
+from .helpers import small
+
+
+@pytest.fixture(scope="module")
+def saved(tmp_path_factory: pytest.TempPathFactory):
+    scn = generate(small(layout={"weed_density": 0.5}), seed=11)
+    out = tmp_path_factory.mktemp("io") / "scn"
+    scn.save(out)
+    return scn, out
+
+
+def test_directory_has_every_output(saved) -> None:
+    _, out = saved
+    assert sorted(p.name for p in out.iterdir()) == sorted(
+        ["scenario.json", "terrain.npz", "plants.csv", "route.csv", "field.geojson", "preview.png"]
+    )
+    assert (out / "preview.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_csv_headers_and_metadata(saved) -> None:
+    scn, out = saved
+    with open(out / "plants.csv") as f:
+        assert next(csv.reader(f)) == PLANT_HEADER
+    with open(out / "route.csv") as f:
+        assert next(csv.reader(f)) == ROUTE_HEADER
+    meta = json.loads((out / "scenario.json").read_text())
+    assert meta["format_version"] == 1 and meta["seed"] == 11
+    assert meta["counts"]["plants"] + meta["counts"]["weeds"] == len(scn.plants)
+    assert meta["datum"]["lat"] == scn.geo.lat and meta["lod"] == 20
+    assert {"numpy", "pyproj", "PROJ", "agrinav-gym"} <= set(meta["versions"])
+
+
+def test_scenario_json_regenerates_the_same_scenario(saved) -> None:
+    scn, out = saved
+    from scenario_gen import ScenarioSpec
+
+    meta = json.loads((out / "scenario.json").read_text())
+    again = generate(ScenarioSpec.from_dict(meta["spec"]), meta["seed"])
+    assert np.array_equal(again.plants.x, scn.plants.x)
+    assert np.array_equal(again.terrain.heights, scn.terrain.heights)
+
+
+def test_load_round_trip(saved) -> None:
+    scn, out = saved
+    back = load(out)
+    assert back.spec == scn.spec and back.seed == scn.seed
+    np.testing.assert_array_equal(back.terrain.heights, scn.terrain.heights)
+    for k in ("x", "y", "z", "roll", "pitch", "yaw"):
+        np.testing.assert_allclose(getattr(back.plants, k), getattr(scn.plants, k), atol=1e-6)
+    np.testing.assert_array_equal(back.plants.species, scn.plants.species)
+    np.testing.assert_array_equal(back.plants.row, scn.plants.row)
+    np.testing.assert_allclose(back.route.xyz, scn.route.xyz, atol=1e-6)
+    np.testing.assert_array_equal(back.route.segment, scn.route.segment)
+    np.testing.assert_array_equal(back.route.lane, scn.route.lane)
+    assert back.field.equals(scn.field)
+
+
+def test_geojson_is_wgs84_and_matches_plants(saved) -> None:
+    scn, out = saved
+    gj = json.loads((out / "field.geojson").read_text())
+    kinds = [f["properties"]["kind"] for f in gj["features"]]
+    assert kinds.count("field") == 1 and kinds.count("plant") == len(scn.plants)
+    assert kinds.count("route") >= 3  # headland, furrow, headland, ...
+    pts = np.array(
+        [f["geometry"]["coordinates"] for f in gj["features"] if f["properties"]["kind"] == "plant"]
+    )
+    lat, lon, _ = scn.geo.enu_to_geodetic(scn.plants.x, scn.plants.y, scn.plants.z)
+    np.testing.assert_allclose(pts[:, 0], lon, atol=1e-8)  # 1e-8 deg ≈ 1 mm
+    np.testing.assert_allclose(pts[:, 1], lat, atol=1e-8)
+
+
+def test_existing_directory_is_not_overwritten_unless_asked(saved, tmp_path: Path) -> None:
+    scn, _ = saved
+    out = tmp_path / "x"
+    scn.save(out)
+    with pytest.raises(ScenarioError, match="already exists"):
+        scn.save(out)
+    scn.save(out, overwrite=True)
+    assert (out / "scenario.json").is_file()
+
+
+def test_failed_save_leaves_nothing(saved, tmp_path: Path, monkeypatch) -> None:
+    scn, _ = saved
+    import scenario_gen.preview as preview
+
+    def boom(*_a, **_k):
+        raise RuntimeError("disk full")
+
+    monkeypatch.setattr(preview, "render_preview", boom)
+    with pytest.raises(RuntimeError):
+        scn.save(tmp_path / "half")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_load_refuses_non_scenarios(tmp_path: Path) -> None:
+    with pytest.raises(ScenarioError, match="not a scenario directory"):
+        load(tmp_path)
