@@ -34,6 +34,7 @@ type: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_scenario.py
+	$(BIN)/python benchmarks/bench_env.py
 
 clean:
 	rm -rf $(VENV) runs build *.egg-info src/*.egg-info

@@ -79,7 +79,9 @@ class LayoutSpec:
         -360,
         360,
     )
-    jitter_lateral: float = _f(0.02, "std of plant offset across the row, metres", 0, 1)
+    # Planters place seed within ≈1 cm across the row; a 0.616 m robot in 0.75 m rows has
+    # 5 cm of clearance per side, so more lateral scatter means crops hit even on the line.
+    jitter_lateral: float = _f(0.01, "std of plant offset across the row, metres", 0, 1)
     jitter_longitudinal: float = _f(0.02, "std of plant offset along the row, metres", 0, 1)
     gap_prob: float = _f(0.02, "probability that a single plant is missing", 0, 1)
     gap_run_prob: float = _f(0.0, "probability per plant that a run of missing plants starts", 0, 1)
@@ -175,6 +177,15 @@ def merge(base: dict[str, Any], overrides: dict[str, Any]) -> dict[str, Any]:
         else:
             node[last] = value
     return out
+
+
+def from_mapping(cls: type, data: Any, prefix: str = "") -> Any:
+    """Build any frozen config dataclass of this style from a mapping, with the same checks."""
+    return _build(cls, data, prefix)
+
+
+def to_mapping(obj: Any) -> dict[str, Any]:
+    return _plain(dataclasses.asdict(obj))
 
 
 def _build(cls: type, data: Any, prefix: str) -> Any:

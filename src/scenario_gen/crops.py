@@ -28,14 +28,14 @@ class Species:
     stage_names: tuple[str, ...]
     heights: tuple[float, ...]  # nominal height per stage, m
     canopy: tuple[float, ...]  # canopy diameter per stage, m
-    proxy_radius: float  # collision proxy at stem level, m
+    proxy_radius: float  # collision proxy at stem level, m (maize stalk ≈ 2-3 cm across)
     colour: tuple[int, int, int]
 
     @property
     def stages(self) -> int:
         return len(self.heights)
 
-    def growth_of_stage(self, stage: float) -> float:
+    def growth_of_stage(self, stage: Any) -> Any:
         return (stage - 1.0) / (self.stages - 1.0)
 
     def stage_of_growth(self, growth: float | FloatArray) -> Any:

@@ -108,6 +108,17 @@ class GeoFrame:
         )
         return np.asarray(lat), np.asarray(lon), np.asarray(alt)
 
+    def point_to_geodetic(self, x: float, y: float, z: float = 0.0) -> tuple[float, float, float]:
+        """One ENU point -> (lat, lon, alt); the scalar path an env calls at sensor rate."""
+        r = self._rot
+        ex = r[0, 0] * x + r[1, 0] * y + r[2, 0] * z + self._origin[0]
+        ey = r[0, 1] * x + r[1, 1] * y + r[2, 1] * z + self._origin[1]
+        ez = r[0, 2] * x + r[1, 2] * y + r[2, 2] * z + self._origin[2]
+        lon, lat, alt = self._to_ecef.transform(
+            float(ex), float(ey), float(ez), direction="INVERSE"
+        )
+        return float(lat), float(lon), float(alt)
+
     def crs_to_enu_transformer(self, crs: CRS | str) -> Transformer:
         """Transformer from a raster's CRS (x, y order) to lon/lat, for sampling DEMs."""
         return Transformer.from_crs(CRS.from_user_input(crs), "EPSG:4326", always_xy=True)

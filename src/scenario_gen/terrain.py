@@ -83,6 +83,8 @@ class Terrain:
 
     def contains(self, x: ArrayLike, y: ArrayLike) -> NDArray[np.bool_]:
         xmin, ymin, xmax, ymax = self.bounds
+        if isinstance(x, float) and isinstance(y, float):  # the per-step scalar path
+            return np.bool_(xmin <= x <= xmax and ymin <= y <= ymax)
         xa, ya = np.asarray(x), np.asarray(y)
         return (xa >= xmin) & (xa <= xmax) & (ya >= ymin) & (ya <= ymax)
 

@@ -1,0 +1,224 @@
+"""Environment benchmarks (issue: env-suite performance targets), on the paper-p1 field.
+
+1. env steps/s with gps/imu/odom/route observations (target ≥ 1,500);
+2. env steps/s with 64 x 48 depth added (target ≥ 300);
+3. env step cost / raw physics cost of the same robot making the same moves, in one run
+   (target ≤ 1.5), and, for reference, / the robot alone on a plane;
+4. marginal memory per plant (target ≤ 2 KB): RSS of an env on the same field planted at two
+   densities, each in a fresh process;
+5. load time of a 100,000-plant field (target ≤ 10 s): generate + build + reset;
+6. reset with a new randomized scenario (target ≤ 1 s).
+
+Medians of several runs; run with ``make bench`` or ``python benchmarks/bench_env.py``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import statistics
+import subprocess
+import sys
+import time
+
+import gymnasium as gym
+import numpy as np
+import pybullet as p
+
+import agrinav_gym  # noqa: F401  (registers the envs)
+
+STEPS = 1000
+
+
+def _drive(env: gym.Env, n: int) -> float:
+    """Seconds for n steps of a fixed gentle S-curve (resets on episode end, not timed)."""
+    total = 0.0
+    for i in range(n):
+        a = np.array([0.6, 0.15 * np.sin(i / 15.0)], np.float32)
+        t0 = time.perf_counter()
+        _, _, term, trunc, _ = env.step(a)
+        total += time.perf_counter() - t0
+        if term or trunc:
+            env.reset()
+    return total
+
+
+def steps_per_second(observations: tuple[str, ...], repeat: int) -> tuple[float, float]:
+    env = gym.make(
+        "AgriNav/FurrowFollow-v0",
+        scenario="paper-p1",
+        observations=observations,
+        config={"task": {"max_crops_hit": 10**6, "corridor": 2.0}},
+    )
+    env.reset(seed=0)
+    _drive(env, 100)
+    rates = [STEPS / _drive(env, STEPS) for _ in range(repeat)]
+    env.close()
+    return statistics.median(rates), min(rates)
+
+
+def step_cost_ratio(repeat: int) -> tuple[float, float, float]:
+    """(env step, raw substeps in the same world, robot alone on a plane), seconds per step."""
+    env = gym.make(
+        "AgriNav/FurrowFollow-v0",
+        scenario="paper-p1",
+        observations=("gps", "imu", "odom", "route"),
+        config={"task": {"max_crops_hit": 10**6, "corridor": 2.0}},
+    )
+    u = env.unwrapped
+    env_t, raw_t = [], []
+    for r in range(repeat):
+        env.reset(seed=r)
+        env_t.append(_drive(env, 400) / 400)
+        env.reset(seed=r)  # the same moves again, physics only: drive + substeps
+        t = 0.0
+        for i in range(400):
+            v, w = 0.6 * u.cfg.robot.v_max, 0.15 * np.sin(i / 15.0) * u.cfg.robot.w_max
+            t0 = time.perf_counter()
+            u.world.drive(v, w)
+            u.world.step(u.substeps)
+            t += time.perf_counter() - t0
+        raw_t.append(t / 400)
+    env.close()
+    cid = p.connect(p.DIRECT)
+    p.setGravity(0, 0, -9.81, physicsClientId=cid)
+    p.setPhysicsEngineParameter(
+        fixedTimeStep=1 / 240, numSolverIterations=10, enableConeFriction=0, physicsClientId=cid
+    )
+    p.createMultiBody(
+        0, p.createCollisionShape(p.GEOM_PLANE, physicsClientId=cid), physicsClientId=cid
+    )
+    from agrinav_gym.sim.world import urdf_path
+
+    rob = p.loadURDF(
+        urdf_path(), [0, 0, 0.115], flags=p.URDF_MERGE_FIXED_LINKS, physicsClientId=cid
+    )
+    p.setJointMotorControlArray(
+        rob,
+        [0, 1, 2, 3],
+        p.VELOCITY_CONTROL,
+        targetVelocities=[5.0] * 4,
+        forces=[80.0] * 4,
+        physicsClientId=cid,
+    )
+    t0 = time.perf_counter()
+    for _ in range(400 * 12):
+        p.stepSimulation(physicsClientId=cid)
+    plane = (time.perf_counter() - t0) / 400
+    p.disconnect(cid)
+    return statistics.median(env_t), statistics.median(raw_t), plane
+
+
+MEMORY_CHILD = r"""
+import json, sys, gymnasium as gym, agrinav_gym, scenario_gen as sg
+def rss():
+    with open("/proc/self/statm") as f:
+        return int(f.read().split()[1]) * 4096
+spacing = float(sys.argv[1])
+scn = sg.generate(sg.preset("paper-p1", layout={"plant_spacing": spacing}), 0)
+_ = scn.terrain.tree
+before = rss()
+env = gym.make("AgriNav/FurrowFollow-v0", scenario=scn)
+env.reset(seed=0)
+for _ in range(50):
+    env.step(env.action_space.sample() * 0)
+print(json.dumps({"plants": len(scn.plants), "env_bytes": rss() - before}))
+"""
+
+
+def memory_per_plant() -> tuple[int, int, float]:
+    out = []
+    for spacing in (1.0, 0.05):
+        res = subprocess.run(
+            [sys.executable, "-c", MEMORY_CHILD, str(spacing)],
+            capture_output=True,
+            text=True,
+            check=True,
+        )
+        out.append(json.loads(res.stdout.strip().splitlines()[-1]))
+    a, b = out
+    return a["plants"], b["plants"], (b["env_bytes"] - a["env_bytes"]) / (b["plants"] - a["plants"])
+
+
+def load_100k(repeat: int) -> tuple[int, float, float, float]:
+    import scenario_gen as sg
+
+    # a 1.4 ha maize field at 0.75 x 0.18 m: ≈100,000 plants
+    spec = sg.preset("default", field={"width": 110.0, "length": 131.0})
+    gen, build = [], []
+    n = 0
+    for r in range(repeat):
+        t0 = time.perf_counter()
+        scn = sg.generate(spec, r)
+        t1 = time.perf_counter()
+        env = gym.make("AgriNav/FurrowFollow-v0", scenario=scn)
+        env.reset(seed=0)
+        env.step(np.zeros(2, np.float32))
+        t2 = time.perf_counter()
+        env.close()
+        n = len(scn.plants)
+        gen.append(t1 - t0)
+        build.append(t2 - t1)
+    g, b = statistics.median(gen), statistics.median(build)
+    return n, g, b, g + b
+
+
+def randomized_reset(repeat: int) -> float:
+    env = gym.make(
+        "AgriNav/FurrowFollow-v0",
+        scenario="paper-p1",
+        randomize={
+            "crop.stage": [1, 5],
+            "layout.plant_spacing": [0.8, 1.2],
+            "layout.jitter_lateral": [0.0, 0.03],
+            "layout.row_angle_deg": [-20.0, 20.0],
+            "terrain.site": {"choices": ["flattest", "steepest"]},
+            "gnss_mode": {"choices": ["rtk_fixed", "rtk_float"]},
+            "soil_colour": [[0.3, 0.2, 0.1], [0.6, 0.45, 0.3]],
+        },
+    )
+    env.reset(seed=0)
+    times = []
+    for r in range(repeat):
+        t0 = time.perf_counter()
+        env.reset(seed=100 + r)
+        times.append(time.perf_counter() - t0)
+    env.close()
+    return statistics.median(times)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeat", type=int, default=5)
+    args = ap.parse_args()
+    print(
+        f"machine: {platform.machine()}, {os.cpu_count()} cores, Python "
+        f"{platform.python_version()}, pybullet {p.getAPIVersion()}; median of {args.repeat}\n"
+    )
+    med, low = steps_per_second(("gps", "imu", "odom", "route"), args.repeat)
+    print(
+        f"1. gps/imu/odom/route      : {med:7.0f} steps/s (min {low:.0f}; target ≥ 1500; "
+        f"{med / 20:.0f}x real time)"
+    )
+    med, low = steps_per_second(("gps", "imu", "odom", "route", "depth"), args.repeat)
+    print(f"2. + depth 64x48           : {med:7.0f} steps/s (min {low:.0f}; target ≥ 300)")
+    env_s, raw_s, plane_s = step_cost_ratio(args.repeat)
+    print(
+        f"3. env step {env_s * 1e3:.3f} ms vs raw 12 substeps {raw_s * 1e3:.3f} ms in the same "
+        f"world: ratio {env_s / raw_s:.2f} (target ≤ 1.5); robot alone on a plane "
+        f"{plane_s * 1e3:.3f} ms: ratio {env_s / plane_s:.2f}"
+    )
+    a, b, per = memory_per_plant()
+    print(f"4. marginal memory         : {per:7.0f} B/plant ({a} -> {b} plants; target ≤ 2048)")
+    n, g, bld, tot = load_100k(max(1, args.repeat // 2))
+    print(
+        f"5. {n:,}-plant field      : generate {g:.2f} s + env build/reset {bld:.2f} s = "
+        f"{tot:.2f} s (target ≤ 10 s)"
+    )
+    print(f"6. randomized reset        : {randomized_reset(args.repeat):7.3f} s (target ≤ 1 s)")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,143 @@
+"""Environment configuration: frozen, typed, validated dataclasses (unknown keys are errors).
+
+Units are SI; ``*_deg`` fields are degrees, as their names say. Every default is a physical
+fact from DESIGN §5 or a documented choice.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from dataclasses import field as dc_field
+from typing import Any
+
+from scenario_gen.config import _f, from_mapping, merge, to_mapping
+
+OBSERVATIONS = ("gps", "imu", "odom", "route", "depth")
+
+
+@dataclass(frozen=True)
+class RobotConfig:
+    v_max: float = _f(1.0, "forward speed at action +1, m/s (controller limit 1.5)", 0.05, 1.5)
+    w_max: float = _f(1.5, "yaw rate at action +1, rad/s (controller limit 3)", 0.05, 3.0)
+    a_max: float = _f(0.6, "linear acceleration limit, m/s² (DESIGN §5)", 0.01, 10)
+    alpha_max: float = _f(1.5, "angular acceleration limit, rad/s² (DESIGN §5)", 0.01, 50)
+    skid_factor: float = _f(
+        3.0, "wheel-separation multiplier of the skid-steer kinematics (slip)", 1.0, 10
+    )
+    wheel_force: float = _f(80.0, "wheel motor torque limit, N·m", 1, 1000)
+    friction: float = _f(1.0, "tyre-soil friction coefficient", 0.05, 3)
+    physics_hz: int = _f(240, "physics rate, Hz (a multiple of control_hz)", 10, 2000)
+    control_hz: int = _f(20, "control rate, Hz (Nav2 controller frequency)", 1, 200)
+    solver_iterations: int = _f(10, "pybullet constraint solver iterations", 1, 200)
+    camera_x: float = _f(0.25, "camera position ahead of base_link, m", -1, 1)
+    camera_height: float = _f(0.55, "camera height above base_link (mast ≈ 0.5 m), m", 0.1, 3)
+    camera_pitch_deg: float = _f(25.0, "camera pitch below the horizon, degrees", -30, 90)
+
+
+@dataclass(frozen=True)
+class DepthConfig:
+    width: int = _f(64, "image width, pixels (848 for datasets)", 8, 1280)
+    height: int = _f(48, "image height, pixels (480 for datasets)", 6, 800)
+    hfov_deg: float = _f(87.0, "horizontal field of view (D455 depth)", 10, 170)
+    vfov_deg: float = _f(58.0, "vertical field of view (D455 depth)", 10, 170)
+    min_range: float = _f(0.4, "closest valid depth, m (D455 ≈ 0.4)", 0.0, 10)
+    max_range: float = _f(6.0, "farthest valid depth, m (D455 ideal range)", 0.5, 50)
+    subpixel: float = _f(0.08, "stereo subpixel accuracy s in σ = z²·s/(f·B)", 0.0, 1)
+    baseline: float = _f(0.095, "stereo baseline B, m (D455 95 mm)", 0.01, 1)
+    native_width: int = _f(1280, "sensor width whose focal length sets the noise", 64, 4096)
+    rate_hz: int = _f(20, "update rate, Hz (a divisor of control_hz)", 1, 200)
+    rgb: bool = _f(False, "also produce an RGB image (info['rgb'])")
+    segmentation: bool = _f(False, "also produce a mask 0 other, 1 soil, 2 crop, 3 weed")
+
+
+@dataclass(frozen=True)
+class GnssConfig:
+    mode: str = _f("rtk_fixed", "fix mode", choices=("rtk_fixed", "rtk_float", "standalone"))
+    rate_hz: int = _f(10, "update rate, Hz (ZED-F9P up to 20; a divisor of control_hz)", 1, 20)
+    baseline_km: float = _f(1.0, "distance to the RTK base station, km (the 1 ppm term)", 0, 100)
+    antenna_x: float = _f(-0.25, "antenna position behind base_link (rear mast), m", -1, 1)
+    antenna_height: float = _f(0.60, "antenna height above base_link, m", 0, 3)
+
+
+@dataclass(frozen=True)
+class ImuConfig:
+    gyro_noise_deg_s_rthz: float = _f(0.01, "gyro noise density, °/s/√Hz (MTi-300)", 0, 10)
+    gyro_bias_deg_h: float = _f(10.0, "gyro in-run bias stability, °/h", 0, 1e4)
+    accel_noise_ug_rthz: float = _f(60.0, "accelerometer noise density, µg/√Hz", 0, 1e5)
+    accel_bias_ug: float = _f(15.0, "accelerometer bias stability, µg", 0, 1e5)
+    bias_tau_s: float = _f(300.0, "correlation time of the bias random walk, s", 1, 1e6)
+    roll_pitch_rms_deg: float = _f(0.2, "orientation estimate error, roll/pitch RMS", 0, 10)
+    heading_rms_deg: float = _f(1.0, "orientation estimate error, heading RMS", 0, 45)
+    orientation_tau_s: float = _f(10.0, "correlation time of the orientation error, s", 0.05, 1e5)
+
+
+@dataclass(frozen=True)
+class OdomConfig:
+    noise: float = _f(0.01, "relative std of each wheel speed reading", 0, 1)
+
+
+@dataclass(frozen=True)
+class RewardConfig:
+    progress: float = _f(1.0, "× route progress per step at full speed", -100, 100)
+    cte: float = _f(1.0, "× (cross-track error / corridor)² penalty", -100, 100)
+    heading: float = _f(0.2, "× |heading error| / π penalty", -100, 100)
+    crop_contact: float = _f(5.0, "× crops newly hit penalty", -1000, 1000)
+    action_rate: float = _f(0.05, "× ‖a_t − a_t−1‖² penalty", -100, 100)
+    terminal: float = _f(10.0, "+ on success, − on failure", -1e4, 1e4)
+
+
+@dataclass(frozen=True)
+class TaskConfig:
+    corridor: float | None = _f(
+        None, "max |cross-track error| in a furrow, m (null: half the row spacing)", 0.01, 10
+    )
+    headland_corridor: float = _f(1.0, "max |cross-track error| on the headland, m", 0.05, 20)
+    max_crops_hit: int = _f(5, "episode fails after this many distinct crops hit", 0, 10**6)
+    max_tilt_deg: float = _f(60.0, "roll or pitch beyond this is a tip-over", 5, 90)
+    start_lateral_std: float = _f(0.08, "start pose lateral perturbation std, m", 0, 5)
+    start_heading_std_deg: float = _f(8.0, "start pose heading perturbation std", 0, 90)
+    route_points: int = _f(10, "waypoints in the route observation", 1, 100)
+    route_spacing: float = _f(0.4, "arc-length spacing of route observation points, m", 0.05, 10)
+    success_tolerance: float = _f(0.3, "route end reached within this arc length, m", 0.01, 10)
+
+
+@dataclass(frozen=True)
+class EnvConfig:
+    robot: RobotConfig = dc_field(default_factory=RobotConfig)
+    depth: DepthConfig = dc_field(default_factory=DepthConfig)
+    gnss: GnssConfig = dc_field(default_factory=GnssConfig)
+    imu: ImuConfig = dc_field(default_factory=ImuConfig)
+    odom: OdomConfig = dc_field(default_factory=OdomConfig)
+    reward: RewardConfig = dc_field(default_factory=RewardConfig)
+    task: TaskConfig = dc_field(default_factory=TaskConfig)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any] | None) -> EnvConfig:
+        cfg: EnvConfig = from_mapping(cls, merge({}, data or {}), "config.")
+        cfg.check()
+        return cfg
+
+    def to_dict(self) -> dict[str, Any]:
+        return to_mapping(self)
+
+    def check(self) -> None:
+        from scenario_gen.errors import ScenarioError
+
+        r = self.robot
+        if r.physics_hz % r.control_hz:
+            raise ScenarioError(
+                "config.robot.physics_hz",
+                r.physics_hz,
+                f"allowed: a multiple of control_hz ({r.control_hz})",
+            )
+        for name, rate in (("depth", self.depth.rate_hz), ("gnss", self.gnss.rate_hz)):
+            if r.control_hz % rate:
+                raise ScenarioError(
+                    f"config.{name}.rate_hz",
+                    rate,
+                    f"allowed: a divisor of robot.control_hz ({r.control_hz})",
+                )
+        if self.depth.min_range >= self.depth.max_range:
+            raise ScenarioError(
+                "config.depth.min_range", self.depth.min_range, "allowed: below max_range"
+            )

@@ -1,0 +1,7 @@
+"""The AgriNav environments."""
+
+from .base import AgriNavEnv
+from .field_route import FieldRouteEnv
+from .furrow_follow import FurrowFollowDepthEnv, FurrowFollowEnv
+
+__all__ = ["AgriNavEnv", "FieldRouteEnv", "FurrowFollowDepthEnv", "FurrowFollowEnv"]

@@ -1,0 +1,48 @@
+"""The source paper's experiment: a zigzag over lanes with headland U-turns."""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+from scenario_gen import Scenario
+
+from ..tasks import RoutePath, scenario_route
+from .base import AgriNavEnv
+
+
+class FieldRouteEnv(AgriNavEnv):
+    """
+    ## Description
+    Drive the scenario's zigzag route — ``route.lanes`` lanes (2 by default) joined by headland
+    U-turns, with lead-in and lead-out — as in the source paper's Summit-XL / Nav2 experiment.
+
+    ## Action Space
+    As ``AgriNav/FurrowFollow-v0``: normalized (v, ω) in [-1, 1]², clipped; NaN raises.
+
+    ## Observation Space
+    Default ``gps`` (5,), ``imu`` (10,), ``odom`` (2,), ``route`` (30,), ``depth`` (1, 48, 64);
+    see ``AgriNav/FurrowFollow-v0``. Route points carry a furrow (1) / headland (0) flag.
+
+    ## Rewards
+    As ``AgriNav/FurrowFollow-v0``; the corridor is half the row spacing in furrows and
+    ``config.task.headland_corridor`` (1 m) on the headland.
+
+    ## Starting State
+    At rest 0.3 m along the lead-in, perturbed as in ``AgriNav/FurrowFollow-v0``.
+
+    ## Episode End
+    Success at the route's end; failure on leaving the corridor, tipping over or hitting more
+    than 5 crops; truncation by ``max_episode_steps`` (2000). The last ``info`` carries the
+    paper's metrics (in-furrow and headland RMSE separately).
+
+    ## Arguments
+    As ``AgriNav/FurrowFollow-v0``.
+
+    ## Version History
+    * v0: initial version.
+    """
+
+    default_observations: ClassVar[tuple[str, ...]] = ("gps", "imu", "odom", "route", "depth")
+
+    def _make_route(self, scn: Scenario) -> RoutePath:
+        return scenario_route(scn)

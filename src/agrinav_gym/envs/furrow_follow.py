@@ -1,0 +1,105 @@
+"""Follow one lane between two crop rows."""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+from scenario_gen import Scenario, ScenarioError
+
+from ..tasks import RoutePath, lane_route
+from .base import AgriNavEnv
+
+
+class FurrowFollowEnv(AgriNavEnv):
+    """
+    ## Description
+    A Summit-XL skid-steer robot (pybullet, 240 Hz physics, 20 Hz control) must drive the full
+    length of one lane — the furrow between two crop rows of a generated scenario — keeping
+    to its centreline. The lane is drawn at random from the scenario's inner lanes each reset.
+
+    ## Action Space
+    ``Box(-1, 1, (2,), float32)``: normalized body twist (v, ω), scaled by
+    ``config.robot.v_max`` (1.0 m/s) and ``w_max`` (1.5 rad/s) and rate-limited by the
+    acceleration limits (0.6 m/s², 1.5 rad/s²). Values outside [-1, 1] are clipped; NaN or inf
+    raises ``ValueError``.
+
+    ## Observation Space
+    ``Dict`` of the selected sensors (default ``gps, imu, odom, route``):
+    ``gps`` (5,): ENU antenna fix (m), fix mode (2 RTK fixed, 1 float, 0 standalone), fix age (s);
+    ``imu`` (10,): specific force (m/s²), angular rate (rad/s), roll, pitch, sin/cos heading —
+    all body frame with MTi-300 noise; ``odom`` (2,): wheel-odometry v (m/s), ω (rad/s);
+    ``route`` (3·K,): the next K = 10 route points, 0.4 m apart, in the robot frame of the
+    *estimated* pose (GNSS + IMU + odometry, never ground truth), each with a furrow flag;
+    ``depth`` (1, 48, 64): D455-like z-depth in metres, 0 = invalid.
+
+    ## Rewards
+    A sum of named parts, each in ``info["rewards"]``, weights in ``config.reward``:
+    ``progress`` (+ route progress per step, 1 at full speed), ``cte`` (−(cte / corridor)²,
+    cross-track error from the **true** pose), ``heading`` (−|heading error| / π),
+    ``crop_contact`` (−per crop newly touched), ``action_rate`` (−‖aₜ − aₜ₋₁‖²) and
+    ``terminal`` (+10 on success, −10 on failure).
+
+    ## Starting State
+    At rest 0.3 m into the lane, laterally offset by N(0, 0.08 m) and turned by N(0, 8°)
+    (clipped), tilted with the terrain.
+
+    ## Episode End
+    Terminated on success (lane end reached within 0.3 m), leaving the corridor (|cte| > half
+    the row spacing), tipping over (roll or pitch > 60°) or hitting more than 5 crops;
+    truncated by ``max_episode_steps`` (600). The last ``info`` carries ``metrics`` (RMSE, MAE,
+    max, in-furrow / headland RMSE, completion, crops hit) and ``termination``.
+
+    ## Arguments
+    ``scenario`` (Scenario, scenario directory or preset name; default ``"default"``),
+    ``scenario_overrides`` (spec overrides for a preset), ``scenario_seed``, ``randomize``
+    (ranges re-drawn each reset, e.g. ``{"crop.stage": [1, 5], "gnss_mode": {"choices":
+    ["rtk_fixed", "rtk_float"]}}``), ``bank`` (a directory of saved scenarios sampled each
+    reset), ``observations``, ``config`` (nested overrides of ``EnvConfig``; unknown keys are
+    errors), ``render_mode`` (``rgb_array`` chase view, ``human`` GUI).
+    ``reset(options={"scenario": ..., "lane": i})`` switches scenario or lane.
+
+    ## Version History
+    * v0: initial version.
+    """
+
+    def _make_route(self, scn: Scenario) -> RoutePath:
+        n = len(scn.lanes)
+        if n == 0:
+            raise ScenarioError("scenario", scn.spec.name, "has no lane (needs two rows)")
+        lane = self._lane_option
+        if lane is None:
+            lane = int(self.np_random.integers(1, n - 1)) if n > 2 else 0
+        elif not 0 <= int(lane) < n:
+            raise ScenarioError("options.lane", lane, f"allowed: 0..{n - 1}")
+        return lane_route(scn, int(lane))
+
+
+class FurrowFollowDepthEnv(FurrowFollowEnv):
+    """
+    ## Description
+    ``FurrowFollow`` from the depth camera alone: the lane must be found in the D455-like depth
+    image; no GNSS and no route observation.
+
+    ## Action Space
+    As ``AgriNav/FurrowFollow-v0``.
+
+    ## Observation Space
+    Default ``depth`` (1, 48, 64) metres, ``imu`` (10,), ``odom`` (2,).
+
+    ## Rewards
+    As ``AgriNav/FurrowFollow-v0`` (computed from the true pose).
+
+    ## Starting State
+    As ``AgriNav/FurrowFollow-v0``.
+
+    ## Episode End
+    As ``AgriNav/FurrowFollow-v0``.
+
+    ## Arguments
+    As ``AgriNav/FurrowFollow-v0``.
+
+    ## Version History
+    * v0: initial version.
+    """
+
+    default_observations: ClassVar[tuple[str, ...]] = ("depth", "imu", "odom")

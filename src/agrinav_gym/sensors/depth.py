@@ -1,0 +1,240 @@
+"""Stereo depth camera (RealSense D455-like), ray-cast analytically with numpy.
+
+Rendering a pybullet image costs 6-42 ms here (DESIGN §8); this casts one ray per pixel
+against the terrain (a bracketed march with secant refinement over the bilinear height grid)
+and against the plants as vertical cylinders of their visible canopy radius, pairing rays and
+plants through their azimuth intervals so only rays that can hit a plant are tested.
+
+Depth is z-depth along the optical axis, as the D455 reports it. Noise follows the stereo
+error law σ_z = z²·s / (f·B) with the native sensor's focal length; pixels outside
+[min_range, max_range] or without a hit read 0.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from scenario_gen import Terrain
+
+from ..config import DepthConfig, RobotConfig
+from ..sim.plants import PlantField
+
+FloatArray = NDArray[np.float64]
+OTHER, SOIL, CROP, WEED = 0, 1, 2, 3
+MARCH_STEP = 0.15  # m between terrain samples along a ray before the secant refinement
+MAX_MARCH = 24
+
+
+@dataclass
+class DepthFrame:
+    depth: NDArray[np.float32]  # (H, W) metres, 0 = invalid
+    label: NDArray[np.uint8] | None = None  # (H, W) OTHER/SOIL/CROP/WEED
+    rgb: NDArray[np.uint8] | None = None  # (H, W, 3)
+
+
+class DepthCamera:
+    def __init__(self, cfg: DepthConfig, robot: RobotConfig) -> None:
+        self.cfg = cfg
+        w, h = cfg.width, cfg.height
+        fx = 0.5 * w / math.tan(math.radians(cfg.hfov_deg) / 2)
+        fy = 0.5 * h / math.tan(math.radians(cfg.vfov_deg) / 2)
+        u, v = np.meshgrid(np.arange(w) - 0.5 * (w - 1), np.arange(h) - 0.5 * (h - 1))
+        d = np.stack([np.ones_like(u), -u / fx, -v / fy], axis=-1).reshape(-1, 3)
+        d /= np.linalg.norm(d, axis=1, keepdims=True)
+        self.forward = d[:, 0].copy()  # cos of the angle to the optical axis
+        th = math.radians(robot.camera_pitch_deg)  # +pitch about y tilts the axis down
+        pitch = np.array(
+            [[math.cos(th), 0, math.sin(th)], [0, 1, 0], [-math.sin(th), 0, math.cos(th)]]
+        )
+        self.rays_body = d @ pitch.T
+        self.mount = np.array([robot.camera_x, 0.0, robot.camera_height])
+        self.f_native = 0.5 * cfg.native_width / math.tan(math.radians(cfg.hfov_deg) / 2)
+        self.soil_rgb = np.array([0.45, 0.33, 0.22])
+        self.light = np.array([0.3, 0.2, 0.93]) / np.linalg.norm([0.3, 0.2, 0.93])
+
+    def noise_sigma(self, z: FloatArray) -> FloatArray:
+        return z * z * self.cfg.subpixel / (self.f_native * self.cfg.baseline)
+
+    def pose(self, rot: FloatArray, pos: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Camera origin and world ray directions for a base pose (rot: body -> world)."""
+        return pos + rot @ self.mount, self.rays_body @ rot.T
+
+    def render(
+        self,
+        rot: FloatArray,
+        pos: FloatArray,
+        terrain: Terrain,
+        plants: PlantField,
+        rng: np.random.Generator | None,
+        rgb: bool = False,
+        labels: bool = False,
+    ) -> DepthFrame:
+        o, rays = self.pose(rot, pos)
+        t_lim = (self.cfg.max_range + 0.05) / self.forward
+        t_g = ground_hits(o, rays, terrain, t_lim)
+        t_p, weed = plant_hits(o, rays, plants, t_lim)
+        t = np.minimum(t_g, t_p)
+        z = t * self.forward
+        hit = np.isfinite(z)
+        if rng is not None and self.cfg.subpixel > 0:
+            noise = rng.standard_normal(z.shape)  # drawn for every pixel: same stream length
+            z[hit] += self.noise_sigma(z[hit]) * noise[hit]
+        valid = hit & (z >= self.cfg.min_range) & (z <= self.cfg.max_range)
+        shape = (self.cfg.height, self.cfg.width)
+        frame = DepthFrame(np.where(valid, z, 0.0).astype(np.float32).reshape(shape))
+        if labels or rgb:
+            lab = np.where(
+                t_p < t_g, np.where(weed, WEED, CROP), np.where(np.isfinite(t_g), SOIL, OTHER)
+            )
+            lab = np.where(t * self.forward <= self.cfg.max_range, lab, OTHER).astype(np.uint8)
+            if labels:
+                frame.label = lab.reshape(shape)
+            if rgb:
+                frame.rgb = self._shade(o, rays, t, lab, terrain).reshape(*shape, 3)
+        return frame
+
+    def _shade(
+        self,
+        o: FloatArray,
+        rays: FloatArray,
+        t: FloatArray,
+        lab: NDArray[np.uint8],
+        terrain: Terrain,
+    ) -> NDArray[np.uint8]:
+        colours = np.array([[0.62, 0.76, 0.94], [0, 0, 0], [0.22, 0.55, 0.16], [0.62, 0.62, 0.2]])
+        out = colours[lab]
+        soil = lab == SOIL
+        if soil.any():
+            hit = o + rays[soil] * t[soil, None]
+            n = terrain.normal_at(hit[:, 0], hit[:, 1])
+            out[soil] = self.soil_rgb * (0.35 + 0.65 * np.clip(n @ self.light, 0, 1))[:, None]
+        plant = (lab == CROP) | (lab == WEED)
+        out[plant] *= (0.8 + 0.2 * np.clip(-rays[plant, 2], 0, 1))[:, None]
+        return (np.clip(out, 0, 1) * 255).astype(np.uint8)
+
+
+def ground_hits(o: FloatArray, rays: FloatArray, terrain: Terrain, t_lim: FloatArray) -> FloatArray:
+    """Ray length to the first terrain crossing (inf where none within ``t_lim``)."""
+    reach = float(t_lim.max())
+    s = terrain.spacing
+    ny, nx = terrain.shape
+    j0 = max(int((o[0] - reach - terrain.x0) / s), 0)
+    j1 = min(int((o[0] + reach - terrain.x0) / s) + 2, nx)
+    i0 = max(int((o[1] - reach - terrain.y0) / s), 0)
+    i1 = min(int((o[1] + reach - terrain.y0) / s) + 2, ny)
+    window = terrain.heights[i0:i1, j0:j1] if (i1 > i0 and j1 > j0) else terrain.heights
+    # a slab a little thicker than the local relief, so a flat field still brackets the crossing
+    zlo, zhi = float(window.min()) - 1e-3, float(window.max()) + 1e-3
+    dz = rays[:, 2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        a = (zlo - o[2]) / dz
+        b = (zhi - o[2]) / dz
+    t_in = np.where(dz != 0, np.minimum(a, b), np.where(zlo <= o[2] <= zhi, 0.0, np.inf))
+    t_out = np.where(dz != 0, np.maximum(a, b), np.where(zlo <= o[2] <= zhi, np.inf, -np.inf))
+    t_in = np.maximum(t_in, 0.0)
+    t_out = np.minimum(t_out, t_lim)
+    live = t_in < t_out
+    out = np.full(len(rays), np.inf)
+    if not live.any():
+        return out
+    r = rays[live]
+    ta, tb = t_in[live], t_out[live]
+    # The ray can only cross the terrain inside the slab [zlo, zhi] of the local window, so the
+    # march covers that stretch only: a few samples on a furrowed field, more on a hillside.
+    span = float(np.percentile(tb - ta, 90))
+    samples = int(np.clip(math.ceil(span / MARCH_STEP) + 1, 4, MAX_MARCH))
+    ts = ta[:, None] + (tb - ta)[:, None] * np.linspace(0.0, 1.0, samples)[None, :]
+
+    def f(t: FloatArray, rr: FloatArray) -> FloatArray:
+        return (
+            o[2] + t * rr[..., 2] - terrain.height_at(o[0] + t * rr[..., 0], o[1] + t * rr[..., 1])
+        )
+
+    fs = f(ts, r[:, None, :])
+    below = fs <= 0.0
+    hit = below.any(axis=1)
+    if not hit.any():
+        return out
+    k = np.argmax(below, axis=1)[hit]
+    rows = np.flatnonzero(hit)
+    r = r[hit]
+    km = np.maximum(k - 1, 0)
+    t0, t1 = ts[rows, km], ts[rows, k]
+    f0, f1 = fs[rows, km], fs[rows, k]
+    for _ in range(2):  # secant / regula falsi refinement of the bracket
+        tm = np.where(f0 != f1, t0 + f0 * (t1 - t0) / np.where(f0 != f1, f0 - f1, 1.0), t1)
+        fm = f(tm, r)
+        above = fm > 0
+        t0, f0 = np.where(above, tm, t0), np.where(above, fm, f0)
+        t1, f1 = np.where(above, t1, tm), np.where(above, f1, fm)
+    tm = np.where(f0 != f1, t0 + f0 * (t1 - t0) / np.where(f0 != f1, f0 - f1, 1.0), t1)
+    idx = np.flatnonzero(live)[rows]
+    out[idx] = tm
+    return out
+
+
+def plant_hits(
+    o: FloatArray, rays: FloatArray, plants: PlantField, t_lim: FloatArray
+) -> tuple[FloatArray, NDArray[np.bool_]]:
+    """Ray length to the nearest plant cylinder (side or top) and whether it is a weed."""
+    n = len(rays)
+    t_best = np.full(n, np.inf)
+    weed = np.zeros(n, bool)
+    if len(plants) == 0:
+        return t_best, weed
+    reach = float(t_lim.max()) + plants.max_radius
+    cand = np.asarray(plants.tree.query_ball_point(o[:2], reach), dtype=np.int64)
+    if len(cand) == 0:
+        return t_best, weed
+    rel = plants.xy[cand] - o[:2]
+    dist = np.hypot(rel[:, 0], rel[:, 1])
+    rad = plants.radius[cand]
+    heading = math.atan2(float(rays[:, 1].mean()), float(rays[:, 0].mean()))
+    az_p = np.angle(np.exp(1j * (np.arctan2(rel[:, 1], rel[:, 0]) - heading)))
+    keep = (dist > rad) & (np.abs(az_p) < math.radians(100))
+    cand, rel, dist, rad, az_p = cand[keep], rel[keep], dist[keep], rad[keep], az_p[keep]
+    if len(cand) == 0:
+        return t_best, weed
+    half = np.arcsin(np.clip(rad / dist, 0.0, 1.0))
+    az_r = np.angle(np.exp(1j * (np.arctan2(rays[:, 1], rays[:, 0]) - heading)))
+    order = np.argsort(az_r, kind="stable")
+    az_sorted = az_r[order]
+    lo = np.searchsorted(az_sorted, az_p - half, side="left")
+    hi = np.searchsorted(az_sorted, az_p + half, side="right")
+    counts = hi - lo
+    total = int(counts.sum())
+    if total == 0:
+        return t_best, weed
+    pl = np.repeat(np.arange(len(cand)), counts)
+    offset = np.arange(total) - np.repeat(np.cumsum(counts) - counts, counts)
+    ray = order[np.repeat(lo, counts) + offset]
+    d = rays[ray]
+    ox, oy = -rel[pl, 0], -rel[pl, 1]
+    r2 = rad[pl] ** 2
+    a = d[:, 0] ** 2 + d[:, 1] ** 2
+    b = 2 * (ox * d[:, 0] + oy * d[:, 1])
+    c = ox * ox + oy * oy - r2
+    disc = b * b - 4 * a * c
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t_side = (-b - np.sqrt(disc)) / (2 * a)
+    zb, zt = plants.z[cand][pl], plants.top[cand][pl]
+    z_side = o[2] + t_side * d[:, 2]
+    side_ok = (disc >= 0) & (t_side > 0) & (z_side >= zb) & (z_side <= zt)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t_cap = (zt - o[2]) / d[:, 2]
+        cx, cy = ox + t_cap * d[:, 0], oy + t_cap * d[:, 1]
+    cap_ok = (d[:, 2] < 0) & (t_cap > 0) & (cx * cx + cy * cy <= r2)
+    t_pair = np.where(side_ok, t_side, np.inf)
+    t_pair = np.where(cap_ok, np.minimum(t_pair, t_cap), t_pair)
+    ok = np.isfinite(t_pair)
+    if not ok.any():
+        return t_best, weed
+    ray, t_pair, pl = ray[ok], t_pair[ok], pl[ok]
+    np.minimum.at(t_best, ray, t_pair)
+    winner = t_pair == t_best[ray]
+    weed[ray[winner]] = plants.is_weed[cand[pl[winner]]]
+    return t_best, weed

@@ -1,0 +1,31 @@
+"""First-order Gauss-Markov processes: time-correlated errors with a chosen stationary std."""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+
+class GaussMarkov:
+    """x_{k+1} = φ·x_k + σ·√(1−φ²)·w_k, φ = exp(−Δt/τ): stationary std σ, correlation time τ."""
+
+    def __init__(
+        self,
+        sigma: NDArray[np.float64] | float,
+        tau: NDArray[np.float64] | float,
+        dt: float,
+        size: int,
+    ) -> None:
+        self.sigma = np.broadcast_to(np.asarray(sigma, dtype=np.float64), (size,)).copy()
+        tau_a = np.broadcast_to(np.asarray(tau, dtype=np.float64), (size,))
+        self.phi = np.exp(-dt / tau_a)
+        self.drive = self.sigma * np.sqrt(1.0 - self.phi * self.phi)
+        self.x = np.zeros(size)
+
+    def reset(self, rng: np.random.Generator) -> NDArray[np.float64]:
+        self.x = rng.standard_normal(len(self.x)) * self.sigma  # start in steady state
+        return self.x
+
+    def step(self, rng: np.random.Generator) -> NDArray[np.float64]:
+        self.x = self.phi * self.x + self.drive * rng.standard_normal(len(self.x))
+        return self.x

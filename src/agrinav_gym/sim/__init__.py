@@ -1,0 +1,1 @@
+"""pybullet world built from a Scenario: terrain, robot, plants."""

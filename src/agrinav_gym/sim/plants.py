@@ -1,0 +1,104 @@
+"""Plants as analytic proxies: no pybullet body per plant (DESIGN §8).
+
+Crop contact is counted geometrically (robot footprint vs stem-level proxy circles through a
+KD-tree), and the depth camera intersects vertical cylinders of the canopy's visible radius.
+Per plant this holds a handful of floats plus its KD-tree node: about a hundred bytes.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial import cKDTree
+
+from scenario_gen import CATALOG, Scenario
+
+FloatArray = NDArray[np.float64]
+
+#: Visible canopy radius as a fraction of the species' canopy width: leaves overlap in a row, so
+#: a row reads as a wall about this thick to a stereo camera.
+CANOPY_FILL = 0.2
+
+
+@dataclass(frozen=True, eq=False)
+class PlantField:
+    xy: FloatArray  # (n, 2)
+    z: FloatArray  # base height
+    top: FloatArray  # base + height
+    radius: FloatArray  # visible radius (depth camera)
+    contact_radius: FloatArray  # stem-level proxy (crop contact)
+    is_weed: NDArray[np.bool_]
+    tree: cKDTree
+    max_radius: float
+    crop_tree: cKDTree  # crops only: weeds never count as crop contact
+    crop_index: NDArray[np.int64]
+    max_contact: float
+
+    @classmethod
+    def from_scenario(cls, scn: Scenario) -> PlantField:
+        p = scn.plants
+        names = np.unique(p.species)
+        radius = np.empty(len(p))
+        contact = np.empty(len(p))
+        for name in names:
+            sp = CATALOG[str(name)]
+            m = p.species == name
+            growth = sp.growth_of_stage(p.stage[m])
+            scale = p.height[m] / np.maximum(sp.height(growth), 1e-6)
+            radius[m] = CANOPY_FILL * sp.canopy_width(growth) * scale
+            contact[m] = sp.proxy_radius * scale
+        xy = np.column_stack([p.x, p.y]).astype(np.float64)
+        tree = cKDTree(xy if len(xy) else np.zeros((1, 2)))
+        crop_index = np.flatnonzero(~p.is_weed)
+        crop_tree = cKDTree(xy[crop_index] if len(crop_index) else np.zeros((1, 2)))
+        return cls(
+            xy,
+            p.z.copy(),
+            p.z + p.height,
+            radius,
+            contact,
+            p.is_weed.copy(),
+            tree,
+            float(radius.max()) if len(radius) else 0.0,
+            crop_tree,
+            crop_index,
+            float(contact.max()) if len(contact) else 0.0,
+        )
+
+    def __post_init__(self) -> None:
+        lists = (self.xy.tolist(), self.contact_radius.tolist(), self.crop_index.tolist())
+        object.__setattr__(self, "_lists", lists)
+
+    _lists: tuple[list[list[float]], list[float], list[int]] = field(
+        init=False, repr=False, compare=False
+    )
+
+    def __len__(self) -> int:
+        return len(self.z)
+
+    def crops_touching(
+        self, x: float, y: float, yaw: float, length: float, width: float
+    ) -> NDArray[np.int64]:
+        """Indices of crops (not weeds) whose stem proxy overlaps the footprint rectangle."""
+        if len(self.crop_index) == 0:
+            return np.empty(0, np.int64)
+        reach = 0.5 * math.hypot(length, width) + self.max_contact
+        found = self.crop_tree.query_ball_point((x, y), reach)
+        if not found:
+            return np.empty(0, np.int64)
+        # a dozen candidates at most: plain Python beats numpy's per-call overhead here
+        c, s = math.cos(yaw), math.sin(yaw)
+        hl, hw = 0.5 * length, 0.5 * width
+        hits = []
+        xy, rad, crop_index = self._lists
+        for j in found:
+            i = crop_index[j]
+            dx, dy = xy[i][0] - x, xy[i][1] - y
+            fx = max(abs(c * dx + s * dy) - hl, 0.0)
+            fy = max(abs(-s * dx + c * dy) - hw, 0.0)
+            if fx * fx + fy * fy <= rad[i] * rad[i]:
+                hits.append(i)
+        return np.asarray(hits, dtype=np.int64)

@@ -1,0 +1,290 @@
+"""One pybullet client per env: the terrain heightfield and the Summit-XL."""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import os
+import sys
+import xml.etree.ElementTree as ET
+from collections.abc import Iterator
+from dataclasses import dataclass
+from importlib import resources
+from typing import Any
+
+import numpy as np
+import pybullet as p
+from numpy.typing import NDArray
+
+from scenario_gen import Terrain
+
+from ..config import RobotConfig
+
+FloatArray = NDArray[np.float64]
+
+URDF_PACKAGE = "agrinav_gym.assets"
+URDF_NAME = "summit_xl.urdf"
+WHEEL_JOINTS = (
+    "front_left_wheel_joint",
+    "front_right_wheel_joint",
+    "back_left_wheel_joint",
+    "back_right_wheel_joint",
+)
+
+
+@dataclass(frozen=True)
+class RobotGeometry:
+    """Facts read from the packaged URDF, so Python and the model cannot disagree."""
+
+    wheel_radius: float
+    track: float
+    wheelbase: float
+    footprint: tuple[float, float]  # length, width (DESIGN §5: 0.724 x 0.616 m nav footprint)
+    frames: dict[str, tuple[float, float, float]]  # sensor link origins in base_link
+
+    @classmethod
+    def from_urdf(cls) -> RobotGeometry:
+        root = ET.fromstring(resources.files(URDF_PACKAGE).joinpath(URDF_NAME).read_text())
+        joints = {str(j.get("name")): j for j in root.iter("joint")}
+
+        def xyz(name: str) -> tuple[float, float, float]:
+            o = joints[name].find("origin")
+            assert o is not None
+            a, b, c = (float(v) for v in o.get("xyz", "0 0 0").split())
+            return a, b, c
+
+        fl, br = xyz("front_left_wheel_joint"), xyz("back_right_wheel_joint")
+        radius = float(root.find(".//link[@name='front_left_wheel']//cylinder").get("radius"))  # type: ignore[union-attr,arg-type]
+        frames = {n[: -len("_joint")]: xyz(n) for n in joints if n.endswith("link_joint")}
+        return cls(radius, fl[1] - br[1], fl[0] - br[0], (0.724, 0.616), frames)
+
+
+@contextlib.contextmanager
+def _quiet_stdout() -> Iterator[None]:
+    try:
+        fd = sys.stdout.fileno()
+    except (AttributeError, OSError, ValueError):  # captured or replaced stdout
+        yield
+        return
+    sys.stdout.flush()
+    saved = os.dup(fd)
+    with open(os.devnull, "w") as null:
+        os.dup2(null.fileno(), fd)
+        try:
+            yield
+        finally:
+            os.dup2(saved, fd)
+            os.close(saved)
+
+
+def urdf_path() -> str:
+    return str(resources.files(URDF_PACKAGE).joinpath(URDF_NAME))
+
+
+class World:
+    """The physics client with terrain and robot; rebuilt only when the terrain changes."""
+
+    def __init__(self, robot: RobotConfig, gui: bool = False) -> None:
+        self.cfg = robot
+        if gui and sys.platform.startswith("linux") and not os.environ.get("DISPLAY"):
+            # pybullet's GUI blocks forever without an X display instead of failing
+            raise RuntimeError(
+                "render_mode='human' needs a display (DISPLAY is unset); "
+                "use render_mode='rgb_array' on a headless machine"
+            )
+        self.client = p.connect(p.GUI if gui else p.DIRECT)
+        self.geometry = RobotGeometry.from_urdf()
+        self._terrain: Terrain | None = None
+        self.robot = -1
+        self.ground = -1
+        self.wheels: list[int] = []
+        self.visuals_loaded = False
+
+    # ------------------------------------------------------------------ building
+    def load(self, terrain: Terrain) -> None:
+        """(Re)build the world for ``terrain``; a no-op when it is the same terrain object."""
+        if terrain is self._terrain:
+            return
+        cid = self.client
+        p.resetSimulation(physicsClientId=cid)
+        p.configureDebugVisualizer(p.COV_ENABLE_RENDERING, 0, physicsClientId=cid)
+        p.setGravity(0, 0, -9.81, physicsClientId=cid)
+        p.setPhysicsEngineParameter(
+            fixedTimeStep=1.0 / self.cfg.physics_hz,
+            numSolverIterations=self.cfg.solver_iterations,
+            enableConeFriction=0,
+            deterministicOverlappingPairs=1,
+            physicsClientId=cid,
+        )
+        self._terrain = terrain
+        self.patch = TerrainPatch(cid, terrain, self.cfg.friction)
+        with _quiet_stdout():  # the URDF merger prints a line per link from C
+            self.robot = p.loadURDF(
+                urdf_path(),
+                [0, 0, float(terrain.heights.max()) + 1.0],
+                flags=p.URDF_MERGE_FIXED_LINKS,
+                physicsClientId=cid,
+            )
+        names = [
+            p.getJointInfo(self.robot, j, physicsClientId=cid)[1].decode()
+            for j in range(p.getNumJoints(self.robot, physicsClientId=cid))
+        ]
+        self.wheels = [names.index(n) for n in WHEEL_JOINTS]
+        for j in self.wheels:
+            p.changeDynamics(self.robot, j, lateralFriction=self.cfg.friction, physicsClientId=cid)
+        p.configureDebugVisualizer(p.COV_ENABLE_RENDERING, 1, physicsClientId=cid)
+        self.visuals_loaded = False
+
+    def place_robot(self, x: float, y: float, yaw: float, terrain: Terrain) -> None:
+        """Put the robot at rest on the ground at (x, y) facing ``yaw``, tilted with the slope."""
+        n = terrain.normal_at(x, y)
+        c, s = math.cos(yaw), math.sin(yaw)
+        # slope in the heading frame -> pitch (nose up on a rising slope) and roll
+        gx, gy = -n[0] / n[2], -n[1] / n[2]
+        pitch = -math.atan(c * gx + s * gy)
+        roll = math.atan(-s * gx + c * gy)
+        z = float(terrain.height_at(x, y)) + self.geometry.wheel_radius + 0.01
+        q = p.getQuaternionFromEuler([roll, pitch, yaw])
+        cid = self.client
+        self.patch.follow(x, y, force=True)
+        p.resetBasePositionAndOrientation(self.robot, [x, y, z], q, physicsClientId=cid)
+        p.resetBaseVelocity(self.robot, [0, 0, 0], [0, 0, 0], physicsClientId=cid)
+        for j in self.wheels:
+            p.resetJointState(self.robot, j, 0.0, 0.0, physicsClientId=cid)
+        self.drive(0.0, 0.0)
+
+    # ------------------------------------------------------------------ stepping
+    def drive(self, v: float, w: float) -> None:
+        """Skid-steer: body twist -> wheel speeds through the slip-expanded track."""
+        half = 0.5 * self.geometry.track * self.cfg.skid_factor * w
+        r = self.geometry.wheel_radius
+        left, right = (v - half) / r, (v + half) / r
+        p.setJointMotorControlArray(
+            self.robot,
+            self.wheels,
+            p.VELOCITY_CONTROL,
+            targetVelocities=[left, right, left, right],
+            forces=[self.cfg.wheel_force] * 4,
+            physicsClientId=self.client,
+        )
+
+    def step(self, substeps: int) -> None:
+        cid = self.client
+        for _ in range(substeps):
+            p.stepSimulation(physicsClientId=cid)
+
+    def follow(self, x: float, y: float, heading: float | None = None) -> None:
+        self.patch.follow(x, y, heading=heading)
+
+    def state(self) -> tuple[Any, Any, Any, Any, list[float]]:
+        """Position, quaternion, linear and angular velocity (world), wheel speeds (rad/s)."""
+        cid = self.client
+        pos, quat = p.getBasePositionAndOrientation(self.robot, physicsClientId=cid)
+        lin, ang = p.getBaseVelocity(self.robot, physicsClientId=cid)
+        wheels = [s[1] for s in p.getJointStates(self.robot, self.wheels, physicsClientId=cid)]
+        return pos, quat, lin, ang, wheels
+
+    def close(self) -> None:
+        if self.client >= 0:
+            try:
+                p.disconnect(physicsClientId=self.client)
+            except p.error:
+                pass
+            self.client = -1
+
+
+class TerrainPatch:
+    """The physics ground: a fixed-size heightfield window of the terrain around the robot.
+
+    pybullet's heightfield creation grows faster than linearly with its size (≈1 s for 360k
+    samples here, and a 100k-plant field's terrain holds millions), so the ground is a window
+    of ``PATCH_M`` metres that is refilled in place (``replaceHeightfieldIndex``) when the robot
+    nears its edge. It moves by whole grid cells, so the surface under the wheels is the same
+    bits before and after a move.
+    """
+
+    PATCH_M = 24.0
+    RECENTRE_M = 5.0
+
+    def __init__(self, client: int, terrain: Terrain, friction: float) -> None:
+        self.client = client
+        self.terrain = terrain
+        ny, nx = terrain.shape
+        cells = round(self.PATCH_M / terrain.spacing) + 1
+        self.nx, self.ny = min(nx, cells), min(ny, cells)
+        self.i0 = self.j0 = -1
+        self.shape = -1
+        self.body = -1
+        self._friction = friction
+        self.follow(
+            terrain.x0 + 0.5 * (nx - 1) * terrain.spacing,
+            terrain.y0 + 0.5 * (ny - 1) * terrain.spacing,
+            force=True,
+        )
+
+    def _window(self, x: float, y: float) -> tuple[int, int]:
+        t = self.terrain
+        ny, nx = t.shape
+        j = round((x - t.x0) / t.spacing) - self.nx // 2
+        i = round((y - t.y0) / t.spacing) - self.ny // 2
+        return min(max(i, 0), ny - self.ny), min(max(j, 0), nx - self.nx)
+
+    def follow(self, x: float, y: float, force: bool = False, heading: float | None = None) -> bool:
+        """Recentre if (x, y) is within RECENTRE_M of the patch edge; True if moved.
+
+        With a ``heading`` the new window lies ahead of the robot, which then sits RECENTRE_M
+        from its trailing edge: the next move is twice as far away.
+        """
+        t = self.terrain
+        if not force and self.shape >= 0:
+            s = t.spacing
+            cx = t.x0 + (self.j0 + 0.5 * (self.nx - 1)) * s
+            cy = t.y0 + (self.i0 + 0.5 * (self.ny - 1)) * s
+            hx, hy = 0.5 * (self.nx - 1) * s, 0.5 * (self.ny - 1) * s
+            if abs(x - cx) < hx - self.RECENTRE_M and abs(y - cy) < hy - self.RECENTRE_M:
+                return False
+        if heading is not None and not force:
+            ahead = 0.5 * self.PATCH_M - self.RECENTRE_M - 1.0
+            x, y = x + ahead * math.cos(heading), y + ahead * math.sin(heading)
+        i0, j0 = self._window(x, y)
+        if (i0, j0) == (self.i0, self.j0) and self.shape >= 0:
+            return False
+        self.i0, self.j0 = i0, j0
+        h = t.heights[i0 : i0 + self.ny, j0 : j0 + self.nx]
+        zmin, zmax = float(h.min()), float(h.max())
+        kwargs: dict[str, Any] = {}
+        if self.shape >= 0:
+            kwargs["replaceHeightfieldIndex"] = self.shape
+        shape = p.createCollisionShape(
+            p.GEOM_HEIGHTFIELD,
+            meshScale=[t.spacing, t.spacing, 1.0],
+            heightfieldData=h.ravel().tolist(),
+            numHeightfieldRows=self.nx,
+            numHeightfieldColumns=self.ny,
+            physicsClientId=self.client,
+            **kwargs,
+        )
+        # pybullet centres a heightfield on its bounding box
+        centre = [
+            t.x0 + (j0 + 0.5 * (self.nx - 1)) * t.spacing,
+            t.y0 + (i0 + 0.5 * (self.ny - 1)) * t.spacing,
+            0.5 * (zmin + zmax),
+        ]
+        if self.body < 0:
+            self.shape = shape
+            # an explicit tiny visual: converting the heightfield to a render mesh costs more
+            # than the heightfield itself, and rendering draws the terrain mesh separately
+            vis = p.createVisualShape(
+                p.GEOM_SPHERE, radius=1e-3, rgbaColor=[0, 0, 0, 0], physicsClientId=self.client
+            )
+            self.body = p.createMultiBody(
+                0, shape, vis, basePosition=centre, physicsClientId=self.client
+            )
+            p.changeDynamics(
+                self.body, -1, lateralFriction=self._friction, physicsClientId=self.client
+            )
+        else:
+            p.resetBasePositionAndOrientation(
+                self.body, centre, [0, 0, 0, 1], physicsClientId=self.client
+            )
+        return True

@@ -1,0 +1,109 @@
+"""Reference routes for the tasks and a cheap incremental tracker along them."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from scenario_gen import Scenario
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True, eq=False)
+class RoutePath:
+    xy: FloatArray  # (n, 2) waypoints
+    z: FloatArray
+    furrow: NDArray[np.bool_]  # per waypoint
+    arc: FloatArray  # cumulative arc length at each waypoint
+    heading: FloatArray  # direction of the segment leaving each waypoint
+
+    @classmethod
+    def from_points(cls, xy: FloatArray, z: FloatArray, furrow: NDArray[np.bool_]) -> RoutePath:
+        d = np.diff(xy, axis=0)
+        seg = np.hypot(d[:, 0], d[:, 1])
+        arc = np.concatenate([[0.0], np.cumsum(seg)])
+        heading = np.arctan2(d[:, 1], d[:, 0])
+        heading = np.concatenate([heading, heading[-1:]])
+        return cls(xy, z, furrow, arc, heading)
+
+    @property
+    def length(self) -> float:
+        return float(self.arc[-1])
+
+    def sample(self, s: FloatArray) -> FloatArray:
+        """Points at arc lengths ``s`` (clamped to the route)."""
+        return np.column_stack(
+            [np.interp(s, self.arc, self.xy[:, 0]), np.interp(s, self.arc, self.xy[:, 1])]
+        )
+
+
+def lane_route(scn: Scenario, lane: int, spacing: float = 0.05, lead: float = 0.0) -> RoutePath:
+    """One lane centreline (start -> end of its crop rows), optionally with a headland lead-in."""
+    a, b = scn.lanes[lane]
+    u = (b - a) / np.linalg.norm(b - a)
+    start = a - lead * u
+    n = max(2, math.ceil(np.linalg.norm(b - start) / spacing) + 1)
+    f = np.linspace(0.0, 1.0, n)[:, None]
+    xy = start * (1 - f) + b * f
+    furrow = ((xy - a) @ u) >= -1e-9
+    return RoutePath.from_points(xy, scn.terrain.height_at(xy[:, 0], xy[:, 1]), furrow)
+
+
+def scenario_route(scn: Scenario) -> RoutePath:
+    r = scn.route
+    return RoutePath.from_points(r.xy.copy(), r.xyz[:, 2].copy(), r.segment == "furrow")
+
+
+class Tracker:
+    """Nearest route segment to a moving point, searched in a window around the last match.
+
+    Called twice per env step with a handful of segments, so it is plain Python: for windows
+    this small numpy's per-call overhead costs more than the arithmetic.
+    """
+
+    def __init__(self, route: RoutePath) -> None:
+        self.route = route
+        self.k = 0
+        self._xy = route.xy.tolist()
+        self._arc = route.arc.tolist()
+
+    def reset(self, x: float, y: float) -> None:
+        d = np.hypot(self.route.xy[:, 0] - x, self.route.xy[:, 1] - y)
+        self.k = int(np.argmin(d[: max(2, len(d) // 2)]))  # starts belong to the first half
+        self.update(x, y)
+
+    def _seg(self, k: int, x: float, y: float) -> tuple[float, float, float]:
+        ax, ay = self._xy[k]
+        bx, by = self._xy[k + 1]
+        dx, dy = bx - ax, by - ay
+        px, py = x - ax, y - ay
+        L2 = dx * dx + dy * dy
+        u = 0.0 if L2 <= 0 else min(max((px * dx + py * dy) / L2, 0.0), 1.0)
+        ex, ey = px - u * dx, py - u * dy
+        return ex * ex + ey * ey, u, dx * py - dy * px
+
+    def update(self, x: float, y: float) -> tuple[float, float, int]:
+        """(signed cross-track error, arc length, segment index) of the point.
+
+        Walks forward, then backward, from the last match while the distance shrinks, so a
+        step costs a few segment tests; the route's continuity keeps it on the right lane.
+        """
+        last = len(self._xy) - 2
+        k = min(self.k, last)
+        best = self._seg(k, x, y)
+        for step in (1, -1):
+            j = k + step
+            while 0 <= j <= last:
+                cand = self._seg(j, x, y)
+                if cand[0] > best[0] + 1e-12:
+                    break
+                k, best = j, cand
+                j += step
+        self.k = k
+        d2, u, cross = best
+        seg = self._arc[k + 1] - self._arc[k]
+        return math.copysign(math.sqrt(d2), cross), self._arc[k] + u * seg, k

@@ -1,0 +1,167 @@
+"""Gymnasium-suite style checks over every registered AgriNav id."""
+
+import pickle
+import warnings
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import agrinav_gym
+
+from .helpers import TINY, make
+
+IDS = list(agrinav_gym.ENV_IDS)
+
+# SB3's checker flags any 3-D float observation as "an image that is not uint8". The depth
+# observation is metric float32 on purpose (metres, 0 = invalid, as the D455 reports), so these
+# two messages are expected for envs that observe depth — and only for those.
+DEPTH_IMAGE_WARNINGS = ("is an image but its `dtype`", "is an image but the upper and lower")
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_gymnasium_check_env(env_id: str) -> None:
+    env = make(env_id)
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            check_env(env.unwrapped, skip_render_check=True)
+        assert [str(w.message) for w in caught] == []
+    finally:
+        env.close()
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_sb3_check_env(env_id: str) -> None:
+    from stable_baselines3.common.env_checker import check_env as sb3_check
+
+    env = make(env_id)
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            sb3_check(env.unwrapped)
+        messages = [str(w.message) for w in caught]
+        unexplained = [m for m in messages if not any(d in m for d in DEPTH_IMAGE_WARNINGS)]
+        assert unexplained == []
+        if "depth" not in env.unwrapped.observation_names:
+            assert messages == []
+    finally:
+        env.close()
+
+
+def _rollout(env: gym.Env, seed: int, steps: int = 40) -> list:
+    rng = np.random.default_rng(seed)
+    obs, _ = env.reset(seed=seed)
+    out = [obs]
+    for _ in range(steps):
+        obs, r, term, trunc, info = env.step(rng.uniform(-0.3, 1.0, 2).astype(np.float32))
+        out.append((obs, r, term, trunc, info["cte"]))
+        if term or trunc:
+            obs, _ = env.reset()
+            out.append(obs)
+    return out
+
+
+def _same(a: object, b: object) -> bool:
+    if isinstance(a, dict):
+        return a.keys() == b.keys() and all(_same(a[k], b[k]) for k in a)  # type: ignore[attr-defined]
+    if isinstance(a, (tuple, list)):
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b, strict=True))  # type: ignore[arg-type]
+    return bool(np.array_equal(a, b))
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_same_seed_same_rollout(env_id: str) -> None:
+    a, b, c = make(env_id), make(env_id), make(env_id)
+    try:
+        ra, rb, rc = _rollout(a, 3), _rollout(b, 3), _rollout(c, 4)
+        assert _same(ra, rb)
+        assert not _same(ra, rc)
+    finally:
+        a.close()
+        b.close()
+        c.close()
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_env_pickles(env_id: str) -> None:
+    env = make(env_id)
+    try:
+        clone = pickle.loads(pickle.dumps(env))
+        try:
+            assert _same(_rollout(env, 1, 10), _rollout(clone, 1, 10))
+        finally:
+            clone.close()
+    finally:
+        env.close()
+
+
+def test_async_vector_env() -> None:
+    envs = gym.vector.AsyncVectorEnv(
+        [lambda: gym.make("AgriNav/FurrowFollow-v0", scenario_overrides=TINY)] * 2
+    )
+    try:
+        obs, _ = envs.reset(seed=[0, 1])
+        assert obs["route"].shape == (2, 30)
+        for _ in range(5):
+            obs, r, _term, _trunc, _info = envs.step(
+                np.tile([[0.5, 0.0]], (2, 1)).astype(np.float32)
+            )
+        assert r.shape == (2,) and np.isfinite(r).all()
+    finally:
+        envs.close()
+
+
+def test_sb3_subproc_vec_env() -> None:
+    from stable_baselines3.common.env_util import make_vec_env
+    from stable_baselines3.common.vec_env import SubprocVecEnv
+
+    # forkserver workers start fresh: the "module:id" form imports agrinav_gym there first
+    venv = make_vec_env(
+        "agrinav_gym:AgriNav/FurrowFollow-v0",
+        n_envs=2,
+        seed=0,
+        vec_env_cls=SubprocVecEnv,
+        env_kwargs={"scenario_overrides": TINY},
+    )
+    try:
+        obs = venv.reset()
+        for _ in range(5):
+            obs, r, _done, _info = venv.step(np.tile([[0.5, 0.0]], (2, 1)))
+        assert obs["imu"].shape == (2, 10) and r.shape == (2,)
+    finally:
+        venv.close()
+
+
+def test_registration_is_idempotent_and_namespaced() -> None:
+    agrinav_gym.register_envs()
+    agrinav_gym.register_envs()
+    ids = [i for i in gym.registry if i.startswith("AgriNav/")]
+    assert set(IDS) <= set(ids)
+    for env_id in IDS:
+        env_cls = gym.spec(env_id)
+        assert env_cls.max_episode_steps is not None
+        doc = gym.make(env_id, scenario_overrides=TINY).unwrapped.__doc__ or ""
+        for section in (
+            "## Description",
+            "## Action Space",
+            "## Observation Space",
+            "## Rewards",
+            "## Starting State",
+            "## Episode End",
+            "## Arguments",
+            "## Version History",
+        ):
+            assert section in doc, (env_id, section)
+
+
+def test_rgb_array_render() -> None:
+    env = make(render_mode="rgb_array")
+    try:
+        env.reset(seed=0)
+        frame = env.render()
+        assert frame.shape == (240, 320, 3) and frame.dtype == np.uint8
+        assert frame.std() > 5  # not a blank image: terrain, robot and plants are drawn
+    finally:
+        env.close()

@@ -1,0 +1,122 @@
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import agrinav_gym
+import scenario_gen as sg
+from scenario_gen import ScenarioError
+
+from .helpers import TINY, make
+
+
+def test_register_scenario_from_object_and_directory(tmp_path: Path) -> None:
+    scn = sg.generate(sg.preset("early-corn", **TINY), seed=5)
+    scn.save(tmp_path / "s")
+    a = agrinav_gym.register_scenario("TinyObject", scn)
+    b = agrinav_gym.register_scenario("TinyDir", tmp_path / "s", task="route")
+    assert (a, b) == ("AgriNav/TinyObject-v0", "AgriNav/TinyDir-v0")
+    for env_id in (a, b):
+        env = gym.make(env_id)
+        try:
+            env.reset(seed=0)
+            env.step(np.array([0.5, 0.0], np.float32))
+            assert env.unwrapped.scenario.spec.crop.stage == 1
+        finally:
+            env.close()
+    with pytest.raises(ScenarioError, match="scenario.json"):
+        agrinav_gym.register_scenario("Nope", tmp_path / "missing")
+
+
+def test_scenario_bank_samples_every_scenario(tmp_path: Path) -> None:
+    from baselines.cli import main
+
+    assert (
+        main(
+            [
+                "scenario",
+                "--preset",
+                "default",
+                "--count",
+                "3",
+                "--out",
+                str(tmp_path / "bank"),
+                "--no-preview",
+                "--set",
+                "field.width=6",
+                "--set",
+                "field.length=14",
+                "--set",
+                "layout.headland=2",
+            ]
+        )
+        == 0
+    )
+    env_id = agrinav_gym.register_scenario_bank("TinyBank", tmp_path / "bank")
+    env = gym.make(env_id)
+    try:
+        seeds = set()
+        for i in range(12):
+            env.reset(seed=i)
+            seeds.add(env.unwrapped.scenario.seed)
+        assert seeds == {0, 1, 2}
+    finally:
+        env.close()
+    with pytest.raises(ScenarioError, match="no scenario"):
+        agrinav_gym.register_scenario_bank("Empty", tmp_path)
+
+
+def test_randomize_draws_new_scenarios_and_env_params() -> None:
+    env = make(
+        randomize={"crop.stage": [1, 5], "gnss_mode": {"choices": ["rtk_fixed", "standalone"]}}
+    )
+    try:
+        stages, modes = set(), set()
+        for i in range(8):
+            env.reset(seed=i)
+            stages.add(env.unwrapped.scenario.spec.crop.stage)
+            modes.add(env.unwrapped.gnss.cfg.mode)
+        assert len(stages) >= 3 and modes == {"rtk_fixed", "standalone"}
+    finally:
+        env.close()
+
+
+def test_reset_options_switch_scenario_and_lane() -> None:
+    env = make()
+    try:
+        env.reset(seed=0, options={"lane": 2})
+        lane = env.unwrapped.scenario.lanes[2]
+        assert np.allclose(env.unwrapped.route.xy[-1], lane[1])
+        other = sg.generate(sg.preset("mature-corn", **TINY), seed=1)
+        env.reset(seed=0, options={"scenario": other})
+        assert env.unwrapped.scenario is other
+        with pytest.raises(ScenarioError, match="options"):
+            env.reset(options={"lanes": 1})
+        with pytest.raises(ScenarioError, match="options.lane"):
+            env.reset(options={"lane": 999})
+    finally:
+        env.close()
+
+
+@pytest.mark.parametrize(
+    "kwargs,field",
+    [
+        ({"config": {"robot": {"v_maxx": 1.0}}}, "config.robot.v_maxx"),
+        ({"config": {"robot": {"physics_hz": 250}}}, "config.robot.physics_hz"),
+        ({"config": {"gnss": {"rate_hz": 3}}}, "config.gnss.rate_hz"),
+        ({"observations": ["lidar"]}, "observations"),
+        ({"render_mode": "ascii"}, "render_mode"),
+        ({"scenario": "no-such-preset"}, "scenario"),
+        ({"randomize": {"crop.stag": [1, 2]}}, "crop.stag"),
+        ({"randomize": {"crop.stage": "all"}}, "randomize.crop.stage"),
+    ],
+)
+def test_bad_env_arguments(kwargs: dict, field: str) -> None:
+    import warnings
+
+    with pytest.raises(ScenarioError) as info, warnings.catch_warnings():
+        # gym.make warns about an unlisted render mode before the env refuses it
+        warnings.filterwarnings("ignore", message=".*render_mode='ascii'")
+        make(**kwargs)
+    assert info.value.field == field

@@ -1,0 +1,154 @@
+import math
+
+import numpy as np
+import pytest
+from scipy.spatial import cKDTree
+
+from agrinav_gym.config import DepthConfig, GnssConfig, ImuConfig, RobotConfig
+from agrinav_gym.sensors.depth import DepthCamera
+from agrinav_gym.sensors.gnss import MODES, Gnss
+from agrinav_gym.sensors.imu import G, Imu
+from agrinav_gym.sim.plants import PlantField
+from scenario_gen import Terrain
+
+
+@pytest.mark.parametrize("mode", ["rtk_fixed", "rtk_float", "standalone"])
+def test_gnss_error_statistics_match_the_mode(mode: str) -> None:
+    cfg = GnssConfig(mode=mode, baseline_km=1.0)
+    gnss = Gnss(cfg, control_dt=0.05)
+    rng = np.random.default_rng(0)
+    truth = np.array([10.0, -5.0, 1.0])
+    # stationary distribution: each reset draws an independent steady-state error
+    err = []
+    for _ in range(4000):
+        gnss.reset(truth, rng)
+        err.append(gnss.reading - truth)
+    e = np.asarray(err)
+    cep = MODES[mode].cep + (1e-3 if mode != "standalone" else 0.0)  # + 1 ppm of 1 km
+    # the median horizontal error *is* the CEP; 4,000 samples pin it to about ±3 %
+    assert np.median(np.hypot(e[:, 0], e[:, 1])) == pytest.approx(cep, rel=0.06)
+    assert np.std(e[:, 2]) == pytest.approx(
+        (MODES[mode].vertical + (1e-3 if mode != "standalone" else 0.0)) / 1.1774, rel=0.06
+    )
+    # time-correlated, not white: the lag-τ autocorrelation is e⁻¹
+    tau = MODES[mode].tau
+    gnss.reset(truth, rng)
+    fixes = []
+    for _ in range(int(300 * tau / 0.05)):
+        gnss.step(truth, rng, 0.05)
+        if gnss.updated:
+            fixes.append(gnss.reading[0] - truth[0])
+    x = np.asarray(fixes)
+    lag = round(tau / 0.1)
+    assert float(np.corrcoef(x[:-lag], x[lag:])[0, 1]) == pytest.approx(math.exp(-1), abs=0.1)
+    assert gnss.every == 2  # 10 Hz fixes at 20 Hz control
+
+
+def test_imu_noise_matches_the_datasheet() -> None:
+    cfg = ImuConfig()
+    dt = 0.05
+    imu = Imu(cfg, dt)
+    rng = np.random.default_rng(1)
+    imu.reset(rng)
+    rot, zero, rpy = np.eye(3), np.zeros(3), np.zeros(3)
+    f, w, est = [], [], []
+    for _ in range(60000):  # 3,000 s: 10 orientation correlation times per 100 s
+        a, b, c = imu.measure(rot, zero, zero, rpy, rng)
+        f.append(a)
+        w.append(b)
+        est.append(c)
+    f, w, est = np.asarray(f), np.asarray(w), np.asarray(est)
+    rate = 1 / dt
+    gyro_sigma = math.radians(0.01) * math.sqrt(rate)  # 0.01 °/s/√Hz
+    accel_sigma = 60e-6 * G * math.sqrt(rate)  # 60 µg/√Hz
+    # white noise std from first differences (bias drift is negligible per step)
+    assert np.std(np.diff(w, axis=0)) / math.sqrt(2) == pytest.approx(gyro_sigma, rel=0.03)
+    assert np.std(np.diff(f, axis=0)) / math.sqrt(2) == pytest.approx(accel_sigma, rel=0.03)
+    # at rest the accelerometer measures +g up (specific force), within bias + noise
+    assert f[:, 2].mean() == pytest.approx(G, abs=5 * 15e-6 * G + 1e-4)
+    assert abs(f[:, 0].mean()) < 5 * 15e-6 * G + 1e-4
+    # gyro bias within a few in-run stabilities (10 °/h)
+    assert np.abs(w.mean(axis=0)).max() < 5 * math.radians(10 / 3600)
+    # orientation estimate RMS: roll/pitch 0.2°, heading 1°
+    rms = np.sqrt((est**2).mean(axis=0))
+    assert rms[0] == pytest.approx(math.radians(0.2), rel=0.2)
+    assert rms[2] == pytest.approx(math.radians(1.0), rel=0.2)
+
+
+def _empty_plants() -> PlantField:
+    e = np.empty(0)
+    tree = cKDTree(np.zeros((1, 2)))
+    return PlantField(
+        np.empty((0, 2)), e, e, e, e, np.empty(0, bool), tree, 0.0, tree, np.empty(0, np.int64), 0.0
+    )
+
+
+def _flat(z: float = 0.0) -> Terrain:
+    return Terrain(np.full((200, 200), z), -12.0, -12.0, 0.12)
+
+
+def test_depth_pixel_reads_the_true_distance_to_the_ground() -> None:
+    robot = RobotConfig(camera_pitch_deg=30.0, camera_height=0.55, camera_x=0.25)
+    cam = DepthCamera(DepthConfig(width=64, height=48), robot)
+    pos = np.array([0.0, 0.0, 0.11])
+    frame = cam.render(np.eye(3), pos, _flat(), _empty_plants(), rng=None)
+    # analytic: the ray of pixel (row 30, col 20) from the camera origin to z = 0
+    o, rays = cam.pose(np.eye(3), pos)
+    i = 30 * 64 + 20
+    t = -o[2] / rays[i, 2]
+    expect = t * cam.forward[i]
+    assert frame.depth[30, 20] == pytest.approx(expect, abs=1e-4)
+    # every pixel below the horizon that sees ground within range is valid
+    assert (frame.depth[30:] > 0).all()
+
+
+def test_depth_noise_follows_the_stereo_error_law() -> None:
+    robot = RobotConfig(camera_pitch_deg=5.0)
+    cam = DepthCamera(DepthConfig(width=32, height=24), robot)
+    plants = _wall_plant(distance=4.0, radius=0.5, height=3.0)
+    pos = np.array([0.0, 0.0, 0.11])
+    rng = np.random.default_rng(0)
+    samples = np.array(
+        [cam.render(np.eye(3), pos, _flat(), plants, rng).depth[12, 16] for _ in range(3000)]
+    )
+    true = float(cam.render(np.eye(3), pos, _flat(), plants, None).depth[12, 16])
+    sigma = true**2 * 0.08 / (cam.f_native * 0.095)
+    assert samples.mean() == pytest.approx(true, abs=4 * sigma / math.sqrt(len(samples)))
+    assert samples.std() == pytest.approx(sigma, rel=0.06)
+    assert sigma / true < 0.02  # D455: < 2 % at 4 m
+
+
+def _wall_plant(distance: float, radius: float, height: float) -> PlantField:
+    xy = np.array([[0.25 + distance, 0.0]])
+    tree = cKDTree(xy)
+    return PlantField(
+        xy,
+        np.zeros(1),
+        np.full(1, height),
+        np.full(1, radius),
+        np.full(1, 0.02),
+        np.zeros(1, bool),
+        tree,
+        radius,
+        tree,
+        np.zeros(1, np.int64),
+        0.02,
+    )
+
+
+def test_depth_sees_a_plant_at_its_distance_and_labels_it() -> None:
+    robot = RobotConfig(camera_pitch_deg=0.0)
+    cam = DepthCamera(DepthConfig(width=33, height=25, segmentation=True), robot)
+    plants = _wall_plant(distance=3.0, radius=0.2, height=2.0)
+    frame = cam.render(np.eye(3), np.array([0.0, 0.0, 0.11]), _flat(), plants, None, labels=True)
+    # the centre pixel looks straight along the optical axis at the cylinder's near side
+    assert frame.depth[12, 16] == pytest.approx(3.0 - 0.2, abs=1e-6)
+    assert frame.label[12, 16] == 2  # crop
+    assert frame.label[-1, 0] == 1  # soil at the bottom corner
+    assert frame.label[0, 0] == 0  # nothing within range above the horizon
+
+
+def test_depth_out_of_range_is_zero() -> None:
+    cam = DepthCamera(DepthConfig(width=16, height=12, max_range=2.0), RobotConfig())
+    frame = cam.render(np.eye(3), np.array([0.0, 0.0, 0.11]), _flat(), _empty_plants(), None)
+    assert (frame.depth == 0).any() and frame.depth.max() <= 2.0
