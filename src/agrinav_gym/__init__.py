@@ -20,7 +20,7 @@ from .metrics import cross_track_metrics
 TASKS = {
     "furrow": ("agrinav_gym.envs.furrow_follow:FurrowFollowEnv", 600),
     "furrow_depth": ("agrinav_gym.envs.furrow_follow:FurrowFollowDepthEnv", 600),
-    "route": ("agrinav_gym.envs.field_route:FieldRouteEnv", 2000),
+    "route": ("agrinav_gym.envs.field_route:FieldRouteEnv", 4000),
 }
 ENV_IDS = ("AgriNav/FurrowFollow-v0", "AgriNav/FurrowFollowDepth-v0", "AgriNav/FieldRoute-v0")
 

@@ -3,7 +3,8 @@
 Cross-track error = perpendicular distance from each recorded pose (the ground projection of
 base_link) to the nearest segment of the reference path. Reported: global RMSE, MAE, max,
 in-furrow RMSE and headland RMSE (by the tag of each pose's nearest segment), completion
-(% of the route's length reached) and crops hit.
+(% of the route's length reached) and crops hit. A category without poses (no headland in a
+single-lane run) reports ``None``, not NaN, so results compare and serialize cleanly.
 """
 
 from __future__ import annotations
@@ -60,8 +61,8 @@ def segment_tags(labels: ArrayLike) -> NDArray[np.str_]:
     return np.where(both, "furrow", "headland")
 
 
-def _rmse(x: FloatArray) -> float:
-    return float(np.sqrt(np.mean(x * x))) if len(x) else float("nan")
+def _rmse(x: FloatArray) -> float | None:
+    return float(np.sqrt(np.mean(x * x))) if len(x) else None
 
 
 def cross_track_metrics(
@@ -75,8 +76,8 @@ def cross_track_metrics(
     length = float(np.linalg.norm(np.diff(xy, axis=0), axis=1).sum())
     return {
         "rmse": _rmse(dist),
-        "mae": float(np.mean(dist)) if len(dist) else float("nan"),
-        "max": float(np.max(dist)) if len(dist) else float("nan"),
+        "mae": float(np.mean(dist)) if len(dist) else None,
+        "max": float(np.max(dist)) if len(dist) else None,
         "in_furrow_rmse": _rmse(dist[tags == "furrow"]),
         "headland_rmse": _rmse(dist[tags == "headland"]),
         "completion": 100.0 * float(arc.max()) / length if len(arc) and length > 0 else 0.0,

@@ -6,6 +6,8 @@ from typing import Any
 
 import gymnasium as gym
 
+import agrinav_gym  # noqa: F401  (registers the AgriNav/ ids)
+
 TINY: dict[str, Any] = {
     "field": {"width": 6.0, "length": 14.0},
     "layout": {"headland": 2.0},

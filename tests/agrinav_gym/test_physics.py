@@ -62,3 +62,24 @@ def test_wheel_odometry_reports_motion() -> None:
         assert abs(obs["odom"][1]) < 0.05
     finally:
         env.close()
+
+
+def test_climbs_a_12_degree_slope() -> None:
+    # rows run east; the plane falls to the west (aspect 270°), so the lane climbs
+    slope = {
+        **FLAT,
+        "terrain": {"source": "plane", "slope_deg": 12.0, "aspect_deg": 270.0, "margin": 4.0},
+    }
+    env = make(scenario_overrides=slope, config=STILL)
+    try:
+        env.reset(seed=0, options={"lane": 3})
+        p0, _ = _true_pose(env)
+        for _ in range(160):  # 8 s at 0.5 m/s
+            env.step(np.array([0.5, 0.0], np.float32))
+        p, _ = _true_pose(env)
+        climbed = p[2] - p0[2]
+        run = p[0] - p0[0]
+        assert run > 3.2  # ≥ 80 % of the commanded 4 m: wheel slip, not sliding back
+        assert climbed == pytest.approx(run * math.tan(math.radians(12.0)), abs=0.05)
+    finally:
+        env.close()

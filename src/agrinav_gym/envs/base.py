@@ -226,6 +226,13 @@ class AgriNavEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32]], E
         self._hit: set[int] = set()
         self._steps = 0
         self._poses: list[tuple[float, float]] = []
+        # running sums for the paper's metrics: (n, Σd², Σ|d|, max) overall, in furrow, headland
+        self._acc = {
+            "all": [0, 0.0, 0.0, 0.0],
+            "furrow": [0, 0.0, 0.0, 0.0],
+            "headland": [0, 0.0, 0.0, 0.0],
+        }
+        self._s_max = 0.0
         self.imu.reset(self.np_random)
         self._read_state()
         self.gnss.reset(self._antenna(), self.np_random)
@@ -240,6 +247,7 @@ class AgriNavEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32]], E
         self._s = self._s0 = s
         self._cte, self._k = cte, k
         self._poses.append((float(self._pos[0]), float(self._pos[1])))
+        self._accumulate(cte, bool(self.route.furrow[k]), s)
         if self.render_mode == "human":
             self._load_visuals()
         return self._observe(), self._info({}, False)
@@ -279,6 +287,8 @@ class AgriNavEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32]], E
         cte, s, k = self.tracker.update(x, y)
         ds = s - self._s
         self._s, self._cte, self._k = s, cte, k
+        furrow = bool(self.route.furrow[k]) if self.route is not None else True
+        self._accumulate(cte, furrow, s)
         geo = self.world.geometry
         assert self._plants is not None
         new = [
@@ -288,7 +298,6 @@ class AgriNavEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32]], E
         ]
         self._hit.update(new)
 
-        furrow = bool(self.route.furrow[k]) if self.route is not None else True
         corridor = self._corridor(furrow)
         heading_err = _wrap(self._rpy[2] - float(self.route.heading[k]))  # type: ignore[union-attr]
         tilt = max(abs(self._rpy[0]), abs(self._rpy[1]))
@@ -313,11 +322,12 @@ class AgriNavEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32]], E
         }
         self._prev_action = a.astype(np.float32)
         reward = float(sum(parts.values()))
-        limit_steps = self.spec.max_episode_steps if self.spec is not None else None
-        truncated = bool(not terminated and limit_steps is not None and self._steps >= limit_steps)
+        # Truncation is the TimeLimit wrapper's (max_episode_steps), which the env cannot see:
+        # the running metrics therefore ride on every step's info, and the last one is final.
+        truncated = False
         info = self._info(parts, bool(success), heading_err)
-        if terminated or truncated:
-            info["metrics"] = self.episode_metrics()
+        info["metrics"] = self.running_metrics()
+        if terminated:
             info["termination"] = (
                 "success"
                 if success
@@ -332,6 +342,40 @@ class AgriNavEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32]], E
                 else "time_limit"
             )
         return self._observe(), reward, terminated, truncated, info
+
+    def _accumulate(self, cte: float, furrow: bool, s: float) -> None:
+        d = abs(cte)
+        for key in ("all", "furrow" if furrow else "headland"):
+            a = self._acc[key]
+            a[0] += 1
+            a[1] += d * d
+            a[2] += d
+            a[3] = max(a[3], d)
+        self._s_max = max(self._s_max, s)
+
+    def running_metrics(self) -> dict[str, Any]:
+        """The paper's metrics (DESIGN §6) over the episode so far, O(1) per step.
+
+        Each pose's error is its distance to the nearest route segment as tracked along the
+        route — the global nearest segment while the robot stays inside its corridor.
+        ``episode_metrics`` recomputes them from the pose log against the whole route.
+        """
+        assert self.route is not None
+
+        def rmse(a: list[Any]) -> float | None:
+            return math.sqrt(a[1] / a[0]) if a[0] else None
+
+        a = self._acc["all"]
+        return {
+            "rmse": rmse(a),
+            "mae": a[2] / a[0] if a[0] else None,
+            "max": a[3],
+            "in_furrow_rmse": rmse(self._acc["furrow"]),
+            "headland_rmse": rmse(self._acc["headland"]),
+            "completion": 100.0 * self._s_max / max(self.route.length, 1e-9),
+            "crops_hit": len(self._hit),
+            "poses": a[0],
+        }
 
     def episode_metrics(self) -> dict[str, Any]:
         assert self.route is not None

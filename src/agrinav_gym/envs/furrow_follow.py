@@ -46,8 +46,10 @@ class FurrowFollowEnv(AgriNavEnv):
     ## Episode End
     Terminated on success (lane end reached within 0.3 m), leaving the corridor (|cte| > half
     the row spacing), tipping over (roll or pitch > 60°) or hitting more than 5 crops;
-    truncated by ``max_episode_steps`` (600). The last ``info`` carries ``metrics`` (RMSE, MAE,
-    max, in-furrow / headland RMSE, completion, crops hit) and ``termination``.
+    truncated by ``max_episode_steps`` (600). Every ``info`` carries the episode's running
+    ``metrics`` (RMSE, MAE, max, in-furrow / headland RMSE, completion, crops hit), so the last
+    one holds the final values however the episode ended; a terminating step also names its
+    ``termination`` (success, corridor, off_terrain, tip_over, crops_hit).
 
     ## Arguments
     ``scenario`` (Scenario, scenario directory or preset name; default ``"default"``),

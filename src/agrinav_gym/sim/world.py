@@ -201,6 +201,11 @@ class TerrainPatch:
     of ``PATCH_M`` metres that is refilled in place (``replaceHeightfieldIndex``) when the robot
     nears its edge. It moves by whole grid cells, so the surface under the wheels is the same
     bits before and after a move.
+
+    pybullet keeps a heightfield's original height range (its centring offset and its bounding
+    box) when the data is replaced, so every window pins its two far corner samples to the
+    terrain's global minimum and maximum: the range never changes and the body stays at one
+    height. Those corners are always more than RECENTRE_M from the robot.
     """
 
     PATCH_M = 24.0
@@ -250,8 +255,9 @@ class TerrainPatch:
         if (i0, j0) == (self.i0, self.j0) and self.shape >= 0:
             return False
         self.i0, self.j0 = i0, j0
-        h = t.heights[i0 : i0 + self.ny, j0 : j0 + self.nx]
-        zmin, zmax = float(h.min()), float(h.max())
+        h = t.heights[i0 : i0 + self.ny, j0 : j0 + self.nx].copy()
+        zmin, zmax = float(t.heights.min()), float(t.heights.max())
+        h[0, 0], h[-1, -1] = zmin, zmax
         kwargs: dict[str, Any] = {}
         if self.shape >= 0:
             kwargs["replaceHeightfieldIndex"] = self.shape
