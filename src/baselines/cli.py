@@ -149,7 +149,72 @@ def build_parser() -> argparse.ArgumentParser:
     sc.add_argument("--force", action="store_true", help="replace an existing output directory")
     sc.add_argument("--no-preview", action="store_true", help="skip preview.png")
     sc.set_defaults(func=cmd_scenario)
+
+    tr = sub.add_parser("train", help="train a learned policy (PPO) on an AgriNav env")
+    tr.add_argument("--env", required=True, help="env id, e.g. AgriNav/FurrowFollow-v0")
+    tr.add_argument("--algo", default="ppo", choices=["ppo"])
+    tr.add_argument("--timesteps", type=int, required=True)
+    tr.add_argument("--seed", type=int, default=0)
+    tr.add_argument("--out", required=True)
+    tr.add_argument("--eval-every", type=int, default=20000, help="timesteps between evaluations")
+    tr.add_argument("--eval-episodes", type=int, default=4)
+    tr.set_defaults(func=cmd_train)
+
+    ru = sub.add_parser(
+        "run", help="run a policy for some episodes: metrics.json + trajectory plots"
+    )
+    ru.add_argument("--env", default="AgriNav/FieldRoute-v0")
+    ru.add_argument("--policy", required=True, help="dwb, rpp, depth or ppo:PATH")
+    ru.add_argument("--seed", type=int, default=1_000_000_000)
+    ru.add_argument("--episodes", type=int, default=1)
+    ru.add_argument("--scenario", help="a scenario directory or preset (default: the env's)")
+    ru.add_argument("--out", required=True)
+    ru.add_argument("--video", action="store_true", help="write an MP4 of the first episode")
+    ru.set_defaults(func=cmd_run)
+
+    be = sub.add_parser("bench", help="benchmark policies on a suite: results.json, benchmark.md")
+    be.add_argument("--suite", required=True, help="smoke, paper, growth, density or terrain")
+    be.add_argument("--policies", required=True, help="comma list: dwb,rpp,depth,ppo:PATH")
+    be.add_argument("--seeds", type=int, default=3)
+    be.add_argument("--out", required=True)
+    be.set_defaults(func=cmd_bench)
     return parser
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from baselines.bench import run
+
+    records = run(
+        args.env, args.policy, args.seed, args.episodes, args.out, args.scenario, args.video
+    )
+    for r in records:
+        print({k: (round(v, 3) if isinstance(v, float) else v) for k, v in r.items()})
+    return 0
+
+
+def cmd_bench(args: argparse.Namespace) -> int:
+    from baselines.bench import bench, command_line
+
+    pols = [p.strip() for p in args.policies.split(",") if p.strip()]
+    bench(args.suite, pols, args.seeds, args.out, command_line(["agrinav", *sys.argv[1:]]))
+    print((Path(args.out) / "benchmark.md").read_text())
+    return 0
+
+
+def cmd_train(args: argparse.Namespace) -> int:
+    from baselines.train import train
+
+    out = train(
+        args.env,
+        args.timesteps,
+        args.seed,
+        args.out,
+        args.eval_every,
+        args.eval_episodes,
+        argv=["agrinav", *sys.argv[1:]],
+    )
+    print(f"model, config, command and learning curve in {out}")
+    return 0
 
 
 def main(argv: Sequence[str] | None = None) -> int:

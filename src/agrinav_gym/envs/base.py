@@ -70,6 +70,7 @@ class AgriNavEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32]], E
         scenario_overrides: dict[str, Any] | None = None,
         scenario_seed: int = 0,
         randomize: dict[str, Any] | None = None,
+        scenario_seeds: tuple[int, int] | list[int] | None = None,
         bank: str | Path | None = None,
         observations: tuple[str, ...] | list[str] | None = None,
         config: dict[str, Any] | None = None,
@@ -81,6 +82,7 @@ class AgriNavEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32]], E
             scenario_overrides,
             scenario_seed,
             randomize,
+            scenario_seeds,
             bank,
             observations,
             config,
@@ -104,6 +106,12 @@ class AgriNavEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32]], E
         self.cfg = EnvConfig.from_dict(config)
         self.render_mode = render_mode
         self.randomize = dict(randomize or {})
+        lo, hi = scenario_seeds if scenario_seeds is not None else (0, 2**31 - 1)
+        if not (isinstance(lo, int) and isinstance(hi, int) and 0 <= lo < hi):
+            raise ScenarioError(
+                "scenario_seeds", scenario_seeds, "allowed: [low, high) integers, 0 <= low < high"
+            )
+        self.scenario_seeds = (lo, hi)
         self._scenario_source = (scenario, scenario_overrides)
         self.bank = Bank(bank) if bank is not None else None
         if self.randomize:  # validate the keys now, not at the first reset
@@ -205,7 +213,9 @@ class AgriNavEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32]], E
                 import scenario_gen as sg
 
                 spec = sg.preset(str(src or "default"), **(over or {})).replace(scn_rand)
-                self.scenario = sg.generate(spec, int(self.np_random.integers(2**31)))
+                self.scenario = sg.generate(
+                    spec, int(self.np_random.integers(*self.scenario_seeds))
+                )
         self._apply_env_randomization(env_rand)
         scn = self.scenario
         self.world.load(scn.terrain)
@@ -376,6 +386,11 @@ class AgriNavEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32]], E
             "crops_hit": len(self._hit),
             "poses": a[0],
         }
+
+    @property
+    def trajectory(self) -> FloatArray:
+        """Ground-truth base positions (N, 2) of this episode: for evaluation, never policies."""
+        return np.asarray(self._poses, dtype=np.float64)
 
     def episode_metrics(self) -> dict[str, Any]:
         assert self.route is not None

@@ -32,7 +32,7 @@ class FieldRouteEnv(AgriNavEnv):
 
     ## Episode End
     Success at the route's end; failure on leaving the corridor, tipping over or hitting more
-    than 5 crops; truncation by ``max_episode_steps`` (4000). Every ``info`` carries the
+    than 10 crops; truncation by ``max_episode_steps`` (4000). Every ``info`` carries the
     paper's running metrics (in-furrow and headland RMSE separately).
 
     ## Arguments

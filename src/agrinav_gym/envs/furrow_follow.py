@@ -40,12 +40,12 @@ class FurrowFollowEnv(AgriNavEnv):
     ``terminal`` (+10 on success, −10 on failure).
 
     ## Starting State
-    At rest 0.3 m into the lane, laterally offset by N(0, 0.08 m) and turned by N(0, 8°)
+    At rest 0.3 m into the lane, laterally offset by N(0, 0.03 m) and turned by N(0, 3°)
     (clipped), tilted with the terrain.
 
     ## Episode End
     Terminated on success (lane end reached within 0.3 m), leaving the corridor (|cte| > half
-    the row spacing), tipping over (roll or pitch > 60°) or hitting more than 5 crops;
+    the row spacing), tipping over (roll or pitch > 60°) or hitting more than 10 crops;
     truncated by ``max_episode_steps`` (600). Every ``info`` carries the episode's running
     ``metrics`` (RMSE, MAE, max, in-furrow / headland RMSE, completion, crops hit), so the last
     one holds the final values however the episode ended; a terminating step also names its
@@ -55,8 +55,9 @@ class FurrowFollowEnv(AgriNavEnv):
     ``scenario`` (Scenario, scenario directory or preset name; default ``"default"``),
     ``scenario_overrides`` (spec overrides for a preset), ``scenario_seed``, ``randomize``
     (ranges re-drawn each reset, e.g. ``{"crop.stage": [1, 5], "gnss_mode": {"choices":
-    ["rtk_fixed", "rtk_float"]}}``), ``bank`` (a directory of saved scenarios sampled each
-    reset), ``observations``, ``config`` (nested overrides of ``EnvConfig``; unknown keys are
+    ["rtk_fixed", "rtk_float"]}}``), ``scenario_seeds`` (the ``[low, high)`` range randomized
+    scenarios draw their seed from: disjoint ranges make disjoint train/test splits),
+    ``bank`` (a directory of saved scenarios sampled each reset), ``observations``, ``config`` (nested overrides of ``EnvConfig``; unknown keys are
     errors), ``render_mode`` (``rgb_array`` chase view, ``human`` GUI).
     ``reset(options={"scenario": ..., "lane": i})`` switches scenario or lane.
 

@@ -118,12 +118,52 @@ class World:
         )
         self._terrain = terrain
         self.patch = TerrainPatch(cid, terrain, self.cfg.friction)
+        self.robot = -1
+        self._spawn_robot([0, 0, float(terrain.heights.max()) + 1.0], [0, 0, 0, 1])
+        p.configureDebugVisualizer(p.COV_ENABLE_RENDERING, 1, physicsClientId=cid)
+        self.visuals_loaded = False
+
+    def place_robot(self, x: float, y: float, yaw: float, terrain: Terrain) -> None:
+        """Put the robot at rest on the ground at (x, y) facing ``yaw``.
+
+        Height and tilt come from the ground under each wheel, not under the centre: in a
+        furrow the wheels stand on the ridge flanks, centimetres above the lane's bottom, and a
+        robot spawned into them is thrown by the penetration recovery.
+        """
+        g = self.geometry
+        c, s = math.cos(yaw), math.sin(yaw)
+        fx, ly = 0.5 * g.wheelbase, 0.5 * g.track
+        local = [(fx, ly), (fx, -ly), (-fx, ly), (-fx, -ly)]  # fl, fr, bl, br
+        wx = np.array([x + c * a - s * b for a, b in local])
+        wy = np.array([y + s * a + c * b for a, b in local])
+        # the lowest point of each wheel sphere may sit a little beside its axle: sample a ring
+        ring = np.linspace(0, 2 * math.pi, 8, endpoint=False)
+        rx = wx[:, None] + 0.5 * g.wheel_radius * np.cos(ring)[None, :]
+        ry = wy[:, None] + 0.5 * g.wheel_radius * np.sin(ring)[None, :]
+        h = np.maximum(terrain.height_at(wx, wy), terrain.height_at(rx, ry).max(axis=1))
+        fl, fr, bl, br = (float(v) for v in h)
+        roll = math.atan2(0.5 * (fl + bl) - 0.5 * (fr + br), g.track)
+        pitch = math.atan2(0.5 * (bl + br) - 0.5 * (fl + fr), g.wheelbase)
+        # each axle's height offset from the base under that tilt; the centre goes where the
+        # worst-fitting wheel just clears its ground
+        dz = np.array(
+            [-math.sin(pitch) * a + math.cos(pitch) * math.sin(roll) * b for a, b in local]
+        )
+        z = float(np.max(h - dz)) + g.wheel_radius + 0.005
+        q = p.getQuaternionFromEuler([roll, pitch, yaw])
+        self.patch.follow(x, y, force=True)
+        # A fresh body: resetting the old one would keep its contact manifolds and warm-start
+        # impulses, and the first steps of an episode would depend on the one before.
+        self._spawn_robot([x, y, z], q)
+        self.drive(0.0, 0.0)
+
+    def _spawn_robot(self, pos: list[float], quat: Any) -> None:
+        cid = self.client
+        if self.robot >= 0:
+            p.removeBody(self.robot, physicsClientId=cid)
         with _quiet_stdout():  # the URDF merger prints a line per link from C
             self.robot = p.loadURDF(
-                urdf_path(),
-                [0, 0, float(terrain.heights.max()) + 1.0],
-                flags=p.URDF_MERGE_FIXED_LINKS,
-                physicsClientId=cid,
+                urdf_path(), pos, quat, flags=p.URDF_MERGE_FIXED_LINKS, physicsClientId=cid
             )
         names = [
             p.getJointInfo(self.robot, j, physicsClientId=cid)[1].decode()
@@ -132,26 +172,6 @@ class World:
         self.wheels = [names.index(n) for n in WHEEL_JOINTS]
         for j in self.wheels:
             p.changeDynamics(self.robot, j, lateralFriction=self.cfg.friction, physicsClientId=cid)
-        p.configureDebugVisualizer(p.COV_ENABLE_RENDERING, 1, physicsClientId=cid)
-        self.visuals_loaded = False
-
-    def place_robot(self, x: float, y: float, yaw: float, terrain: Terrain) -> None:
-        """Put the robot at rest on the ground at (x, y) facing ``yaw``, tilted with the slope."""
-        n = terrain.normal_at(x, y)
-        c, s = math.cos(yaw), math.sin(yaw)
-        # slope in the heading frame -> pitch (nose up on a rising slope) and roll
-        gx, gy = -n[0] / n[2], -n[1] / n[2]
-        pitch = -math.atan(c * gx + s * gy)
-        roll = math.atan(-s * gx + c * gy)
-        z = float(terrain.height_at(x, y)) + self.geometry.wheel_radius + 0.01
-        q = p.getQuaternionFromEuler([roll, pitch, yaw])
-        cid = self.client
-        self.patch.follow(x, y, force=True)
-        p.resetBasePositionAndOrientation(self.robot, [x, y, z], q, physicsClientId=cid)
-        p.resetBaseVelocity(self.robot, [0, 0, 0], [0, 0, 0], physicsClientId=cid)
-        for j in self.wheels:
-            p.resetJointState(self.robot, j, 0.0, 0.0, physicsClientId=cid)
-        self.drive(0.0, 0.0)
 
     # ------------------------------------------------------------------ stepping
     def drive(self, v: float, w: float) -> None:

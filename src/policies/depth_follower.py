@@ -1,0 +1,115 @@
+"""Depth furrow follower: find the lane between two crop rows in the depth image, centre on it.
+
+Depth pixels are back-projected with the camera's intrinsics and mount into the robot frame;
+points standing above the ground are crop. A line is fitted to each row (left, right) over
+0.5-3 m ahead, the lane centreline is their mean, and the robot steers on its lateral offset
+and heading. No GNSS and no route: the perception-only counterpart of a depth-trained PPO.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+from numpy.typing import NDArray
+
+from .base import Obs, Policy
+
+
+class DepthFurrowFollower(Policy):
+    name = "depth"
+    requires = ("depth",)
+
+    def __init__(
+        self,
+        observation_space: spaces.Dict,
+        action_space: spaces.Box,
+        v_max: float = 1.0,
+        w_max: float = 1.5,
+        camera: dict[str, float] | None = None,
+        speed: float = 0.6,
+        k_lateral: float = 2.0,
+        k_heading: float = 1.5,
+        min_height: float = 0.12,
+        near: float = 0.5,
+        far: float = 3.0,
+        **params: Any,
+    ) -> None:
+        super().__init__(observation_space, action_space)
+        self.v_max, self.w_max = v_max, w_max
+        c = camera or {
+            "hfov": math.radians(87.0),
+            "vfov": math.radians(58.0),
+            "x": 0.25,
+            "height": 0.55,
+            "pitch": math.radians(25.0),
+        }
+        self.speed, self.k_lat, self.k_head = speed, k_lateral, k_heading
+        self.min_height, self.near, self.far = min_height, near, far
+        shape = observation_space.spaces["depth"].shape
+        assert shape is not None
+        h, w = shape[-2:]
+        fx = 0.5 * w / math.tan(c["hfov"] / 2)
+        fy = 0.5 * h / math.tan(c["vfov"] / 2)
+        u, v = np.meshgrid(np.arange(w) - 0.5 * (w - 1), np.arange(h) - 0.5 * (h - 1))
+        self.ray_y = (-u / fx).ravel()
+        self.ray_z = (-v / fy).ravel()
+        cp, sp = math.cos(c["pitch"]), math.sin(c["pitch"])
+        self.rot = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
+        self.mount = np.array([c["x"], 0.0, c["height"] + 0.11])  # above the footprint plane
+        self.half_width = 0.375  # last lane half-width seen; a prior of maize rows
+        self.lost = 0
+
+    def reset(self) -> None:
+        self.lost = 0
+
+    def lane(self, depth: NDArray[np.float32]) -> tuple[float, float] | None:
+        """(lateral offset of the lane centre, its heading) in the robot frame, or None."""
+        z = np.asarray(depth, np.float64).ravel()
+        ok = z > 0
+        cam = np.stack([z[ok], self.ray_y[ok] * z[ok], self.ray_z[ok] * z[ok]], axis=1)
+        pts = cam @ self.rot.T + self.mount
+        crop = pts[(pts[:, 2] > self.min_height) & (pts[:, 0] > self.near) & (pts[:, 0] < self.far)]
+        fits: list[tuple[float, float] | None] = []
+        for side in (1, -1):
+            s = crop[np.sign(crop[:, 1]) == side]
+            if len(s) < 8:
+                fits.append(None)
+                continue
+            # the row's inner edge: the points nearest the lane at each distance
+            bins = np.floor(s[:, 0] / 0.25).astype(int)
+            edge = []
+            for b in np.unique(bins):
+                m = bins == b
+                k = np.argmin(np.abs(s[m, 1]))
+                edge.append(s[m][k, :2])
+            e = np.asarray(edge)
+            if len(e) < 3:
+                fits.append(None)
+                continue
+            slope, icpt = np.polyfit(e[:, 0], e[:, 1], 1)
+            fits.append((float(icpt), float(slope)))
+        left, right = fits
+        if left is not None and right is not None:
+            self.half_width = float(np.clip((left[0] - right[0]) / 2, 0.2, 1.5))
+            return 0.5 * (left[0] + right[0]), math.atan(0.5 * (left[1] + right[1]))
+        if left is not None:
+            return left[0] - self.half_width, math.atan(left[1])
+        if right is not None:
+            return right[0] + self.half_width, math.atan(right[1])
+        return None
+
+    def act(self, obs: Obs) -> NDArray[np.float32]:
+        est = self.lane(obs["depth"])
+        if est is None:  # no rows in view (headland, or taller crops than the view): go slow
+            self.lost += 1
+            return self._clip(np.array([0.3 * self.speed / self.v_max, 0.0]))
+        self.lost = 0
+        offset, heading = est
+        w = self.k_lat * offset + self.k_head * heading
+        v = self.speed / (1.0 + 2.0 * abs(heading))
+        return self._clip(
+            np.array([v / self.v_max, np.clip(w, -self.w_max, self.w_max) / self.w_max])
+        )

@@ -1,0 +1,72 @@
+"""Regulated pure pursuit (Nav2 RPP-like): a carrot on the route, curvature-regulated speed."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+from numpy.typing import NDArray
+
+from .base import Obs, Policy
+from .geometry import local_plan
+
+
+class RegulatedPurePursuit(Policy):
+    """Nav2 defaults, with lookahead scaled by speed (0.3-0.9 m at 1.5 s of travel)."""
+
+    name = "rpp"
+    requires = ("route",)
+
+    def __init__(
+        self,
+        observation_space: spaces.Dict,
+        action_space: spaces.Box,
+        v_max: float = 1.0,
+        w_max: float = 1.5,
+        desired_linear_vel: float = 0.8,
+        lookahead_time: float = 1.5,
+        min_lookahead: float = 0.3,
+        max_lookahead: float = 0.9,
+        min_radius: float = 0.9,
+        rotate_to_heading_min_angle: float = 0.785,
+        rotate_to_heading_angular_vel: float = 1.5,
+        approach_dist: float = 0.6,
+        min_approach_vel: float = 0.05,
+        **params: Any,
+    ) -> None:
+        super().__init__(observation_space, action_space)
+        self.v_max, self.w_max = v_max, w_max
+        self.v_des = min(desired_linear_vel, v_max)
+        self.t_look, self.l_min, self.l_max = lookahead_time, min_lookahead, max_lookahead
+        self.r_min = min_radius
+        self.rot_angle, self.rot_vel = rotate_to_heading_min_angle, rotate_to_heading_angular_vel
+        self.approach, self.v_approach_min = approach_dist, min_approach_vel
+        self.v = 0.0
+
+    def reset(self) -> None:
+        self.v = 0.0
+
+    def act(self, obs: Obs) -> NDArray[np.float32]:
+        if "odom" in obs:
+            self.v = float(obs["odom"][0])
+        plan, _ = local_plan(obs["route"])
+        look = float(np.clip(abs(self.v) * self.t_look, self.l_min, self.l_max))
+        d = np.hypot(plan[:, 0], plan[:, 1])
+        ahead = np.flatnonzero((d >= look) & (plan[:, 0] > -0.2))
+        carrot = plan[ahead[0]] if len(ahead) else plan[-1]
+        angle = math.atan2(carrot[1], carrot[0])
+        if abs(angle) > self.rot_angle:  # rotate in place towards the path first
+            return self._clip(np.array([0.0, math.copysign(self.rot_vel, angle) / self.w_max]))
+        l2 = float(carrot @ carrot)
+        curvature = 2.0 * float(carrot[1]) / max(l2, 1e-6)
+        v = self.v_des
+        radius = 1.0 / max(abs(curvature), 1e-9)
+        if radius < self.r_min:  # curvature heuristic: slow down in tight turns
+            v *= radius / self.r_min
+        remaining = float(np.hypot(*plan[-1]))
+        if remaining < self.approach:  # approach the route's end gently
+            v = max(v * remaining / self.approach, self.v_approach_min)
+        w = float(np.clip(v * curvature, -self.w_max, self.w_max))
+        return self._clip(np.array([v / self.v_max, w / self.w_max]))
