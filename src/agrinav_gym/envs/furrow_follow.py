@@ -58,7 +58,8 @@ class FurrowFollowEnv(AgriNavEnv):
     ["rtk_fixed", "rtk_float"]}}``), ``scenario_seeds`` (the ``[low, high)`` range randomized
     scenarios draw their seed from: disjoint ranges make disjoint train/test splits),
     ``bank`` (a directory of saved scenarios sampled each reset), ``observations``,
-    ``config`` (nested overrides of ``EnvConfig``; unknown keys are errors), ``render_mode`` (``rgb_array`` chase view, ``human`` GUI).
+    ``config`` (nested overrides of ``EnvConfig``; unknown keys are errors), ``render_mode``
+    (``rgb_array`` chase view, ``human`` GUI).
     ``reset(options={"scenario": ..., "lane": i})`` switches scenario or lane.
 
     ## Version History
