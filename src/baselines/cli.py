@@ -196,7 +196,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
     from baselines.bench import bench, command_line
 
     pols = [p.strip() for p in args.policies.split(",") if p.strip()]
-    bench(args.suite, pols, args.seeds, args.out, command_line(["agrinav", *sys.argv[1:]]))
+    bench(args.suite, pols, args.seeds, args.out, command_line(args.argv))
     print((Path(args.out) / "benchmark.md").read_text())
     return 0
 
@@ -211,7 +211,7 @@ def cmd_train(args: argparse.Namespace) -> int:
         args.out,
         args.eval_every,
         args.eval_episodes,
-        argv=["agrinav", *sys.argv[1:]],
+        argv=args.argv,
     )
     print(f"model, config, command and learning curve in {out}")
     return 0
@@ -220,6 +220,7 @@ def cmd_train(args: argparse.Namespace) -> int:
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    args.argv = ["agrinav", *(argv if argv is not None else sys.argv[1:])]  # for "reproduce"
     try:
         return int(args.func(args))
     except ScenarioError as exc:

@@ -47,6 +47,7 @@ class DWBParams:
     xy_goal_tolerance: float = 0.25
     oscillation_reset_dist: float = 0.05
     obstacle_min_height: float = 0.15
+    prune_distance: float = 1.0
     scales: dict[str, float] = field(
         default_factory=lambda: {
             "RotateToGoal": 32.0,
@@ -282,6 +283,9 @@ class DWB(Policy):
         twists = velocity_samples(self.v, self.w, p)
         traj = rollout(twists, self.v, self.w, p)
         plan, _ = local_plan(obs["route"])
+        # Nav2 prunes the global plan to prune_distance ahead; its end is the local goal
+        arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(plan, axis=0), axis=1))])
+        plan = plan[: max(2, int(np.searchsorted(arc, p.prune_distance, side="right")))]
         goal = plan[-1]
         d = plan[-1] - plan[-2] if len(plan) > 1 else np.array([1.0, 0.0])
         goal_yaw = math.atan2(d[1], d[0])
