@@ -454,13 +454,22 @@ class AgriNavEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32]], E
         return self._pos + self._rot @ np.array([g.antenna_x, 0.0, g.antenna_height])
 
     def _estimate(self, gnss_update: bool) -> None:
-        """GNSS + IMU heading (+ odometry between fixes): the pose a real robot would know."""
-        yaw = float(self._imu_reading[2][2])
+        """GNSS + IMU attitude (+ odometry between fixes): the pose a real robot would know.
+
+        The antenna sits on a 0.6 m mast, so a few degrees of roll on a furrow ridge move it
+        centimetres sideways; like a GNSS/INS, the fix is brought back to base_link through the
+        lever arm rotated by the IMU's attitude estimate.
+        """
+        roll, pitch, yaw = (float(v) for v in self._imu_reading[2])
         c, s = math.cos(yaw), math.sin(yaw)
         if gnss_update:
+            g = self.cfg.gnss
+            cr, sr, cp, sp = math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch)
+            # R = Rz(yaw)·Ry(pitch)·Rx(roll) applied to the lever arm (ax, 0, ah)
+            lx = cp * g.antenna_x + sp * cr * g.antenna_height
+            ly = -sr * g.antenna_height
             ant = self.gnss.reading
-            off = self.cfg.gnss.antenna_x
-            self._est_xy = np.array([ant[0] - c * off, ant[1] - s * off])
+            self._est_xy = np.array([ant[0] - (c * lx - s * ly), ant[1] - (s * lx + c * ly)])
         else:
             v = float(self._odom[0])
             self._est_xy = self._est_xy + v * self.dt * np.array([c, s])
