@@ -17,7 +17,7 @@ $(STAMP): pyproject.toml | $(BIN)/python
 	touch $(STAMP)
 
 demo: $(STAMP)
-	$(BIN)/agrinav scenario --preset default --seed 0 --out runs/demo/scenario --force
+	$(BIN)/agrinav demo --out runs/demo
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -n 2 -m "not slow"

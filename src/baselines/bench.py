@@ -111,7 +111,7 @@ def bench(
             env = _make(case)
             try:
                 for spec in policies:
-                    name = spec if ":" not in spec else "ppo"
+                    name = spec.split(":")[0]
                     try:
                         pi = make_policy(spec, env)
                     except ValueError as exc:

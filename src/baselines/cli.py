@@ -178,7 +178,19 @@ def build_parser() -> argparse.ArgumentParser:
     be.add_argument("--seeds", type=int, default=3)
     be.add_argument("--out", required=True)
     be.set_defaults(func=cmd_bench)
+
+    de = sub.add_parser("demo", help="default scenario + DWB vs shipped PPO on the paper suite")
+    de.add_argument("--out", default="runs/demo")
+    de.add_argument("--seeds", type=int, default=2)
+    de.set_defaults(func=cmd_demo)
     return parser
+
+
+def cmd_demo(args: argparse.Namespace) -> int:
+    from baselines.demo import demo
+
+    demo(args.out, args.seeds)
+    return 0
 
 
 def cmd_run(args: argparse.Namespace) -> int:

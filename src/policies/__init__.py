@@ -7,6 +7,8 @@ its public configuration (speed limits, camera calibration); policies see observ
 from __future__ import annotations
 
 import math
+from importlib import resources
+from pathlib import Path
 from typing import Any
 
 from .base import Policy
@@ -23,8 +25,26 @@ POLICIES: dict[str, type[Policy]] = {
 }
 
 
+#: Checkpoints shipped in the package, by the env id they were trained on.
+SHIPPED = {
+    "AgriNav/FurrowFollow-v0": "furrow_follow_ppo",
+    "AgriNav/FieldRoute-v0": "field_route_ppo",
+}
+
+
+def shipped_model(env_id: str) -> Path:
+    """Folder of the shipped PPO checkpoint for ``env_id`` (model.zip, command, curve)."""
+    if env_id not in SHIPPED:
+        raise ValueError(f"no shipped PPO checkpoint for {env_id}; shipped: {', '.join(SHIPPED)}")
+    folder = Path(str(resources.files("policies.models").joinpath(SHIPPED[env_id])))
+    if not (folder / "model.zip").is_file():
+        raise ValueError(f"the shipped checkpoint for {env_id} is missing from {folder}")
+    return folder
+
+
 def make_policy(spec: str, env: Any, **params: Any) -> Policy:
-    """``spec`` is a policy name, or ``ppo:PATH`` for a trained checkpoint."""
+    """``spec`` is a policy name, ``ppo:PATH`` for a trained checkpoint, or ``ppo:shipped`` for
+    the checkpoint shipped for the env's id."""
     name, _, path = spec.partition(":")
     if name not in POLICIES:
         raise ValueError(f"policy: got {spec!r}; allowed: {', '.join(POLICIES)} (ppo:PATH)")
@@ -47,16 +67,18 @@ def make_policy(spec: str, env: Any, **params: Any) -> Policy:
     if name == "ppo":
         if not path:
             raise ValueError("policy: ppo needs a checkpoint, ppo:PATH (a model.zip or its folder)")
-        kwargs["path"] = path
+        kwargs["path"] = str(shipped_model(u.spec.id)) if path == "shipped" and u.spec else path
     return POLICIES[name](u.observation_space, u.action_space, **kwargs)
 
 
 __all__ = [
     "DWB",
     "POLICIES",
+    "SHIPPED",
     "DepthFurrowFollower",
     "PPOPolicy",
     "Policy",
     "RegulatedPurePursuit",
     "make_policy",
+    "shipped_model",
 ]

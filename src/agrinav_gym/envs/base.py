@@ -406,7 +406,7 @@ class AgriNavEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32]], E
         cid = self.world.client
         x, y, z = self._pos
         yaw = self._rpy[2]
-        eye = [x - 3.0 * math.cos(yaw), y - 3.0 * math.sin(yaw), z + 2.2]
+        eye = [x - 3.5 * math.cos(yaw), y - 3.5 * math.sin(yaw), z + 3.5]
         view = p.computeViewMatrix(
             eye, [x + math.cos(yaw), y + math.sin(yaw), z], [0, 0, 1], physicsClientId=cid
         )
@@ -560,7 +560,8 @@ class AgriNavEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32]], E
     def _load_visuals(self) -> None:
         if self.world.visuals_loaded:
             return
-        from ..sim.visuals import load_plant_visuals
+        from ..sim.visuals import load_plant_visuals, load_terrain_visual
 
+        load_terrain_visual(self.world.client, self.scenario)
         load_plant_visuals(self.world.client, self.scenario)
         self.world.visuals_loaded = True

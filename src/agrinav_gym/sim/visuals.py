@@ -23,6 +23,32 @@ _CROSS_F = np.array(
 )
 
 
+SOIL_RGBA = [0.45, 0.33, 0.22, 1.0]
+
+
+def load_terrain_visual(client: int, scn: Scenario, max_vertices: int = 60_000) -> int:
+    """The terrain as a soil-coloured visual mesh (physics uses the heightfield patch)."""
+    t = scn.terrain
+    ny, nx = t.shape
+    step = max(1, int(np.ceil(np.sqrt(nx * ny / max_vertices))))
+    h = t.heights[::step, ::step]
+    gx, gy = np.meshgrid(t.xs[::step], t.ys[::step])
+    verts = np.column_stack([gx.ravel(), gy.ravel(), h.ravel()])
+    my, mx = h.shape
+    a = (np.arange(my - 1)[:, None] * mx + np.arange(mx - 1)[None, :]).ravel()
+    faces = np.concatenate(
+        [np.column_stack([a, a + 1, a + mx + 1]), np.column_stack([a, a + mx + 1, a + mx])]
+    )
+    vs = p.createVisualShape(
+        p.GEOM_MESH,
+        vertices=verts.tolist(),
+        indices=faces.ravel().tolist(),
+        rgbaColor=SOIL_RGBA,
+        physicsClientId=client,
+    )
+    return int(p.createMultiBody(0, -1, vs, physicsClientId=client))
+
+
 def load_plant_visuals(client: int, scn: Scenario) -> int:
     """Create the merged plant meshes; returns how many bodies were added."""
     pl = scn.plants
@@ -35,7 +61,8 @@ def load_plant_visuals(client: int, scn: Scenario) -> int:
         sp = CATALOG[str(name)]
         idx = np.flatnonzero(pl.species == name)
         growth = sp.growth_of_stage(pl.stage[idx])
-        half = 0.5 * sp.canopy_width(growth) * pl.height[idx] / np.maximum(sp.height(growth), 1e-6)
+        # crosses narrower than the leaf span, so the lane (and the robot in it) stays in view
+        half = 0.3 * sp.canopy_width(growth) * pl.height[idx] / np.maximum(sp.height(growth), 1e-6)
         colour = [c / 255 for c in sp.colour] + [1.0]
         for start in range(0, len(idx), per):
             sel = idx[start : start + per]
