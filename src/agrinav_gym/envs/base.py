@@ -522,7 +522,9 @@ class AgriNavEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32]], E
         ss = s + self._route_offsets
         i = np.clip(np.searchsorted(route.arc, ss), 1, len(route.arc) - 1)
         a0, a1 = route.arc[i - 1], route.arc[i]
-        f = np.clip((ss - a0) / np.maximum(a1 - a0, 1e-12), 0.0, 1.0)[:, None]
+        # past the route's end the points continue along its last segment instead of piling
+        # up on the end point, so "keep going straight" is what the observation says there
+        f = np.maximum((ss - a0) / np.maximum(a1 - a0, 1e-12), 0.0)[:, None]
         pts = route.xy[i - 1] * (1.0 - f) + route.xy[i] * f
         c, sn = math.cos(self._est_yaw), math.sin(self._est_yaw)
         out = np.empty((t.route_points, 3), np.float32)
