@@ -112,7 +112,7 @@ def step_cost_ratio(repeat: int) -> tuple[float, float, float]:
 
 
 MEMORY_CHILD = r"""
-import json, sys, gymnasium as gym, agrinav_gym, scenario_gen as sg
+import json, sys, tracemalloc, gymnasium as gym, agrinav_gym, scenario_gen as sg
 def rss():
     with open("/proc/self/statm") as f:
         return int(f.read().split()[1]) * 4096
@@ -120,15 +120,22 @@ spacing = float(sys.argv[1])
 scn = sg.generate(sg.preset("paper-p1", layout={"plant_spacing": spacing}), 0)
 _ = scn.terrain.tree
 before = rss()
+tracemalloc.start()
 env = gym.make("AgriNav/FurrowFollow-v0", scenario=scn)
 env.reset(seed=0)
 for _ in range(50):
     env.step(env.action_space.sample() * 0)
-print(json.dumps({"plants": len(scn.plants), "env_bytes": rss() - before}))
+traced, _ = tracemalloc.get_traced_memory()
+print(json.dumps({"plants": len(scn.plants), "env_bytes": rss() - before, "traced": traced}))
 """
 
 
-def memory_per_plant() -> tuple[int, int, float]:
+def memory_per_plant() -> tuple[int, int, float, float]:
+    """(plants a, plants b, traced bytes per plant, RSS bytes per plant) between two densities.
+
+    The traced figure counts every Python/numpy allocation the env holds (plant proxies,
+    KD-trees); RSS adds pybullet's, but the allocator's reuse of freed pages makes it noisy.
+    """
     out = []
     for spacing in (1.0, 0.05):
         res = subprocess.run(
@@ -139,7 +146,13 @@ def memory_per_plant() -> tuple[int, int, float]:
         )
         out.append(json.loads(res.stdout.strip().splitlines()[-1]))
     a, b = out
-    return a["plants"], b["plants"], (b["env_bytes"] - a["env_bytes"]) / (b["plants"] - a["plants"])
+    n = b["plants"] - a["plants"]
+    return (
+        a["plants"],
+        b["plants"],
+        (b["traced"] - a["traced"]) / n,
+        (b["env_bytes"] - a["env_bytes"]) / n,
+    )
 
 
 def load_100k(repeat: int) -> tuple[int, float, float, float]:
@@ -210,8 +223,11 @@ def main() -> None:
         f"world: ratio {env_s / raw_s:.2f} (target ≤ 1.5); robot alone on a plane "
         f"{plane_s * 1e3:.3f} ms: ratio {env_s / plane_s:.2f}"
     )
-    a, b, per = memory_per_plant()
-    print(f"4. marginal memory         : {per:7.0f} B/plant ({a} -> {b} plants; target ≤ 2048)")
+    a, b, per, rss = memory_per_plant()
+    print(
+        f"4. marginal memory         : {per:7.0f} B/plant traced, {rss:.0f} B/plant RSS "
+        f"({a} -> {b} plants; target ≤ 2048)"
+    )
     n, g, bld, tot = load_100k(max(1, args.repeat // 2))
     print(
         f"5. {n:,}-plant field      : generate {g:.2f} s + env build/reset {bld:.2f} s = "
