@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import NDArray
@@ -11,6 +12,7 @@ from numpy.typing import NDArray
 from scenario_gen import Scenario
 
 FloatArray = NDArray[np.float64]
+TABLE_STEP = 0.02  # m: route lookup table resolution (waypoints are ≤ 0.1 m apart)
 
 
 @dataclass(frozen=True, eq=False)
@@ -33,6 +35,26 @@ class RoutePath:
     @property
     def length(self) -> float:
         return float(self.arc[-1])
+
+    @cached_property
+    def _table(self) -> tuple[FloatArray, NDArray[np.bool_], float]:
+        """The route resampled every TABLE_STEP of arc length, for constant-time lookups."""
+        n = int(np.ceil(self.length / TABLE_STEP)) + 1
+        s = np.minimum(np.arange(n) * TABLE_STEP, self.length)
+        pts = self.sample(s)
+        tags = self.furrow[
+            np.minimum(np.searchsorted(self.arc, s, side="right") - 1, len(self.furrow) - 1)
+        ]
+        return pts, tags, TABLE_STEP
+
+    def lookup(self, s: FloatArray) -> tuple[FloatArray, NDArray[np.bool_]]:
+        """Points and furrow tags at arc lengths ``s``; past the end the last segment goes on
+        (so "keep going straight" is what an observation says there)."""
+        pts, tags, step = self._table
+        u = np.maximum(s, 0.0) / step
+        i = np.minimum(u.astype(np.intp), len(pts) - 2)
+        f = (u - i)[:, None]
+        return pts[i] * (1.0 - f) + pts[i + 1] * f, tags[i]
 
     def sample(self, s: FloatArray) -> FloatArray:
         """Points at arc lengths ``s`` (clamped to the route)."""

@@ -232,7 +232,7 @@ class AgriNavEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32]], E
         self.est_tracker = Tracker(self.route)
         self.est_tracker.reset(x, y)
         self._cmd = (0.0, 0.0)
-        self._prev_action = np.zeros(2, np.float32)
+        self._prev_action = (0.0, 0.0)
         self._hit: set[int] = set()
         self._steps = 0
         self._poses: list[tuple[float, float]] = []
@@ -273,10 +273,11 @@ class AgriNavEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32]], E
                 f"action: got {a.tolist()}; allowed: finite values in [-1, 1] "
                 "(NaN or inf would corrupt the simulation)"
             )
-        a = np.minimum(np.maximum(a, -1.0), 1.0)  # documented: out-of-range actions are clipped
+        # documented: out-of-range actions are clipped
+        a0, a1 = min(max(float(a[0]), -1.0), 1.0), min(max(float(a[1]), -1.0), 1.0)
         r = self.cfg.robot
-        dv = a[0] * r.v_max - self._cmd[0]
-        dw = a[1] * r.w_max - self._cmd[1]
+        dv = a0 * r.v_max - self._cmd[0]
+        dw = a1 * r.w_max - self._cmd[1]
         lv, lw = r.a_max * self.dt, r.alpha_max * self.dt  # acceleration limits
         self._cmd = (self._cmd[0] + min(max(dv, -lv), lv), self._cmd[1] + min(max(dw, -lw), lw))
         self.world.drive(float(self._cmd[0]), float(self._cmd[1]))
@@ -327,10 +328,11 @@ class AgriNavEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32]], E
             "cte": -w.cte * (cte / corridor) ** 2,
             "heading": -w.heading * abs(heading_err) / math.pi,
             "crop_contact": -w.crop_contact * len(new),
-            "action_rate": -w.action_rate * float(np.sum((a - self._prev_action) ** 2)),
+            "action_rate": -w.action_rate
+            * ((a0 - self._prev_action[0]) ** 2 + (a1 - self._prev_action[1]) ** 2),
             "terminal": (w.terminal if success else -w.terminal) if terminated else 0.0,
         }
-        self._prev_action = a.astype(np.float32)
+        self._prev_action = (a0, a1)
         reward = float(sum(parts.values()))
         # Truncation is the TimeLimit wrapper's (max_episode_steps), which the env cannot see:
         # the running metrics therefore ride on every step's info, and the last one is final.
@@ -519,17 +521,11 @@ class AgriNavEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32]], E
         t = self.cfg.task
         ex, ey = float(self._est_xy[0]), float(self._est_xy[1])
         _, s, _ = self.est_tracker.update(ex, ey)
-        ss = s + self._route_offsets
-        i = np.clip(np.searchsorted(route.arc, ss), 1, len(route.arc) - 1)
-        a0, a1 = route.arc[i - 1], route.arc[i]
-        # past the route's end the points continue along its last segment instead of piling
-        # up on the end point, so "keep going straight" is what the observation says there
-        f = np.maximum((ss - a0) / np.maximum(a1 - a0, 1e-12), 0.0)[:, None]
-        pts = route.xy[i - 1] * (1.0 - f) + route.xy[i] * f
+        pts, furrow = route.lookup(s + self._route_offsets)
         c, sn = math.cos(self._est_yaw), math.sin(self._est_yaw)
         out = np.empty((t.route_points, 3), np.float32)
         out[:, :2] = (pts - (ex, ey)) @ np.array([[c, -sn], [sn, c]])  # world -> robot frame
-        out[:, 2] = route.furrow[i]
+        out[:, 2] = furrow
         return out.ravel()
 
     def _info(
