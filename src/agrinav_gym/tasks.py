@@ -47,7 +47,7 @@ class RoutePath:
         ]
         return pts, tags, TABLE_STEP
 
-    def lookup(self, s: FloatArray) -> tuple[FloatArray, NDArray[np.bool_]]:
+    def lookup(self, s: NDArray[np.floating]) -> tuple[FloatArray, NDArray[np.bool_]]:
         """Points and furrow tags at arc lengths ``s``; past the end the last segment goes on
         (so "keep going straight" is what an observation says there)."""
         pts, tags, step = self._table
