@@ -218,7 +218,7 @@ class AgriNavEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32]], E
                 )
         self._apply_env_randomization(env_rand)
         scn = self.scenario
-        self.world.load(scn.terrain)
+        self.world.load(scn.terrain, scn.rows.angle)
         if self._plants_of is not scn:
             self._plants = PlantField.from_scenario(scn)
             self._plants_of = scn

@@ -101,7 +101,7 @@ class World:
         self.visuals_loaded = False
 
     # ------------------------------------------------------------------ building
-    def load(self, terrain: Terrain) -> None:
+    def load(self, terrain: Terrain, row_angle: float | None = None) -> None:
         """(Re)build the world for ``terrain``; a no-op when it is the same terrain object."""
         if terrain is self._terrain:
             return
@@ -117,7 +117,7 @@ class World:
             physicsClientId=cid,
         )
         self._terrain = terrain
-        self.patch = TerrainPatch(cid, terrain, self.cfg.friction)
+        self.patch = TerrainPatch(cid, terrain, self.cfg.friction, row_angle)
         self.robot = -1
         self._spawn_robot([0, 0, float(terrain.heights.max()) + 1.0], [0, 0, 0, 1])
         p.configureDebugVisualizer(p.COV_ENABLE_RENDERING, 1, physicsClientId=cid)
@@ -228,15 +228,25 @@ class TerrainPatch:
     height. Those corners are always more than RECENTRE_M from the robot.
     """
 
-    PATCH_M = 24.0
+    PATCH_M = 24.0  # side of a square window (rows at an angle)
+    LONG_M, SHORT_M = 40.0, 14.0  # a window elongated along rows that run near an axis
     RECENTRE_M = 5.0
 
-    def __init__(self, client: int, terrain: Terrain, friction: float) -> None:
+    def __init__(
+        self, client: int, terrain: Terrain, friction: float, row_angle: float | None = None
+    ) -> None:
         self.client = client
         self.terrain = terrain
         ny, nx = terrain.shape
-        cells = round(self.PATCH_M / terrain.spacing) + 1
-        self.nx, self.ny = min(nx, cells), min(ny, cells)
+        # Refills cost ∝ window area and come every (length − 2·RECENTRE_M) of travel, so a
+        # window long along the lanes refills about half as often for the same cost.
+        wx = wy = self.PATCH_M
+        if row_angle is not None:
+            c, s = abs(math.cos(row_angle)), abs(math.sin(row_angle))
+            if max(c, s) > 0.97:
+                wx, wy = (self.LONG_M, self.SHORT_M) if c > s else (self.SHORT_M, self.LONG_M)
+        self.nx = min(nx, round(wx / terrain.spacing) + 1)
+        self.ny = min(ny, round(wy / terrain.spacing) + 1)
         self.i0 = self.j0 = -1
         self.shape = -1
         self.body = -1
@@ -269,8 +279,14 @@ class TerrainPatch:
             if abs(x - cx) < hx - self.RECENTRE_M and abs(y - cy) < hy - self.RECENTRE_M:
                 return False
         if heading is not None and not force:
-            ahead = 0.5 * self.PATCH_M - self.RECENTRE_M - 1.0
-            x, y = x + ahead * math.cos(heading), y + ahead * math.sin(heading)
+            s_ = self.terrain.spacing
+            hx, hy = 0.5 * (self.nx - 1) * s_, 0.5 * (self.ny - 1) * s_
+            ch, sh = math.cos(heading), math.sin(heading)
+            # as far ahead as the window allows along the heading, RECENTRE_M + 1 m of margin
+            ax = (hx - self.RECENTRE_M - 1.0) / max(abs(ch), 1e-9)
+            ay = (hy - self.RECENTRE_M - 1.0) / max(abs(sh), 1e-9)
+            ahead = max(0.0, min(ax, ay))
+            x, y = x + ahead * ch, y + ahead * sh
         i0, j0 = self._window(x, y)
         if (i0, j0) == (self.i0, self.j0) and self.shape >= 0:
             return False
