@@ -37,24 +37,33 @@ class RoutePath:
         return float(self.arc[-1])
 
     @cached_property
-    def _table(self) -> tuple[FloatArray, NDArray[np.bool_], float]:
-        """The route resampled every TABLE_STEP of arc length, for constant-time lookups."""
-        n = int(np.ceil(self.length / TABLE_STEP)) + 1
-        s = np.minimum(np.arange(n) * TABLE_STEP, self.length)
+    def _table(self) -> tuple[FloatArray, NDArray[np.bool_], FloatArray]:
+        """The route resampled every TABLE_STEP of arc length, for constant-time lookups, and
+        the direction of its last segment."""
+        n = max(2, int(self.length // TABLE_STEP) + 1)
+        s = np.arange(n, dtype=np.float64) * TABLE_STEP
         pts = self.sample(s)
         tags = self.furrow[
             np.minimum(np.searchsorted(self.arc, s, side="right") - 1, len(self.furrow) - 1)
         ]
-        return pts, tags, TABLE_STEP
+        d = self.xy[-1] - self.xy[-2]
+        return pts, tags, d / max(float(np.hypot(d[0], d[1])), 1e-12)
 
     def lookup(self, s: NDArray[np.floating]) -> tuple[FloatArray, NDArray[np.bool_]]:
-        """Points and furrow tags at arc lengths ``s``; past the end the last segment goes on
-        (so "keep going straight" is what an observation says there)."""
-        pts, tags, step = self._table
-        u = np.maximum(s, 0.0) / step
+        """Points and furrow tags at arc lengths ``s``. Past the end the route's last segment
+        goes on at true distances, so "keep going straight" is what an observation says there
+        (the end point repeated would say "stop here")."""
+        pts, tags, direction = self._table
+        u = np.maximum(s, 0.0) / TABLE_STEP
         i = np.minimum(u.astype(np.intp), len(pts) - 2)
-        f = (u - i)[:, None]
-        return pts[i] * (1.0 - f) + pts[i + 1] * f, tags[i]
+        f = np.minimum(u - i, 1.0)[:, None]
+        out = pts[i] * (1.0 - f) + pts[i + 1] * f
+        tag = tags[i]
+        past = s > (len(pts) - 1) * TABLE_STEP
+        if past.any():
+            out[past] = self.xy[-1] + (s[past] - self.length)[:, None] * direction
+            tag = np.where(past, self.furrow[-1], tag)
+        return out, tag
 
     def sample(self, s: FloatArray) -> FloatArray:
         """Points at arc lengths ``s`` (clamped to the route)."""

@@ -44,3 +44,15 @@ def test_chunking_does_not_change_results() -> None:
     b = project_to_polyline(pts, path, chunk=10000)
     for x, y in zip(a, b, strict=True):
         np.testing.assert_array_equal(x, y)
+
+
+def test_route_lookup_interpolates_and_continues_past_the_end() -> None:
+    from agrinav_gym.tasks import RoutePath
+
+    xy = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.03]])  # 2.03 m: not a multiple of the table step
+    route = RoutePath.from_points(xy, np.zeros(3), np.array([True, True, False]))
+    pts, tags = route.lookup(np.array([0.5, 1.5, 2.03, 2.43, 2.83]))
+    np.testing.assert_allclose(
+        pts, [[0.5, 0.0], [1.0, 0.5], [1.0, 1.03], [1.0, 1.43], [1.0, 1.83]], atol=1e-9
+    )
+    assert tags[0] and not tags[-1]
