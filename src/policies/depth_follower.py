@@ -26,8 +26,6 @@ class DepthFurrowFollower(Policy):
         self,
         observation_space: spaces.Dict,
         action_space: spaces.Box,
-        v_max: float = 1.0,
-        w_max: float = 1.5,
         camera: dict[str, float] | None = None,
         speed: float = 0.6,
         k_lateral: float = 2.0,
@@ -37,8 +35,7 @@ class DepthFurrowFollower(Policy):
         far: float = 3.0,
         **params: Any,
     ) -> None:
-        super().__init__(observation_space, action_space)
-        self.v_max, self.w_max = v_max, w_max
+        super().__init__(observation_space, action_space, **params)
         c = camera or {
             "hfov": math.radians(87.0),
             "vfov": math.radians(58.0),
@@ -105,11 +102,9 @@ class DepthFurrowFollower(Policy):
         est = self.lane(obs["depth"])
         if est is None:  # no rows in view (headland, or taller crops than the view): go slow
             self.lost += 1
-            return self._clip(np.array([0.3 * self.speed / self.v_max, 0.0]))
+            return self._twist(0.3 * self.speed, 0.0)
         self.lost = 0
         offset, heading = est
         w = self.k_lat * offset + self.k_head * heading
         v = self.speed / (1.0 + 2.0 * abs(heading))
-        return self._clip(
-            np.array([v / self.v_max, np.clip(w, -self.w_max, self.w_max) / self.w_max])
-        )
+        return self._twist(v, w)

@@ -253,17 +253,14 @@ class DWB(Policy):
         self,
         observation_space: spaces.Dict,
         action_space: spaces.Box,
-        v_max: float = 1.0,
-        w_max: float = 1.5,
         params: str | Path | None = None,
         camera: dict[str, float] | None = None,
         inscribed_radius: float = 0.0,
         control_dt: float = 0.05,
         **kwargs: Any,
     ) -> None:
-        super().__init__(observation_space, action_space)
+        super().__init__(observation_space, action_space, **kwargs)
         self.p = DWBParams.from_yaml(params)
-        self.v_max, self.w_max = v_max, w_max
         self.camera = camera
         # 0 by default: in 0.75 m rows a 0.62 m robot is always within its inscribed radius of
         # the canopy, so only points on the robot's own path are lethal (see the YAML).
@@ -326,4 +323,4 @@ class DWB(Policy):
             self.moved = 0.0
         self.moved += abs(self.v) * self.dt
         self.last = (v, w)
-        return self._clip(np.array([v / self.v_max, w / self.w_max]))
+        return self._twist(v, w)

@@ -23,7 +23,7 @@ class PPOPolicy(Policy):
         path: str | Path = "",
         **params: Any,
     ) -> None:
-        super().__init__(observation_space, action_space)
+        super().__init__(observation_space, action_space, **params)
         from stable_baselines3 import PPO
 
         p = Path(path)

@@ -23,8 +23,6 @@ class RegulatedPurePursuit(Policy):
         self,
         observation_space: spaces.Dict,
         action_space: spaces.Box,
-        v_max: float = 1.0,
-        w_max: float = 1.5,
         desired_linear_vel: float = 0.8,
         lookahead_time: float = 1.5,
         min_lookahead: float = 0.3,
@@ -36,9 +34,8 @@ class RegulatedPurePursuit(Policy):
         min_approach_vel: float = 0.05,
         **params: Any,
     ) -> None:
-        super().__init__(observation_space, action_space)
-        self.v_max, self.w_max = v_max, w_max
-        self.v_des = min(desired_linear_vel, v_max)
+        super().__init__(observation_space, action_space, **params)
+        self.v_des = min(desired_linear_vel, self.v_max)
         self.t_look, self.l_min, self.l_max = lookahead_time, min_lookahead, max_lookahead
         self.r_min = min_radius
         self.rot_angle, self.rot_vel = rotate_to_heading_min_angle, rotate_to_heading_angular_vel
@@ -58,7 +55,7 @@ class RegulatedPurePursuit(Policy):
         carrot = plan[ahead[0]] if len(ahead) else plan[-1]
         angle = math.atan2(carrot[1], carrot[0])
         if abs(angle) > self.rot_angle:  # rotate in place towards the path first
-            return self._clip(np.array([0.0, math.copysign(self.rot_vel, angle) / self.w_max]))
+            return self._twist(0.0, math.copysign(self.rot_vel, angle))
         l2 = float(carrot @ carrot)
         curvature = 2.0 * float(carrot[1]) / max(l2, 1e-6)
         v = self.v_des
@@ -69,4 +66,4 @@ class RegulatedPurePursuit(Policy):
         if remaining < self.approach:  # approach the route's end gently
             v = max(v * remaining / self.approach, self.v_approach_min)
         w = float(np.clip(v * curvature, -self.w_max, self.w_max))
-        return self._clip(np.array([v / self.v_max, w / self.w_max]))
+        return self._twist(v, w)

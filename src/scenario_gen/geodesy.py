@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from pyproj import CRS, Transformer
+from pyproj import Transformer
 
 from .errors import ScenarioError
 
@@ -118,10 +118,6 @@ class GeoFrame:
             float(ex), float(ey), float(ez), direction="INVERSE"
         )
         return float(lat), float(lon), float(alt)
-
-    def crs_to_enu_transformer(self, crs: CRS | str) -> Transformer:
-        """Transformer from a raster's CRS (x, y order) to lon/lat, for sampling DEMs."""
-        return Transformer.from_crs(CRS.from_user_input(crs), "EPSG:4326", always_xy=True)
 
     def gsd(self, lod: int) -> float:
         return ground_sample_distance(lod, self.lat)

@@ -104,11 +104,6 @@ class Scenario:
     def field_lonlat(self) -> BaseGeometry:
         return enu_to_lonlat(self.field, self.geo)
 
-    def latlon(
-        self, x: FloatArray, y: FloatArray, z: FloatArray | float = 0.0
-    ) -> tuple[FloatArray, FloatArray, FloatArray]:
-        return self.geo.enu_to_geodetic(x, y, z)
-
     def save(self, directory: str | Path, overwrite: bool = False, preview: bool = True) -> Path:
         from .io import save
 

@@ -83,3 +83,16 @@ def test_climbs_a_12_degree_slope() -> None:
         assert climbed == pytest.approx(run * math.tan(math.radians(12.0)), abs=0.05)
     finally:
         env.close()
+
+
+def test_sensor_mounts_in_the_config_match_the_urdf_frames() -> None:
+    # the URDF documents the mounts; the config sets them at run time: they must agree
+    from agrinav_gym.config import GnssConfig, RobotConfig
+    from agrinav_gym.sim.world import RobotGeometry
+
+    frames = RobotGeometry.from_urdf().frames
+    r, g = RobotConfig(), GnssConfig()
+    assert frames["camera_link"] == pytest.approx((r.camera_x, 0.0, r.camera_height))
+    assert frames["gps_link"] == pytest.approx((g.antenna_x, 0.0, g.antenna_height))
+    geo = RobotGeometry.from_urdf()
+    assert (geo.wheel_radius, geo.track, geo.wheelbase) == pytest.approx((0.11, 0.47, 0.458))

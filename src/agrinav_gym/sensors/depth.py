@@ -22,6 +22,7 @@ from scenario_gen import Terrain
 
 from ..config import DepthConfig, RobotConfig
 from ..sim.plants import PlantField
+from ..sim.world import SOIL_RGB
 
 FloatArray = NDArray[np.float64]
 OTHER, SOIL, CROP, WEED = 0, 1, 2, 3
@@ -53,7 +54,7 @@ class DepthCamera:
         self.rays_body = d @ pitch.T
         self.mount = np.array([robot.camera_x, 0.0, robot.camera_height])
         self.f_native = 0.5 * cfg.native_width / math.tan(math.radians(cfg.hfov_deg) / 2)
-        self.soil_rgb = np.array([0.45, 0.33, 0.22])
+        self.soil_rgb = np.array(SOIL_RGB)
         self.light = np.array([0.3, 0.2, 0.93]) / np.linalg.norm([0.3, 0.2, 0.93])
 
     def noise_sigma(self, z: FloatArray) -> FloatArray:

@@ -7,10 +7,14 @@ never one per plant (DESIGN §8). Tiles stay under pybullet's per-mesh vertex ca
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pybullet as p
 
-from scenario_gen import CATALOG, Scenario
+from scenario_gen import CATALOG, Scenario, Terrain
+
+from .world import SOIL_RGB
 
 MAX_VERTICES = 100_000  # below pybullet's ≈130k per-mesh cap
 _CROSS_X = np.array(
@@ -23,7 +27,7 @@ _CROSS_F = np.array(
 )
 
 
-SOIL_RGBA = [0.45, 0.33, 0.22, 1.0]
+SOIL_RGBA = [*SOIL_RGB, 1.0]
 
 
 def load_terrain_visual(client: int, scn: Scenario, max_vertices: int = 60_000) -> int:
@@ -31,14 +35,8 @@ def load_terrain_visual(client: int, scn: Scenario, max_vertices: int = 60_000) 
     t = scn.terrain
     ny, nx = t.shape
     step = max(1, int(np.ceil(np.sqrt(nx * ny / max_vertices))))
-    h = t.heights[::step, ::step]
-    gx, gy = np.meshgrid(t.xs[::step], t.ys[::step])
-    verts = np.column_stack([gx.ravel(), gy.ravel(), h.ravel()])
-    my, mx = h.shape
-    a = (np.arange(my - 1)[:, None] * mx + np.arange(mx - 1)[None, :]).ravel()
-    faces = np.concatenate(
-        [np.column_stack([a, a + 1, a + mx + 1]), np.column_stack([a, a + mx + 1, a + mx])]
-    )
+    coarse: Any = Terrain(t.heights[::step, ::step], t.x0, t.y0, t.spacing * step).to_trimesh()
+    verts, faces = np.asarray(coarse.vertices), np.asarray(coarse.faces)
     vs = p.createVisualShape(
         p.GEOM_MESH,
         vertices=verts.tolist(),

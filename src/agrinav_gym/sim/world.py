@@ -23,6 +23,7 @@ from ..config import RobotConfig
 FloatArray = NDArray[np.float64]
 
 URDF_PACKAGE = "agrinav_gym.assets"
+SOIL_RGB = (0.45, 0.33, 0.22)  # default soil colour of renders and the depth camera's RGB
 URDF_NAME = "summit_xl.urdf"
 WHEEL_JOINTS = (
     "front_left_wheel_joint",
@@ -96,7 +97,6 @@ class World:
         self.geometry = RobotGeometry.from_urdf()
         self._terrain: Terrain | None = None
         self.robot = -1
-        self.ground = -1
         self.wheels: list[int] = []
         self.visuals_loaded = False
 
