@@ -169,6 +169,7 @@ def table(records: list[dict[str, Any]], suite_name: str, command: str) -> str:
             if rows:
                 cells = [_mean_std([r[m] for r in rows]) for m in METRICS]
                 lines.append(f"| {g} | {p} | " + " | ".join(cells) + f" | {len(rows)} |")
+    lines += ["", *failures(records, groups, pols)]
     lines += [
         "",
         "Source paper (Gazebo, Nav2 DWB, zigzag over two rows): RMSE 0.177, MAE 0.109,"
@@ -182,6 +183,25 @@ def table(records: list[dict[str, Any]], suite_name: str, command: str) -> str:
         "",
     ]
     return "\n".join(lines)
+
+
+FAILED_BELOW = 90.0  # mean completion (%) under which a policy counts as failing a group
+
+
+def failures(records: list[dict[str, Any]], groups: list[str], pols: list[str]) -> list[str]:
+    """One line per policy: the scenario groups where it does not finish the route."""
+    lines = [f"Where each policy fails (mean completion below {FAILED_BELOW:.0f} %):", ""]
+    for p in pols:
+        bad = []
+        for g in groups:
+            rows = [r for r in records if r["scenario"] == g and r["policy"] == p]
+            if rows:
+                done = statistics.fmean(float(r["completion"]) for r in rows)
+                if done < FAILED_BELOW:
+                    hit = statistics.fmean(float(r["crops_hit"]) for r in rows)
+                    bad.append(f"{g} ({done:.0f} % done, {hit:.1f} crops hit)")
+        lines.append(f"- {p}: " + (", ".join(bad) if bad else "none"))
+    return lines
 
 
 def bar_chart(records: list[dict[str, Any]], path: Path, suite_name: str) -> None:

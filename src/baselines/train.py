@@ -46,7 +46,7 @@ def evaluate(
 ) -> dict[str, float]:
     """Deterministic episodes on held-out seeds; mean return and the paper's metrics."""
     env = _make_env(env_id, kwargs)
-    rets, rmse, comp, succ = [], [], [], []
+    rets, rmse, furrow, comp, succ, crops = [], [], [], [], [], []
     try:
         for ep in range(episodes):
             obs, _ = env.reset(seed=seed + ep)
@@ -63,6 +63,8 @@ def evaluate(
             m = info["metrics"]
             rets.append(total)
             rmse.append(m["rmse"] if m["rmse"] is not None else np.nan)
+            furrow.append(m["in_furrow_rmse"] if m["in_furrow_rmse"] is not None else np.nan)
+            crops.append(m["crops_hit"])
             comp.append(m["completion"])
             succ.append(float(info.get("is_success", False)))
     finally:
@@ -70,8 +72,10 @@ def evaluate(
     return {
         "return": float(np.mean(rets)),
         "rmse": float(np.nanmean(rmse)),
+        "in_furrow_rmse": float(np.nanmean(furrow)),
         "completion": float(np.mean(comp)),
         "success": float(np.mean(succ)),
+        "crops_hit": float(np.mean(crops)),
     }
 
 
@@ -194,7 +198,12 @@ def learning_curve(history: list[dict[str, float]], path: Path, title: str) -> N
     ax[0].plot(t, [h["return"] for h in history], "o-")
     ax[0].set_xlabel("training time (min, 2-core CPU)")
     ax[0].set_ylabel("eval return (held-out seeds)")
-    ax[1].plot(t, [h["rmse"] for h in history], "o-", color="tab:red", label="RMSE (m)")
+    ax[1].plot(t, [h["rmse"] for h in history], "o-", color="tab:red", label="RMSE")
+    if all("in_furrow_rmse" in h for h in history):
+        ax[1].plot(
+            t, [h["in_furrow_rmse"] for h in history], "^-", color="tab:purple", label="in-furrow"
+        )
+    ax[1].legend(loc="upper left", fontsize=8)
     ax[1].set_xlabel("training time (min)")
     ax[1].set_ylabel("cross-track RMSE (m)")
     ax2 = ax[1].twinx()

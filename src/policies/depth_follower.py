@@ -86,8 +86,7 @@ class DepthFurrowFollower(Policy):
             if len(e) < 3:
                 fits.append(None)
                 continue
-            slope, icpt = np.polyfit(e[:, 0], e[:, 1], 1)
-            fits.append((float(icpt), float(slope)))
+            fits.append(_theil_sen(e[:, 0], e[:, 1]))
         left, right = fits
         if left is not None and right is not None:
             self.half_width = float(np.clip((left[0] - right[0]) / 2, 0.2, 1.5))
@@ -108,3 +107,14 @@ class DepthFurrowFollower(Policy):
         w = self.k_lat * offset + self.k_head * heading
         v = self.speed / (1.0 + 2.0 * abs(heading))
         return self._twist(v, w)
+
+
+def _theil_sen(x: NDArray[np.float64], y: NDArray[np.float64]) -> tuple[float, float]:
+    """(intercept, slope) of a median-of-slopes line: a bin that sees the next row through a
+    gap in the near one (an edge a metre off) does not tilt the fit, as it would least squares.
+    """
+    i, j = np.triu_indices(len(x), 1)
+    dx = x[j] - x[i]
+    ok = dx > 1e-9
+    slope = float(np.median((y[j] - y[i])[ok] / dx[ok])) if ok.any() else 0.0
+    return float(np.median(y - slope * x)), slope

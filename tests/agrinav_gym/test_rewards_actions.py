@@ -101,3 +101,30 @@ def test_out_of_range_action_is_clipped() -> None:
     finally:
         a.close()
         b.close()
+
+
+def test_progress_weighted_by_cross_track_error() -> None:
+    """With ``progress_cte_scale`` = k, progress pays exp(−|cte| / (k · corridor)) of itself."""
+    k = 0.1
+    runs = []
+    for reward in ({}, {"progress_cte_scale": k}):
+        env = make(scenario_overrides=FLAT, config={**STILL, "reward": reward})
+        try:
+            env.reset(seed=0, options={"lane": 3})
+            steps = []
+            for i in range(40):  # weave so that the error is not zero
+                a = np.array([0.8, 0.4 if (i // 10) % 2 else -0.4], np.float32)
+                _, r, _, _, info = env.step(a)
+                steps.append((info["rewards"]["progress"], info["cte"], r, info["rewards"]))
+            corridor = 0.5 * env.unwrapped.scenario.rows.spacing
+            runs.append(steps)
+        finally:
+            env.close()
+    plain, weighted = runs
+    errors = []
+    for (p0, cte0, _, _), (p1, cte1, r1, parts1) in zip(plain, weighted, strict=True):
+        assert cte1 == cte0  # the reward does not change the physics
+        assert p1 == pytest.approx(p0 * np.exp(-abs(cte0) / (k * corridor)), rel=1e-9)
+        assert r1 == pytest.approx(sum(parts1.values()))
+        errors.append(abs(cte0))
+    assert max(errors) > 0.02  # the weighting was exercised, not just a factor of ~1

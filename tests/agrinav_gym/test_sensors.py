@@ -152,3 +152,57 @@ def test_depth_out_of_range_is_zero() -> None:
     cam = DepthCamera(DepthConfig(width=16, height=12, max_range=2.0), RobotConfig())
     frame = cam.render(np.eye(3), np.array([0.0, 0.0, 0.11]), _flat(), _empty_plants(), None)
     assert (frame.depth == 0).any() and frame.depth.max() <= 2.0
+
+
+def test_a_plant_seen_from_below_its_leaf_band() -> None:
+    # a leaf band from 1.0 to 2.0 m, 2 m ahead: a ray 10° up from 0.66 m meets its underside
+    robot = RobotConfig(camera_pitch_deg=-10.0, camera_height=0.55, camera_x=0.0)
+    cam = DepthCamera(DepthConfig(width=33, height=25), robot)
+    xy = np.array([[2.0, 0.0]])
+    tree = cKDTree(xy)
+    plants = PlantField(
+        xy,
+        np.full(1, 1.0),
+        np.full(1, 2.0),
+        np.full(1, 0.5),
+        np.full(1, 0.02),
+        np.zeros(1, bool),
+        tree,
+        0.5,
+        tree,
+        np.zeros(1, np.int64),
+        0.02,
+    )
+    pos = np.array([0.0, 0.0, 0.11])
+    o, rays = cam.pose(np.eye(3), pos)
+    frame = cam.render(np.eye(3), pos, _flat(), plants, None)
+    i = 12 * 33 + 16  # the optical axis
+    t = (1.0 - o[2]) / rays[i, 2]
+    x = o[0] + t * rays[i, 0]
+    assert 1.5 <= x <= 2.5  # under the band
+    assert frame.depth[12, 16] == pytest.approx(t * cam.forward[i], abs=1e-6)
+
+
+@pytest.mark.parametrize("stage", [1, 5])
+def test_tall_maize_leaves_close_over_the_lane_at_camera_height(stage: int) -> None:
+    from scenario_gen import generate, preset
+
+    scn = generate(preset("default", crop={"stage": stage}, layout={"row_spacing": 1.0}), 0)
+    field = PlantField.from_scenario(scn)
+    band = slice(len(field), None)  # leaf bands follow the plants' cores
+    xy = field.xy[band]
+    ground = np.asarray(scn.terrain.height_at(xy[:, 0], xy[:, 1]))
+    camera_z = 0.11 + 0.55  # base_link + mast, above the ground
+    at_camera = (field.z[band] - ground <= camera_z) & (field.top[band] - ground >= camera_z)
+    if stage == 1:  # V3, 0.3 m: no leaf reaches the camera's height
+        assert not at_camera.any()
+        return
+    # R1, 2.5 m nominal: leaves across the row reach 0.9 of half the 1 m canopy (scaled with the
+    # plant's height) into the 1 m lane, less as the leaf plane turns along the row
+    height = (field.top[band] - field.z[band]) / 0.8  # bands start at 20 % of the height
+    reach = field.radius[band] / (0.45 * height / 2.5)
+    assert reach.max() <= 1 + 1e-9 and reach.max() > 0.99
+    _, lateral = scn.rows.to_rows(xy[:, 0], xy[:, 1])
+    to_lane = np.abs(np.mod(lateral - scn.rows.offsets[0], 1.0) - 0.5)
+    assert (to_lane[at_camera] > 0.4).all()  # the bands stand on the rows
+    assert (to_lane[at_camera] - field.radius[band][at_camera]).min() < 0.1  # 10 cm left

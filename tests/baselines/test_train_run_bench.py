@@ -154,3 +154,21 @@ def test_bad_experiment_arguments_exit_2(
     args = [a if a != "x" else str(tmp_path / "x") for a in args]
     assert main(args) == 2
     assert needle in capsys.readouterr().err
+
+
+def test_benchmark_names_where_a_policy_fails() -> None:
+    from baselines.bench import failures
+
+    def rec(policy: str, group: str, completion: float, crops: int) -> dict[str, object]:
+        return {"policy": policy, "scenario": group, "completion": completion, "crops_hit": crops}
+
+    records = [
+        rec("dwb", "0.3 m", 99.0, 0),
+        rec("dwb", "2.5 m", 98.0, 0),
+        rec("depth", "0.3 m", 99.0, 0),
+        rec("depth", "2.5 m", 10.0, 11),
+        rec("depth", "2.5 m", 20.0, 9),
+    ]
+    lines = failures(records, ["0.3 m", "2.5 m"], ["dwb", "depth"])
+    assert "- dwb: none" in lines
+    assert "- depth: 2.5 m (15 % done, 10.0 crops hit)" in lines

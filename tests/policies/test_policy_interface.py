@@ -1,3 +1,5 @@
+import math
+
 import gymnasium as gym
 import pytest
 
@@ -87,8 +89,13 @@ def test_depth_follower_finds_the_lane() -> None:
         est = pi.lane(obs["depth"][0])
         assert est is not None
         offset, heading = est
-        # the true lateral offset of the lane centre in the robot frame is -cte
-        assert abs(offset + env.unwrapped._cte) < 0.08
-        assert abs(heading) < 0.2
+        # The true lane centre in the robot frame: offset -cte, direction -heading error. It is
+        # compared 1 m ahead, where the camera sees the rows (its view starts 0.5 m out).
+        u = env.unwrapped
+        true_heading = -u._info({}, False)["heading_error"]
+        ahead = 1.0
+        truth = -u._cte + math.tan(true_heading) * ahead
+        assert abs(offset + math.tan(heading) * ahead - truth) < 0.08
+        assert abs(heading - true_heading) < 0.2
     finally:
         env.close()

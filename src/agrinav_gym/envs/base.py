@@ -57,7 +57,7 @@ def obs_bounds(route_points: int) -> dict[str, tuple[NDArray[np.float32], NDArra
 
 
 def _wrap(a: float) -> float:
-    return (a + math.pi) % (2 * math.pi) - math.pi
+    return float((a + math.pi) % (2 * math.pi) - math.pi)
 
 
 class AgriNavEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32]], EzPickle):
@@ -323,8 +323,11 @@ class AgriNavEnv(gym.Env[dict[str, NDArray[np.float32]], NDArray[np.float32]], E
         )
         terminated = bool(success or failure)
         w = self.cfg.reward
+        progress = w.progress * ds / (r.v_max * self.dt)
+        if w.progress_cte_scale is not None and furrow:
+            progress *= math.exp(-abs(cte) / (w.progress_cte_scale * corridor))
         parts = {
-            "progress": w.progress * ds / (r.v_max * self.dt),
+            "progress": progress,
             "cte": -w.cte * (cte / corridor) ** 2,
             "heading": -w.heading * abs(heading_err) / math.pi,
             "crop_contact": -w.crop_contact * len(new),

@@ -34,10 +34,12 @@ class FurrowFollowEnv(AgriNavEnv):
 
     ## Rewards
     A sum of named parts, each in ``info["rewards"]``, weights in ``config.reward``:
-    ``progress`` (+ route progress per step, 1 at full speed), ``cte`` (−(cte / corridor)²,
-    cross-track error from the **true** pose), ``heading`` (−|heading error| / π),
-    ``crop_contact`` (−per crop newly touched), ``action_rate`` (−‖aₜ − aₜ₋₁‖²) and
-    ``terminal`` (+10 on success, −10 on failure).
+    ``progress`` (+ route progress per step, 1 at full speed; with
+    ``config.reward.progress_cte_scale`` = k it is weighted in furrows by
+    exp(−|cte| / (k · corridor)), so that only distance driven on the line pays),
+    ``cte`` (−(cte / corridor)², cross-track error from the **true** pose),
+    ``heading`` (−|heading error| / π), ``crop_contact`` (−per crop newly touched),
+    ``action_rate`` (−‖aₜ − aₜ₋₁‖²) and ``terminal`` (+10 on success, −10 on failure).
 
     ## Starting State
     At rest 0.3 m into the lane, laterally offset by N(0, 0.03 m) and turned by N(0, 3°)

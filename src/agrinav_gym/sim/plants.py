@@ -1,8 +1,12 @@
 """Plants as analytic proxies: no pybullet body per plant (DESIGN §8).
 
 Crop contact is counted geometrically (robot footprint vs stem-level proxy circles through a
-KD-tree), and the depth camera intersects vertical cylinders of the canopy's visible radius.
-Per plant this holds a handful of floats plus its KD-tree node: about a hundred bytes.
+KD-tree). The depth camera intersects vertical cylinders: every plant has a core of the
+canopy's visible radius from the ground to its top, and a plant whose leaves reach farther adds
+a leaf band above the bare lower stalk. Maize leaves grow in one plane, so how far they reach
+into the inter-row depends on that plane's azimuth (the plant's yaw) against the row: a tall
+crop's leaves close over the lane at the camera's height, as in the field.
+Per plant this holds a handful of floats plus its KD-tree node: a few hundred bytes.
 """
 
 from __future__ import annotations
@@ -21,15 +25,20 @@ FloatArray = NDArray[np.float64]
 #: Visible canopy radius as a fraction of the species' canopy width: leaves overlap in a row, so
 #: a row reads as a wall about this thick to a stereo camera.
 CANOPY_FILL = 0.2
+#: The lower part of a stalk bears no green leaves (the lowest ones senesce as the plant grows).
+LEAF_BASE = 0.2
+#: Leaf tips droop: the reach a camera sees is this fraction of half the canopy width.
+LEAF_REACH = 0.9
 
 
 @dataclass(frozen=True, eq=False)
 class PlantField:
-    xy: FloatArray  # (n, 2)
-    z: FloatArray  # base height
-    top: FloatArray  # base + height
-    radius: FloatArray  # visible radius (depth camera)
-    contact_radius: FloatArray  # stem-level proxy (crop contact)
+    # visible cylinders (depth camera): plant i's core is cylinder i, leaf bands follow
+    xy: FloatArray  # (m, 2)
+    z: FloatArray  # cylinder bottom
+    top: FloatArray  # cylinder top
+    radius: FloatArray
+    contact_radius: FloatArray  # (n,) per plant: stem-level proxy (crop contact)
     is_weed: NDArray[np.bool_]
     tree: cKDTree
     max_radius: float
@@ -42,27 +51,35 @@ class PlantField:
         p = scn.plants
         names = np.unique(p.species)
         radius = np.empty(len(p))
+        leaf = np.empty(len(p))
         contact = np.empty(len(p))
+        # fraction of the leaf plane's reach that points across the rows
+        across = np.abs(np.sin(p.yaw - scn.rows.angle))
         for name in names:
             sp = CATALOG[str(name)]
             m = p.species == name
             growth = sp.growth_of_stage(p.stage[m])
             scale = p.height[m] / np.maximum(sp.height(growth), 1e-6)
-            radius[m] = CANOPY_FILL * sp.canopy_width(growth) * scale
+            width = sp.canopy_width(growth) * scale
+            radius[m] = CANOPY_FILL * width
+            leaf[m] = 0.5 * LEAF_REACH * width * across[m]
             contact[m] = sp.proxy_radius * scale
         xy = np.column_stack([p.x, p.y]).astype(np.float64)
-        tree = cKDTree(xy if len(xy) else np.zeros((1, 2)))
+        band = np.flatnonzero((leaf > radius) & ~p.is_weed)
+        cyl_xy = np.concatenate([xy, xy[band]])
+        cyl_radius = np.concatenate([radius, leaf[band]])
+        tree = cKDTree(cyl_xy if len(cyl_xy) else np.zeros((1, 2)))
         crop_index = np.flatnonzero(~p.is_weed)
         crop_tree = cKDTree(xy[crop_index] if len(crop_index) else np.zeros((1, 2)))
         return cls(
-            xy,
-            p.z.copy(),
-            p.z + p.height,
-            radius,
+            cyl_xy,
+            np.concatenate([p.z, p.z[band] + LEAF_BASE * p.height[band]]),
+            np.concatenate([p.z + p.height, p.z[band] + p.height[band]]),
+            cyl_radius,
             contact,
-            p.is_weed.copy(),
+            np.concatenate([p.is_weed, np.zeros(len(band), bool)]),
             tree,
-            float(radius.max()) if len(radius) else 0.0,
+            float(cyl_radius.max()) if len(cyl_radius) else 0.0,
             crop_tree,
             crop_index,
             float(contact.max()) if len(contact) else 0.0,
@@ -77,7 +94,7 @@ class PlantField:
     )
 
     def __len__(self) -> int:
-        return len(self.z)
+        return len(self.contact_radius)
 
     def crops_touching(
         self, x: float, y: float, yaw: float, length: float, width: float
