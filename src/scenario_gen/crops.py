@@ -30,6 +30,8 @@ class Species:
     canopy: tuple[float, ...]  # canopy diameter per stage, m
     proxy_radius: float  # collision proxy at stem level, m (maize stalk ≈ 2-3 cm across)
     colour: tuple[int, int, int]
+    # Grass crops (maize) carry their leaves in one vertical plane, which can cross the lane.
+    planar_leaves: bool = False
 
     @property
     def stages(self) -> int:
@@ -59,6 +61,7 @@ CATALOG: dict[str, Species] = {
             (0.35, 0.55, 0.8, 0.95, 1.0),
             0.04,
             (70, 140, 50),
+            planar_leaves=True,
         ),
         Species(
             "tomato",

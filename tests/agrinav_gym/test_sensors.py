@@ -206,3 +206,13 @@ def test_tall_maize_leaves_close_over_the_lane_at_camera_height(stage: int) -> N
     to_lane = np.abs(np.mod(lateral - scn.rows.offsets[0], 1.0) - 0.5)
     assert (to_lane[at_camera] > 0.4).all()  # the bands stand on the rows
     assert (to_lane[at_camera] - field.radius[band][at_camera]).min() < 0.1  # 10 cm left
+
+
+def test_only_planar_leaved_crops_grow_leaf_bands() -> None:
+    from scenario_gen import generate, preset
+
+    tomato = generate(preset("default", crop={"species": "tomato", "stage": 4}), 0)
+    field = PlantField.from_scenario(tomato)
+    assert len(field.radius) == len(field)  # cores only
+    corn = PlantField.from_scenario(generate(preset("default", crop={"stage": 4}), 0))
+    assert len(corn.radius) > len(corn)

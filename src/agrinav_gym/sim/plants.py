@@ -2,10 +2,10 @@
 
 Crop contact is counted geometrically (robot footprint vs stem-level proxy circles through a
 KD-tree). The depth camera intersects vertical cylinders: every plant has a core of the
-canopy's visible radius from the ground to its top, and a plant whose leaves reach farther adds
-a leaf band above the bare lower stalk. Maize leaves grow in one plane, so how far they reach
-into the inter-row depends on that plane's azimuth (the plant's yaw) against the row: a tall
-crop's leaves close over the lane at the camera's height, as in the field.
+canopy's visible radius from the ground to its top. Species with planar leaves (maize) add a
+leaf band above the bare lower stalk: how far it reaches into the inter-row depends on the
+leaf plane's azimuth (the plant's yaw) against the row, and a tall crop's leaves close over the
+lane at the camera's height, as in the field.
 Per plant this holds a handful of floats plus its KD-tree node: a few hundred bytes.
 """
 
@@ -62,7 +62,7 @@ class PlantField:
             scale = p.height[m] / np.maximum(sp.height(growth), 1e-6)
             width = sp.canopy_width(growth) * scale
             radius[m] = CANOPY_FILL * width
-            leaf[m] = 0.5 * LEAF_REACH * width * across[m]
+            leaf[m] = 0.5 * LEAF_REACH * width * across[m] if sp.planar_leaves else 0.0
             contact[m] = sp.proxy_radius * scale
         xy = np.column_stack([p.x, p.y]).astype(np.float64)
         band = np.flatnonzero((leaf > radius) & ~p.is_weed)
