@@ -106,12 +106,12 @@ def bench(
     out.mkdir(parents=True, exist_ok=True)
     records: list[dict[str, Any]] = []
     total = len(cases) * len(policies) * seeds
+    labels = policy_labels(policies)
     with tqdm(total=total, desc=f"bench {suite_name}", unit="ep") as bar:
         for case in cases:
             env = _make(case)
             try:
-                for spec in policies:
-                    name = spec.split(":")[0]
+                for spec, name in zip(policies, labels, strict=True):
                     try:
                         pi = make_policy(spec, env)
                     except ValueError as exc:
@@ -122,7 +122,7 @@ def bench(
                         if k == 0:
                             trajectory_figure(
                                 ep,
-                                out / f"traj_{_slug(case.group)}_{name}.png",
+                                out / f"traj_{_slug(case.group)}_{_slug(name)}.png",
                                 f"{name} · {suite_name} · {case.group}",
                             )
                         bar.update(1)
@@ -133,6 +133,21 @@ def bench(
     (out / "benchmark.md").write_text(table(records, suite_name, command))
     bar_chart(records, out / "benchmark.png", suite_name)
     return records
+
+
+def policy_labels(specs: Sequence[str]) -> list[str]:
+    """Row labels: the policy name, or ``ppo:FOLDER`` when several PPO checkpoints compete."""
+    names = [spec.split(":")[0] for spec in specs]
+    labels = []
+    for spec, name in zip(specs, names, strict=True):
+        path = spec.partition(":")[2]
+        if names.count(name) > 1 and path:
+            labels.append(f"{name}:{Path(path.rstrip('/')).name or path}")
+        else:
+            labels.append(name)
+    if len(set(labels)) < len(labels):
+        raise ScenarioError("--policies", ",".join(specs), "allowed: each policy once")
+    return labels
 
 
 def _slug(s: str) -> str:

@@ -167,6 +167,7 @@ def train(
     final = evaluate(model, env_id, eval_kwargs, norm, eval_episodes, eval_seed)
     final.update(timesteps=int(model.num_timesteps), minutes=(time.perf_counter() - t_start) / 60)
     history.append(final)
+    slim_optimizer(model)
     model.save(out_dir / "model.zip")
     if norm is not None:
         norm.save(str(out_dir / "vecnormalize.pkl"))
@@ -185,6 +186,15 @@ def train(
     (out_dir / "evaluations.json").write_text(json.dumps(history, indent=1))
     learning_curve(history, out_dir / "learning_curve.png", env_id)
     return out_dir
+
+
+def slim_optimizer(model: Any) -> None:
+    """Drop Adam's moment estimates (twice the weights' size) before saving: a shipped
+    checkpoint is for inference, and fine-tuning from it restarts the moments."""
+    pol = model.policy
+    pol.optimizer = pol.optimizer_class(
+        pol.parameters(), lr=model.lr_schedule(1), **pol.optimizer_kwargs
+    )
 
 
 def learning_curve(history: list[dict[str, float]], path: Path, title: str) -> None:

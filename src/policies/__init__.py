@@ -29,6 +29,7 @@ POLICIES: dict[str, type[Policy]] = {
 SHIPPED = {
     "AgriNav/FurrowFollow-v0": "furrow_follow_ppo",
     "AgriNav/FieldRoute-v0": "field_route_ppo",
+    "AgriNav/FurrowFollowDepth-v0": "furrow_follow_depth_ppo",
 }
 
 

@@ -172,3 +172,13 @@ def test_benchmark_names_where_a_policy_fails() -> None:
     lines = failures(records, ["0.3 m", "2.5 m"], ["dwb", "depth"])
     assert "- dwb: none" in lines
     assert "- depth: 2.5 m (15 % done, 10.0 crops hit)" in lines
+
+
+def test_bench_labels_tell_ppo_checkpoints_apart() -> None:
+    from baselines.bench import policy_labels
+    from scenario_gen import ScenarioError
+
+    assert policy_labels(["dwb", "ppo:shipped"]) == ["dwb", "ppo"]
+    assert policy_labels(["ppo:shipped", "ppo:runs/depth_ppo/"]) == ["ppo:shipped", "ppo:depth_ppo"]
+    with pytest.raises(ScenarioError, match="--policies"):
+        policy_labels(["dwb", "dwb"])
