@@ -235,7 +235,7 @@ def plant_hits(
     disc = b * b - 4 * a * c
     with np.errstate(invalid="ignore", divide="ignore"):
         t_side = (-b - np.sqrt(disc)) / (2 * a)
-    zb, zt = plants.z[cand][pl], plants.top[cand][pl]
+    zb, zt = zb_c[pl] + o[2], zt_c[pl] + o[2]
     z_side = o[2] + t_side * d[:, 2]
     side_ok = (disc >= 0) & (t_side > 0) & (z_side >= zb) & (z_side <= zt)
     with np.errstate(invalid="ignore", divide="ignore"):
