@@ -16,6 +16,7 @@ from gymnasium import spaces
 from numpy.typing import NDArray
 
 from .base import Obs, Policy
+from .geometry import DepthProjector
 
 
 class DepthFurrowFollower(Policy):
@@ -47,15 +48,7 @@ class DepthFurrowFollower(Policy):
         self.min_height, self.near, self.far = min_height, near, far
         shape = observation_space.spaces["depth"].shape
         assert shape is not None
-        h, w = shape[-2:]
-        fx = 0.5 * w / math.tan(c["hfov"] / 2)
-        fy = 0.5 * h / math.tan(c["vfov"] / 2)
-        u, v = np.meshgrid(np.arange(w) - 0.5 * (w - 1), np.arange(h) - 0.5 * (h - 1))
-        self.ray_y = (-u / fx).ravel()
-        self.ray_z = (-v / fy).ravel()
-        cp, sp = math.cos(c["pitch"]), math.sin(c["pitch"])
-        self.rot = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
-        self.mount = np.array([c["x"], 0.0, c["height"] + 0.11])  # above the footprint plane
+        self.project = DepthProjector(c, shape)
         self.half_width = 0.375  # last lane half-width seen; a prior of maize rows
         self.lost = 0
 
@@ -64,10 +57,7 @@ class DepthFurrowFollower(Policy):
 
     def lane(self, depth: NDArray[np.float32]) -> tuple[float, float] | None:
         """(lateral offset of the lane centre, its heading) in the robot frame, or None."""
-        z = np.asarray(depth, np.float64).ravel()
-        ok = z > 0
-        cam = np.stack([z[ok], self.ray_y[ok] * z[ok], self.ray_z[ok] * z[ok]], axis=1)
-        pts = cam @ self.rot.T + self.mount
+        pts = self.project.points(depth)
         crop = pts[(pts[:, 2] > self.min_height) & (pts[:, 0] > self.near) & (pts[:, 0] < self.far)]
         fits: list[tuple[float, float] | None] = []
         for side in (1, -1):

@@ -22,7 +22,7 @@ from gymnasium import spaces
 from numpy.typing import NDArray
 
 from .base import Obs, Policy
-from .geometry import local_plan
+from .geometry import DepthProjector, local_plan
 
 FloatArray = NDArray[np.float64]
 REJECT = math.inf
@@ -202,29 +202,15 @@ def base_obstacle(
 
 # ----------------------------------------------------------------------------- costmap
 def depth_costmap(
-    depth: NDArray[np.float32],
-    hfov: float,
-    vfov: float,
-    mount: FloatArray,
-    pitch: float,
+    points: FloatArray,
     res: float,
     min_height: float,
     inscribed: float,
     size: float = 6.0,
-    base_height: float = 0.11,
 ) -> tuple[FloatArray, FloatArray]:
-    """A robot-frame local costmap from one depth image: obstacles are points standing more
-    than ``min_height`` above the ground plane; lethal within ``inscribed`` of a point."""
-    h, w = depth.shape[-2:]
-    z = depth.reshape(h, w).astype(np.float64)
-    fx = 0.5 * w / math.tan(hfov / 2)
-    fy = 0.5 * h / math.tan(vfov / 2)
-    u, v = np.meshgrid(np.arange(w) - 0.5 * (w - 1), np.arange(h) - 0.5 * (h - 1))
-    ok = z > 0
-    cam = np.stack([z[ok], -u[ok] / fx * z[ok], -v[ok] / fy * z[ok]], axis=1)
-    c, s = math.cos(pitch), math.sin(pitch)
-    body = cam @ np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]]).T + mount
-    pts = body[body[:, 2] + base_height > min_height]  # height above the footprint plane
+    """A robot-frame local costmap from depth points (``DepthProjector``): obstacles are points
+    standing more than ``min_height`` above the footprint plane; lethal within ``inscribed``."""
+    pts = points[points[:, 2] > min_height]
     n = int(size / res)
     origin = np.array([-1.0, -size / 2])
     grid = np.zeros((n, n))
@@ -261,7 +247,12 @@ class DWB(Policy):
     ) -> None:
         super().__init__(observation_space, action_space, **kwargs)
         self.p = DWBParams.from_yaml(params)
-        self.camera = camera
+        depth = observation_space.spaces.get("depth")
+        self.project = (
+            DepthProjector(camera, depth.shape)
+            if camera is not None and depth is not None and depth.shape is not None
+            else None
+        )
         # 0 by default: in 0.75 m rows a 0.62 m robot is always within its inscribed radius of
         # the canopy, so only points on the robot's own path are lethal (see the YAML).
         self.inscribed = inscribed_radius
@@ -288,18 +279,9 @@ class DWB(Policy):
         goal_yaw = math.atan2(d[1], d[0])
         res = p.costmap_resolution
         grid, origin = None, np.zeros(2)
-        if self.camera is not None and "depth" in obs:
-            c = self.camera
-            grid, origin = depth_costmap(
-                obs["depth"],
-                c["hfov"],
-                c["vfov"],
-                np.array([c["x"], 0.0, c["height"]]),
-                c["pitch"],
-                res,
-                p.obstacle_min_height,
-                self.inscribed,
-            )
+        if self.project is not None and "depth" in obs:
+            pts = self.project.points(obs["depth"])
+            grid, origin = depth_costmap(pts, res, p.obstacle_min_height, self.inscribed)
         parts = {
             "RotateToGoal": rotate_to_goal(traj, twists, goal, goal_yaw, p.xy_goal_tolerance),
             "Oscillation": oscillation(twists, self.last, self.moved, p.oscillation_reset_dist),

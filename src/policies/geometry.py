@@ -1,11 +1,44 @@
-"""Helpers shared by the classical controllers: the local plan from the route observation."""
+"""Helpers shared by the classical controllers: the local plan from the route observation and
+robot-frame points from the depth image."""
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 from numpy.typing import NDArray
 
 FloatArray = NDArray[np.float64]
+
+#: base_link above the wheels' footprint plane (the URDF's wheel radius), m
+BASE_HEIGHT = 0.11
+
+
+class DepthProjector:
+    """Back-projects a z-depth image into robot-frame points, z measured from the footprint plane.
+
+    ``camera`` is the env's public calibration: ``hfov``, ``vfov``, ``pitch`` (rad, + down),
+    ``x`` and ``height`` of the mount on base_link. The pixel rays are computed once.
+    """
+
+    def __init__(self, camera: dict[str, float], shape: tuple[int, ...]) -> None:
+        h, w = shape[-2:]
+        fx = 0.5 * w / math.tan(camera["hfov"] / 2)
+        fy = 0.5 * h / math.tan(camera["vfov"] / 2)
+        u, v = np.meshgrid(np.arange(w) - 0.5 * (w - 1), np.arange(h) - 0.5 * (h - 1))
+        self.ray_y = (-u / fx).ravel()
+        self.ray_z = (-v / fy).ravel()
+        cp, sp = math.cos(camera["pitch"]), math.sin(camera["pitch"])
+        self.rot = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
+        self.mount = np.array([camera["x"], 0.0, camera["height"] + BASE_HEIGHT])
+
+    def points(self, depth: NDArray[np.float32]) -> FloatArray:
+        """(n, 3) points of the valid (non-zero) pixels."""
+        z = np.asarray(depth, np.float64).ravel()
+        ok = z > 0
+        cam = np.stack([z[ok], self.ray_y[ok] * z[ok], self.ray_z[ok] * z[ok]], axis=1)
+        out: FloatArray = cam @ self.rot.T + self.mount
+        return out
 
 
 def local_plan(
