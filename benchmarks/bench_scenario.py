@@ -25,8 +25,8 @@ from collections.abc import Callable
 import numpy as np
 
 import scenario_gen as sg
+from scenario_gen.generate import place_plants
 from scenario_gen.layout import layout
-from scenario_gen.scenario import place_plants
 
 
 def median_ms(fn: Callable[[], object], repeat: int) -> tuple[float, float]:

@@ -10,7 +10,8 @@ from dataclasses import dataclass
 from dataclasses import field as dc_field
 from typing import Any
 
-from scenario_gen.config import _f, from_mapping, merge, to_mapping
+from scenario_gen.schema import from_mapping, merge, to_mapping
+from scenario_gen.schema import param as _f
 
 OBSERVATIONS = ("gps", "imu", "odom", "route", "depth")
 

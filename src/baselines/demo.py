@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from scenario_gen import generate, preset
+from scenario_gen import generate, preset, save
 
 
 def demo(out: str | Path, seeds: int = 2) -> Path:
@@ -20,7 +20,7 @@ def demo(out: str | Path, seeds: int = 2) -> Path:
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     scn = generate(preset("default"), seed=0)
-    scn.save(out / "scenario", overwrite=True)
+    save(scn, out / "scenario", overwrite=True)
     print(f"scenario: {out / 'scenario'} ({scn.summary()['plants']} plants; preview.png)")
     policies = ["dwb"]
     try:

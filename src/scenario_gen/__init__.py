@@ -2,23 +2,26 @@
 
 >>> import scenario_gen as sg
 >>> scn = sg.generate(sg.preset("default"), seed=0)
->>> scn.save("runs/default")
+>>> sg.save(scn, "runs/default")  # doctest: +SKIP
 """
 
 from __future__ import annotations
 
-from .config import ScenarioSpec, preset, preset_names
 from .crops import CATALOG, crop_mesh, crop_model
-from .errors import ScenarioError
+from .errors import InputError, ScenarioError
+from .generate import generate
 from .geodesy import GeoFrame, ground_sample_distance
-from .io import load
+from .io import load, save
+from .model import Plants, Scenario
+from .presets import preset, preset_names
 from .routes import Route
-from .scenario import Plants, Scenario, generate
+from .spec import ScenarioSpec
 from .terrain import Terrain
 
 __all__ = [
     "CATALOG",
     "GeoFrame",
+    "InputError",
     "Plants",
     "Route",
     "Scenario",
@@ -32,4 +35,5 @@ __all__ = [
     "load",
     "preset",
     "preset_names",
+    "save",
 ]

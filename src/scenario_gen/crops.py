@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .errors import ScenarioError
+from .errors import InputError
 
 FloatArray = NDArray[np.float64]
 
@@ -94,7 +94,7 @@ CATALOG: dict[str, Species] = {
 
 def species(name: str) -> Species:
     if name not in CATALOG:
-        raise ScenarioError("crop.species", name, f"allowed: one of {', '.join(CATALOG)}")
+        raise InputError("crop.species", name, f"allowed: one of {', '.join(CATALOG)}")
     return CATALOG[name]
 
 
@@ -180,7 +180,7 @@ def crop_mesh(name: str, growth: float) -> Any:
     import trimesh
 
     if not 0.0 <= growth <= 1.0:
-        raise ScenarioError("crop.growth", growth, "allowed: a number in [0, 1]")
+        raise InputError("crop.growth", growth, "allowed: a number in [0, 1]")
     sp = species(name)
     h, w = float(sp.height(growth)), float(sp.canopy_width(growth))
     parts: list[tuple[Any, tuple[int, int, int]]] = []

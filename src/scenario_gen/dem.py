@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 from pyproj import CRS, Geod, Transformer
 from scipy import ndimage
 
-from .errors import ScenarioError
+from .errors import InputError
 
 FloatArray = NDArray[np.float64]
 
@@ -81,7 +81,7 @@ class Dem:
         off = (col < 0) | (row < 0) | (col > cols - 1) | (row > rows - 1)
         if off.any():
             i = int(np.argmax(off))
-            raise ScenarioError(
+            raise InputError(
                 what,
                 f"lat {float(lat.flat[i]):.5f}, lon {float(lon.flat[i]):.5f}",
                 f"is off the DEM {self.source} (field and margin must lie inside its "
@@ -92,7 +92,7 @@ class Dem:
             near = ndimage.map_coordinates(holes.astype(np.float64), [row, col], order=1)
             if (near > 0).any():
                 i = int(np.argmax(near > 0))
-                raise ScenarioError(
+                raise InputError(
                     what,
                     f"lat {float(lat.flat[i]):.5f}, lon {float(lon.flat[i]):.5f}",
                     f"lies over a nodata hole larger than terrain.fill_max_pixels in "
@@ -113,7 +113,7 @@ class Dem:
         win = max(3, math.ceil(extent_m / min(dx, dy)) | 1)
         rows, cols = self.shape
         if win > min(rows, cols):
-            raise ScenarioError(
+            raise InputError(
                 "field",
                 f"{extent_m:.0f} m",
                 f"is larger than the DEM {self.source} ({cols * dx:.0f} x {rows * dy:.0f} m)",
@@ -134,7 +134,7 @@ class Dem:
             score = np.where(bad | (mean > max_slope_deg), -np.inf, mean)
             idx = int(np.argmax(score))
         if not np.isfinite(score.flat[idx]):
-            raise ScenarioError(
+            raise InputError(
                 "terrain.site",
                 mode,
                 f"no valid window of {extent_m:.0f} m in "
@@ -178,7 +178,7 @@ def fill_small_holes(elev: FloatArray, max_pixels: int) -> FloatArray:
     if not holes.any():
         return elev
     if holes.all():
-        raise ScenarioError("terrain.path", "all nodata", "the DEM holds no valid elevation")
+        raise InputError("terrain.path", "all nodata", "the DEM holds no valid elevation")
     labels, n = ndimage.label(holes)
     sizes = np.bincount(labels.ravel(), minlength=n + 1)
     small = (sizes <= max_pixels) & (np.arange(n + 1) > 0)
@@ -224,15 +224,15 @@ def load_geotiff(path: str | Path, fill_max_pixels: int) -> Dem:
 
     p = Path(path)
     if not p.is_file():
-        raise ScenarioError("terrain.path", str(path), "allowed: an existing GeoTIFF file")
+        raise InputError("terrain.path", str(path), "allowed: an existing GeoTIFF file")
     try:
         with rasterio.open(p) as ds:
             if ds.crs is None:
-                raise ScenarioError(
+                raise InputError(
                     "terrain.path", str(path), "has no CRS; allowed: a georeferenced GeoTIFF"
                 )
             if ds.transform.is_identity:
-                raise ScenarioError(
+                raise InputError(
                     "terrain.path",
                     str(path),
                     "has no geotransform; allowed: a georeferenced GeoTIFF",
@@ -241,9 +241,7 @@ def load_geotiff(path: str | Path, fill_max_pixels: int) -> Dem:
             elev = np.ma.filled(band.astype(np.float64), np.nan)
             transform, crs = ds.transform, CRS.from_wkt(ds.crs.to_wkt())
     except RasterioIOError as exc:
-        raise ScenarioError(
-            "terrain.path", str(path), f"cannot be read as a raster ({exc})"
-        ) from None
+        raise InputError("terrain.path", str(path), f"cannot be read as a raster ({exc})") from None
     elev[~np.isfinite(elev)] = np.nan
     elev = fill_small_holes(elev, fill_max_pixels)
     return Dem(elev, transform, crs, p.name)

@@ -13,9 +13,9 @@ from shapely.geometry import MultiPolygon, Polygon, shape
 from shapely.geometry.base import BaseGeometry
 from shapely.validation import explain_validity
 
-from .config import FieldSpec
-from .errors import ScenarioError
+from .errors import InputError
 from .geodesy import GeoFrame
+from .spec import FieldSpec
 
 MIN_FIELD_AREA = 4.0  # m²: below this not even one lane fits
 
@@ -23,7 +23,7 @@ MIN_FIELD_AREA = 4.0  # m²: below this not even one lane fits
 def rectangle(spec: FieldSpec, centre: tuple[float, float]) -> Polygon:
     if spec.width <= 0 or spec.length <= 0:
         bad = "field.width" if spec.width <= 0 else "field.length"
-        raise ScenarioError(bad, getattr(spec, bad.split(".")[1]), "allowed: a size > 0 m")
+        raise InputError(bad, getattr(spec, bad.split(".")[1]), "allowed: a size > 0 m")
     a = math.radians(spec.angle_deg)
     u = np.array([math.cos(a), math.sin(a)]) * spec.length / 2
     n = np.array([-math.sin(a), math.cos(a)]) * spec.width / 2
@@ -35,25 +35,23 @@ def read_geojson(path: str | Path) -> BaseGeometry:
     """The (multi)polygon of a GeoJSON file, in lon/lat; several features are merged."""
     p = Path(path)
     if not p.is_file():
-        raise ScenarioError("field.geojson", str(path), "allowed: an existing GeoJSON file")
+        raise InputError("field.geojson", str(path), "allowed: an existing GeoJSON file")
     try:
         data = json.loads(p.read_text())
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise ScenarioError("field.geojson", str(path), f"is not valid JSON ({exc})") from None
+        raise InputError("field.geojson", str(path), f"is not valid JSON ({exc})") from None
     geoms = [g for g in _geometries(data) if g.get("type") in ("Polygon", "MultiPolygon")]
     if not geoms:
-        raise ScenarioError("field.geojson", str(path), "holds no Polygon or MultiPolygon geometry")
+        raise InputError("field.geojson", str(path), "holds no Polygon or MultiPolygon geometry")
     try:
         polys = [shape(g) for g in geoms]
     except Exception as exc:  # shapely raises several types for malformed coordinates
-        raise ScenarioError(
-            "field.geojson", str(path), f"has malformed coordinates ({exc})"
-        ) from None
+        raise InputError("field.geojson", str(path), f"has malformed coordinates ({exc})") from None
     for poly in polys:
         _check_valid(poly, str(path))
         lon0, lat0, lon1, lat1 = poly.bounds
         if not (-180 <= lon0 <= lon1 <= 180 and -90 <= lat0 <= lat1 <= 90):
-            raise ScenarioError(
+            raise InputError(
                 "field.geojson",
                 f"bounds {poly.bounds}",
                 "coordinates must be WGS84 longitude, latitude (RFC 7946); these look projected",
@@ -76,9 +74,9 @@ def _geometries(data: Any) -> list[dict[str, Any]]:
 
 def _check_valid(poly: BaseGeometry, where: str) -> None:
     if poly.is_empty:
-        raise ScenarioError("field.geojson", where, "the polygon is empty")
+        raise InputError("field.geojson", where, "the polygon is empty")
     if not poly.is_valid:
-        raise ScenarioError(
+        raise InputError(
             "field.geojson",
             where,
             f"the polygon is invalid ({explain_validity(poly)}); allowed: a "
@@ -109,11 +107,11 @@ def centroid_latlon(geom: BaseGeometry) -> tuple[float, float]:
 
 def check_field(poly: BaseGeometry, where: str) -> Polygon | MultiPolygon:
     if not isinstance(poly, (Polygon, MultiPolygon)) or poly.is_empty:
-        raise ScenarioError(where, poly.geom_type, "allowed: a non-empty Polygon/MultiPolygon")
+        raise InputError(where, poly.geom_type, "allowed: a non-empty Polygon/MultiPolygon")
     if not poly.is_valid:
-        raise ScenarioError(where, explain_validity(poly), "allowed: a valid simple polygon")
+        raise InputError(where, explain_validity(poly), "allowed: a valid simple polygon")
     if poly.area < MIN_FIELD_AREA:
-        raise ScenarioError(
+        raise InputError(
             where, f"{poly.area:.2f} m²", f"is too small; allowed: at least {MIN_FIELD_AREA} m²"
         )
     return poly

@@ -12,8 +12,8 @@ from numpy.typing import NDArray
 from scipy import ndimage
 from shapely.geometry.base import BaseGeometry
 
-from .config import FurrowSpec
 from .layout import RowFrame
+from .spec import FurrowSpec
 from .terrain import Terrain
 
 FloatArray = NDArray[np.float64]

@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from pyproj import Transformer
 
-from .errors import ScenarioError
+from .errors import InputError
 
 FloatArray = NDArray[np.float64]
 
@@ -30,19 +30,19 @@ GSD_Z0 = 156543.03392
 def ground_sample_distance(lod: int, lat_deg: float) -> float:
     """Metres per pixel of the Web-Mercator tile pyramid at zoom ``lod`` and ``lat_deg``."""
     if not isinstance(lod, (int, np.integer)) or isinstance(lod, bool) or not 0 <= lod <= 22:
-        raise ScenarioError("terrain.lod", lod, "allowed: an integer zoom level 0..22")
+        raise InputError("terrain.lod", lod, "allowed: an integer zoom level 0..22")
     if not -85.06 <= lat_deg <= 85.06:
-        raise ScenarioError("latitude", lat_deg, "allowed: -85.06..85.06 (Web-Mercator range)")
+        raise InputError("latitude", lat_deg, "allowed: -85.06..85.06 (Web-Mercator range)")
     return GSD_Z0 * math.cos(math.radians(lat_deg)) / 2**lod
 
 
 def _check_latlon(lat: float, lon: float, alt: float, where: str) -> None:
     if not (math.isfinite(lat) and -90.0 <= lat <= 90.0):
-        raise ScenarioError(f"{where}.lat", lat, "allowed: degrees in -90..90")
+        raise InputError(f"{where}.lat", lat, "allowed: degrees in -90..90")
     if not (math.isfinite(lon) and -180.0 <= lon <= 180.0):
-        raise ScenarioError(f"{where}.lon", lon, "allowed: degrees in -180..180")
+        raise InputError(f"{where}.lon", lon, "allowed: degrees in -180..180")
     if not math.isfinite(alt):
-        raise ScenarioError(f"{where}.alt", alt, "allowed: a finite height in metres")
+        raise InputError(f"{where}.alt", alt, "allowed: a finite height in metres")
 
 
 @dataclass(frozen=True)

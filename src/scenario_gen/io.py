@@ -9,11 +9,7 @@ complete, so a failure never leaves a half-written scenario.
 from __future__ import annotations
 
 import csv
-import itertools
 import json
-import os
-import shutil
-import tempfile
 from importlib import metadata
 from pathlib import Path
 from typing import Any
@@ -21,12 +17,15 @@ from typing import Any
 import numpy as np
 from shapely import wkt
 
-from .config import ScenarioSpec
-from .errors import ScenarioError
+from .atomic import output_dir
+from .errors import InputError
 from .geodesy import GeoFrame
+from .geojson import geojson
 from .layout import RowFrame
+from .model import Plants, Scenario
+from .preview import render_preview
 from .routes import Route
-from .scenario import Plants, Scenario
+from .spec import ScenarioSpec
 from .terrain import Terrain
 
 FORMAT = "agrinav-scenario"
@@ -72,39 +71,13 @@ def versions() -> dict[str, str]:
     return out
 
 
-def check_output_dir(directory: str | Path, overwrite: bool) -> Path:
-    out = Path(directory)
-    if out.exists() and not overwrite:
-        raise ScenarioError(
-            "out",
-            str(out),
-            "already exists; choose another directory or "
-            "allow overwriting (--force / overwrite=True)",
-        )
-    if out.exists() and not out.is_dir():
-        raise ScenarioError("out", str(out), "exists and is not a directory")
-    return out
-
-
 def save(
     scn: Scenario, directory: str | Path, overwrite: bool = False, preview: bool = True
 ) -> Path:
-    out = check_output_dir(directory, overwrite)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=out.parent))
-    try:
+    """Write ``scn`` to ``directory`` (atomically: the folder appears complete or not at all)."""
+    with output_dir(directory, overwrite) as tmp:
         _write_all(scn, tmp, preview)
-        if out.exists():
-            old = out.with_name(f".{out.name}.old-{os.getpid()}")
-            out.rename(old)
-            tmp.rename(out)
-            shutil.rmtree(old)
-        else:
-            tmp.rename(out)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
-    return out
+    return Path(directory)
 
 
 def _write_all(scn: Scenario, d: Path, preview: bool) -> None:
@@ -170,8 +143,6 @@ def _write_all(scn: Scenario, d: Path, preview: bool) -> None:
     (d / "field.geojson").write_text(json.dumps(geojson(scn, lat, lon, alt, rlat, rlon)))
     (d / "scenario.json").write_text(json.dumps(metadata_dict(scn), indent=2) + "\n")
     if preview:
-        from .preview import render_preview
-
         render_preview(scn, d / "preview.png")
 
 
@@ -222,94 +193,15 @@ def metadata_dict(scn: Scenario) -> dict[str, Any]:
     }
 
 
-def geojson(
-    scn: Scenario,
-    lat: np.ndarray,
-    lon: np.ndarray,
-    alt: np.ndarray,
-    rlat: np.ndarray,
-    rlon: np.ndarray,
-) -> dict[str, Any]:
-    def rnd(v: Any) -> Any:
-        return np.round(np.asarray(v, dtype=np.float64), 8).tolist()
-
-    feats: list[dict[str, Any]] = [
-        {
-            "type": "Feature",
-            "properties": {
-                "kind": "field",
-                "name": scn.spec.name,
-                "area_m2": round(scn.field.area, 2),
-            },
-            "geometry": _round_geom(scn.field_lonlat.__geo_interface__),
-        }
-    ]
-    seg = scn.route.segment
-    cuts = np.flatnonzero(seg[1:] != seg[:-1]) + 1
-    bounds = np.concatenate([[0], cuts, [len(seg)]])
-    z = scn.route.xyz[:, 2] + scn.geo.alt
-    for a, b in itertools.pairwise(bounds):
-        hi = min(b + 1, len(seg))  # share the junction so the line is continuous
-        feats.append(
-            {
-                "type": "Feature",
-                "properties": {
-                    "kind": "route",
-                    "segment": str(seg[a]),
-                    "lane": int(scn.route.lane[a]),
-                },
-                "geometry": {
-                    "type": "LineString",
-                    "coordinates": np.column_stack(
-                        [rnd(rlon[a:hi]), rnd(rlat[a:hi]), np.round(z[a:hi], 3)]
-                    ).tolist(),
-                },
-            }
-        )
-    p = scn.plants
-    for i in range(len(p)):
-        feats.append(
-            {
-                "type": "Feature",
-                "properties": {
-                    "kind": "plant",
-                    "id": i,
-                    "species": str(p.species[i]),
-                    "stage": round(float(p.stage[i]), 3),
-                    "height": round(float(p.height[i]), 3),
-                },
-                "geometry": {
-                    "type": "Point",
-                    "coordinates": [
-                        round(float(lon[i]), 8),
-                        round(float(lat[i]), 8),
-                        round(float(alt[i]), 3),
-                    ],
-                },
-            }
-        )
-    return {"type": "FeatureCollection", "name": scn.spec.name, "features": feats}
-
-
-def _round_geom(g: Any) -> Any:
-    if isinstance(g, dict):
-        return {k: _round_geom(v) for k, v in g.items()}
-    if isinstance(g, (list, tuple)):
-        if g and isinstance(g[0], float):
-            return [round(v, 8) for v in g]
-        return [_round_geom(v) for v in g]
-    return g
-
-
 def load(directory: str | Path) -> Scenario:
     """Read a scenario directory written by ``Scenario.save``."""
     d = Path(directory)
     meta_path = d / "scenario.json"
     if not meta_path.is_file():
-        raise ScenarioError("scenario", str(d), "is not a scenario directory (no scenario.json)")
+        raise InputError("scenario", str(d), "is not a scenario directory (no scenario.json)")
     meta = json.loads(meta_path.read_text())
     if meta.get("format") != FORMAT or meta.get("format_version") != FORMAT_VERSION:
-        raise ScenarioError(
+        raise InputError(
             "scenario.json",
             meta.get("format_version"),
             f"allowed: format {FORMAT!r} version {FORMAT_VERSION}",
@@ -354,7 +246,7 @@ def _read_csv(path: Path, header: list[str]) -> dict[str, np.ndarray]:
         reader = csv.reader(f)
         head = next(reader)
         if head != header:
-            raise ScenarioError(path.name, head, f"allowed header: {','.join(header)}")
+            raise InputError(path.name, head, f"allowed header: {','.join(header)}")
         cols = list(zip(*reader, strict=True)) or [() for _ in header]
     return {h: np.asarray(c) for h, c in zip(header, cols, strict=True)}
 

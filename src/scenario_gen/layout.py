@@ -17,8 +17,8 @@ from numpy.typing import NDArray
 from shapely import affinity
 from shapely.geometry.base import BaseGeometry
 
-from .config import LayoutSpec
-from .errors import ScenarioError
+from .errors import InputError
+from .spec import LayoutSpec
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -91,7 +91,7 @@ def layout(
 ) -> Layout:
     area = planting_area(field, spec, angle)
     if area.is_empty or area.area <= 0:
-        raise ScenarioError(
+        raise InputError(
             "layout.headland/edge_margin",
             (spec.headland, spec.edge_margin),
             "leave no planting area inside the field; allowed: smaller margins or a larger field",
@@ -105,7 +105,7 @@ def layout(
     s_rows = _centred(float(s_b.min()), float(s_b.max()), spec.row_spacing)
     t_pos = _centred(float(t_b.min()), float(t_b.max()), spec.plant_spacing)
     if len(s_rows) * len(t_pos) > 50_000_000:
-        raise ScenarioError(
+        raise InputError(
             "layout.plant_spacing",
             spec.plant_spacing,
             "gives over 50 million candidate plants; allowed: a coarser spacing or a smaller field",
@@ -117,7 +117,7 @@ def layout(
     row_of = np.repeat(np.arange(len(s_rows)), len(t_pos))[keep]
     s_k, t_k = s_all[keep], t_all[keep]
     if len(s_k) == 0:
-        raise ScenarioError(
+        raise InputError(
             "field",
             f"{field.area:.1f} m²",
             "is too small for one plant at this row spacing, plant spacing and margins",

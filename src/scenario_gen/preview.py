@@ -3,29 +3,28 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
-if TYPE_CHECKING:
-    from .scenario import Scenario
+from .model import Scenario
 
 
 def render_preview(scn: Scenario, path: str | Path, dpi: int = 110) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from matplotlib.colors import LightSource
+    import matplotlib as mpl
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.colors import LightSource, Normalize
+    from matplotlib.figure import Figure
 
     t = scn.terrain
     xmin, ymin, xmax, ymax = t.bounds
     aspect = (ymax - ymin) / max(xmax - xmin, 1e-9)
-    fig, ax = plt.subplots(figsize=(10.0, float(np.clip(7.5 * aspect, 4.5, 11.0))), dpi=dpi)
+    fig = Figure(figsize=(10.0, float(np.clip(7.5 * aspect, 4.5, 11.0))), dpi=dpi)
+    FigureCanvasAgg(fig)  # no pyplot: no global backend, no figure registry
+    ax = fig.add_subplot()
     ls = LightSource(azdeg=315, altdeg=45)
     rgb = ls.shade(
         t.heights,
-        cmap=plt.get_cmap("gist_earth"),
+        cmap=mpl.colormaps["gist_earth"],
         vert_exag=1.0,
         blend_mode="soft",
         dx=t.spacing,
@@ -33,9 +32,9 @@ def render_preview(scn: Scenario, path: str | Path, dpi: int = 110) -> None:
         fraction=0.6,
     )
     ax.imshow(rgb, origin="lower", extent=(xmin, xmax, ymin, ymax), interpolation="bilinear")
-    sm = plt.cm.ScalarMappable(
+    sm = mpl.cm.ScalarMappable(
         cmap="gist_earth",
-        norm=plt.Normalize(scn.geo.alt + t.heights.min(), scn.geo.alt + t.heights.max()),
+        norm=Normalize(scn.geo.alt + t.heights.min(), scn.geo.alt + t.heights.max()),
     )
     fig.colorbar(sm, ax=ax, shrink=0.7, label="elevation (m)")
 
@@ -123,4 +122,3 @@ def render_preview(scn: Scenario, path: str | Path, dpi: int = 110) -> None:
     ax.legend(loc="upper left", fontsize=7, framealpha=0.6)
     fig.tight_layout()
     fig.savefig(path, metadata={"Software": None})
-    plt.close(fig)

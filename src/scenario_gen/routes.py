@@ -12,9 +12,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from .config import RouteSpec
-from .errors import ScenarioError
+from .errors import InputError
 from .layout import RowFrame
+from .spec import RouteSpec
 from .terrain import Terrain
 
 FloatArray = NDArray[np.float64]
@@ -74,14 +74,14 @@ def zigzag(rows: RowFrame, spec: RouteSpec, terrain: Terrain) -> Route:
     t1 = np.minimum(rows.ends[:-1], rows.ends[1:])
     n_lanes = len(s)
     if n_lanes < spec.lanes:
-        raise ScenarioError(
+        raise InputError(
             "route.lanes",
             spec.lanes,
             f"the field has {n_lanes} lane(s) between its {len(rows.offsets)} rows",
         )
     first = (n_lanes - spec.lanes) // 2 if spec.first_lane is None else spec.first_lane
     if first + spec.lanes > n_lanes:
-        raise ScenarioError(
+        raise InputError(
             "route.first_lane",
             first,
             f"allowed: 0..{n_lanes - spec.lanes} for {spec.lanes} lane(s)",
@@ -119,7 +119,7 @@ def zigzag(rows: RowFrame, spec: RouteSpec, terrain: Terrain) -> Route:
     inside = terrain.contains(x, y)
     if not inside.all():
         i = int(np.argmin(inside))
-        raise ScenarioError(
+        raise InputError(
             "route",
             f"waypoint at ENU ({x[i]:.1f}, {y[i]:.1f}) m",
             "leaves the terrain; raise terrain.margin or shorten route.lead_in / route.turn_offset",

@@ -16,10 +16,10 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from .config import TerrainSpec
 from .dem import EMBEDDED_CREDIT, Dem, load_embedded, load_geotiff
-from .errors import ScenarioError
+from .errors import InputError
 from .geodesy import GeoFrame
+from .spec import TerrainSpec
 from .terrain import IDW_EPS, Terrain, grid_for_bounds
 
 FloatArray = NDArray[np.float64]
@@ -53,7 +53,7 @@ def build_terrain(site: Site, bounds: tuple[float, float, float, float], lod: in
     spacing = site.geo.gsd(lod)
     x0, y0, nx, ny = grid_for_bounds(*bounds, spacing)
     if nx * ny > 60_000_000:
-        raise ScenarioError(
+        raise InputError(
             "terrain.lod",
             lod,
             f"gives a {nx}x{ny} grid over the field; "
@@ -68,14 +68,14 @@ def build_terrain(site: Site, bounds: tuple[float, float, float, float], lod: in
 def _dem_site(spec: TerrainSpec, field_lonlat: tuple[float, float] | None, extent_m: float) -> Site:
     if spec.source == "embedded":
         if spec.path is not None:
-            raise ScenarioError(
+            raise InputError(
                 "terrain.path", spec.path, "is only used with terrain.source dem or mesh"
             )
         dem = load_embedded()
         credit = EMBEDDED_CREDIT
     else:
         if spec.path is None:
-            raise ScenarioError("terrain.path", None, "terrain.source=dem needs a GeoTIFF path")
+            raise InputError("terrain.path", None, "terrain.source=dem needs a GeoTIFF path")
         dem = load_geotiff(spec.path, spec.fill_max_pixels)
         credit = f"DEM {Path(spec.path).name}"
     if field_lonlat is not None:
@@ -83,7 +83,7 @@ def _dem_site(spec: TerrainSpec, field_lonlat: tuple[float, float] | None, exten
         how = "field centroid"
     elif spec.site == "latlon":
         if spec.lat is None or spec.lon is None:
-            raise ScenarioError(
+            raise InputError(
                 "terrain.lat/lon",
                 (spec.lat, spec.lon),
                 "terrain.site=latlon needs both terrain.lat and terrain.lon",
@@ -142,20 +142,20 @@ def load_mesh_vertices(
 
     p = Path(path)
     if not p.is_file():
-        raise ScenarioError("terrain.path", str(path), "allowed: an existing mesh file")
+        raise InputError("terrain.path", str(path), "allowed: an existing mesh file")
     if p.suffix.lower() not in MESH_SUFFIXES:
-        raise ScenarioError(
+        raise InputError(
             "terrain.path", str(path), f"allowed: a mesh file ({', '.join(MESH_SUFFIXES)})"
         )
     try:
         mesh: Any = trimesh.load(p, force="mesh", process=False)
     except Exception as exc:  # trimesh raises many types for malformed files
-        raise ScenarioError(
+        raise InputError(
             "terrain.path", str(path), f"cannot be read as a mesh ({exc.__class__.__name__}: {exc})"
         ) from None
     v = np.asarray(getattr(mesh, "vertices", np.empty((0, 3))), dtype=np.float64)
     if len(v) < 3 or not np.isfinite(v).all():
-        raise ScenarioError("terrain.path", str(path), "holds no usable vertices")
+        raise InputError("terrain.path", str(path), "holds no usable vertices")
     up = up_axis if up_axis != "auto" else ("y" if p.suffix.lower() in (".glb", ".gltf") else "z")
     if up == "y":  # glTF: +Y up, +Z toward the viewer -> east = X, north = -Z, up = Y
         v = np.column_stack([v[:, 0], -v[:, 2], v[:, 1]])
@@ -164,9 +164,9 @@ def load_mesh_vertices(
 
 def _mesh_site(spec: TerrainSpec) -> Site:
     if spec.path is None:
-        raise ScenarioError("terrain.path", None, "terrain.source=mesh needs a mesh file")
+        raise InputError("terrain.path", None, "terrain.source=mesh needs a mesh file")
     if spec.datum is None:
-        raise ScenarioError(
+        raise InputError(
             "terrain.datum", None, "terrain.source=mesh needs the lat, lon, alt of the mesh origin"
         )
     v, _ = load_mesh_vertices(spec.path, spec.up_axis)
@@ -181,7 +181,7 @@ def _mesh_site(spec: TerrainSpec) -> Site:
         dist, idx = tree.query(np.column_stack([x, y]), k=min(3, len(v)), workers=-1)
         if (dist[:, 0] > reach).any():
             i = int(np.argmax(dist[:, 0] > reach))
-            raise ScenarioError(
+            raise InputError(
                 "field",
                 f"ENU ({x[i]:.1f}, {y[i]:.1f}) m",
                 f"lies off the terrain mesh {Path(str(spec.path)).name} "

@@ -13,7 +13,7 @@ from .helpers import TINY, make
 
 def test_register_scenario_from_object_and_directory(tmp_path: Path) -> None:
     scn = sg.generate(sg.preset("early-corn", **TINY), seed=5)
-    scn.save(tmp_path / "s")
+    sg.save(scn, tmp_path / "s")
     a = agrinav_gym.register_scenario("TinyObject", scn)
     b = agrinav_gym.register_scenario("TinyDir", tmp_path / "s", task="route")
     assert (a, b) == ("AgriNav/TinyObject-v0", "AgriNav/TinyDir-v0")

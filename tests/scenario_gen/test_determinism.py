@@ -2,7 +2,7 @@ from pathlib import Path
 
 import numpy as np
 
-from scenario_gen import generate
+from scenario_gen import generate, save
 
 from .helpers import small
 
@@ -26,9 +26,9 @@ def test_same_seed_same_bits_other_seed_different() -> None:
 
 def test_same_seed_same_files(tmp_path: Path) -> None:
     spec = small()
-    generate(spec, 3).save(tmp_path / "a")
-    generate(spec, 3).save(tmp_path / "b")
-    generate(spec, 4).save(tmp_path / "c")
+    save(generate(spec, 3), tmp_path / "a")
+    save(generate(spec, 3), tmp_path / "b")
+    save(generate(spec, 4), tmp_path / "c")
     for name in (
         "scenario.json",
         "plants.csv",

@@ -5,7 +5,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from scenario_gen import ScenarioError, generate, load
+from scenario_gen import ScenarioError, generate, load, save
 from scenario_gen.io import PLANT_HEADER, ROUTE_HEADER
 
 from .helpers import small
@@ -15,7 +15,7 @@ from .helpers import small
 def saved(tmp_path_factory: pytest.TempPathFactory):
     scn = generate(small(layout={"weed_density": 0.5}), seed=11)
     out = tmp_path_factory.mktemp("io") / "scn"
-    scn.save(out)
+    save(scn, out)
     return scn, out
 
 
@@ -82,23 +82,23 @@ def test_geojson_is_wgs84_and_matches_plants(saved) -> None:
 def test_existing_directory_is_not_overwritten_unless_asked(saved, tmp_path: Path) -> None:
     scn, _ = saved
     out = tmp_path / "x"
-    scn.save(out)
+    save(scn, out)
     with pytest.raises(ScenarioError, match="already exists"):
-        scn.save(out)
-    scn.save(out, overwrite=True)
+        save(scn, out)
+    save(scn, out, overwrite=True)
     assert (out / "scenario.json").is_file()
 
 
 def test_failed_save_leaves_nothing(saved, tmp_path: Path, monkeypatch) -> None:
     scn, _ = saved
-    import scenario_gen.preview as preview
+    import scenario_gen.io as preview
 
     def boom(*_a, **_k):
         raise RuntimeError("disk full")
 
     monkeypatch.setattr(preview, "render_preview", boom)
     with pytest.raises(RuntimeError):
-        scn.save(tmp_path / "half")
+        save(scn, tmp_path / "half")
     assert list(tmp_path.iterdir()) == []
 
 

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from scenario_gen import Terrain, generate, preset
-from scenario_gen.scenario import orientation
+from scenario_gen.generate import orientation
 
 from .helpers import plane
 

@@ -1,34 +1,29 @@
-"""A scenario: terrain, field, plants, rows and route, generated from a spec and a seed."""
+"""Generation: a spec and a seed in, a ``Scenario`` out (DESIGN §4), deterministic to the bit."""
 
 from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from shapely.geometry.base import BaseGeometry
 
 from . import crops
-from .config import CropSpec, ScenarioSpec
-from .errors import ScenarioError
+from .errors import InputError
 from .field import (
     centroid_latlon,
     check_field,
-    enu_to_lonlat,
     long_axis_deg,
     lonlat_to_enu,
     read_geojson,
     rectangle,
 )
 from .furrows import add_relief
-from .geodesy import GeoFrame
-from .layout import Layout, RowFrame, layout
-from .routes import Route, lane_lines, zigzag
+from .layout import Layout, layout
+from .model import Plants, Scenario
+from .routes import zigzag
 from .sources import build_terrain, open_site
+from .spec import CropSpec, ScenarioSpec
 from .terrain import Terrain
 
 FloatArray = NDArray[np.float64]
@@ -36,36 +31,6 @@ FloatArray = NDArray[np.float64]
 #: Independent random streams, one per generation step, spawned from the seed so that changing
 #: one parameter (say the weed density) does not reshuffle every other random choice.
 STREAMS = ("jitter", "gaps", "weeds", "plants", "roughness")
-
-
-@dataclass(frozen=True, eq=False)
-class Plants:
-    """One entry per plant or weed; orientation R = Rz(yaw)·Ry(pitch)·Rx(roll) (URDF rpy)."""
-
-    x: FloatArray
-    y: FloatArray
-    z: FloatArray
-    roll: FloatArray
-    pitch: FloatArray
-    yaw: FloatArray
-    height: FloatArray
-    species: NDArray[np.str_]
-    stage: FloatArray  # 1 .. the species' stage count, fractional for continuous growth
-    row: NDArray[np.int64]  # row index, -1 for weeds
-
-    def __len__(self) -> int:
-        return len(self.x)
-
-    @property
-    def xyz(self) -> FloatArray:
-        return np.column_stack([self.x, self.y, self.z])
-
-    @property
-    def is_weed(self) -> NDArray[np.bool_]:
-        return self.row < 0
-
-    def arrays(self) -> dict[str, np.ndarray]:
-        return {k: getattr(self, k) for k in self.__dataclass_fields__}
 
 
 def orientation(zx: FloatArray, zy: FloatArray, yaw: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -81,51 +46,6 @@ def orientation(zx: FloatArray, zy: FloatArray, yaw: FloatArray) -> tuple[FloatA
     pitch = np.arctan(-zxp)
     roll = np.arctan(zyp * np.cos(pitch))
     return roll, pitch
-
-
-@dataclass(frozen=True, eq=False)
-class Scenario:
-    spec: ScenarioSpec
-    seed: int
-    geo: GeoFrame
-    terrain: Terrain
-    field: BaseGeometry  # ENU polygon
-    rows: RowFrame
-    plants: Plants
-    route: Route
-    info: dict[str, Any] = field(default_factory=dict)
-
-    @property
-    def lanes(self) -> FloatArray:
-        """Lane centrelines (lanes, 2, 2) in ENU, from row start to row end."""
-        return lane_lines(self.rows)
-
-    @property
-    def field_lonlat(self) -> BaseGeometry:
-        return enu_to_lonlat(self.field, self.geo)
-
-    def save(self, directory: str | Path, overwrite: bool = False, preview: bool = True) -> Path:
-        from .io import save
-
-        return save(self, directory, overwrite=overwrite, preview=preview)
-
-    def summary(self) -> dict[str, Any]:
-        crops_mask = ~self.plants.is_weed
-        return {
-            "name": self.spec.name,
-            "seed": self.seed,
-            "datum": f"{self.geo.lat:.6f}, {self.geo.lon:.6f}, {self.geo.alt:.1f} m",
-            "plants": int(crops_mask.sum()),
-            "weeds": int((~crops_mask).sum()),
-            "rows": len(self.rows.offsets),
-            "field_area_m2": round(float(self.field.area), 1),
-            "relief_m": round(self.terrain.relief, 2),
-            "row_spacing_m": self.spec.layout.row_spacing,
-            "plant_spacing_m": self.spec.layout.plant_spacing,
-            "grid": f"{self.terrain.shape[1]}x{self.terrain.shape[0]} @ "
-            f"{self.terrain.spacing:.3f} m (LoD {self.terrain.lod})",
-            "route_m": round(self.route.length, 1),
-        }
 
 
 def place_plants(
@@ -159,7 +79,7 @@ def place_plants(
 def generate(spec: ScenarioSpec, seed: int) -> Scenario:
     """Build the scenario ``spec`` describes; the same (spec, seed) gives the same bits."""
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ScenarioError("seed", seed, "allowed: an integer >= 0")
+        raise InputError("seed", seed, "allowed: an integer >= 0")
     t_start = time.perf_counter()
     rng = dict(
         zip(
@@ -173,7 +93,7 @@ def generate(spec: ScenarioSpec, seed: int) -> Scenario:
     )
     sp = crops.species(spec.crop.species)
     if spec.crop.stage > sp.stages:
-        raise ScenarioError(
+        raise InputError(
             "crop.stage",
             spec.crop.stage,
             f"allowed: 1..{sp.stages} for {sp.name} ({', '.join(sp.stage_names)})",
@@ -192,7 +112,7 @@ def generate(spec: ScenarioSpec, seed: int) -> Scenario:
         and spec.terrain.source in ("embedded", "dem")
         and spec.terrain.site == "latlon"
     ):
-        raise ScenarioError(
+        raise InputError(
             "terrain.site",
             "latlon",
             "a GeoJSON field fixes the site; leave terrain.site at its default",

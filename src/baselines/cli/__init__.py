@@ -1,0 +1,65 @@
+"""``agrinav``: the command line.
+
+Each subcommand lives in its own module with ``add(subparsers)``; this module only parses and
+dispatches. Bad input anywhere (``InputError``) prints one line naming the field, the value and
+what is allowed, and exits 2; SIGTERM unwinds like an exception, so no command leaves a
+half-written output folder behind.
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+from collections.abc import Sequence
+from types import FrameType
+from typing import NoReturn
+
+from scenario_gen.errors import InputError
+
+from . import bench, demo, scenario, train
+
+COMMANDS = (scenario, train, bench, demo)
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse that reports a bad flag as one line (exit 2), like every other bad input."""
+
+    def error(self, message: str) -> NoReturn:
+        sys.stderr.write(f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+        sys.exit(2)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = Parser(prog="agrinav", description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
+    for module in COMMANDS:
+        module.add(sub)
+    return parser
+
+
+def _terminate(signum: int, _frame: FrameType | None) -> None:
+    raise SystemExit(128 + signum)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    args.argv = ["agrinav", *(argv if argv is not None else sys.argv[1:])]  # for "reproduce"
+    previous = signal.signal(signal.SIGTERM, _terminate)
+    try:
+        return int(args.func(args))
+    except InputError as exc:
+        print(f"agrinav {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:  # full disk, permissions: the machine's problem, said in one line
+        print(f"agrinav {args.command}: error: {exc}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print("agrinav: interrupted", file=sys.stderr)
+        return 130
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+__all__ = ["InputError", "build_parser", "main"]

@@ -1,0 +1,46 @@
+"""Argument types shared by subcommands: checked at parse time, reported as one line."""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable
+from typing import Any
+
+import yaml
+
+from scenario_gen.errors import InputError
+
+MAX_SEED = 2**63 - 1
+
+
+def int_at_least(lo: int, hi: int | None = None) -> Callable[[str], int]:
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"got {text!r}; allowed: an integer") from None
+        if value < lo or (hi is not None and value > hi):
+            rng = f">= {lo}" if hi is None else f"in [{lo}, {hi}]"
+            raise argparse.ArgumentTypeError(f"got {value}; allowed: an integer {rng}")
+        return value
+
+    return parse
+
+
+seed_type = int_at_least(0, MAX_SEED)
+
+
+def parse_set(items: list[str]) -> dict[str, Any]:
+    """``--set key=value`` pairs, values parsed as YAML scalars/lists."""
+    from scenario_gen.schema import parse_yaml
+
+    out: dict[str, Any] = {}
+    for item in items:
+        key, sep, raw = item.partition("=")
+        if not sep or not key.strip():
+            raise InputError("--set", item, "allowed: key=value, e.g. layout.row_spacing=0.76")
+        try:
+            out[key.strip()] = parse_yaml(raw, f"--set {key}") if raw.strip() else None
+        except yaml.YAMLError:  # pragma: no cover  (parse_yaml reports YAML errors itself)
+            raise InputError(f"--set {key}", raw, "is not a valid YAML value") from None
+    return out

@@ -1,0 +1,51 @@
+"""``agrinav run`` and ``agrinav bench``: policies on envs, metrics, tables and figures."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+from .args import int_at_least, seed_type
+
+
+def add(sub: Any) -> None:
+    ru = sub.add_parser(
+        "run", help="run a policy for some episodes: metrics.json + trajectory plots"
+    )
+    ru.add_argument("--env", default="AgriNav/FieldRoute-v0")
+    ru.add_argument("--policy", required=True, help="dwb, rpp, depth or ppo:PATH")
+    ru.add_argument("--seed", type=seed_type, default=1_000_000_000)
+    ru.add_argument("--episodes", type=int_at_least(1), default=1)
+    ru.add_argument("--scenario", help="a scenario directory or preset (default: the env's)")
+    ru.add_argument("--out", required=True)
+    ru.add_argument("--video", action="store_true", help="write a WebM video of the first episode")
+    ru.set_defaults(func=run)
+
+    be = sub.add_parser("bench", help="benchmark policies on a suite: results.json, benchmark.md")
+    be.add_argument("--suite", required=True, help="smoke, paper, growth, density or terrain")
+    be.add_argument("--policies", required=True, help="comma list: dwb,rpp,depth,ppo:PATH")
+    be.add_argument("--seeds", type=int_at_least(1), default=3)
+    be.add_argument("--out", required=True)
+    be.set_defaults(func=bench)
+
+
+def run(args: argparse.Namespace) -> int:
+    from baselines.bench import run as run_policy
+
+    records = run_policy(
+        args.env, args.policy, args.seed, args.episodes, args.out, args.scenario, args.video
+    )
+    for r in records:
+        print({k: (round(v, 3) if isinstance(v, float) else v) for k, v in r.items()})
+    return 0
+
+
+def bench(args: argparse.Namespace) -> int:
+    from baselines.bench import bench as run_bench
+    from baselines.bench import command_line
+
+    pols = [p.strip() for p in args.policies.split(",") if p.strip()]
+    run_bench(args.suite, pols, args.seeds, args.out, command_line(args.argv))
+    print((Path(args.out) / "benchmark.md").read_text())
+    return 0

@@ -1,0 +1,22 @@
+"""``agrinav demo``: the main job on the embedded default."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+from .args import int_at_least
+
+
+def add(sub: Any) -> None:
+    de = sub.add_parser("demo", help="default scenario + DWB vs shipped PPO on the paper suite")
+    de.add_argument("--out", default="runs/demo")
+    de.add_argument("--seeds", type=int_at_least(1), default=2)
+    de.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from baselines.demo import demo
+
+    demo(args.out, args.seeds)
+    return 0

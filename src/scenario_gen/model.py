@@ -1,0 +1,92 @@
+"""The scenario data model: plain arrays and geometry, no simulator and no I/O.
+
+A ``Scenario`` is what ``generate`` makes and ``io.load`` reads back; ``io.save`` writes it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from shapely.geometry.base import BaseGeometry
+
+from .field import enu_to_lonlat
+from .geodesy import GeoFrame
+from .layout import RowFrame
+from .routes import Route, lane_lines
+from .spec import ScenarioSpec
+from .terrain import Terrain
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True, eq=False)
+class Plants:
+    """One entry per plant or weed; orientation R = Rz(yaw)·Ry(pitch)·Rx(roll) (URDF rpy)."""
+
+    x: FloatArray
+    y: FloatArray
+    z: FloatArray
+    roll: FloatArray
+    pitch: FloatArray
+    yaw: FloatArray
+    height: FloatArray
+    species: NDArray[np.str_]
+    stage: FloatArray  # 1 .. the species' stage count, fractional for continuous growth
+    row: NDArray[np.int64]  # row index, -1 for weeds
+
+    def __len__(self) -> int:
+        return len(self.x)
+
+    @property
+    def xyz(self) -> FloatArray:
+        return np.column_stack([self.x, self.y, self.z])
+
+    @property
+    def is_weed(self) -> NDArray[np.bool_]:
+        return self.row < 0
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        return {k: getattr(self, k) for k in self.__dataclass_fields__}
+
+
+@dataclass(frozen=True, eq=False)
+class Scenario:
+    spec: ScenarioSpec
+    seed: int
+    geo: GeoFrame
+    terrain: Terrain
+    field: BaseGeometry  # ENU polygon
+    rows: RowFrame
+    plants: Plants
+    route: Route
+    info: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def lanes(self) -> FloatArray:
+        """Lane centrelines (lanes, 2, 2) in ENU, from row start to row end."""
+        return lane_lines(self.rows)
+
+    @property
+    def field_lonlat(self) -> BaseGeometry:
+        return enu_to_lonlat(self.field, self.geo)
+
+    def summary(self) -> dict[str, Any]:
+        crops_mask = ~self.plants.is_weed
+        return {
+            "name": self.spec.name,
+            "seed": self.seed,
+            "datum": f"{self.geo.lat:.6f}, {self.geo.lon:.6f}, {self.geo.alt:.1f} m",
+            "plants": int(crops_mask.sum()),
+            "weeds": int((~crops_mask).sum()),
+            "rows": len(self.rows.offsets),
+            "field_area_m2": round(float(self.field.area), 1),
+            "relief_m": round(self.terrain.relief, 2),
+            "row_spacing_m": self.spec.layout.row_spacing,
+            "plant_spacing_m": self.spec.layout.plant_spacing,
+            "grid": f"{self.terrain.shape[1]}x{self.terrain.shape[0]} @ "
+            f"{self.terrain.spacing:.3f} m (LoD {self.terrain.lod})",
+            "route_m": round(self.route.length, 1),
+        }

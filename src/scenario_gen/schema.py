@@ -1,0 +1,311 @@
+"""The one configuration dialect: frozen typed dataclasses whose fields carry unit, range and doc.
+
+Scenario specs, env config, DWB parameters and PPO hyperparameters are all built with
+``from_mapping``: unknown keys and bad values raise ``InputError`` naming the dotted field, the
+value and what is allowed. ``field_rows`` turns the metadata into the config reference
+(docs/config.md), so documentation and validation cannot disagree. YAML is read through
+``load_yaml``: bounded in size and depth, with aliases refused (an alias bomb expands
+exponentially before a single key can be checked).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import types
+from dataclasses import field as dc_field
+from pathlib import Path
+from typing import Any, Union, get_args, get_origin, get_type_hints
+
+import numpy as np
+import yaml
+
+from .errors import InputError
+
+MAX_YAML_BYTES = 1 << 20
+MAX_DEPTH = 32
+
+
+def param(
+    default: Any,
+    doc: str,
+    lo: float | None = None,
+    hi: float | None = None,
+    choices: tuple[Any, ...] | None = None,
+) -> Any:
+    """A config field: its default, what it means (with its unit) and what is allowed."""
+    meta = {"doc": doc, "lo": lo, "hi": hi, "choices": choices}
+    if isinstance(default, (dict, list)):
+        frozen = default
+        return dc_field(default_factory=lambda: _plain(frozen), metadata=meta)
+    return dc_field(default=default, metadata=meta)
+
+
+def plain(obj: Any) -> Any:
+    """Nested dicts/lists/scalars only (tuples become lists): what YAML and JSON hold."""
+    return _plain(obj)
+
+
+def _plain(obj: Any, depth: int = 0) -> Any:
+    if depth > MAX_DEPTH:
+        raise InputError("config", "<nested>", f"allowed: at most {MAX_DEPTH} levels of nesting")
+    if isinstance(obj, dict):
+        return {k: _plain(v, depth + 1) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_plain(v, depth + 1) for v in obj]
+    if isinstance(obj, np.generic):
+        return obj.item()
+    return obj
+
+
+def merge(base: dict[str, Any], overrides: dict[str, Any]) -> dict[str, Any]:
+    """Deep-merge ``overrides`` (nested dicts and/or dotted keys) into a copy of ``base``."""
+    if not isinstance(overrides, dict):
+        raise InputError("overrides", overrides, "allowed: a mapping of keys to values")
+    out = _plain(base)
+    for key, value in overrides.items():
+        if not isinstance(key, str) or not key:
+            raise InputError("overrides", key, "allowed: non-empty string keys")
+        parts = key.split(".")
+        node = out
+        for i, part in enumerate(parts[:-1]):
+            nxt = node.get(part)
+            if not isinstance(nxt, dict):
+                if part in node:
+                    raise InputError(".".join(parts[: i + 1]), nxt, "is not a section")
+                nxt = node[part] = {}
+            node = nxt
+        last = parts[-1]
+        if isinstance(value, dict) and isinstance(node.get(last), dict):
+            node[last] = merge(node[last], value)
+        else:
+            node[last] = _plain(value)
+    return out
+
+
+def from_mapping(cls: type, data: Any, prefix: str = "") -> Any:
+    """Build a frozen config dataclass from a mapping, checking every key and value."""
+    where = prefix.rstrip(".") or "spec"
+    if not isinstance(data, dict):
+        raise InputError(where, data, "allowed: a mapping of keys to values")
+    hints = get_type_hints(cls)
+    fields = {f.name: f for f in dataclasses.fields(cls) if f.init}
+    unknown = sorted(str(k) for k in set(data) - set(fields))
+    if unknown:
+        raise InputError(
+            f"{prefix}{unknown[0]}",
+            data.get(unknown[0]),
+            f"unknown key; allowed keys here: {', '.join(fields)}",
+        )
+    kwargs: dict[str, Any] = {}
+    for name, value in data.items():
+        f, tp, path = fields[name], hints[name], f"{prefix}{name}"
+        if dataclasses.is_dataclass(tp):
+            kwargs[name] = from_mapping(tp, value, path + ".")  # type: ignore[arg-type]
+        else:
+            kwargs[name] = coerce(value, tp, f.metadata, path)
+    return cls(**kwargs)
+
+
+def to_mapping(obj: Any) -> dict[str, Any]:
+    out: dict[str, Any] = _plain(dataclasses.asdict(obj))
+    return out
+
+
+def coerce(value: Any, tp: Any, meta: Any, path: str) -> Any:
+    """``value`` checked against a field's type hint and metadata (range, choices)."""
+    args = get_args(tp)
+    if get_origin(tp) in (Union, types.UnionType) and type(None) in args:
+        if value is None:
+            return None
+        rest = [a for a in args if a is not type(None)]
+        tp = rest[0] if len(rest) == 1 else Union[tuple(rest)]  # noqa: UP007
+        args = get_args(tp)
+    elif value is None:
+        raise InputError(path, value, f"allowed: {describe(tp, meta)} (not null)")
+    origin = get_origin(tp)
+    if origin in (Union, types.UnionType):
+        for alt in args:
+            try:
+                return coerce(value, alt, meta, path)
+            except InputError:
+                continue
+        raise InputError(path, value, f"allowed: {describe(tp, meta)}")
+    if origin is tuple:
+        inner = get_args(tp)
+        if inner and inner[-1] is Ellipsis:
+            inner = (inner[0],) * (len(value) if isinstance(value, (list, tuple)) else 0)
+        if not isinstance(value, (list, tuple)) or len(value) != len(inner):
+            raise InputError(path, value, f"allowed: {describe(tp, meta)}")
+        return tuple(
+            scalar(v, t, meta, f"{path}[{i}]")
+            for i, (v, t) in enumerate(zip(value, inner, strict=True))
+        )
+    if origin is dict:
+        if not isinstance(value, dict):
+            raise InputError(path, value, "allowed: a mapping")
+        kt, vt = get_args(tp)
+        choices = meta.get("choices")
+        out = {}
+        for k, v in value.items():
+            if choices is not None and k not in choices:
+                raise InputError(f"{path}.{k}", v, f"unknown key; allowed: {', '.join(choices)}")
+            out[scalar(k, kt, {}, path)] = coerce(
+                v, vt, {"lo": meta.get("lo"), "hi": meta.get("hi")}, f"{path}.{k}"
+            )
+        return out
+    if origin is list:
+        (it,) = get_args(tp)
+        if not isinstance(value, (list, tuple)):
+            raise InputError(path, value, f"allowed: a list of {describe(it, {})}")
+        return [coerce(v, it, meta, f"{path}[{i}]") for i, v in enumerate(value)]
+    if tp is Any:
+        return _plain(value)
+    return scalar(value, tp, meta, path)
+
+
+def scalar(value: Any, tp: Any, meta: Any, path: str) -> Any:
+    if isinstance(value, np.generic):  # numpy scalars are as good as Python's
+        value = value.item()
+    if tp is bool:
+        if not isinstance(value, bool):
+            raise InputError(path, value, "allowed: true or false")
+        return value
+    if tp is int:
+        if isinstance(value, bool) or not (
+            isinstance(value, int) or (isinstance(value, float) and value.is_integer())
+        ):
+            raise InputError(path, value, f"allowed: {describe(tp, meta)}")
+        value = int(value)
+    elif tp is float:
+        if (
+            isinstance(value, bool)
+            or not isinstance(value, (int, float))
+            or not math.isfinite(value)
+        ):
+            raise InputError(path, value, f"allowed: {describe(tp, meta)}")
+        value = float(value)
+    elif tp is str:
+        if not isinstance(value, str):
+            raise InputError(path, value, f"allowed: {describe(tp, meta)}")
+    lo, hi, choices = meta.get("lo"), meta.get("hi"), meta.get("choices")
+    if choices is not None and value not in choices:
+        raise InputError(path, value, f"allowed: {describe(tp, meta)}")
+    if (lo is not None and value < lo) or (hi is not None and value > hi):
+        raise InputError(path, value, f"allowed: {describe(tp, meta)}")
+    return value
+
+
+def describe(tp: Any, meta: Any) -> str:
+    """What a field accepts, in words ("a number in [0.05, 50]")."""
+    choices = meta.get("choices")
+    args = get_args(tp)
+    if get_origin(tp) in (Union, types.UnionType):
+        rest = [a for a in args if a is not type(None)]
+        text = " or ".join(describe(a, meta) for a in rest)
+        return text + (" or null" if type(None) in args else "")
+    if get_origin(tp) is tuple:
+        inner = [a for a in args if a is not Ellipsis]
+        return f"a list of {len(inner) if Ellipsis not in args else 'any number of'} " + (
+            describe(inner[0], meta).replace("a number", "numbers") if inner else "values"
+        )
+    if get_origin(tp) in (dict, list):
+        return "a mapping" if get_origin(tp) is dict else "a list"
+    if choices:
+        return "one of " + ", ".join(map(str, choices))
+    name = {float: "a number", int: "an integer", str: "a string", bool: "true/false"}.get(
+        tp, getattr(tp, "__name__", str(tp))
+    )
+    lo, hi = meta.get("lo"), meta.get("hi")
+    if lo is not None and hi is not None:
+        return f"{name} in [{lo:g}, {hi:g}]"
+    if lo is not None:
+        return f"{name} >= {lo:g}"
+    return name
+
+
+def field_rows(cls: type, prefix: str = "") -> list[tuple[str, str, str, str]]:
+    """(dotted name, default, allowed, doc) for every field, nested sections flattened."""
+    hints = get_type_hints(cls)
+    rows: list[tuple[str, str, str, str]] = []
+    for f in dataclasses.fields(cls):
+        tp = hints[f.name]
+        if dataclasses.is_dataclass(tp):
+            rows += field_rows(tp, f"{prefix}{f.name}.")  # type: ignore[arg-type]
+            continue
+        default = (
+            f.default
+            if f.default is not dataclasses.MISSING
+            else f.default_factory()
+            if f.default_factory is not dataclasses.MISSING
+            else None
+        )
+        rows.append(
+            (
+                f"{prefix}{f.name}",
+                yaml.safe_dump(_plain(default), default_flow_style=True)
+                .strip()
+                .removesuffix("..."),
+                describe(tp, f.metadata),
+                str(f.metadata.get("doc", "")),
+            )
+        )
+    return rows
+
+
+# ----------------------------------------------------------------------------- YAML in
+
+
+class _NoAliasLoader(yaml.SafeLoader):
+    def compose_node(self, parent: Any, index: Any) -> Any:
+        if self.check_event(yaml.AliasEvent):
+            event = self.peek_event()
+            raise yaml.constructor.ConstructorError(
+                None, None, "aliases (*name) are not allowed", event.start_mark
+            )
+        return super().compose_node(parent, index)
+
+
+def parse_yaml(text: str, what: str) -> Any:
+    """YAML text to plain data: size-bounded, aliases refused, depth-bounded."""
+    if len(text) > MAX_YAML_BYTES:
+        raise InputError(what, f"{len(text)} bytes", f"allowed: at most {MAX_YAML_BYTES} bytes")
+    try:
+        data = yaml.load(text, Loader=_NoAliasLoader)
+    except yaml.YAMLError as exc:
+        reason = str(exc).splitlines()[0] if str(exc) else exc.__class__.__name__
+        if "aliases" in str(exc):
+            reason = "aliases (*name) are not allowed: they can expand exponentially"
+        raise InputError(what, _head(text), f"is not valid YAML ({reason})") from None
+    except RecursionError:
+        raise InputError(
+            what, "<nested>", f"allowed: at most {MAX_DEPTH} levels of nesting"
+        ) from None
+    return _plain(data)
+
+
+def load_yaml(path: str | Path, what: str = "--config") -> dict[str, Any]:
+    """A YAML file holding a mapping (or nothing), read with ``parse_yaml``'s bounds."""
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(what, str(path), "allowed: an existing YAML file")
+    size = p.stat().st_size
+    if size > MAX_YAML_BYTES:
+        raise InputError(what, str(path), f"is {size} bytes; allowed: at most {MAX_YAML_BYTES}")
+    raw = p.read_bytes()
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError:
+        raise InputError(what, str(path), "is not a UTF-8 text file (binary?)") from None
+    if "\x00" in text:
+        raise InputError(what, str(path), "is not a text file (it holds NUL bytes)")
+    data = parse_yaml(text, what)
+    if data is None:
+        return {}
+    if not isinstance(data, dict):
+        raise InputError(what, str(path), "allowed: a YAML mapping at the top level")
+    return data
+
+
+def _head(text: str) -> str:
+    return text[:40]

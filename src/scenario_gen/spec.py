@@ -1,0 +1,139 @@
+"""Declarative scenario specification: frozen, typed, validated; YAML in, YAML/JSON out.
+
+Every field carries its unit and allowed range in its metadata, and ``from_dict`` rejects unknown
+keys and bad values with a message that names the dotted field, the value and what is allowed.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from dataclasses import field as dc_field
+from typing import Any
+
+import yaml
+
+from .schema import from_mapping, merge, plain
+from .schema import param as _f
+
+
+@dataclass(frozen=True)
+class TerrainSpec:
+    source: str = _f("embedded", "terrain source", choices=("embedded", "dem", "mesh", "plane"))
+    path: str | None = _f(None, "GeoTIFF DEM (source=dem) or terrain mesh (source=mesh)")
+    site: str = _f(
+        "flattest",
+        "how the field centre is chosen on a DEM",
+        choices=("flattest", "steepest", "latlon"),
+    )
+    lat: float | None = _f(None, "site latitude, degrees (site=latlon)", -90, 90)
+    lon: float | None = _f(None, "site longitude, degrees (site=latlon)", -180, 180)
+    max_slope_deg: float = _f(
+        90.0, "site=steepest picks the steepest window at most this steep", 0, 90
+    )
+    datum: tuple[float, float, float] | None = _f(
+        None, "lat, lon, alt of the mesh origin (source=mesh) or of the plane (source=plane)"
+    )
+    lod: int = _f(20, "level of detail: Web-Mercator zoom; sets the grid spacing", 0, 22)
+    margin: float = _f(8.0, "terrain kept around the field, metres", 0, 1000)
+    slope_deg: float = _f(0.0, "plane: slope, degrees", 0, 60)
+    aspect_deg: float = _f(
+        0.0, "plane: downhill direction, degrees clockwise from north", -360, 360
+    )
+    fill_max_pixels: int = _f(64, "DEM nodata holes up to this many pixels are filled", 0, 10**7)
+    up_axis: str = _f(
+        "auto", "mesh up axis (auto: y for glTF/GLB, z otherwise)", choices=("auto", "y", "z")
+    )
+
+
+@dataclass(frozen=True)
+class FieldSpec:
+    geojson: str | None = _f(None, "GeoJSON file with a Polygon/MultiPolygon in lon/lat")
+    width: float = _f(30.0, "rectangle size across the rows, metres", 0, 5000)
+    length: float = _f(40.0, "rectangle size along the rows, metres", 0, 5000)
+    angle_deg: float = _f(
+        0.0, "rectangle long-side direction, degrees counter-clockwise from east", -360, 360
+    )
+
+
+@dataclass(frozen=True)
+class LayoutSpec:
+    row_spacing: float = _f(0.75, "distance between crop rows, metres", 0.05, 50)
+    plant_spacing: float = _f(0.18, "distance between plants in a row, metres", 0.02, 50)
+    row_angle_deg: float | None = _f(
+        None,
+        "row direction, degrees counter-clockwise from east (null: along the field)",
+        -360,
+        360,
+    )
+    # Planters place seed within ≈1 cm across the row; a 0.616 m robot in 0.75 m rows has
+    # 5 cm of clearance per side, so more lateral scatter means crops hit even on the line.
+    jitter_lateral: float = _f(0.01, "std of plant offset across the row, metres", 0, 1)
+    jitter_longitudinal: float = _f(0.02, "std of plant offset along the row, metres", 0, 1)
+    gap_prob: float = _f(0.02, "probability that a single plant is missing", 0, 1)
+    gap_run_prob: float = _f(0.0, "probability per plant that a run of missing plants starts", 0, 1)
+    gap_run_mean: float = _f(4.0, "mean length of a run of missing plants, plants", 1, 10**4)
+    weed_density: float = _f(0.0, "weeds per square metre of planted area", 0, 100)
+    headland: float = _f(4.0, "unplanted strip at both row ends, metres", 0, 500)
+    edge_margin: float = _f(0.3, "unplanted margin along the field edge, metres", 0, 500)
+
+
+@dataclass(frozen=True)
+class CropSpec:
+    species: str = _f("corn", "crop species", choices=("corn", "tomato", "cabbage", "sunflower"))
+    stage: int = _f(3, "growth stage, 1 (early) .. the species' last stage", 1, 10)
+    growth: float | None = _f(None, "continuous growth 0..1 (overrides stage)", 0, 1)
+    height_std: float = _f(0.08, "relative std of plant height between plants", 0, 0.5)
+    model: str | None = _f(None, "user mesh file or .zip (mesh + textures) scaled to the height")
+
+
+@dataclass(frozen=True)
+class FurrowSpec:
+    enabled: bool = _f(True, "add ridge/furrow micro-relief along the rows")
+    depth: float = _f(0.12, "ridge height above the furrow bottom, metres", 0, 1)
+    profile: str = _f("sine", "cross-section of the ridges", choices=("sine", "trapezoid"))
+    taper: float = _f(
+        1.0, "distance over which relief fades out at the planted edge, metres", 0.01, 100
+    )
+    roughness: float = _f(0.005, "std of random soil roughness, metres", 0, 0.5)
+    roughness_length: float = _f(0.3, "correlation length of the roughness, metres", 0.01, 100)
+
+
+@dataclass(frozen=True)
+class RouteSpec:
+    lanes: int = _f(2, "lanes (furrows between adjacent rows) the zigzag route drives", 1, 10**4)
+    first_lane: int | None = _f(
+        None, "index of the first lane (null: centred in the field)", 0, 10**6
+    )
+    spacing: float = _f(0.05, "waypoint spacing, metres (at most 0.1)", 0.005, 0.1)
+    lead_in: float = _f(
+        2.0, "headland run before the first lane and after the last, metres", 0, 100
+    )
+    turn_offset: float = _f(1.0, "how far past the crop the U-turn starts, metres", 0, 100)
+
+
+@dataclass(frozen=True)
+class ScenarioSpec:
+    name: str = _f("custom", "scenario name")
+    terrain: TerrainSpec = dc_field(default_factory=TerrainSpec)
+    field: FieldSpec = dc_field(default_factory=FieldSpec)
+    layout: LayoutSpec = dc_field(default_factory=LayoutSpec)
+    crop: CropSpec = dc_field(default_factory=CropSpec)
+    furrows: FurrowSpec = dc_field(default_factory=FurrowSpec)
+    route: RouteSpec = dc_field(default_factory=RouteSpec)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> ScenarioSpec:
+        spec: ScenarioSpec = from_mapping(cls, data, "")
+        return spec
+
+    def to_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = plain(dataclasses.asdict(self))
+        return out
+
+    def replace(self, overrides: dict[str, Any]) -> ScenarioSpec:
+        """A copy with nested or dotted overrides applied (``{"layout.row_spacing": 0.76}``)."""
+        return ScenarioSpec.from_dict(merge(self.to_dict(), overrides))
+
+    def to_yaml(self) -> str:
+        return yaml.safe_dump(self.to_dict(), sort_keys=False)
