@@ -6,14 +6,14 @@ fact from DESIGN §5 or a documented choice.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from dataclasses import field as dc_field
 from typing import Any
 
+from scenario_gen.errors import InputError
 from scenario_gen.schema import from_mapping, merge, to_mapping
 from scenario_gen.schema import param as _f
-
-OBSERVATIONS = ("gps", "imu", "odom", "route", "depth")
 
 
 @dataclass(frozen=True)
@@ -36,7 +36,7 @@ class RobotConfig:
 
 
 @dataclass(frozen=True)
-class DepthConfig:
+class CameraConfig:
     width: int = _f(64, "image width, pixels (848 for datasets)", 8, 1280)
     height: int = _f(48, "image height, pixels (480 for datasets)", 6, 800)
     hfov_deg: float = _f(87.0, "horizontal field of view (D455 depth)", 10, 170)
@@ -78,27 +78,6 @@ class OdomConfig:
 
 
 @dataclass(frozen=True)
-class RewardConfig:
-    progress: float = _f(1.0, "× route progress per step at full speed", -100, 100)
-    # A quadratic penalty scaled by the corridor is flat near the line: 5 cm off a 0.5 m
-    # corridor costs 1 % of the progress reward, so a learner has no reason to be precise.
-    # Weighting progress instead makes distance count only when driven on the line, and
-    # standing still can never pay. Furrows only: weighted on the headland too, PPO never
-    # learned the U-turn (47 % completion after 800k steps).
-    progress_cte_scale: float | None = _f(
-        None,
-        "in furrows, progress × exp(−|cte| / (scale × corridor)) (null: unweighted)",
-        0.001,
-        10,
-    )
-    cte: float = _f(1.0, "× (cross-track error / corridor)² penalty", -100, 100)
-    heading: float = _f(0.2, "× |heading error| / π penalty", -100, 100)
-    crop_contact: float = _f(5.0, "× crops newly hit penalty", -1000, 1000)
-    action_rate: float = _f(0.05, "× ‖a_t − a_t−1‖² penalty", -100, 100)
-    terminal: float = _f(10.0, "+ on success, − on failure", -1e4, 1e4)
-
-
-@dataclass(frozen=True)
 class TaskConfig:
     corridor: float | None = _f(
         None, "max |cross-track error| in a furrow, m (null: half the row spacing)", 0.01, 10
@@ -116,42 +95,63 @@ class TaskConfig:
 
 
 @dataclass(frozen=True)
+class RenderConfig:
+    width: int = _f(640, "rgb_array frame width, pixels (640: rows legible in a video)", 64, 1920)
+    height: int = _f(480, "rgb_array frame height, pixels", 48, 1080)
+    distance: float = _f(3.5, "chase camera distance behind the robot, m", 0.5, 50)
+    elevation: float = _f(3.5, "chase camera height above the robot, m", 0.0, 50)
+
+
+@dataclass(frozen=True)
 class EnvConfig:
     robot: RobotConfig = dc_field(default_factory=RobotConfig)
-    depth: DepthConfig = dc_field(default_factory=DepthConfig)
+    camera: CameraConfig = dc_field(default_factory=CameraConfig)
+    render: RenderConfig = dc_field(default_factory=RenderConfig)
     gnss: GnssConfig = dc_field(default_factory=GnssConfig)
     imu: ImuConfig = dc_field(default_factory=ImuConfig)
     odom: OdomConfig = dc_field(default_factory=OdomConfig)
-    reward: RewardConfig = dc_field(default_factory=RewardConfig)
     task: TaskConfig = dc_field(default_factory=TaskConfig)
+    #: reward term name -> its parameters (``rewards.REWARD_TERMS``), weights included
+    reward: dict[str, Any] = dc_field(default_factory=dict)
 
     @classmethod
-    def from_dict(cls, data: dict[str, Any] | None) -> EnvConfig:
-        cfg: EnvConfig = from_mapping(cls, merge({}, data or {}), "config.")
+    def from_dict(cls, data: Any) -> EnvConfig:
+        from .rewards import build_reward_terms
+
+        if data is None:
+            data = {}
+        if not isinstance(data, dict):
+            raise InputError("config", data, "allowed: a mapping of config sections (or None)")
+        data = merge({}, data)
+        terms = build_reward_terms(data.pop("reward", None))
+        cfg: EnvConfig = from_mapping(cls, data, "config.")
+        cfg = dataclasses.replace(cfg, reward=terms)
         cfg.check()
         return cfg
 
     def to_dict(self) -> dict[str, Any]:
-        return to_mapping(self)
+        from .rewards import reward_terms_to_dict
+
+        out = to_mapping(dataclasses.replace(self, reward={}))
+        out["reward"] = reward_terms_to_dict(self.reward)
+        return out
 
     def check(self) -> None:
-        from scenario_gen.errors import ScenarioError
-
         r = self.robot
         if r.physics_hz % r.control_hz:
-            raise ScenarioError(
+            raise InputError(
                 "config.robot.physics_hz",
                 r.physics_hz,
                 f"allowed: a multiple of control_hz ({r.control_hz})",
             )
-        for name, rate in (("depth", self.depth.rate_hz), ("gnss", self.gnss.rate_hz)):
+        for name, rate in (("camera", self.camera.rate_hz), ("gnss", self.gnss.rate_hz)):
             if r.control_hz % rate:
-                raise ScenarioError(
+                raise InputError(
                     f"config.{name}.rate_hz",
                     rate,
                     f"allowed: a divisor of robot.control_hz ({r.control_hz})",
                 )
-        if self.depth.min_range >= self.depth.max_range:
-            raise ScenarioError(
-                "config.depth.min_range", self.depth.min_range, "allowed: below max_range"
+        if self.camera.min_range >= self.camera.max_range:
+            raise InputError(
+                "config.camera.min_range", self.camera.min_range, "allowed: below max_range"
             )

@@ -1,86 +1,112 @@
-"""Cross-track metrics exactly as the source paper defines them (DESIGN §6).
+"""Cross-track metrics exactly as the source paper defines them (DESIGN §6), in one place.
 
 Cross-track error = perpendicular distance from each recorded pose (the ground projection of
-base_link) to the nearest segment of the reference path. Reported: global RMSE, MAE, max,
-in-furrow RMSE and headland RMSE (by the tag of each pose's nearest segment), completion
-(% of the route's length reached) and crops hit. A category without poses (no headland in a
-single-lane run) reports ``None``, not NaN, so results compare and serialize cleanly.
+base_link) to the nearest segment of the reference path — the globally nearest one, found
+exactly in O(log n) per pose. Reported: global RMSE, MAE, max, in-furrow RMSE and headland RMSE
+(by the tag of each pose's nearest segment: furrow when both its waypoints are), completion
+(% of the route's length reached along the route) and crops hit. A category without poses
+reports ``None``, not NaN, so results compare and serialize cleanly.
 """
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
+from scipy.spatial import cKDTree
 
 FloatArray = NDArray[np.float64]
 
 
-def project_to_polyline(
-    points: ArrayLike, path: ArrayLike, chunk: int = 2048
-) -> tuple[FloatArray, NDArray[np.int64], FloatArray, FloatArray]:
-    """For each point: distance to the nearest segment, its index, arc length and signed CTE.
+class RouteProjector:
+    """Exact nearest segment of a polyline to a point.
 
-    Signed CTE is positive to the left of the path direction. Vectorized over points × segments
-    in chunks so memory stays bounded for long logs.
+    The nearest point q of the polyline lies on a segment whose nearer endpoint is within
+    L/2 of q (L: the longest segment), so within d_v + L/2 of the query point, where d_v is the
+    distance to the nearest vertex (an upper bound of the answer). Only the segments touching
+    the vertices in that ball are tested.
     """
-    pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
-    xy = np.asarray(path, dtype=np.float64).reshape(-1, 2)
-    if len(xy) < 2:
-        raise ValueError(f"path needs at least 2 points, got {len(xy)}")
-    a, b = xy[:-1], xy[1:]
-    ab = b - a
-    L2 = np.maximum((ab * ab).sum(axis=1), 1e-18)
-    seg_len = np.sqrt((ab * ab).sum(axis=1))
-    s0 = np.concatenate([[0.0], np.cumsum(seg_len)])[:-1]
-    dist = np.empty(len(pts))
-    seg = np.empty(len(pts), np.int64)
-    arc = np.empty(len(pts))
-    signed = np.empty(len(pts))
-    for i in range(0, len(pts), chunk):
-        p = pts[i : i + chunk, None, :]
-        u = np.clip(((p - a) * ab).sum(axis=2) / L2, 0.0, 1.0)
-        q = a + u[..., None] * ab
-        d2 = ((p[..., 0] - q[..., 0]) ** 2) + ((p[..., 1] - q[..., 1]) ** 2)
-        k = np.argmin(d2, axis=1)
-        rows = np.arange(len(k))
-        dist[i : i + chunk] = np.sqrt(d2[rows, k])
-        seg[i : i + chunk] = k
-        arc[i : i + chunk] = s0[k] + u[rows, k] * seg_len[k]
-        rel = pts[i : i + chunk] - a[k]
-        cross = ab[k, 0] * rel[:, 1] - ab[k, 1] * rel[:, 0]
-        signed[i : i + chunk] = np.sign(cross) * dist[i : i + chunk]
-    return dist, seg, arc, signed
+
+    def __init__(self, xy: FloatArray, furrow: NDArray[np.bool_]) -> None:
+        self.xy = np.asarray(xy, np.float64)
+        if len(self.xy) < 2:
+            raise ValueError(f"a route needs at least 2 points, got {len(self.xy)}")
+        d = np.diff(self.xy, axis=0)
+        self.seg_len = np.hypot(d[:, 0], d[:, 1])
+        self.arc = np.concatenate([[0.0], np.cumsum(self.seg_len)])
+        self.half = 0.5 * float(self.seg_len.max())
+        self.tree = cKDTree(self.xy)
+        f = np.asarray(furrow, bool)
+        self.seg_furrow = f[:-1] & f[1:]
+
+    @property
+    def length(self) -> float:
+        return float(self.arc[-1])
+
+    def project(self, x: float, y: float) -> tuple[float, int, float]:
+        """(distance, segment index, arc length of the nearest point)."""
+        d_v, _ = self.tree.query((x, y))
+        near = self.tree.query_ball_point((x, y), float(d_v) + self.half + 1e-12)
+        n = len(self.xy) - 1
+        segs = {j for i in near for j in (i - 1, i) if 0 <= j < n}
+        best = (math.inf, 0, 0.0)
+        for k in sorted(segs):
+            ax, ay = self.xy[k]
+            dx, dy = self.xy[k + 1] - self.xy[k]
+            L2 = dx * dx + dy * dy
+            u = 0.0 if L2 <= 0 else min(max(((x - ax) * dx + (y - ay) * dy) / L2, 0.0), 1.0)
+            ex, ey = x - ax - u * dx, y - ay - u * dy
+            dist = math.sqrt(ex * ex + ey * ey)
+            if dist < best[0]:
+                best = (dist, k, float(self.arc[k] + u * self.seg_len[k]))
+        return best
 
 
-def segment_tags(labels: ArrayLike) -> NDArray[np.str_]:
-    """Tag of each segment: ``furrow`` when both its waypoints are, else ``headland``."""
-    lab = np.asarray(labels).astype(str)
-    both = (lab[:-1] == "furrow") & (lab[1:] == "furrow")
-    return np.where(both, "furrow", "headland")
+class EpisodeMetrics:
+    """Accumulates the paper's metrics pose by pose: O(log n) per pose, O(1) to report."""
 
+    def __init__(self, xy: FloatArray, furrow: NDArray[np.bool_]) -> None:
+        self.route = RouteProjector(xy, furrow)
+        self.poses: list[tuple[float, float]] = []
+        self.errors: list[float] = []  # per pose, for figures
+        # (poses, Σd², Σ|d|, max) over all poses, in furrow, on the headland
+        self.sums = {k: [0, 0.0, 0.0, 0.0] for k in ("all", "furrow", "headland")}
+        self.reached = 0.0  # furthest arc length along the route (the task's tracker)
 
-def _rmse(x: FloatArray) -> float | None:
-    return float(np.sqrt(np.mean(x * x))) if len(x) else None
+    def update(self, x: float, y: float, s: float) -> None:
+        """Record a pose; ``s`` is its arc length along the route as the task tracks it."""
+        d, k, _ = self.route.project(x, y)
+        self.poses.append((x, y))
+        self.errors.append(d)
+        for key in ("all", "furrow" if self.route.seg_furrow[k] else "headland"):
+            a = self.sums[key]
+            a[0] += 1
+            a[1] += d * d
+            a[2] += d
+            a[3] = max(a[3], d)
+        self.reached = max(self.reached, s)
 
+    def result(self, crops_hit: int) -> dict[str, Any]:
+        def rmse(key: str) -> float | None:
+            n, sq = self.sums[key][0], self.sums[key][1]
+            return math.sqrt(sq / n) if n else None
 
-def cross_track_metrics(
-    poses: ArrayLike, path: ArrayLike, labels: ArrayLike | None = None, crops_hit: int = 0
-) -> dict[str, Any]:
-    """The paper's metrics for a pose log (N, 2+) against a reference path (M, 2+)."""
-    pts = np.asarray(poses, dtype=np.float64)[:, :2]
-    xy = np.asarray(path, dtype=np.float64)[:, :2]
-    dist, seg, arc, _ = project_to_polyline(pts, xy)
-    tags = segment_tags(labels if labels is not None else np.full(len(xy), "furrow"))[seg]
-    length = float(np.linalg.norm(np.diff(xy, axis=0), axis=1).sum())
-    return {
-        "rmse": _rmse(dist),
-        "mae": float(np.mean(dist)) if len(dist) else None,
-        "max": float(np.max(dist)) if len(dist) else None,
-        "in_furrow_rmse": _rmse(dist[tags == "furrow"]),
-        "headland_rmse": _rmse(dist[tags == "headland"]),
-        "completion": 100.0 * float(arc.max()) / length if len(arc) and length > 0 else 0.0,
-        "crops_hit": int(crops_hit),
-        "poses": len(pts),
-    }
+        n, _, total, worst = self.sums["all"]
+        length = self.route.length
+        return {
+            "rmse": rmse("all"),
+            "mae": total / n if n else None,
+            "max": worst if n else None,
+            "in_furrow_rmse": rmse("furrow"),
+            "headland_rmse": rmse("headland"),
+            "completion": 100.0 * self.reached / length if length > 0 else 0.0,
+            "crops_hit": int(crops_hit),
+            "poses": int(n),
+        }
+
+    @property
+    def trajectory(self) -> FloatArray:
+        """Ground-truth base positions (N, 2): for evaluation, never policies."""
+        return np.asarray(self.poses, np.float64).reshape(-1, 2)

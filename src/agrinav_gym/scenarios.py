@@ -1,104 +1,244 @@
-"""Where an env's scenarios come from: a Scenario, a saved directory, a preset, or a bank."""
+"""Where an env's scenarios come from, and what is re-drawn at each reset.
+
+``ScenarioSource``: a fixed scenario (a ``Scenario`` or a saved folder), a preset (name,
+overrides, seed; regenerated each reset when scenario keys are randomized, with seeds from a
+``[low, high)`` range — disjoint ranges make disjoint train/test splits) or a bank (the folders
+its ``bank.yaml`` lists, one drawn per reset). ``Randomization``: the ranges re-drawn each
+reset, typed and checked completely when the env is built — every bound against its field's
+type and range, every choice, and every combination of extremes against the generator's
+cross-field checks — so a bad range fails at construction, naming the range given.
+"""
 
 from __future__ import annotations
 
+import itertools
 from collections import OrderedDict
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 import scenario_gen as sg
-from scenario_gen import Scenario, ScenarioError
+from scenario_gen import Scenario
+from scenario_gen.errors import InputError
+from scenario_gen.generate import check_spec
+from scenario_gen.schema import field_info, is_integer_field, parse_yaml
+from scenario_gen.spec import ScenarioSpec
+
+from .sensors.gnss import MODES
+
+
+@dataclass(frozen=True)
+class EnvKey:
+    """An env-side randomization key: its kind and bounds."""
+
+    kind: str  # "choice" | "float" | "rgb"
+    lo: float = 0.0
+    hi: float = 0.0
+    choices: tuple[str, ...] = ()
+
 
 #: Keys of ``randomize`` handled by the env rather than the scenario spec.
-ENV_RANDOMIZE_KEYS = ("gnss_mode", "soil_colour", "light_azimuth_deg", "light_elevation_deg")
+ENV_KEYS: dict[str, EnvKey] = {
+    "gnss_mode": EnvKey("choice", choices=tuple(MODES)),
+    "soil_colour": EnvKey("rgb", 0.0, 1.0),
+    "light_azimuth_deg": EnvKey("float", -360.0, 360.0),
+    "light_elevation_deg": EnvKey("float", 0.0, 90.0),
+}
+MAX_COMBINATIONS = 4096
 
 
-def resolve(source: Any, overrides: dict[str, Any] | None, seed: int) -> Scenario:
-    """A Scenario from a Scenario, a scenario directory or a preset name."""
-    if isinstance(source, Scenario):
-        if overrides:
-            raise ScenarioError(
-                "scenario_overrides",
-                overrides,
-                "apply only to presets; pass a new Scenario instead",
+@dataclass(frozen=True)
+class Draw:
+    """One key's distribution: uniform over [lo, hi] (integers for integer fields) or a choice."""
+
+    key: str
+    lo: Any = None
+    hi: Any = None
+    choices: tuple[Any, ...] | None = None
+    integer: bool = False
+
+    def sample(self, rng: np.random.Generator) -> Any:
+        if self.choices is not None:
+            return self.choices[int(rng.integers(len(self.choices)))]
+        if isinstance(self.lo, list):  # e.g. soil colour: two RGB triplets
+            return list(rng.uniform(np.asarray(self.lo, float), np.asarray(self.hi, float)))
+        if self.integer:
+            return int(rng.integers(self.lo, self.hi + 1))
+        return float(rng.uniform(self.lo, self.hi))
+
+    @property
+    def extremes(self) -> tuple[Any, ...]:
+        return self.choices if self.choices is not None else (self.lo, self.hi)
+
+
+def _parse(key: str, spec: Any) -> tuple[Any, Any, tuple[Any, ...] | None]:
+    where = f"randomize.{key}"
+    if isinstance(spec, dict):
+        if set(spec) != {"choices"} or not isinstance(spec["choices"], (list, tuple)):
+            raise InputError(where, spec, "allowed: [low, high] or {choices: [...]}")
+        if len(spec["choices"]) == 0:
+            raise InputError(where, spec, "allowed: a non-empty list of choices")
+        return None, None, tuple(spec["choices"])
+    if isinstance(spec, (list, tuple)) and len(spec) == 2:
+        return spec[0], spec[1], None
+    raise InputError(where, spec, "allowed: [low, high] or {choices: [...]}")
+
+
+class Randomization:
+    """The ``randomize`` argument, validated; ``sample`` draws keys in sorted order."""
+
+    def __init__(self, ranges: Any, base: ScenarioSpec | None) -> None:
+        if ranges is None:
+            ranges = {}
+        if not isinstance(ranges, dict):
+            raise InputError("randomize", ranges, "allowed: a mapping {key: [low, high]}")
+        self.draws: list[Draw] = []
+        scenario_draws: list[Draw] = []
+        for key in sorted(ranges):
+            if not isinstance(key, str):
+                raise InputError("randomize", key, "allowed: string keys")
+            lo, hi, choices = _parse(key, ranges[key])
+            if key in ENV_KEYS:
+                draw = _env_draw(key, lo, hi, choices)
+            else:
+                draw = _scenario_draw(key, lo, hi, choices, base)
+                scenario_draws.append(draw)
+            self.draws.append(draw)
+        self.scenario_keys = tuple(d.key for d in scenario_draws)
+        if scenario_draws and base is not None:
+            _check_combinations(scenario_draws, base, ranges)
+
+    def __bool__(self) -> bool:
+        return bool(self.draws)
+
+    def sample(self, rng: np.random.Generator) -> tuple[dict[str, Any], dict[str, Any]]:
+        """(scenario overrides, env values) for one reset."""
+        scn: dict[str, Any] = {}
+        env: dict[str, Any] = {}
+        for d in self.draws:
+            (env if d.key in ENV_KEYS else scn)[d.key] = d.sample(rng)
+        return scn, env
+
+
+def _env_draw(key: str, lo: Any, hi: Any, choices: tuple[Any, ...] | None) -> Draw:
+    k, where = ENV_KEYS[key], f"randomize.{key}"
+    if k.kind == "choice":
+        if choices is None or any(c not in k.choices for c in choices):
+            raise InputError(
+                where, choices or [lo, hi], f"allowed: {{choices: [...]}} of {', '.join(k.choices)}"
             )
-        return source
-    if source is None:
-        source = "default"
-    if isinstance(source, (str, Path)):
-        path = Path(source)
-        if (path / "scenario.json").is_file():
-            if overrides:
-                raise ScenarioError(
-                    "scenario_overrides",
-                    overrides,
-                    "apply only to presets, not to a saved scenario directory",
-                )
-            return sg.load(path)
-        if str(source) in sg.preset_names():
-            return sg.generate(sg.preset(str(source), **(overrides or {})), seed)
-        raise ScenarioError(
-            "scenario",
-            str(source),
-            "allowed: a Scenario, a scenario directory "
-            f"or a preset ({', '.join(sg.preset_names())})",
-        )
-    raise ScenarioError(
-        "scenario",
-        type(source).__name__,
-        "allowed: a Scenario, a scenario directory or a preset name",
+        return Draw(key, choices=choices)
+    if k.kind == "rgb":
+        values = list(choices) if choices is not None else [lo, hi]
+        for v in values:
+            ok = (
+                isinstance(v, (list, tuple))
+                and len(v) == 3
+                and all(_number(c) and k.lo <= float(c) <= k.hi for c in v)
+            )
+            if not ok:
+                raise InputError(where, v, "allowed: RGB triplets [r, g, b] with values in [0, 1]")
+        if choices is not None:
+            return Draw(key, choices=tuple(list(map(float, c)) for c in choices))
+        lo_v, hi_v = [float(c) for c in lo], [float(c) for c in hi]
+        if any(a > b for a, b in zip(lo_v, hi_v, strict=True)):
+            raise InputError(where, [lo, hi], "allowed: low <= high in every channel")
+        return Draw(key, lo_v, hi_v)
+    values = list(choices) if choices is not None else [lo, hi]
+    if not all(_number(v) and k.lo <= float(v) <= k.hi for v in values):
+        raise InputError(where, values, f"allowed: numbers in [{k.lo:g}, {k.hi:g}]")
+    if choices is not None:
+        return Draw(key, choices=tuple(float(v) for v in choices))
+    if float(lo) > float(hi):
+        raise InputError(where, [lo, hi], "allowed: [low, high] with low <= high")
+    return Draw(key, float(lo), float(hi))
+
+
+def _number(v: Any) -> bool:
+    return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
+
+
+def _scenario_draw(
+    key: str, lo: Any, hi: Any, choices: tuple[Any, ...] | None, base: ScenarioSpec | None
+) -> Draw:
+    where = f"randomize.{key}"
+    spec = base or ScenarioSpec()
+    info = field_info(ScenarioSpec, key)
+    if info is None:
+        allowed = [*sorted(ENV_KEYS), "<section>.<field> of the scenario spec (docs/config.md)"]
+        raise InputError(where, key, f"unknown key; allowed: {', '.join(allowed)}")
+    if info[0] is None:
+        raise InputError(where, key, "is a section; randomize one of its fields")
+    for v in choices if choices is not None else (lo, hi):
+        try:
+            spec.replace({key: v})
+        except InputError as exc:
+            raise InputError(where, choices or [lo, hi], exc.allowed) from None
+    if choices is not None:
+        return Draw(key, choices=choices)
+    integer = is_integer_field(info[0])
+    if not (_number(lo) and _number(hi)):
+        raise InputError(where, [lo, hi], "allowed: numbers [low, high] (or {choices: [...]})")
+    if lo > hi:
+        raise InputError(where, [lo, hi], "allowed: [low, high] with low <= high")
+    if integer and not (float(lo).is_integer() and float(hi).is_integer()):
+        raise InputError(where, [lo, hi], "allowed: integer bounds for an integer field")
+    return Draw(
+        key, int(lo) if integer else float(lo), int(hi) if integer else float(hi), None, integer
     )
 
 
-def sample_randomization(ranges: dict[str, Any], rng: np.random.Generator) -> dict[str, Any]:
-    """Draw one value per key: [lo, hi] is uniform (integers if both ends are), a dict
-    {"choices": [...]} picks one."""
-    out: dict[str, Any] = {}
-    for key in sorted(ranges):
-        spec = ranges[key]
-        if isinstance(spec, dict) and set(spec) == {"choices"} and len(spec["choices"]) > 0:
-            out[key] = spec["choices"][int(rng.integers(len(spec["choices"])))]
-        elif (
-            isinstance(spec, (list, tuple))
-            and len(spec) == 2
-            and all(
-                isinstance(v, (int, float, list, tuple)) and not isinstance(v, bool) for v in spec
+def _check_combinations(draws: list[Draw], base: ScenarioSpec, ranges: dict[str, Any]) -> None:
+    """Every combination of the extremes must pass the generator's cross-field checks."""
+    combos = 1
+    for d in draws:
+        combos *= len(d.extremes)
+    if combos > MAX_COMBINATIONS:
+        return  # each bound was checked alone; too many combinations to enumerate
+    for values in itertools.product(*(d.extremes for d in draws)):
+        over = dict(zip((d.key for d in draws), values, strict=True))
+        try:
+            check_spec(base.replace(over))
+        except InputError as exc:
+            key = next(
+                (k for k in over if exc.field.endswith(k) or k.endswith(exc.field)), draws[0].key
             )
-        ):
-            lo, hi = spec
-            if isinstance(lo, (list, tuple)):  # e.g. soil colour: two RGB triplets
-                out[key] = list(rng.uniform(np.asarray(lo, float), np.asarray(hi, float)))
-            elif isinstance(lo, int) and isinstance(hi, int):
-                out[key] = int(rng.integers(lo, hi + 1))
-            else:
-                out[key] = float(rng.uniform(lo, hi))
-        else:
-            raise ScenarioError(
-                f"randomize.{key}", spec, "allowed: [low, high] or {choices: [...]}"
-            )
-    return out
+            raise InputError(
+                f"randomize.{key}",
+                ranges[key],
+                f"reaches {exc.field} = {exc.value!r} with {over}; {exc.allowed}",
+            ) from None
 
 
-def split_randomization(values: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
-    env = {k: v for k, v in values.items() if k in ENV_RANDOMIZE_KEYS}
-    scn = {k: v for k, v in values.items() if k not in ENV_RANDOMIZE_KEYS}
-    return scn, env
+# ----------------------------------------------------------------------------- sources
 
 
 class Bank:
-    """Scenarios saved under one directory (e.g. by ``agrinav scenario --count N``)."""
+    """Scenarios saved under one folder by ``agrinav scenario --count N``: the ones its
+    ``bank.yaml`` lists (a folder without one: every subfolder holding scenario.json)."""
 
     def __init__(self, directory: str | Path, cache: int = 8) -> None:
         root = Path(directory)
-        self.dirs = (
-            sorted(d for d in root.iterdir() if (d / "scenario.json").is_file())
-            if root.is_dir()
-            else []
-        )
+        listing = root / "bank.yaml"
+        if listing.is_file():
+            data = parse_yaml(listing.read_text(), "bank.yaml")
+            names = data.get("scenarios") if isinstance(data, dict) else None
+            if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
+                raise InputError("bank", str(listing), "allowed: a bank.yaml listing 'scenarios'")
+            self.dirs = [root / n for n in names]
+            missing = [str(d) for d in self.dirs if not (d / "scenario.json").is_file()]
+            if missing:
+                raise InputError("bank", missing[0], "is listed in bank.yaml but missing")
+        else:
+            self.dirs = (
+                sorted(d for d in root.iterdir() if (d / "scenario.json").is_file())
+                if root.is_dir()
+                else []
+            )
         if not self.dirs:
-            raise ScenarioError(
+            raise InputError(
                 "bank", str(directory), "holds no scenario directories (with scenario.json)"
             )
         self._cache: OrderedDict[Path, Scenario] = OrderedDict()
@@ -117,3 +257,123 @@ class Bank:
         while len(self._cache) > self._size:
             self._cache.popitem(last=False)
         return scn
+
+
+class ScenarioSource:
+    """One way in for every kind of scenario; ``sample`` is called at each reset."""
+
+    def __init__(
+        self,
+        scenario: Any = None,
+        overrides: dict[str, Any] | None = None,
+        seed: int = 0,
+        seed_range: tuple[int, int] | list[int] | None = None,
+        bank: str | Path | None = None,
+        randomize: Any = None,
+    ) -> None:
+        if (
+            isinstance(seed, bool)
+            or not isinstance(seed, (int, np.integer))
+            or not 0 <= seed < 2**63
+        ):
+            raise InputError("scenario_seed", seed, "allowed: an integer in [0, 2**63)")
+        lo, hi = _seed_range(seed_range)
+        self.seed_range = (lo, hi)
+        self.bank = Bank(bank) if bank is not None else None
+        if self.bank is not None and scenario is not None:
+            raise InputError("scenario", scenario, "give a scenario or a bank, not both")
+        self.kind = "bank" if self.bank else "fixed" if _is_fixed(scenario) else "preset"
+        if overrides is not None and not isinstance(overrides, dict):
+            raise InputError(
+                "scenario_overrides", overrides, "allowed: a mapping of spec overrides"
+            )
+        if self.kind != "preset" and overrides:
+            raise InputError(
+                "scenario_overrides", overrides, "apply only to presets, not to a saved scenario"
+            )
+        self.preset = str(scenario or "default") if self.kind == "preset" else None
+        self.overrides = dict(overrides or {})
+        base = sg.preset(self.preset, **self.overrides) if self.preset else None
+        self.randomization = Randomization(randomize, base)
+        if self.randomization.scenario_keys and self.kind != "preset":
+            raise InputError(
+                "randomize",
+                list(self.randomization.scenario_keys),
+                "scenario keys need a preset scenario to regenerate",
+            )
+        self.base = base
+        if self.bank is not None:
+            self.first = self.bank.sample(np.random.default_rng(seed))
+        elif isinstance(scenario, Scenario):
+            self.first = scenario
+        elif self.kind == "fixed":
+            self.first = sg.load(Path(scenario))
+        else:
+            assert base is not None
+            self.first = sg.generate(base, int(seed))
+
+    def sample(
+        self, rng: np.random.Generator, current: Scenario, option: Any = None
+    ) -> tuple[Scenario, dict[str, Any]]:
+        """The next episode's scenario and the env randomization values.
+
+        Draw order (fixed, for determinism): the bank member, the randomized values in sorted
+        key order, then the generation seed.
+        """
+        scn = current
+        if option is not None:
+            scn = option if isinstance(option, Scenario) else _load_option(option)
+        elif self.bank is not None:
+            scn = self.bank.sample(rng)
+        over, env = self.randomization.sample(rng)
+        if over and option is None:
+            assert self.base is not None
+            scn = sg.generate(self.base.replace(over), int(rng.integers(*self.seed_range)))
+        return scn, env
+
+    def describe(self) -> dict[str, Any]:
+        return {"kind": self.kind, "preset": self.preset, "overrides": self.overrides}
+
+
+def _is_fixed(scenario: Any) -> bool:
+    if isinstance(scenario, Scenario):
+        return True
+    if scenario is None:
+        return False
+    if not isinstance(scenario, (str, Path)):
+        raise InputError(
+            "scenario",
+            type(scenario).__name__,
+            "allowed: a Scenario, a scenario directory or a preset name",
+        )
+    if (Path(scenario) / "scenario.json").is_file():
+        return True
+    if str(scenario) in sg.preset_names():
+        return False
+    raise InputError(
+        "scenario",
+        str(scenario),
+        f"allowed: a Scenario, a scenario directory or a preset ({', '.join(sg.preset_names())})",
+    )
+
+
+def _load_option(option: Any) -> Scenario:
+    if not _is_fixed(option):
+        return sg.generate(sg.preset(str(option)), 0)
+    return sg.load(Path(option))
+
+
+def _seed_range(seed_range: Any) -> tuple[int, int]:
+    if seed_range is None:
+        return 0, 2**31 - 1
+    ok = (
+        isinstance(seed_range, (list, tuple))
+        and len(seed_range) == 2
+        and all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in seed_range)
+        and 0 <= seed_range[0] < seed_range[1] <= 2**63
+    )
+    if not ok:
+        raise InputError(
+            "scenario_seeds", seed_range, "allowed: [low, high) integers, 0 <= low < high <= 2**63"
+        )
+    return int(seed_range[0]), int(seed_range[1])

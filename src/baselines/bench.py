@@ -80,7 +80,7 @@ def run(
     try:
         pi = make_policy(policy, env)
         for k in tqdm(range(episodes), desc=f"{policy} on {env_id}", unit="ep"):
-            writer = VideoWriter(out / f"episode_{k:03d}.mp4") if video and k == 0 else None
+            writer = VideoWriter(out / f"episode_{k:03d}.webm") if video and k == 0 else None
             ep = run_episode(env, pi, seed + k, policy, writer)
             if writer is not None:
                 writer.close()
@@ -112,10 +112,7 @@ def bench(
             env = _make(case)
             try:
                 for spec, name in zip(policies, labels, strict=True):
-                    try:
-                        pi = make_policy(spec, env)
-                    except ValueError as exc:
-                        raise ScenarioError("--policies", spec, str(exc)) from None
+                    pi = make_policy(spec, env)
                     for k in range(seeds):
                         ep = run_episode(env, pi, EVAL_SEED + k, name)
                         records.append(_record(ep, suite_name, case.group))

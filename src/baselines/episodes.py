@@ -20,20 +20,22 @@ class Episode:
     termination: str
     seconds: float
     poses: np.ndarray = field(repr=False)  # true base positions (N, 2), for evaluation only
+    errors: np.ndarray = field(repr=False)  # cross-track error of each pose (EpisodeMetrics)
     route: np.ndarray = field(repr=False)
     furrow: np.ndarray = field(repr=False)
-    plants: np.ndarray = field(repr=False)
+    plants: np.ndarray = field(repr=False)  # crop positions (M, 2)
+    hit: np.ndarray = field(repr=False)  # positions of the crops touched (K, 2)
 
 
 def run_episode(
     env: Any, policy: Any, seed: int, policy_name: str, video: Any | None = None
 ) -> Episode:
-    import gymnasium as gym  # noqa: F401
-
     obs, _ = env.reset(seed=seed)
     policy.reset()
     info: dict[str, Any] = {}
     steps, t0 = 0, time.perf_counter()
+    if video is not None:
+        video(env)
     while True:
         obs, _, term, trunc, info = env.step(policy.act(obs))
         steps += 1
@@ -42,7 +44,9 @@ def run_episode(
         if term or trunc:
             break
     u = env.unwrapped
-    scn = u.scenario
+    p = u.scenario.plants
+    crops = np.column_stack([p.x, p.y])
+    hit = np.asarray(sorted(u.crops_hit_ids), np.int64)
     return Episode(
         policy_name,
         u.spec.id if u.spec else type(u).__name__,
@@ -52,38 +56,54 @@ def run_episode(
         info.get("termination", "time_limit"),
         time.perf_counter() - t0,
         u.trajectory,
+        np.asarray(u.metrics.errors),
         u.route.xy.copy(),
         u.route.furrow.copy(),
-        np.column_stack([scn.plants.x, scn.plants.y])[~scn.plants.is_weed],
+        crops[~p.is_weed],
+        crops[hit] if len(hit) else np.empty((0, 2)),
     )
 
 
 def trajectory_figure(ep: Episode, path: Path, title: str) -> None:
-    """The source paper's Fig. 12, better: path, trajectory coloured by CTE, crops, numbers."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    """The source paper's Fig. 12, better: path, trajectory coloured by cross-track error,
+    crops (those hit marked), how the episode ended, and the numbers."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.collections import LineCollection
+    from matplotlib.colors import Normalize
+    from matplotlib.figure import Figure
 
-    from agrinav_gym.metrics import project_to_polyline
-
-    dist, _, _, _ = project_to_polyline(ep.poses, ep.route)
     pad = 1.5
     lo = np.minimum(ep.route.min(axis=0), ep.poses.min(axis=0)) - pad
     hi = np.maximum(ep.route.max(axis=0), ep.poses.max(axis=0)) + pad
     span = hi - lo
-    fig, ax = plt.subplots(figsize=(10, max(3.0, min(8.0, 10 * span[1] / span[0] + 1.2))))
+    fig = Figure(figsize=(10, max(3.5, min(8.0, 10 * span[1] / span[0] + 1.6))))
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
     near = np.all((ep.plants >= lo) & (ep.plants <= hi), axis=1)
     px, py = ep.plants[near].T
     ax.scatter(px, py, s=6, color="forestgreen", alpha=0.6, label="crops", linewidths=0)
+    if len(ep.hit):
+        hx, hy = ep.hit.T
+        ax.scatter(
+            hx,
+            hy,
+            s=40,
+            marker="x",
+            color="red",
+            linewidths=1.5,
+            zorder=5,
+            label=f"crops hit ({len(ep.hit)})",
+        )
     ax.plot(*ep.route.T, "--", color="0.3", lw=1.0, label="reference path")
     seg = np.stack([ep.poses[:-1], ep.poses[1:]], axis=1)
+    dist = ep.errors
     vmax = max(0.05, float(np.percentile(dist, 99)))
-    lc = LineCollection(list(seg), cmap="plasma", norm=plt.Normalize(0, vmax), linewidths=2.5)
+    lc = LineCollection(list(seg), cmap="plasma", norm=Normalize(0, vmax), linewidths=2.5)
     lc.set_array(0.5 * (dist[:-1] + dist[1:]))
     ax.add_collection(lc)
     fig.colorbar(lc, ax=ax, label="cross-track error (m)", shrink=0.85)
+    ax.plot(*ep.poses[0], "o", color="black", ms=5, zorder=6, label="start")
+    ax.plot(*ep.poses[-1], "s", color="black", ms=5, zorder=6, label=f"end: {ep.termination}")
     m = ep.metrics
 
     def f(v: Any) -> str:
@@ -92,7 +112,8 @@ def trajectory_figure(ep: Episode, path: Path, title: str) -> None:
     text = (
         f"RMSE {f(m['rmse'])} m · MAE {f(m['mae'])} · max {f(m['max'])}\n"
         f"in-furrow {f(m['in_furrow_rmse'])} · headland {f(m['headland_rmse'])} · "
-        f"completion {m['completion']:.0f} % · crops hit {m['crops_hit']}"
+        f"completion {m['completion']:.0f} % · crops hit {m['crops_hit']} · "
+        f"ended: {ep.termination} after {ep.steps} steps"
     )
     ax.set_title(f"{title}\n{text}", fontsize=9)
     ax.set_xlim(lo[0], hi[0])
@@ -103,11 +124,11 @@ def trajectory_figure(ep: Episode, path: Path, title: str) -> None:
     ax.legend(loc="upper right", fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
 
 
 class VideoWriter:
-    """MP4 of the env's ``rgb_array`` chase view (OpenCV's FFmpeg backend)."""
+    """A VP8 WebM of the env's ``rgb_array`` view: plays in browsers and README previews
+    (OpenCV's bundled FFmpeg; MPEG-4 part 2, ``mp4v``, is refused by browsers)."""
 
     def __init__(self, path: Path, fps: int = 20) -> None:
         self.path, self.fps = path, fps
@@ -122,8 +143,10 @@ class VideoWriter:
         if self.writer is None:
             h, w = frame.shape[:2]
             self.writer = cv2.VideoWriter(
-                str(self.path), cv2.VideoWriter.fourcc(*"mp4v"), self.fps, (w, h)
+                str(self.path), cv2.VideoWriter.fourcc(*"VP80"), self.fps, (w, h)
             )
+            if not self.writer.isOpened():
+                raise OSError(f"cannot write a VP8 WebM video to {self.path}")
         self.writer.write(frame[:, :, ::-1])
 
     def close(self) -> None:

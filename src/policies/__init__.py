@@ -6,10 +6,11 @@ its public configuration (speed limits, camera calibration); policies see observ
 
 from __future__ import annotations
 
-import math
 from importlib import resources
 from pathlib import Path
 from typing import Any
+
+from scenario_gen.errors import InputError
 
 from .base import Policy
 from .depth_follower import DepthFurrowFollower
@@ -34,52 +35,36 @@ SHIPPED = {
 
 
 def shipped_model(env_id: str) -> Path:
-    """Folder of the shipped PPO checkpoint for ``env_id`` (model.zip, command, curve)."""
+    """Folder of the shipped PPO checkpoint for ``env_id`` (model, command, curve)."""
     if env_id not in SHIPPED:
-        raise ValueError(f"no shipped PPO checkpoint for {env_id}; shipped: {', '.join(SHIPPED)}")
+        raise InputError(
+            "policy", f"ppo:shipped for {env_id}", f"shipped checkpoints: {', '.join(SHIPPED)}"
+        )
     folder = Path(str(resources.files("policies.models").joinpath(SHIPPED[env_id])))
     if not (folder / "model.zip").is_file():
-        raise ValueError(f"the shipped checkpoint for {env_id} is missing from {folder}")
+        raise InputError("policy", f"ppo:shipped for {env_id}", f"is missing from {folder}")
     return folder
 
 
 def make_policy(spec: str, env: Any, **params: Any) -> Policy:
-    """``spec`` is a policy name, ``ppo:PATH`` for a trained checkpoint, or ``ppo:shipped`` for
-    the checkpoint shipped for the env's id."""
+    """A controller for ``env``: ``spec`` is a policy name, ``ppo:PATH`` for a trained
+    checkpoint, or ``ppo:shipped`` for the checkpoint shipped for the env's id. The policy gets
+    the env's spaces and its public ``RobotInterface``, nothing else."""
+    if not isinstance(spec, str):
+        raise InputError("policy", spec, f"allowed: {', '.join(POLICIES)} or ppo:PATH")
     name, _, path = spec.partition(":")
     if name not in POLICIES:
-        raise ValueError(f"policy: got {spec!r}; allowed: {', '.join(POLICIES)} (ppo:PATH)")
+        raise InputError("policy", spec, f"allowed: {', '.join(POLICIES)} (ppo:PATH, ppo:shipped)")
     u = env.unwrapped
-    cfg = u.cfg  # public env configuration: limits and sensor calibration, not simulator state
-    r, d = cfg.robot, cfg.depth
-    kwargs: dict[str, Any] = {
-        "v_max": r.v_max,
-        "w_max": r.w_max,
-        "control_dt": 1.0 / r.control_hz,
-        "camera": {
-            "hfov": math.radians(d.hfov_deg),
-            "vfov": math.radians(d.vfov_deg),
-            "x": r.camera_x,
-            "height": r.camera_height,
-            "pitch": math.radians(r.camera_pitch_deg),
-        },
-        **params,
-    }
+    kwargs: dict[str, Any] = dict(params)
     if name == "ppo":
         if not path:
-            raise ValueError("policy: ppo needs a checkpoint, ppo:PATH (a model.zip or its folder)")
-        kwargs["path"] = str(shipped_model(u.spec.id)) if path == "shipped" and u.spec else path
-    return POLICIES[name](u.observation_space, u.action_space, **kwargs)
-
-
-__all__ = [
-    "DWB",
-    "POLICIES",
-    "SHIPPED",
-    "DepthFurrowFollower",
-    "PPOPolicy",
-    "Policy",
-    "RegulatedPurePursuit",
-    "make_policy",
-    "shipped_model",
-]
+            raise InputError("policy", spec, "ppo needs a checkpoint: ppo:PATH or ppo:shipped")
+        if path == "shipped":
+            if u.spec is None:
+                raise InputError("policy", spec, "ppo:shipped needs an env made with gym.make")
+            path = str(shipped_model(u.spec.id))
+        kwargs["path"] = path
+    elif path:
+        raise InputError("policy", spec, f"{name} takes no ':' argument")
+    return POLICIES[name](u.observation_space, u.action_space, u.interface, **kwargs)

@@ -15,6 +15,8 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
+from agrinav_gym.interface import RobotInterface
+
 from .base import Obs, Policy
 from .geometry import DepthProjector
 
@@ -27,33 +29,29 @@ class DepthFurrowFollower(Policy):
         self,
         observation_space: spaces.Dict,
         action_space: spaces.Box,
-        camera: dict[str, float] | None = None,
+        robot: RobotInterface,
         speed: float = 0.6,
         k_lateral: float = 2.0,
         k_heading: float = 1.5,
         min_height: float = 0.12,
         near: float = 0.5,
         far: float = 3.0,
+        lane_half_width_prior: float = 0.375,
         **params: Any,
     ) -> None:
-        super().__init__(observation_space, action_space, **params)
-        c = camera or {
-            "hfov": math.radians(87.0),
-            "vfov": math.radians(58.0),
-            "x": 0.25,
-            "height": 0.55,
-            "pitch": math.radians(25.0),
-        }
+        super().__init__(observation_space, action_space, robot, **params)
         self.speed, self.k_lat, self.k_head = speed, k_lateral, k_heading
         self.min_height, self.near, self.far = min_height, near, far
-        shape = observation_space.spaces["depth"].shape
-        assert shape is not None
-        self.project = DepthProjector(c, shape)
-        self.half_width = 0.375  # last lane half-width seen; a prior of maize rows
+        self.project = DepthProjector(robot.camera, robot.base_height)
+        # the lane's half-width until both rows are seen (then the last one measured): a
+        # controller prior, US maize rows by default, not a fact of the simulated field
+        self.prior = lane_half_width_prior
+        self.half_width = self.prior
         self.lost = 0
 
     def reset(self) -> None:
         self.lost = 0
+        self.half_width = self.prior
 
     def lane(self, depth: NDArray[np.float32]) -> tuple[float, float] | None:
         """(lateral offset of the lane centre, its heading) in the robot frame, or None."""

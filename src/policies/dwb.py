@@ -11,15 +11,17 @@ the local costmap comes from the depth image: policies see observations only.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 from gymnasium import spaces
 from numpy.typing import NDArray
+
+from agrinav_gym.interface import RobotInterface, decode_odom
+from scenario_gen.schema import from_mapping, load_yaml, param, parse_yaml
 
 from .base import Obs, Policy
 from .geometry import DepthProjector, local_plan
@@ -28,28 +30,46 @@ FloatArray = NDArray[np.float64]
 REJECT = math.inf
 
 
-@dataclass
+CRITICS = (
+    "RotateToGoal",
+    "Oscillation",
+    "BaseObstacle",
+    "GoalAlign",
+    "PathAlign",
+    "PathDist",
+    "GoalDist",
+)
+
+
+@dataclass(frozen=True)
 class DWBParams:
-    max_vel_x: float = 1.0
-    min_vel_x: float = 0.0
-    max_vel_theta: float = 1.5
-    acc_lim_x: float = 0.6
-    decel_lim_x: float = -0.6
-    acc_lim_theta: float = 1.5
-    decel_lim_theta: float = -1.5
-    vx_samples: int = 20
-    vtheta_samples: int = 20
-    sim_time: float = 1.7
-    linear_granularity: float = 0.05
-    angular_granularity: float = 0.025
-    costmap_resolution: float = 0.05
-    forward_point_distance: float = 0.325
-    xy_goal_tolerance: float = 0.25
-    oscillation_reset_dist: float = 0.05
-    obstacle_min_height: float = 0.15
-    prune_distance: float = 1.0
-    scales: dict[str, float] = field(
-        default_factory=lambda: {
+    """DWB parameters with Nav2's names (see config/dwb_furrow.yaml for the values used and the
+    reason for each change from Nav2's defaults)."""
+
+    max_vel_x: float = param(1.0, "fastest forward speed sampled, m/s", 0.0, 10)
+    min_vel_x: float = param(0.0, "slowest forward speed sampled, m/s", -10, 10)
+    max_vel_theta: float = param(1.5, "fastest yaw rate sampled, rad/s", 0.0, 20)
+    acc_lim_x: float = param(0.6, "linear acceleration limit, m/s²", 0.0, 50)
+    decel_lim_x: float = param(-0.6, "linear deceleration limit (negative), m/s²", -50, 0)
+    acc_lim_theta: float = param(1.5, "angular acceleration limit, rad/s²", 0.0, 100)
+    decel_lim_theta: float = param(-1.5, "angular deceleration limit (negative), rad/s²", -100, 0)
+    vx_samples: int = param(20, "forward-speed samples in the dynamic window", 1, 200)
+    vtheta_samples: int = param(20, "yaw-rate samples in the dynamic window", 1, 200)
+    sim_time: float = param(1.7, "rollout horizon, s", 0.1, 10)
+    linear_granularity: float = param(0.05, "rollout step along the path, m", 0.001, 1)
+    angular_granularity: float = param(0.025, "rollout step in heading, rad", 0.001, 1)
+    costmap_resolution: float = param(0.05, "local costmap cell size, m", 0.01, 1)
+    forward_point_distance: float = param(
+        0.325, "Path/GoalAlign score a point this far ahead, m", 0.0, 5
+    )
+    xy_goal_tolerance: float = param(0.25, "goal reached within, m", 0.0, 5)
+    oscillation_reset_dist: float = param(0.05, "distance that clears an oscillation flag, m", 0, 5)
+    obstacle_min_height: float = param(
+        0.15, "depth points lower than this above the ground are soil/ridges, m", 0.0, 2
+    )
+    prune_distance: float = param(2.0, "local plan length ahead of the robot, m", 0.1, 50)
+    scales: dict[str, float] = param(  # noqa: RUF009  (param returns a dataclass field)
+        {
             "RotateToGoal": 32.0,
             "Oscillation": 1.0,
             "BaseObstacle": 0.02,
@@ -57,21 +77,26 @@ class DWBParams:
             "PathAlign": 32.0,
             "PathDist": 32.0,
             "GoalDist": 24.0,
-        }
+        },
+        "critic scales (total score = Σ scale × critic, lowest wins)",
+        0.0,
+        1e6,
+        choices=CRITICS,
     )
 
     @classmethod
     def from_yaml(cls, path: str | Path | None = None) -> DWBParams:
-        text = (
-            Path(path).read_text()
-            if path is not None
-            else resources.files("policies.config").joinpath("dwb_furrow.yaml").read_text()
-        )
-        data = yaml.safe_load(text) or {}
-        unknown = set(data) - set(cls.__dataclass_fields__)
-        if unknown:
-            raise ValueError(f"dwb params: unknown keys {sorted(unknown)}")
-        return cls(**data)
+        """Parameters from a YAML file (default: the shipped furrow-tuned config)."""
+        if path is None:
+            text = resources.files("policies.config").joinpath("dwb_furrow.yaml").read_text()
+            data = parse_yaml(text, "dwb_furrow.yaml")
+        else:
+            data = load_yaml(path, "dwb params")
+        base = cls().scales
+        if isinstance(data.get("scales"), dict):
+            data["scales"] = {**base, **data["scales"]}
+        params: DWBParams = from_mapping(cls, data, "dwb.")
+        return params
 
 
 # ----------------------------------------------------------------------------- trajectories
@@ -239,24 +264,22 @@ class DWB(Policy):
         self,
         observation_space: spaces.Dict,
         action_space: spaces.Box,
+        robot: RobotInterface,
         params: str | Path | None = None,
-        camera: dict[str, float] | None = None,
         inscribed_radius: float = 0.0,
-        control_dt: float = 0.05,
         **kwargs: Any,
     ) -> None:
-        super().__init__(observation_space, action_space, **kwargs)
+        super().__init__(observation_space, action_space, robot, **kwargs)
         self.p = DWBParams.from_yaml(params)
-        depth = observation_space.spaces.get("depth")
         self.project = (
-            DepthProjector(camera, depth.shape)
-            if camera is not None and depth is not None and depth.shape is not None
+            DepthProjector(robot.camera, robot.base_height)
+            if "depth" in observation_space.spaces
             else None
         )
         # 0 by default: in 0.75 m rows a 0.62 m robot is always within its inscribed radius of
         # the canopy, so only points on the robot's own path are lethal (see the YAML).
         self.inscribed = inscribed_radius
-        self.dt = control_dt
+        self.dt = robot.control_dt
         self.reset()
 
     def reset(self) -> None:
@@ -267,7 +290,7 @@ class DWB(Policy):
     def scores(self, obs: Obs) -> tuple[FloatArray, dict[str, FloatArray], FloatArray]:
         p = self.p
         if "odom" in obs:
-            self.v, self.w = float(obs["odom"][0]), float(obs["odom"][1])
+            self.v, self.w = decode_odom(obs["odom"])
         twists = velocity_samples(self.v, self.w, p)
         traj = rollout(twists, self.v, self.w, p)
         plan, _ = local_plan(obs["route"])

@@ -3,34 +3,26 @@ robot-frame points from the depth image."""
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numpy.typing import NDArray
 
-FloatArray = NDArray[np.float64]
+from agrinav_gym.interface import CameraModel, decode_route
 
-#: base_link above the wheels' footprint plane (the URDF's wheel radius), m
-BASE_HEIGHT = 0.11
+FloatArray = NDArray[np.float64]
 
 
 class DepthProjector:
-    """Back-projects a z-depth image into robot-frame points, z measured from the footprint plane.
+    """Back-projects a z-depth image into robot-frame points, z measured from the ground plane
+    under the wheels (the camera's public calibration and the base height). The pixel rays are
+    computed once."""
 
-    ``camera`` is the env's public calibration: ``hfov``, ``vfov``, ``pitch`` (rad, + down),
-    ``x`` and ``height`` of the mount on base_link. The pixel rays are computed once.
-    """
-
-    def __init__(self, camera: dict[str, float], shape: tuple[int, ...]) -> None:
-        h, w = shape[-2:]
-        fx = 0.5 * w / math.tan(camera["hfov"] / 2)
-        fy = 0.5 * h / math.tan(camera["vfov"] / 2)
-        u, v = np.meshgrid(np.arange(w) - 0.5 * (w - 1), np.arange(h) - 0.5 * (h - 1))
-        self.ray_y = (-u / fx).ravel()
-        self.ray_z = (-v / fy).ravel()
-        cp, sp = math.cos(camera["pitch"]), math.sin(camera["pitch"])
-        self.rot = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
-        self.mount = np.array([camera["x"], 0.0, camera["height"] + BASE_HEIGHT])
+    def __init__(self, camera: CameraModel, base_height: float) -> None:
+        rays = camera.pixel_rays()
+        self.ray_y = rays[:, 1].copy()
+        self.ray_z = rays[:, 2].copy()
+        self.rot = camera.rotation
+        self.mount = np.asarray(camera.position, np.float64) + np.array([0.0, 0.0, base_height])
+        self.shape = (camera.height, camera.width)
 
     def points(self, depth: NDArray[np.float32]) -> FloatArray:
         """(n, 3) points of the valid (non-zero) pixels."""
@@ -46,11 +38,11 @@ def local_plan(
 ) -> tuple[FloatArray, NDArray[np.bool_]]:
     """The route observation as a dense polyline in the robot frame, starting beside the robot.
 
-    The observation holds points 0.4, 0.8, ... m ahead of the robot's projection on the route;
-    one point is extrapolated back so the plan also covers the robot's own position.
+    The observation holds points route_spacing, 2·route_spacing, ... ahead of the robot's
+    projection on the route; one point is extrapolated back so the plan also covers the robot's
+    own position.
     """
-    r = np.asarray(route_obs, np.float64).reshape(-1, 3)
-    pts, tags = r[:, :2], r[:, 2] > 0.5
+    pts, tags = decode_route(route_obs)
     if len(pts) >= 2:
         pts = np.vstack([2 * pts[0] - pts[1], pts])
         tags = np.concatenate([tags[:1], tags])

@@ -9,6 +9,8 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
+from agrinav_gym.interface import RobotInterface, decode_odom
+
 from .base import Obs, Policy
 from .geometry import local_plan
 
@@ -23,6 +25,7 @@ class RegulatedPurePursuit(Policy):
         self,
         observation_space: spaces.Dict,
         action_space: spaces.Box,
+        robot: RobotInterface,
         desired_linear_vel: float = 0.8,
         lookahead_time: float = 1.5,
         min_lookahead: float = 0.3,
@@ -34,8 +37,8 @@ class RegulatedPurePursuit(Policy):
         min_approach_vel: float = 0.05,
         **params: Any,
     ) -> None:
-        super().__init__(observation_space, action_space, **params)
-        self.v_des = min(desired_linear_vel, self.v_max)
+        super().__init__(observation_space, action_space, robot, **params)
+        self.v_des = min(desired_linear_vel, robot.v_max)
         self.t_look, self.l_min, self.l_max = lookahead_time, min_lookahead, max_lookahead
         self.r_min = min_radius
         self.rot_angle, self.rot_vel = rotate_to_heading_min_angle, rotate_to_heading_angular_vel
@@ -47,7 +50,7 @@ class RegulatedPurePursuit(Policy):
 
     def act(self, obs: Obs) -> NDArray[np.float32]:
         if "odom" in obs:
-            self.v = float(obs["odom"][0])
+            self.v = decode_odom(obs["odom"]).v
         plan, _ = local_plan(obs["route"])
         look = float(np.clip(abs(self.v) * self.t_look, self.l_min, self.l_max))
         d = np.hypot(plan[:, 0], plan[:, 1])
@@ -65,5 +68,5 @@ class RegulatedPurePursuit(Policy):
         remaining = float(np.hypot(*plan[-1]))
         if remaining < self.approach:  # approach the route's end gently
             v = max(v * remaining / self.approach, self.v_approach_min)
-        w = float(np.clip(v * curvature, -self.w_max, self.w_max))
+        w = float(np.clip(v * curvature, -self.robot.w_max, self.robot.w_max))
         return self._twist(v, w)

@@ -3,8 +3,9 @@
 Each species has growth stages with a nominal height and canopy width; ``growth`` in [0, 1] moves
 continuously through them. ``crop_mesh`` builds a trimesh model whose shape follows growth (leaf
 count, leaf length and droop, canopy width, tassels, heads, fruit), coloured per face, with
-its base at the origin and +z up. ``CropModel.proxy_radius`` is the stem-level collision proxy
-used to count crop contact.
+its base at the origin and +z up. ``Species.stem_diameter`` is what a wheel or the chassis of a
+robot meets at ground level (the stalk of an upright crop, the head of a cabbage): the crop-contact
+model and the models' stalks use it.
 """
 
 from __future__ import annotations
@@ -28,7 +29,10 @@ class Species:
     stage_names: tuple[str, ...]
     heights: tuple[float, ...]  # nominal height per stage, m
     canopy: tuple[float, ...]  # canopy diameter per stage, m
-    proxy_radius: float  # collision proxy at stem level, m (maize stalk ≈ 2-3 cm across)
+    # Stalk (or head) diameter per stage at ground level, m: maize V3 ≈ 0.8 cm to ≈ 2.5 cm at
+    # silking (agronomy references give 2-3 cm for mature stalks); sunflower to 3 cm; tomato to
+    # 1.5 cm; a cabbage's wheel-height obstacle is its head, to ≈ 20 cm across.
+    stem_diameter: tuple[float, ...]
     colour: tuple[int, int, int]
     # Grass crops (maize) carry their leaves in one vertical plane, which can cross the lane.
     planar_leaves: bool = False
@@ -49,6 +53,17 @@ class Species:
     def canopy_width(self, growth: float | FloatArray) -> Any:
         return np.interp(self.stage_of_growth(growth), np.arange(1, self.stages + 1), self.canopy)
 
+    def stem_radius(self, growth: float | FloatArray) -> Any:
+        d = np.interp(
+            self.stage_of_growth(growth), np.arange(1, self.stages + 1), self.stem_diameter
+        )
+        return 0.5 * d
+
+    @property
+    def proxy_radius(self) -> float:
+        """Largest stem radius over the stages: a growth-independent collision proxy."""
+        return 0.5 * max(self.stem_diameter)
+
 
 CATALOG: dict[str, Species] = {
     s.name: s
@@ -59,7 +74,7 @@ CATALOG: dict[str, Species] = {
             ("V3", "V6", "V10", "V14", "R1"),
             (0.3, 0.6, 1.2, 1.8, 2.5),
             (0.35, 0.55, 0.8, 0.95, 1.0),
-            0.04,
+            (0.008, 0.015, 0.020, 0.023, 0.025),
             (70, 140, 50),
             planar_leaves=True,
         ),
@@ -68,7 +83,7 @@ CATALOG: dict[str, Species] = {
             ("seedling", "vegetative", "flowering", "fruiting"),
             (0.15, 0.4, 0.8, 1.2),
             (0.2, 0.4, 0.6, 0.7),
-            0.06,
+            (0.004, 0.008, 0.012, 0.015),
             (60, 120, 45),
         ),
         Species(
@@ -76,7 +91,7 @@ CATALOG: dict[str, Species] = {
             ("seedling", "rosette", "heading", "mature"),
             (0.1, 0.2, 0.3, 0.35),
             (0.2, 0.4, 0.6, 0.7),
-            0.12,
+            (0.03, 0.08, 0.15, 0.20),
             (120, 170, 110),
         ),
         Species(
@@ -84,10 +99,10 @@ CATALOG: dict[str, Species] = {
             ("V4", "V10", "R1", "R5"),
             (0.3, 0.8, 1.5, 2.0),
             (0.3, 0.5, 0.7, 0.8),
-            0.05,
+            (0.008, 0.015, 0.025, 0.030),
             (80, 130, 40),
         ),
-        Species("weed", ("small", "large"), (0.05, 0.3), (0.08, 0.35), 0.0, (150, 160, 60)),
+        Species("weed", ("small", "large"), (0.05, 0.3), (0.08, 0.35), (0.0, 0.0), (150, 160, 60)),
     )
 }
 
@@ -104,13 +119,17 @@ class CropModel:
     growth: float
     height: float
     canopy: float
-    proxy_radius: float
+    stem_radius: float  # at this growth, m
 
 
 def crop_model(name: str, growth: float) -> CropModel:
     sp = species(name)
     return CropModel(
-        name, growth, float(sp.height(growth)), float(sp.canopy_width(growth)), sp.proxy_radius
+        name,
+        growth,
+        float(sp.height(growth)),
+        float(sp.canopy_width(growth)),
+        float(sp.stem_radius(growth)),
     )
 
 
@@ -186,7 +205,10 @@ def crop_mesh(name: str, growth: float) -> Any:
     parts: list[tuple[Any, tuple[int, int, int]]] = []
     if name == "corn":
         parts.append(
-            (_stalk(h * (0.85 if growth > 0.75 else 0.7), 0.012 + 0.012 * growth, 0.006), DARK)
+            (
+                _stalk(h * (0.85 if growth > 0.75 else 0.7), float(sp.stem_radius(growth)), 0.006),
+                DARK,
+            )
         )
         n = round(3 + 11 * growth)
         for i in range(n):
@@ -216,7 +238,8 @@ def crop_mesh(name: str, growth: float) -> Any:
             parts.append((ear, (200, 190, 110)))
     elif name == "sunflower":
         head_h = h * 0.92
-        parts.append((_stalk(head_h, 0.015 + 0.01 * growth, 0.01), DARK))
+        r0 = float(sp.stem_radius(growth))
+        parts.append((_stalk(head_h, r0, min(0.01, r0)), DARK))
         n = round(4 + 10 * growth)
         for i in range(n):
             f = (i + 1) / (n + 1)
@@ -234,7 +257,8 @@ def crop_mesh(name: str, growth: float) -> Any:
             head.apply_translation([0.05, 0, head_h])
             parts.append((head, (230, 190, 30)))
     elif name == "tomato":
-        parts.append((_stalk(h * 0.8, 0.01 + 0.005 * growth, 0.005), DARK))
+        r0 = float(sp.stem_radius(growth))
+        parts.append((_stalk(h * 0.8, r0, min(0.005, r0)), DARK))
         n = round(3 + 7 * growth)
         for i in range(n):
             f = (i + 1) / (n + 1)

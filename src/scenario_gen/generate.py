@@ -76,10 +76,23 @@ def place_plants(
     )
 
 
+def check_spec(spec: ScenarioSpec) -> None:
+    """Cross-field checks that need no terrain or files (each field alone was checked when the
+    spec was built): an env validates randomization ranges with this before any reset."""
+    sp = crops.species(spec.crop.species)
+    if spec.crop.stage > sp.stages:
+        raise InputError(
+            "crop.stage",
+            spec.crop.stage,
+            f"allowed: 1..{sp.stages} for {sp.name} ({', '.join(sp.stage_names)})",
+        )
+
+
 def generate(spec: ScenarioSpec, seed: int) -> Scenario:
     """Build the scenario ``spec`` describes; the same (spec, seed) gives the same bits."""
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise InputError("seed", seed, "allowed: an integer >= 0")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed < 2**63:
+        raise InputError("seed", seed, "allowed: an integer in [0, 2**63)")
+    check_spec(spec)
     t_start = time.perf_counter()
     rng = dict(
         zip(
@@ -92,12 +105,6 @@ def generate(spec: ScenarioSpec, seed: int) -> Scenario:
         )
     )
     sp = crops.species(spec.crop.species)
-    if spec.crop.stage > sp.stages:
-        raise InputError(
-            "crop.stage",
-            spec.crop.stage,
-            f"allowed: 1..{sp.stages} for {sp.name} ({', '.join(sp.stage_names)})",
-        )
     growth = (
         spec.crop.growth if spec.crop.growth is not None else sp.growth_of_stage(spec.crop.stage)
     )

@@ -309,3 +309,25 @@ def load_yaml(path: str | Path, what: str = "--config") -> dict[str, Any]:
 
 def _head(text: str) -> str:
     return text[:40]
+
+
+def field_info(cls: type, dotted: str) -> tuple[Any, Any] | None:
+    """(type hint, metadata) of a dotted field of a config dataclass; None if there is none."""
+    parts = dotted.split(".")
+    for i, part in enumerate(parts):
+        if not dataclasses.is_dataclass(cls):
+            return None
+        fields = {f.name: f for f in dataclasses.fields(cls)}
+        if part not in fields:
+            return None
+        tp = get_type_hints(cls)[part]
+        if i == len(parts) - 1:
+            return (None, None) if dataclasses.is_dataclass(tp) else (tp, fields[part].metadata)
+        cls = tp
+    return None
+
+
+def is_integer_field(tp: Any) -> bool:
+    """An ``int`` or ``int | None`` field (bool excluded)."""
+    args = [a for a in get_args(tp) if a is not type(None)] if get_args(tp) else [tp]
+    return args == [int]

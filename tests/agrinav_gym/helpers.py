@@ -24,3 +24,14 @@ STILL = {"task": {"start_lateral_std": 0.0, "start_heading_std_deg": 0.0}}
 def make(env_id: str = "AgriNav/FurrowFollow-v0", **kwargs: Any) -> gym.Env:
     kwargs.setdefault("scenario_overrides", TINY)
     return gym.make(env_id, **kwargs)
+
+
+def make_camera(robot: dict[str, Any] | None = None, camera: dict[str, Any] | None = None) -> Any:
+    """The env's depth camera for the given config sections, built as the env builds it."""
+    from agrinav_gym.config import EnvConfig
+    from agrinav_gym.env import robot_interface
+    from agrinav_gym.sensors.depth import DepthCamera
+    from agrinav_gym.sim.world import RobotGeometry
+
+    cfg = EnvConfig.from_dict({"robot": robot or {}, "camera": camera or {}})
+    return DepthCamera(cfg.camera, robot_interface(cfg, RobotGeometry.from_urdf()).camera)

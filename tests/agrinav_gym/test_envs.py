@@ -161,7 +161,7 @@ def test_rgb_array_render() -> None:
     try:
         env.reset(seed=0)
         frame = env.render()
-        assert frame.shape == (240, 320, 3) and frame.dtype == np.uint8
+        assert frame.shape == (480, 640, 3) and frame.dtype == np.uint8
         assert frame.std() > 5  # not a blank image: terrain, robot and plants are drawn
     finally:
         env.close()

@@ -1,29 +1,50 @@
 import math
 
+import gymnasium as gym
 import numpy as np
 import pytest
 
-from agrinav_gym.metrics import cross_track_metrics, project_to_polyline
+from agrinav_gym.metrics import EpisodeMetrics, RouteProjector
+from agrinav_gym.routes import RoutePath
+
+from .helpers import TINY
+
+
+def _brute(points: np.ndarray, path: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Independent point-to-segment distances: every point against every segment."""
+    a, b = path[:-1], path[1:]
+    ab = b - a
+    p = points[:, None, :]
+    u = np.clip(((p - a) * ab).sum(-1) / np.maximum((ab * ab).sum(-1), 1e-18), 0, 1)
+    d = np.linalg.norm(p - (a + u[..., None] * ab), axis=-1)
+    return d.min(axis=1), d.argmin(axis=1)
+
+
+def _metrics(path: np.ndarray, furrow: np.ndarray, poses: np.ndarray) -> dict:
+    m = EpisodeMetrics(path, furrow)
+    for x, y in poses:
+        _, _, s = m.route.project(x, y)
+        m.update(x, y, s)
+    return m.result(crops_hit=2)
 
 
 def test_metrics_on_a_straight_path_by_hand() -> None:
     path = np.array([[0.0, 0.0], [10.0, 0.0]])
     poses = np.array([[1.0, 0.1], [2.0, -0.2], [3.0, 0.3], [4.0, 0.0]])
-    m = cross_track_metrics(poses, path)
+    m = _metrics(path, np.array([True, True]), poses)
     assert m["rmse"] == pytest.approx(math.sqrt((0.01 + 0.04 + 0.09) / 4))
     assert m["mae"] == pytest.approx(0.6 / 4)
     assert m["max"] == pytest.approx(0.3)
     assert m["completion"] == pytest.approx(40.0)
-    _, _, _, signed = project_to_polyline(poses, path)
-    np.testing.assert_allclose(signed, [0.1, -0.2, 0.3, 0.0])  # left of the path is positive
+    assert m["headland_rmse"] is None and m["poses"] == 4
 
 
 def test_nearest_segment_and_furrow_headland_split() -> None:
     # an L: furrow along x, then a headland leg along y
     path = np.array([[0.0, 0.0], [4.0, 0.0], [4.0, 3.0]])
-    labels = np.array(["furrow", "furrow", "headland"])
+    furrow = np.array([True, True, False])
     poses = np.array([[1.0, 0.2], [3.0, -0.1], [4.3, 2.0], [3.8, 1.0], [5.0, -1.0]])
-    m = cross_track_metrics(poses, path, labels, crops_hit=2)
+    m = _metrics(path, furrow, poses)
     # distances: 0.2, 0.1, 0.3 (headland leg), 0.2 (headland leg), √2 to the corner (4, 0)
     d = np.array([0.2, 0.1, 0.3, 0.2, math.sqrt(2)])
     assert m["rmse"] == pytest.approx(math.sqrt(np.mean(d**2)))
@@ -36,19 +57,47 @@ def test_nearest_segment_and_furrow_headland_split() -> None:
     assert m["completion"] == pytest.approx(100 * 6.0 / 7.0)
 
 
-def test_chunking_does_not_change_results() -> None:
+def test_projector_is_exact_on_a_random_polyline() -> None:
     rng = np.random.default_rng(0)
     path = np.cumsum(rng.normal(size=(300, 2)), axis=0)
-    pts = rng.normal(size=(5000, 2)) * 5
-    a = project_to_polyline(pts, path, chunk=97)
-    b = project_to_polyline(pts, path, chunk=10000)
-    for x, y in zip(a, b, strict=True):
-        np.testing.assert_array_equal(x, y)
+    pts = rng.normal(size=(2000, 2)) * 8
+    proj = RouteProjector(path, np.ones(len(path), bool))
+    got = np.array([proj.project(x, y)[0] for x, y in pts])
+    want, _ = _brute(pts, path)
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)
+
+
+def test_field_route_episode_matches_independent_computation() -> None:
+    """A whole FieldRoute episode with a headland U-turn, driven by pure pursuit: the env's
+    running metrics equal a brute-force nearest-segment computation over its pose log."""
+    from policies import make_policy
+
+    env = gym.make("AgriNav/FieldRoute-v0", scenario_overrides=TINY, observations=["odom", "route"])
+    try:
+        pi = make_policy("rpp", env)
+        obs, _ = env.reset(seed=3)
+        pi.reset()
+        while True:
+            obs, _, term, trunc, info = env.step(pi.act(obs))
+            if term or trunc:
+                break
+        u = env.unwrapped
+        poses, route = u.trajectory, u.route
+    finally:
+        env.close()
+    assert (~route.furrow).any() and info["metrics"]["headland_rmse"] is not None
+    d, seg = _brute(poses, route.xy)
+    in_furrow = (route.furrow[:-1] & route.furrow[1:])[seg]
+    m = info["metrics"]
+    assert m["poses"] == len(poses)
+    assert m["rmse"] == pytest.approx(math.sqrt(np.mean(d**2)), rel=1e-12)
+    assert m["mae"] == pytest.approx(np.mean(d), rel=1e-12)
+    assert m["max"] == pytest.approx(d.max(), rel=1e-12)
+    assert m["in_furrow_rmse"] == pytest.approx(math.sqrt(np.mean(d[in_furrow] ** 2)), rel=1e-12)
+    assert m["headland_rmse"] == pytest.approx(math.sqrt(np.mean(d[~in_furrow] ** 2)), rel=1e-12)
 
 
 def test_route_lookup_interpolates_and_continues_past_the_end() -> None:
-    from agrinav_gym.tasks import RoutePath
-
     xy = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.03]])  # 2.03 m: not a multiple of the table step
     route = RoutePath.from_points(xy, np.zeros(3), np.array([True, True, False]))
     pts, tags = route.lookup(np.array([0.5, 1.5, 2.03, 2.43, 2.83]))

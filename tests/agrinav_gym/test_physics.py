@@ -8,7 +8,7 @@ from .helpers import FLAT, STILL, make
 
 def _true_pose(env):
     u = env.unwrapped
-    return np.array(u._pos), float(u._rpy[2])
+    return np.array(u.state.pos), float(u.state.rpy[2])
 
 
 def test_drives_5m_straight_on_flat_ground() -> None:

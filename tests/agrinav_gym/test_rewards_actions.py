@@ -104,10 +104,10 @@ def test_out_of_range_action_is_clipped() -> None:
 
 
 def test_progress_weighted_by_cross_track_error() -> None:
-    """With ``progress_cte_scale`` = k, progress pays exp(−|cte| / (k · corridor)) of itself."""
+    """With ``reward.progress.cte_scale`` = k, progress pays exp(−|cte| / (k·corridor)) of it."""
     k = 0.1
     runs = []
-    for reward in ({}, {"progress_cte_scale": k}):
+    for reward in ({}, {"progress": {"cte_scale": k}}):
         env = make(scenario_overrides=FLAT, config={**STILL, "reward": reward})
         try:
             env.reset(seed=0, options={"lane": 3})

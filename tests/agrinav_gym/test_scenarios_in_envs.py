@@ -11,13 +11,15 @@ from scenario_gen import ScenarioError
 from .helpers import TINY, make
 
 
-def test_register_scenario_from_object_and_directory(tmp_path: Path) -> None:
+def test_register_scenario_from_a_directory(tmp_path: Path) -> None:
     scn = sg.generate(sg.preset("early-corn", **TINY), seed=5)
     sg.save(scn, tmp_path / "s")
-    a = agrinav_gym.register_scenario("TinyObject", scn)
-    b = agrinav_gym.register_scenario("TinyDir", tmp_path / "s", task="route")
-    assert (a, b) == ("AgriNav/TinyObject-v0", "AgriNav/TinyDir-v0")
+    a = agrinav_gym.register_scenario("TinyDir", tmp_path / "s")
+    b = agrinav_gym.register_scenario("TinyRoute", tmp_path / "s", task="FieldRoute")
+    assert (a, b) == ("AgriNav/TinyDir-v0", "AgriNav/TinyRoute-v0")
+    assert gym.spec(b).entry_point.endswith("FieldRouteEnv")
     for env_id in (a, b):
+        gym.spec(env_id).to_json()  # serialisable: Minari and zoo tools rely on it
         env = gym.make(env_id)
         try:
             env.reset(seed=0)
@@ -27,6 +29,27 @@ def test_register_scenario_from_object_and_directory(tmp_path: Path) -> None:
             env.close()
     with pytest.raises(ScenarioError, match="scenario.json"):
         agrinav_gym.register_scenario("Nope", tmp_path / "missing")
+
+
+def test_register_scenario_refuses_objects_bad_tasks_and_built_in_names(tmp_path: Path) -> None:
+    scn = sg.generate(sg.preset("early-corn", **TINY), seed=5)
+    sg.save(scn, tmp_path / "s")
+    with pytest.raises(ScenarioError, match="save"):
+        agrinav_gym.register_scenario("TinyObject", scn)  # type: ignore[arg-type]
+    with pytest.raises(ScenarioError) as info:
+        agrinav_gym.register_scenario("Tiny", tmp_path / "s", task="route")
+    assert info.value.field == "task" and "FieldRoute" in str(info.value)
+    before = gym.spec("AgriNav/FurrowFollow-v0")
+    for name in ("FurrowFollow", "FieldRoute", "FurrowFollowDepth"):
+        with pytest.raises(ScenarioError, match="built-in"):
+            agrinav_gym.register_scenario(name, tmp_path / "s")
+    assert gym.spec("AgriNav/FurrowFollow-v0") is before
+    assert gym.spec("AgriNav/FurrowFollow-v0").kwargs == {}
+
+
+@pytest.mark.parametrize("env_id", list(agrinav_gym.ENV_IDS))
+def test_every_registered_env_spec_serialises(env_id: str) -> None:
+    assert env_id in gym.spec(env_id).to_json()
 
 
 def test_scenario_bank_samples_every_scenario(tmp_path: Path) -> None:
@@ -76,7 +99,7 @@ def test_randomize_draws_new_scenarios_and_env_params() -> None:
         for i in range(8):
             env.reset(seed=i)
             stages.add(env.unwrapped.scenario.spec.crop.stage)
-            modes.add(env.unwrapped.gnss.cfg.mode)
+            modes.add(env.unwrapped.sensors.gnss.cfg.mode)
         assert len(stages) >= 3 and modes == {"rtk_fixed", "standalone"}
     finally:
         env.close()
@@ -108,7 +131,7 @@ def test_reset_options_switch_scenario_and_lane() -> None:
         ({"observations": ["lidar"]}, "observations"),
         ({"render_mode": "ascii"}, "render_mode"),
         ({"scenario": "no-such-preset"}, "scenario"),
-        ({"randomize": {"crop.stag": [1, 2]}}, "crop.stag"),
+        ({"randomize": {"crop.stag": [1, 2]}}, "randomize.crop.stag"),
         ({"randomize": {"crop.stage": "all"}}, "randomize.crop.stage"),
     ],
 )

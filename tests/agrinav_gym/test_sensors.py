@@ -4,12 +4,13 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from agrinav_gym.config import DepthConfig, GnssConfig, ImuConfig, RobotConfig
-from agrinav_gym.sensors.depth import DepthCamera
+from agrinav_gym.config import GnssConfig, ImuConfig
 from agrinav_gym.sensors.gnss import MODES, Gnss
 from agrinav_gym.sensors.imu import G, Imu
 from agrinav_gym.sim.plants import PlantField
 from scenario_gen import Terrain
+
+from .helpers import make_camera
 
 
 @pytest.mark.parametrize("mode", ["rtk_fixed", "rtk_float", "standalone"])
@@ -78,9 +79,7 @@ def test_imu_noise_matches_the_datasheet() -> None:
 def _empty_plants() -> PlantField:
     e = np.empty(0)
     tree = cKDTree(np.zeros((1, 2)))
-    return PlantField(
-        np.empty((0, 2)), e, e, e, e, np.empty(0, bool), tree, 0.0, tree, np.empty(0, np.int64), 0.0
-    )
+    return PlantField(np.empty((0, 2)), e, e, e, np.empty(0, bool), tree, 0.0, 0)
 
 
 def _flat(z: float = 0.0) -> Terrain:
@@ -88,8 +87,10 @@ def _flat(z: float = 0.0) -> Terrain:
 
 
 def test_depth_pixel_reads_the_true_distance_to_the_ground() -> None:
-    robot = RobotConfig(camera_pitch_deg=30.0, camera_height=0.55, camera_x=0.25)
-    cam = DepthCamera(DepthConfig(width=64, height=48), robot)
+    cam = make_camera(
+        {"camera_pitch_deg": 30.0, "camera_height": 0.55, "camera_x": 0.25},
+        {"width": 64, "height": 48},
+    )
     pos = np.array([0.0, 0.0, 0.11])
     frame = cam.render(np.eye(3), pos, _flat(), _empty_plants(), rng=None)
     # analytic: the ray of pixel (row 30, col 20) from the camera origin to z = 0
@@ -103,8 +104,7 @@ def test_depth_pixel_reads_the_true_distance_to_the_ground() -> None:
 
 
 def test_depth_noise_follows_the_stereo_error_law() -> None:
-    robot = RobotConfig(camera_pitch_deg=5.0)
-    cam = DepthCamera(DepthConfig(width=32, height=24), robot)
+    cam = make_camera({"camera_pitch_deg": 5.0}, {"width": 32, "height": 24})
     plants = _wall_plant(distance=4.0, radius=0.5, height=3.0)
     pos = np.array([0.0, 0.0, 0.11])
     rng = np.random.default_rng(0)
@@ -126,19 +126,15 @@ def _wall_plant(distance: float, radius: float, height: float) -> PlantField:
         np.zeros(1),
         np.full(1, height),
         np.full(1, radius),
-        np.full(1, 0.02),
         np.zeros(1, bool),
         tree,
         radius,
-        tree,
-        np.zeros(1, np.int64),
-        0.02,
+        1,
     )
 
 
 def test_depth_sees_a_plant_at_its_distance_and_labels_it() -> None:
-    robot = RobotConfig(camera_pitch_deg=0.0)
-    cam = DepthCamera(DepthConfig(width=33, height=25, segmentation=True), robot)
+    cam = make_camera({"camera_pitch_deg": 0.0}, {"width": 33, "height": 25, "segmentation": True})
     plants = _wall_plant(distance=3.0, radius=0.2, height=2.0)
     frame = cam.render(np.eye(3), np.array([0.0, 0.0, 0.11]), _flat(), plants, None, labels=True)
     # the centre pixel looks straight along the optical axis at the cylinder's near side
@@ -149,15 +145,17 @@ def test_depth_sees_a_plant_at_its_distance_and_labels_it() -> None:
 
 
 def test_depth_out_of_range_is_zero() -> None:
-    cam = DepthCamera(DepthConfig(width=16, height=12, max_range=2.0), RobotConfig())
+    cam = make_camera(None, {"width": 16, "height": 12, "max_range": 2.0})
     frame = cam.render(np.eye(3), np.array([0.0, 0.0, 0.11]), _flat(), _empty_plants(), None)
     assert (frame.depth == 0).any() and frame.depth.max() <= 2.0
 
 
 def test_a_plant_seen_from_below_its_leaf_band() -> None:
     # a leaf band from 1.0 to 2.0 m, 2 m ahead: a ray 10° up from 0.66 m meets its underside
-    robot = RobotConfig(camera_pitch_deg=-10.0, camera_height=0.55, camera_x=0.0)
-    cam = DepthCamera(DepthConfig(width=33, height=25), robot)
+    cam = make_camera(
+        {"camera_pitch_deg": -10.0, "camera_height": 0.55, "camera_x": 0.0},
+        {"width": 33, "height": 25},
+    )
     xy = np.array([[2.0, 0.0]])
     tree = cKDTree(xy)
     plants = PlantField(
@@ -165,13 +163,10 @@ def test_a_plant_seen_from_below_its_leaf_band() -> None:
         np.full(1, 1.0),
         np.full(1, 2.0),
         np.full(1, 0.5),
-        np.full(1, 0.02),
         np.zeros(1, bool),
         tree,
         0.5,
-        tree,
-        np.zeros(1, np.int64),
-        0.02,
+        1,
     )
     pos = np.array([0.0, 0.0, 0.11])
     o, rays = cam.pose(np.eye(3), pos)

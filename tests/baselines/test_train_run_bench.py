@@ -137,14 +137,24 @@ def test_run_writes_metrics_plot_and_video(tmp_path: Path) -> None:
     records = json.loads((out / "metrics.json").read_text())
     assert len(records) == 1 and records[0]["policy"] == "rpp"
     assert (out / "trajectory_000.png").is_file()
-    assert (out / "episode_000.mp4").stat().st_size > 10_000
+    video = out / "episode_000.webm"
+    assert video.read_bytes()[:4] == b"\x1a\x45\xdf\xa3"  # EBML: a Matroska/WebM file
+    import cv2
+
+    cap = cv2.VideoCapture(str(video))
+    try:
+        assert cap.get(cv2.CAP_PROP_FRAME_WIDTH) == 640
+        assert int(cap.get(cv2.CAP_PROP_FOURCC)).to_bytes(4, "little") == b"VP80"
+        assert cap.read()[0]
+    finally:
+        cap.release()
 
 
 @pytest.mark.parametrize(
     "args,needle",
     [
         (["bench", "--suite", "moon", "--policies", "dwb", "--out", "x"], "--suite: got 'moon'"),
-        (["bench", "--suite", "smoke", "--policies", "mpc", "--out", "x"], "--policies: got 'mpc'"),
+        (["bench", "--suite", "smoke", "--policies", "mpc", "--out", "x"], "policy: got 'mpc'"),
         (["train", "--env", "AgriNav/Nope-v0", "--timesteps", "10", "--out", "x"], "--env"),
     ],
 )

@@ -85,16 +85,15 @@ def test_depth_follower_finds_the_lane() -> None:
     )
     try:
         pi = make_policy("depth", env)
-        obs, _ = env.reset(seed=0)
+        obs, info = env.reset(seed=0)
         est = pi.lane(obs["depth"][0])
         assert est is not None
         offset, heading = est
         # The true lane centre in the robot frame: offset -cte, direction -heading error. It is
         # compared 1 m ahead, where the camera sees the rows (its view starts 0.5 m out).
-        u = env.unwrapped
-        true_heading = -u._info({}, False)["heading_error"]
+        true_heading = -info["heading_error"]
         ahead = 1.0
-        truth = -u._cte + math.tan(true_heading) * ahead
+        truth = -info["cte"] + math.tan(true_heading) * ahead
         assert abs(offset + math.tan(heading) * ahead - truth) < 0.08
         assert abs(heading - true_heading) < 0.2
     finally:

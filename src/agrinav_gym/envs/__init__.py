@@ -1,6 +1,6 @@
 """The AgriNav environments."""
 
-from .base import AgriNavEnv
+from ..env import AgriNavEnv
 from .field_route import FieldRouteEnv
 from .furrow_follow import FurrowFollowDepthEnv, FurrowFollowEnv
 

@@ -4,10 +4,7 @@ from __future__ import annotations
 
 from typing import ClassVar
 
-from scenario_gen import Scenario
-
-from ..tasks import RoutePath, scenario_route
-from .base import AgriNavEnv
+from ..env import AgriNavEnv
 
 
 class FieldRouteEnv(AgriNavEnv):
@@ -42,7 +39,5 @@ class FieldRouteEnv(AgriNavEnv):
     * v0: initial version.
     """
 
+    task_name: ClassVar[str] = "FieldRoute"
     default_observations: ClassVar[tuple[str, ...]] = ("gps", "imu", "odom", "route", "depth")
-
-    def _make_route(self, scn: Scenario) -> RoutePath:
-        return scenario_route(scn)

@@ -4,10 +4,7 @@ from __future__ import annotations
 
 from typing import ClassVar
 
-from scenario_gen import Scenario, ScenarioError
-
-from ..tasks import RoutePath, lane_route
-from .base import AgriNavEnv
+from ..env import AgriNavEnv
 
 
 class FurrowFollowEnv(AgriNavEnv):
@@ -35,7 +32,7 @@ class FurrowFollowEnv(AgriNavEnv):
     ## Rewards
     A sum of named parts, each in ``info["rewards"]``, weights in ``config.reward``:
     ``progress`` (+ route progress per step, 1 at full speed; with
-    ``config.reward.progress_cte_scale`` = k it is weighted in furrows by
+    ``config.reward.progress.cte_scale`` = k it is weighted in furrows by
     exp(−|cte| / (k · corridor)), so that only distance driven on the line pays),
     ``cte`` (−(cte / corridor)², cross-track error from the **true** pose),
     ``heading`` (−|heading error| / π), ``crop_contact`` (−per crop newly touched),
@@ -68,16 +65,7 @@ class FurrowFollowEnv(AgriNavEnv):
     * v0: initial version.
     """
 
-    def _make_route(self, scn: Scenario) -> RoutePath:
-        n = len(scn.lanes)
-        if n == 0:
-            raise ScenarioError("scenario", scn.spec.name, "has no lane (needs two rows)")
-        lane = self._lane_option
-        if lane is None:
-            lane = int(self.np_random.integers(1, n - 1)) if n > 2 else 0
-        elif not 0 <= int(lane) < n:
-            raise ScenarioError("options.lane", lane, f"allowed: 0..{n - 1}")
-        return lane_route(scn, int(lane))
+    task_name: ClassVar[str] = "FurrowFollow"
 
 
 class FurrowFollowDepthEnv(FurrowFollowEnv):

@@ -14,13 +14,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from scenario_gen import Terrain
 
-from ..config import DepthConfig, RobotConfig
+from ..config import CameraConfig
+from ..interface import CameraModel
 from ..sim.plants import PlantField
 from ..sim.world import SOIL_RGB
 
@@ -38,24 +40,28 @@ class DepthFrame:
 
 
 class DepthCamera:
-    def __init__(self, cfg: DepthConfig, robot: RobotConfig) -> None:
+    """``model`` gives intrinsics and mount (the public ``RobotInterface.camera``); ``cfg`` the
+    sensor's noise, range and outputs."""
+
+    def __init__(self, cfg: CameraConfig, model: CameraModel) -> None:
         self.cfg = cfg
-        w, h = cfg.width, cfg.height
-        fx = 0.5 * w / math.tan(math.radians(cfg.hfov_deg) / 2)
-        fy = 0.5 * h / math.tan(math.radians(cfg.vfov_deg) / 2)
-        u, v = np.meshgrid(np.arange(w) - 0.5 * (w - 1), np.arange(h) - 0.5 * (h - 1))
-        d = np.stack([np.ones_like(u), -u / fx, -v / fy], axis=-1).reshape(-1, 3)
+        d = model.pixel_rays()
         d /= np.linalg.norm(d, axis=1, keepdims=True)
         self.forward = d[:, 0].copy()  # cos of the angle to the optical axis
-        th = math.radians(robot.camera_pitch_deg)  # +pitch about y tilts the axis down
-        pitch = np.array(
-            [[math.cos(th), 0, math.sin(th)], [0, 1, 0], [-math.sin(th), 0, math.cos(th)]]
-        )
-        self.rays_body = d @ pitch.T
-        self.mount = np.array([robot.camera_x, 0.0, robot.camera_height])
+        self.rays_body = d @ model.rotation.T  # +pitch about y tilts the axis down
+        self.mount = np.asarray(model.position, np.float64)
         self.f_native = 0.5 * cfg.native_width / math.tan(math.radians(cfg.hfov_deg) / 2)
         self.soil_rgb = np.array(SOIL_RGB)
         self.light = np.array([0.3, 0.2, 0.93]) / np.linalg.norm([0.3, 0.2, 0.93])
+
+    def set_lighting(self, soil_rgb: Any | None, azimuth_deg: float, elevation_deg: float) -> None:
+        """Soil colour (RGB in [0, 1]; None keeps the current one) and the sun direction."""
+        if soil_rgb is not None:
+            self.soil_rgb = np.clip(np.asarray(soil_rgb, float), 0, 1)
+        az, el = math.radians(float(azimuth_deg)), math.radians(float(elevation_deg))
+        self.light = np.array(
+            [math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)]
+        )
 
     def noise_sigma(self, z: FloatArray) -> FloatArray:
         return z * z * self.cfg.subpixel / (self.f_native * self.cfg.baseline)

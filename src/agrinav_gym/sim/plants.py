@@ -1,7 +1,6 @@
 """Plants as analytic proxies: no pybullet body per plant (DESIGN §8).
 
-Crop contact is counted geometrically (robot footprint vs stem-level proxy circles through a
-KD-tree). The depth camera intersects vertical cylinders: every plant has a core of the
+The depth camera intersects vertical cylinders: every plant has a core of the
 canopy's visible radius from the ground to its top. Species with planar leaves (maize) add a
 leaf band above the bare lower stalk: how far it reaches into the inter-row depends on the
 leaf plane's azimuth (the plant's yaw) against the row, and a tall crop's leaves close over the
@@ -11,8 +10,7 @@ Per plant this holds a handful of floats plus its KD-tree node: a few hundred by
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -38,13 +36,10 @@ class PlantField:
     z: FloatArray  # cylinder bottom
     top: FloatArray  # cylinder top
     radius: FloatArray
-    contact_radius: FloatArray  # (n,) per plant: stem-level proxy (crop contact)
     is_weed: NDArray[np.bool_]
     tree: cKDTree
     max_radius: float
-    crop_tree: cKDTree  # crops only: weeds never count as crop contact
-    crop_index: NDArray[np.int64]
-    max_contact: float
+    n_plants: int  # cylinders [0, n_plants) are the plants' cores, the rest leaf bands
 
     @classmethod
     def from_scenario(cls, scn: Scenario) -> PlantField:
@@ -52,7 +47,6 @@ class PlantField:
         names = np.unique(p.species)
         radius = np.empty(len(p))
         leaf = np.empty(len(p))
-        contact = np.empty(len(p))
         # fraction of the leaf plane's reach that points across the rows
         across = np.abs(np.sin(p.yaw - scn.rows.angle))
         for name in names:
@@ -63,59 +57,21 @@ class PlantField:
             width = sp.canopy_width(growth) * scale
             radius[m] = CANOPY_FILL * width
             leaf[m] = 0.5 * LEAF_REACH * width * across[m] if sp.planar_leaves else 0.0
-            contact[m] = sp.proxy_radius * scale
         xy = np.column_stack([p.x, p.y]).astype(np.float64)
         band = np.flatnonzero((leaf > radius) & ~p.is_weed)
         cyl_xy = np.concatenate([xy, xy[band]])
         cyl_radius = np.concatenate([radius, leaf[band]])
         tree = cKDTree(cyl_xy if len(cyl_xy) else np.zeros((1, 2)))
-        crop_index = np.flatnonzero(~p.is_weed)
-        crop_tree = cKDTree(xy[crop_index] if len(crop_index) else np.zeros((1, 2)))
         return cls(
             cyl_xy,
             np.concatenate([p.z, p.z[band] + LEAF_BASE * p.height[band]]),
             np.concatenate([p.z + p.height, p.z[band] + p.height[band]]),
             cyl_radius,
-            contact,
             np.concatenate([p.is_weed, np.zeros(len(band), bool)]),
             tree,
             float(cyl_radius.max()) if len(cyl_radius) else 0.0,
-            crop_tree,
-            crop_index,
-            float(contact.max()) if len(contact) else 0.0,
+            len(p),
         )
 
-    def __post_init__(self) -> None:
-        lists = (self.xy.tolist(), self.contact_radius.tolist(), self.crop_index.tolist())
-        object.__setattr__(self, "_lists", lists)
-
-    _lists: tuple[list[list[float]], list[float], list[int]] = field(
-        init=False, repr=False, compare=False
-    )
-
     def __len__(self) -> int:
-        return len(self.contact_radius)
-
-    def crops_touching(
-        self, x: float, y: float, yaw: float, length: float, width: float
-    ) -> NDArray[np.int64]:
-        """Indices of crops (not weeds) whose stem proxy overlaps the footprint rectangle."""
-        if len(self.crop_index) == 0:
-            return np.empty(0, np.int64)
-        reach = 0.5 * math.hypot(length, width) + self.max_contact
-        found = self.crop_tree.query_ball_point((x, y), reach)
-        if not found:
-            return np.empty(0, np.int64)
-        # a dozen candidates at most: plain Python beats numpy's per-call overhead here
-        c, s = math.cos(yaw), math.sin(yaw)
-        hl, hw = 0.5 * length, 0.5 * width
-        hits = []
-        xy, rad, crop_index = self._lists
-        for j in found:
-            i = crop_index[j]
-            dx, dy = xy[i][0] - x, xy[i][1] - y
-            fx = max(abs(c * dx + s * dy) - hl, 0.0)
-            fy = max(abs(-s * dx + c * dy) - hw, 0.0)
-            if fx * fx + fy * fy <= rad[i] * rad[i]:
-                hits.append(i)
-        return np.asarray(hits, dtype=np.int64)
+        return self.n_plants

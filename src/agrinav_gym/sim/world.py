@@ -38,10 +38,23 @@ class RobotGeometry:
     """Facts read from the packaged URDF, so Python and the model cannot disagree."""
 
     wheel_radius: float
+    wheel_width: float
     track: float
     wheelbase: float
     footprint: tuple[float, float]  # length, width (DESIGN §5: 0.724 x 0.616 m nav footprint)
+    chassis: tuple[float, float, float]  # collision box size (x, y, z), m
     frames: dict[str, tuple[float, float, float]]  # sensor link origins in base_link
+
+    @property
+    def contact_rects(self) -> tuple[tuple[float, float, float, float], ...]:
+        """The chassis box and the four wheels seen from above: (cx, cy, half_x, half_y)."""
+        hx, hy = 0.5 * self.wheelbase, 0.5 * self.track
+        wheels = tuple(
+            (sx * hx, sy * hy, self.wheel_radius, 0.5 * self.wheel_width)
+            for sx in (1, -1)
+            for sy in (1, -1)
+        )
+        return ((0.0, 0.0, 0.5 * self.chassis[0], 0.5 * self.chassis[1]), *wheels)
 
     @classmethod
     def from_urdf(cls) -> RobotGeometry:
@@ -55,9 +68,32 @@ class RobotGeometry:
             return a, b, c
 
         fl, br = xyz("front_left_wheel_joint"), xyz("back_right_wheel_joint")
-        radius = float(root.find(".//link[@name='front_left_wheel']//cylinder").get("radius"))  # type: ignore[union-attr,arg-type]
+        cyl = root.find(".//link[@name='front_left_wheel']/visual//cylinder")
+        box = root.find(".//link[@name='base_link']/collision//box")
+        assert cyl is not None and box is not None
+        chassis = tuple(float(v) for v in str(box.get("size")).split())
         frames = {n[: -len("_joint")]: xyz(n) for n in joints if n.endswith("link_joint")}
-        return cls(radius, fl[1] - br[1], fl[0] - br[0], (0.724, 0.616), frames)
+        return cls(
+            float(str(cyl.get("radius"))),
+            float(str(cyl.get("length"))),
+            fl[1] - br[1],
+            fl[0] - br[0],
+            (0.724, 0.616),
+            (chassis[0], chassis[1], chassis[2]),
+            frames,
+        )
+
+
+@dataclass(frozen=True)
+class RobotState:
+    """Ground truth of the robot after a physics step (for sensors, rewards, metrics only)."""
+
+    pos: FloatArray  # (3,) base_link in ENU, m
+    rot: FloatArray  # (3, 3) base_link -> world
+    rpy: FloatArray  # (3,) roll, pitch, yaw, rad
+    vel: FloatArray  # (3,) world-frame linear velocity, m/s
+    ang: FloatArray  # (3,) world-frame angular velocity, rad/s
+    wheels: list[float]  # wheel speeds, rad/s (fl, fr, bl, br)
 
 
 @contextlib.contextmanager
@@ -89,9 +125,12 @@ class World:
         self.cfg = robot
         if gui and sys.platform.startswith("linux") and not os.environ.get("DISPLAY"):
             # pybullet's GUI blocks forever without an X display instead of failing
-            raise RuntimeError(
-                "render_mode='human' needs a display (DISPLAY is unset); "
-                "use render_mode='rgb_array' on a headless machine"
+            from scenario_gen.errors import InputError
+
+            raise InputError(
+                "render_mode",
+                "human",
+                "needs a display (DISPLAY is unset); use render_mode='rgb_array' headless",
             )
         self.client = p.connect(p.GUI if gui else p.DIRECT)
         self.geometry = RobotGeometry.from_urdf()
@@ -196,13 +235,29 @@ class World:
     def follow(self, x: float, y: float, heading: float | None = None) -> None:
         self.patch.follow(x, y, heading=heading)
 
-    def state(self) -> tuple[Any, Any, Any, Any, list[float]]:
-        """Position, quaternion, linear and angular velocity (world), wheel speeds (rad/s)."""
+    def state(self) -> RobotState:
         cid = self.client
         pos, quat = p.getBasePositionAndOrientation(self.robot, physicsClientId=cid)
         lin, ang = p.getBaseVelocity(self.robot, physicsClientId=cid)
         wheels = [s[1] for s in p.getJointStates(self.robot, self.wheels, physicsClientId=cid)]
-        return pos, quat, lin, ang, wheels
+        return RobotState(
+            np.asarray(pos),
+            np.asarray(p.getMatrixFromQuaternion(quat)).reshape(3, 3),
+            np.asarray(p.getEulerFromQuaternion(quat)),
+            np.asarray(lin),
+            np.asarray(ang),
+            wheels,
+        )
+
+    def load_visuals(self, scn: Any) -> None:
+        """Terrain and plant visuals for the GUI and rgb_array views, loaded once per world."""
+        if self.visuals_loaded:
+            return
+        from .visuals import load_plant_visuals, load_terrain_visual
+
+        load_terrain_visual(self.client, scn)
+        load_plant_visuals(self.client, scn)
+        self.visuals_loaded = True
 
     def close(self) -> None:
         if self.client >= 0:

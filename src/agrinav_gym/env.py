@@ -1,0 +1,381 @@
+"""The environment: a thin orchestrator over named parts.
+
+``AgriNavEnv`` wires a ``ScenarioSource`` (where fields come from), a ``Task`` (route, start,
+termination checks), the pybullet ``World``, the ``SensorSuite``, a ``StateEstimator``, one
+``ObservationModel`` per observation key, the reward-term table and ``EpisodeMetrics``.
+``reset`` and ``step`` only call them in order; each part is replaceable on its own (see
+docs/design.md, "Where do I add ...?").
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+import sys
+from pathlib import Path
+from typing import Any, ClassVar
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+from gymnasium.utils import EzPickle
+from numpy.typing import NDArray
+
+from scenario_gen import Scenario
+from scenario_gen.errors import InputError
+
+from . import rewards
+from .config import EnvConfig
+from .estimation import Readings, make_estimator
+from .interface import CameraModel, RobotInterface
+from .metrics import EpisodeMetrics
+from .observations import OBSERVATION_MODELS, DepthObservation, Snapshot
+from .routes import RoutePath, Tracker
+from .scenarios import ScenarioSource
+from .sensors.suite import SensorSuite
+from .sim.contact import CropContact
+from .sim.plants import PlantField
+from .sim.render import chase_view
+from .sim.world import RobotGeometry, RobotState, World
+from .tasks import TASKS
+
+Obs = dict[str, NDArray[np.float32]]
+
+
+def _display() -> bool:
+    return not sys.platform.startswith("linux") or bool(os.environ.get("DISPLAY"))
+
+
+def robot_interface(cfg: EnvConfig, geo: RobotGeometry) -> RobotInterface:
+    r, c, g = cfg.robot, cfg.camera, cfg.gnss
+    camera = CameraModel.from_fov(
+        c.width,
+        c.height,
+        math.radians(c.hfov_deg),
+        math.radians(c.vfov_deg),
+        (r.camera_x, 0.0, r.camera_height),
+        math.radians(r.camera_pitch_deg),
+        c.min_range,
+        c.max_range,
+    )
+    return RobotInterface(
+        geo.footprint,
+        geo.wheel_radius,
+        geo.track,
+        geo.wheelbase,
+        geo.wheel_radius,
+        r.v_max,
+        r.w_max,
+        r.a_max,
+        r.alpha_max,
+        1.0 / r.control_hz,
+        camera,
+        cfg.task.route_points,
+        cfg.task.route_spacing,
+        (g.antenna_x, 0.0, g.antenna_height),
+    )
+
+
+def _wrap(a: float) -> float:
+    return float((a + math.pi) % (2 * math.pi) - math.pi)
+
+
+class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
+    # "human" needs a display (pybullet's GUI blocks forever without one): headless, it is not
+    # offered, so checkers and wrappers see only what works here.
+    metadata: dict[str, Any] = {  # noqa: RUF012
+        "render_modes": ["rgb_array", "human"] if _display() else ["rgb_array"],
+        "render_fps": 20,
+    }
+    task_name: ClassVar[str]
+    default_observations: ClassVar[tuple[str, ...]] = ("gps", "imu", "odom", "route")
+
+    def __init__(
+        self,
+        scenario: Scenario | str | Path | None = None,
+        scenario_overrides: dict[str, Any] | None = None,
+        scenario_seed: int = 0,
+        randomize: dict[str, Any] | None = None,
+        scenario_seeds: tuple[int, int] | list[int] | None = None,
+        bank: str | Path | None = None,
+        observations: tuple[str, ...] | list[str] | None = None,
+        config: dict[str, Any] | None = None,
+        render_mode: str | None = None,
+    ) -> None:
+        EzPickle.__init__(
+            self,
+            scenario,
+            scenario_overrides,
+            scenario_seed,
+            randomize,
+            scenario_seeds,
+            bank,
+            observations,
+            config,
+            render_mode,
+        )
+        self._closed = True
+        if render_mode is not None and render_mode not in ("rgb_array", "human"):
+            raise InputError("render_mode", render_mode, "allowed: None, rgb_array, human")
+        self.render_mode = render_mode
+        self.observation_names = _check_observations(observations, self.default_observations)
+        self.cfg = EnvConfig.from_dict(config)
+        self.source = ScenarioSource(
+            scenario, scenario_overrides, scenario_seed, scenario_seeds, bank, randomize
+        )
+        self.scenario = self.source.first
+        self.world = World(self.cfg.robot, gui=render_mode == "human")
+        self._closed = False
+        self.interface = robot_interface(self.cfg, self.world.geometry)
+        self.task = TASKS[self.task_name](self.cfg.task, self.interface)
+        self.dt = self.interface.control_dt
+        self.substeps = self.cfg.robot.physics_hz // self.cfg.robot.control_hz
+        self.sensors = SensorSuite(self.cfg, self.world.geometry, self.dt)
+        self.estimator = make_estimator("blend")
+        self.obs_models = {
+            k: OBSERVATION_MODELS[k](self.cfg, self.interface) for k in self.observation_names
+        }
+        self.observation_space = spaces.Dict({k: m.space() for k, m in self.obs_models.items()})  # type: ignore[assignment]
+        self.action_space = spaces.Box(-1.0, 1.0, (2,), np.float32)
+        self.route: RoutePath | None = None
+        self._fields_of: Scenario | None = None
+
+    # ------------------------------------------------------------------ gym API
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[Obs, dict[str, Any]]:
+        self._check_open("reset")
+        super().reset(seed=seed)
+        opts = self._check_options(options)
+        rng = self.np_random
+        self.scenario, env_values = self.source.sample(rng, self.scenario, opts.get("scenario"))
+        self._apply_env_values(env_values)
+        self._build_world()
+        self.route = self.task.make_route(self.scenario, rng, opts)
+        self.start = self.task.start_pose(self.route, rng, self._clearance())
+        self.world.place_robot(*self.start, self.scenario.terrain)
+        self.world.step(1)
+        self.tracker = Tracker(self.route)
+        self.tracker.reset(self.start[0], self.start[1])
+        self.metrics = EpisodeMetrics(self.route.xy, self.route.furrow)
+        self._cmd, self._prev_action, self._steps = (0.0, 0.0), (0.0, 0.0), 0
+        self._hit: set[int] = set()
+        self.state = self.world.state()
+        self.readings = self.sensors.reset(self.state, rng)
+        self.estimator.reset(*self.start, rng)
+        self.estimator.update(self.readings, self.dt)
+        self._cte, self._s, self._k = self.tracker.update(*self._xy())
+        self._s0 = self._s
+        self.metrics.update(*self._xy(), self._s)
+        snap = self._snapshot()
+        for m in self.obs_models.values():
+            m.reset(snap)
+        if self.render_mode == "human":
+            self.world.load_visuals(self.scenario)
+        return self._observe(snap), self._info(None, {})
+
+    def step(self, action: NDArray[np.float32]) -> tuple[Obs, float, bool, bool, dict[str, Any]]:
+        a = self._check_action(action)
+        self._command(a)
+        self.world.follow(
+            float(self.state.pos[0]), float(self.state.pos[1]), float(self.state.rpy[2])
+        )
+        self.world.step(self.substeps)
+        self._steps += 1
+        self.state = self.world.state()
+        self.readings = self.sensors.step(self.state, self.np_random)
+        self.estimator.update(self.readings, self.dt)
+        ctx = self._context(a)
+        ctx = dataclasses.replace(ctx, termination=self.task.check(ctx))
+        parts = rewards.evaluate(self.cfg.reward, ctx)
+        self._prev_action = a
+        obs = self._observe(self._snapshot())
+        info = self._info(ctx, parts)
+        # Truncation is the TimeLimit wrapper's (max_episode_steps), which the env cannot see:
+        # the running metrics ride on every step's info, so the last one is final.
+        return obs, float(sum(parts.values())), ctx.termination is not None, False, info
+
+    def render(self) -> NDArray[np.uint8] | None:
+        self._check_open("render")
+        if self.render_mode != "rgb_array" or self.route is None:
+            return None
+        self.world.load_visuals(self.scenario)
+        return chase_view(self.world.client, self.state, self.cfg.render)
+
+    def close(self) -> None:
+        if not getattr(self, "_closed", True):
+            self.world.close()
+            self._closed = True
+
+    # ------------------------------------------------------------------ evaluation access
+    @property
+    def trajectory(self) -> NDArray[np.float64]:
+        """Ground-truth base positions (N, 2) of this episode: for evaluation, never policies."""
+        return self.metrics.trajectory
+
+    @property
+    def crops_hit_ids(self) -> frozenset[int]:
+        """Plant indices (rows of plants.csv) of the crops touched this episode."""
+        return frozenset(self._hit)
+
+    def episode_metrics(self) -> dict[str, Any]:
+        return self.metrics.result(len(self._hit))
+
+    # ------------------------------------------------------------------ parts of a step
+    def _command(self, a: tuple[float, float]) -> None:
+        """Acceleration-limited body twist to the wheels."""
+        r = self.cfg.robot
+        lv, lw = r.a_max * self.dt, r.alpha_max * self.dt
+        dv = a[0] * r.v_max - self._cmd[0]
+        dw = a[1] * r.w_max - self._cmd[1]
+        self._cmd = (self._cmd[0] + min(max(dv, -lv), lv), self._cmd[1] + min(max(dw, -lw), lw))
+        self.world.drive(float(self._cmd[0]), float(self._cmd[1]))
+
+    def _context(self, a: tuple[float, float]) -> rewards.StepContext:
+        assert self.route is not None
+        x, y = self._xy()
+        cte, s, k = self.tracker.update(x, y)
+        ds, self._s, self._cte, self._k = s - self._s, s, cte, k
+        self.metrics.update(x, y, s)
+        new = [
+            i for i in self.contact.touching(x, y, float(self.state.rpy[2])) if i not in self._hit
+        ]
+        self._hit.update(new)
+        furrow = bool(self.route.furrow[k])
+        return rewards.StepContext(
+            dt=self.dt,
+            v_max=self.cfg.robot.v_max,
+            cte=cte,
+            ds=ds,
+            furrow=furrow,
+            corridor=self.task.corridor(self.scenario, furrow),
+            heading_error=_wrap(float(self.state.rpy[2]) - float(self.route.heading[k])),
+            tilt=max(abs(float(self.state.rpy[0])), abs(float(self.state.rpy[1]))),
+            new_crops=len(new),
+            crops_hit=len(self._hit),
+            action=a,
+            prev_action=self._prev_action,
+            off_terrain=not bool(self.scenario.terrain.contains(x, y)),
+            route_left=self.route.length - s,
+        )
+
+    def _snapshot(self) -> Snapshot:
+        assert self.route is not None
+        return Snapshot(
+            self.state,
+            self.readings,
+            self.estimator.pose,
+            self.route,
+            self.scenario,
+            self.plants,
+            self.np_random,
+            self._steps,
+            self.start,
+        )
+
+    def _observe(self, snap: Snapshot) -> Obs:
+        return {k: m.encode(snap) for k, m in self.obs_models.items()}
+
+    def _info(self, ctx: rewards.StepContext | None, parts: dict[str, float]) -> dict[str, Any]:
+        assert self.route is not None
+        r: Readings = self.readings
+        if r.gnss_new or not hasattr(self, "_latlon"):
+            self._latlon = self.scenario.geo.point_to_geodetic(*r.gnss_enu)[:2]
+        info: dict[str, Any] = {
+            "cte": float(self._cte),
+            "heading_error": ctx.heading_error
+            if ctx
+            else _wrap(float(self.state.rpy[2]) - float(self.route.heading[self._k])),
+            "progress": float((self._s - self._s0) / max(self.route.length - self._s0, 1e-9)),
+            "segment": "furrow" if self.route.furrow[self._k] else "headland",
+            "crops_hit": len(self._hit),
+            "lat": self._latlon[0],
+            "lon": self._latlon[1],
+            "rewards": parts,
+            "is_success": bool(ctx and ctx.success),
+            "metrics": self.episode_metrics(),
+        }
+        if ctx is not None and ctx.termination is not None:
+            info["termination"] = ctx.termination
+        depth = self.obs_models.get("depth")
+        if isinstance(depth, DepthObservation):
+            info.update(depth.extras())
+        return info
+
+    # ------------------------------------------------------------------ helpers
+    def _xy(self) -> tuple[float, float]:
+        return float(self.state.pos[0]), float(self.state.pos[1])
+
+    def _build_world(self) -> None:
+        scn = self.scenario
+        self.world.load(scn.terrain, scn.rows.angle)
+        if self._fields_of is not scn:
+            self.plants = PlantField.from_scenario(scn)
+            self.contact = CropContact.from_scenario(scn, self.world.geometry)
+            self._fields_of = scn
+
+    def _clearance(self) -> float:
+        """Room each side of the lane centre before a wheel or the chassis meets a stalk."""
+        return 0.5 * self.scenario.rows.spacing - self.contact.half_width - self.contact.max_radius
+
+    def _apply_env_values(self, values: dict[str, Any]) -> None:
+        if "gnss_mode" in values:
+            self.sensors.set_gnss_mode(str(values["gnss_mode"]))
+        depth = self.obs_models.get("depth")
+        if isinstance(depth, DepthObservation):
+            depth.camera.set_lighting(
+                values.get("soil_colour"),
+                values.get("light_azimuth_deg", 33.7),
+                values.get("light_elevation_deg", 68.4),
+            )
+
+    def _check_open(self, what: str) -> None:
+        if self._closed:
+            raise InputError(what, "called after close()", "allowed: make a new env")
+
+    def _check_options(self, options: Any) -> dict[str, Any]:
+        if options is None:
+            return {}
+        if not isinstance(options, dict):
+            raise InputError("options", options, "allowed: a dict or None")
+        allowed = ("scenario", *self.task.options)
+        unknown = sorted(str(k) for k in set(options) - set(allowed))
+        if unknown:
+            raise InputError("options", unknown, f"allowed keys: {', '.join(allowed)}")
+        return dict(options)
+
+    def _check_action(self, action: Any) -> tuple[float, float]:
+        self._check_open("step")
+        if self.route is None:
+            raise InputError("step", "before reset()", "allowed: call reset() first")
+        try:
+            a = np.asarray(action, dtype=np.float64).reshape(-1)
+        except (TypeError, ValueError):
+            raise InputError("action", action, "allowed: 2 numbers (v, w) in [-1, 1]") from None
+        if a.shape != (2,):
+            raise InputError("action", f"shape {np.shape(action)}", "allowed: shape (2,)")
+        if not np.isfinite(a).all():
+            raise InputError(
+                "action",
+                a.tolist(),
+                "allowed: finite values in [-1, 1] (NaN or inf would corrupt the simulation)",
+            )
+        # documented: out-of-range actions are clipped
+        return min(max(float(a[0]), -1.0), 1.0), min(max(float(a[1]), -1.0), 1.0)
+
+
+def _check_observations(obs: Any, default: tuple[str, ...]) -> tuple[str, ...]:
+    names = tuple(obs) if obs is not None else default
+    bad = [o for o in names if o not in OBSERVATION_MODELS]
+    if bad or not names or len(set(names)) != len(names):
+        raise InputError(
+            "observations",
+            list(names),
+            f"allowed: a non-empty subset of {', '.join(OBSERVATION_MODELS)}",
+        )
+    return names
+
+
+# the estimator's readings are part of the public step data
+__all__ = ["AgriNavEnv", "RobotState", "robot_interface"]

@@ -1,0 +1,215 @@
+"""One observation model per observation key: its space and how a step's data becomes it.
+
+Models read a ``Snapshot`` of the step (sensor readings, the *estimated* pose, the route, and —
+for the camera — the true pose the sensor sees from). Vector layouts are those of
+``interface`` (GPS_FIELDS, IMU_FIELDS, ...). Readings saturate at the sensors' measurement
+ranges, as real ones do. Every call returns a fresh array. A new observation is a new
+``ObservationModel`` subclass decorated with ``@observation``: no shared code changes.
+"""
+
+from __future__ import annotations
+
+import math
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+from typing import Any, ClassVar, TypeVar
+
+import numpy as np
+from gymnasium import spaces
+from numpy.typing import NDArray
+
+from scenario_gen import Scenario
+
+from .config import EnvConfig
+from .estimation import Readings
+from .interface import FIX_CODES, GPS_FIELDS, IMU_FIELDS, ODOM_FIELDS, RobotInterface
+from .routes import RoutePath, Tracker
+from .sensors.depth import DepthCamera, DepthFrame
+from .sim.plants import PlantField
+from .sim.world import RobotState
+
+F32 = NDArray[np.float32]
+G20, RATE = 20 * 9.81, math.radians(450.0)  # MTi-300 ranges: ±20 g, ±450 °/s
+
+
+@dataclass(frozen=True)
+class Snapshot:
+    """What the observation models may read after a control step."""
+
+    state: RobotState  # ground truth: only sensors (the camera) may use it
+    readings: Readings
+    estimate: tuple[float, float, float]  # estimated x, y, yaw
+    route: RoutePath
+    scenario: Scenario
+    plants: PlantField
+    rng: np.random.Generator
+    step: int  # control steps since reset (0 at reset)
+    start: tuple[float, float, float]  # the episode's start pose (x, y, yaw)
+
+
+class ObservationModel(ABC):
+    key: ClassVar[str]
+
+    def __init__(self, cfg: EnvConfig, robot: RobotInterface) -> None:
+        self.cfg = cfg
+        self.robot = robot
+
+    @abstractmethod
+    def space(self) -> spaces.Box: ...
+
+    def reset(self, snap: Snapshot) -> None:  # noqa: B027  (stateless models need nothing)
+        pass
+
+    @abstractmethod
+    def encode(self, snap: Snapshot) -> F32: ...
+
+
+class VectorObservation(ObservationModel):
+    """A float32 vector saturated at the sensor's range [low, high]."""
+
+    low: ClassVar[tuple[float, ...]]
+    high: ClassVar[tuple[float, ...]]
+
+    def space(self) -> spaces.Box:
+        return spaces.Box(np.asarray(self.low, np.float32), np.asarray(self.high, np.float32))
+
+    def saturate(self, v: F32) -> F32:
+        np.minimum(np.maximum(v, self.low, out=v), self.high, out=v)
+        return v
+
+
+OBSERVATION_MODELS: dict[str, type[ObservationModel]] = {}
+T = TypeVar("T", bound=type[ObservationModel])
+
+
+def observation(cls: T) -> T:
+    OBSERVATION_MODELS[cls.key] = cls
+    return cls
+
+
+@observation
+class GpsObservation(VectorObservation):
+    """ENU antenna fix (m, ±10 km), fix code (FIX_CODES), fix age (s, up to 60)."""
+
+    key: ClassVar[str] = "gps"
+    low = (-1e4, -1e4, -1e4, min(FIX_CODES.values()), 0.0)
+    high = (1e4, 1e4, 1e4, max(FIX_CODES.values()), 60.0)
+
+    def encode(self, snap: Snapshot) -> F32:
+        r = snap.readings
+        out = np.empty(len(GPS_FIELDS), np.float32)
+        out[:3] = r.gnss_enu
+        out[3] = FIX_CODES[r.gnss_mode]
+        out[4] = min(r.gnss_age, 60.0)
+        return self.saturate(out)
+
+
+@observation
+class ImuObservation(VectorObservation):
+    """Body specific force (m/s²), angular rate (rad/s), roll, pitch, sin/cos heading."""
+
+    key: ClassVar[str] = "imu"
+    low = (-G20,) * 3 + (-RATE,) * 3 + (-math.pi, -math.pi, -1.0, -1.0)
+    high = (G20,) * 3 + (RATE,) * 3 + (math.pi, math.pi, 1.0, 1.0)
+
+    def encode(self, snap: Snapshot) -> F32:
+        r = snap.readings
+        out = np.empty(len(IMU_FIELDS), np.float32)
+        out[:3], out[3:6], out[6:8] = r.accel, r.gyro, r.rpy[:2]
+        out[8], out[9] = math.sin(r.rpy[2]), math.cos(r.rpy[2])
+        return self.saturate(out)
+
+
+@observation
+class OdomObservation(VectorObservation):
+    """Wheel-odometry forward speed (m/s, ±10) and yaw rate (rad/s, ±20)."""
+
+    key: ClassVar[str] = "odom"
+    low = (-10.0, -20.0)
+    high = (10.0, 20.0)
+
+    def encode(self, snap: Snapshot) -> F32:
+        out = np.asarray(snap.readings.odom, np.float32).copy()
+        assert out.shape == (len(ODOM_FIELDS),)
+        return self.saturate(out)
+
+
+@observation
+class RouteObservation(ObservationModel):
+    """The next K route points, ``route_spacing`` apart along the route from the *estimated*
+    pose's projection, in the estimated robot frame (±100 m), each with a furrow flag."""
+
+    key: ClassVar[str] = "route"
+
+    def __init__(self, cfg: EnvConfig, robot: RobotInterface) -> None:
+        super().__init__(cfg, robot)
+        k = robot.route_points
+        self.offsets = robot.route_spacing * np.arange(1, k + 1)
+        self.low = np.tile(np.array([-100.0, -100.0, 0.0], np.float32), k)
+        self.high = np.tile(np.array([100.0, 100.0, 1.0], np.float32), k)
+        self.tracker: Tracker | None = None
+
+    def space(self) -> spaces.Box:
+        return spaces.Box(self.low, self.high)
+
+    def reset(self, snap: Snapshot) -> None:
+        self.tracker = Tracker(snap.route)
+        self.tracker.reset(snap.start[0], snap.start[1])
+
+    def encode(self, snap: Snapshot) -> F32:
+        assert self.tracker is not None
+        ex, ey, yaw = snap.estimate
+        _, s, _ = self.tracker.update(ex, ey)
+        pts, furrow = snap.route.lookup(s + self.offsets)
+        c, sn = math.cos(yaw), math.sin(yaw)
+        out = np.empty((len(self.offsets), 3), np.float32)
+        out[:, :2] = (pts - (ex, ey)) @ np.array([[c, -sn], [sn, c]])  # world -> robot frame
+        out[:, 2] = furrow
+        flat = out.ravel()
+        np.minimum(np.maximum(flat, self.low, out=flat), self.high, out=flat)
+        return flat
+
+
+@observation
+class DepthObservation(ObservationModel):
+    """D455-like z-depth (1, H, W) in metres, 0 = invalid, at ``camera.rate_hz``; the frame's
+    RGB and segmentation (when enabled) go to ``info``."""
+
+    key: ClassVar[str] = "depth"
+
+    def __init__(self, cfg: EnvConfig, robot: RobotInterface) -> None:
+        super().__init__(cfg, robot)
+        self.camera = DepthCamera(cfg.camera, robot.camera)
+        self.every = max(1, round(cfg.robot.control_hz / cfg.camera.rate_hz))
+        self.frame: DepthFrame | None = None
+
+    def space(self) -> spaces.Box:
+        c = self.cfg.camera
+        return spaces.Box(0.0, c.max_range, (1, c.height, c.width), np.float32)
+
+    def reset(self, snap: Snapshot) -> None:
+        self.frame = None
+
+    def encode(self, snap: Snapshot) -> F32:
+        if self.frame is None or snap.step % self.every == 0:
+            c = self.cfg.camera
+            s = snap.state
+            self.frame = self.camera.render(
+                s.rot,
+                s.pos,
+                snap.scenario.terrain,
+                snap.plants,
+                snap.rng,
+                rgb=c.rgb,
+                labels=c.segmentation,
+            )
+        return self.frame.depth[None].copy()
+
+    def extras(self) -> dict[str, Any]:
+        """The current frame's RGB and segmentation, for ``info``."""
+        out: dict[str, Any] = {}
+        if self.frame is not None and self.frame.rgb is not None:
+            out["rgb"] = self.frame.rgb.copy()
+        if self.frame is not None and self.frame.label is not None:
+            out["segmentation"] = self.frame.label.copy()
+        return out

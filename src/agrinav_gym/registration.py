@@ -1,0 +1,112 @@
+"""One table of env definitions, registered idempotently under the ``AgriNav/`` namespace.
+
+User scenarios become envs with ``register_scenario`` / ``register_scenario_bank``; they may
+never replace a built-in id, and their kwargs stay JSON-serialisable (a directory, not a
+``Scenario`` object), so ``gym.spec(id).to_json()`` works for every registered env.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from gymnasium.envs.registration import register, registry
+
+from scenario_gen import Scenario
+from scenario_gen.errors import InputError
+
+NAMESPACE = "AgriNav"
+
+
+@dataclass(frozen=True)
+class EnvDef:
+    name: str  # what users see: AgriNav/<name>-v<version>
+    version: int
+    entry_point: str
+    max_episode_steps: int
+
+    @property
+    def id(self) -> str:
+        return f"{NAMESPACE}/{self.name}-v{self.version}"
+
+
+# Step limits: a default-field lane (22 m) at the slowest shipped controller's 0.3 m/s is 73 s,
+# 1,470 steps at 20 Hz; the paper's zigzag (≈ 60 m with the U-turn) at 0.3 m/s is 4,000.
+ENVS = (
+    EnvDef("FurrowFollow", 0, "agrinav_gym.envs.furrow_follow:FurrowFollowEnv", 1500),
+    EnvDef("FurrowFollowDepth", 0, "agrinav_gym.envs.furrow_follow:FurrowFollowDepthEnv", 1500),
+    EnvDef("FieldRoute", 0, "agrinav_gym.envs.field_route:FieldRouteEnv", 4000),
+)
+ENV_IDS = tuple(d.id for d in ENVS)
+_BY_NAME = {d.name: d for d in ENVS}
+
+
+def register_envs() -> None:
+    """Register the built-in ids (idempotent: importing twice is harmless)."""
+    for d in ENVS:
+        _register(d.id, d, {})
+
+
+def _register(env_id: str, d: EnvDef, kwargs: dict[str, Any]) -> str:
+    if env_id in registry:
+        del registry[env_id]
+    register(
+        id=env_id,
+        entry_point=d.entry_point,
+        max_episode_steps=d.max_episode_steps,
+        kwargs=kwargs,
+    )
+    return env_id
+
+
+def _user_id(name: Any, task: Any, kwargs: dict[str, Any]) -> tuple[str, EnvDef]:
+    if not isinstance(name, str) or not re.fullmatch(r"[A-Za-z][A-Za-z0-9_]*", name):
+        raise InputError("name", name, "allowed: a plain name like 'MyField' (letters, digits, _)")
+    if name in _BY_NAME:
+        raise InputError(
+            "name",
+            name,
+            f"is a built-in env; allowed: any other name ({', '.join(_BY_NAME)} taken)",
+        )
+    if task not in _BY_NAME:
+        raise InputError("task", task, f"allowed: one of {', '.join(_BY_NAME)}")
+    try:
+        json.dumps(kwargs)
+    except TypeError as exc:
+        raise InputError(
+            "kwargs", sorted(kwargs), f"must be JSON-serialisable for EnvSpec.to_json ({exc})"
+        ) from None
+    return f"{NAMESPACE}/{name}-v0", _BY_NAME[task]
+
+
+def register_scenario(
+    name: str, scenario: str | Path, task: str = "FurrowFollow", **kwargs: Any
+) -> str:
+    """Register ``AgriNav/<name>-v0``: ``task`` on the scenario saved in ``scenario``."""
+    if isinstance(scenario, Scenario):
+        raise InputError(
+            "scenario",
+            "a Scenario object",
+            "allowed: a saved scenario directory (scenario_gen.save(scn, dir) first), so the "
+            "env spec stays serialisable",
+        )
+    if not isinstance(scenario, (str, Path)) or not (Path(scenario) / "scenario.json").is_file():
+        raise InputError("scenario", str(scenario), "allowed: a directory holding scenario.json")
+    kwargs = {"scenario": str(Path(scenario).resolve()), **kwargs}
+    env_id, d = _user_id(name, task, kwargs)
+    return _register(env_id, d, kwargs)
+
+
+def register_scenario_bank(
+    name: str, directory: str | Path, task: str = "FurrowFollow", **kwargs: Any
+) -> str:
+    """Register ``AgriNav/<name>-v0`` sampling a scenario of the bank ``directory`` each reset."""
+    from .scenarios import Bank
+
+    Bank(directory)  # refuse an empty or missing bank now
+    kwargs = {"bank": str(Path(directory).resolve()), **kwargs}
+    env_id, d = _user_id(name, task, kwargs)
+    return _register(env_id, d, kwargs)

@@ -1,0 +1,81 @@
+"""Crop contact: which stalks the robot's wheels and chassis touch (analytic, no bodies).
+
+Model: each crop is a vertical stalk, a circle of the catalog's stem diameter at its growth
+(scaled with the plant's height), at its position; the robot is its URDF collision footprint
+seen from above — the chassis box and the four wheels as rectangles in base_link — ignoring
+tilt. A crop is hit when its stalk circle overlaps any rectangle. Leaves brush the robot without
+counting (they bend); weeds never count. A KD-tree of the crops finds the dozen candidates.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial import cKDTree
+
+from scenario_gen import CATALOG, Scenario
+
+from .world import RobotGeometry
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True, eq=False)
+class CropContact:
+    tree: cKDTree  # crops only
+    index: NDArray[np.int64]  # plant index of each tree point
+    xy: list[list[float]]  # per plant (plain lists: a dozen candidates are faster in Python)
+    radius: list[float]  # stalk radius per plant, 0 for weeds
+    max_radius: float
+    rects: tuple[tuple[float, float, float, float], ...]  # (cx, cy, half_x, half_y) in base_link
+    half_width: float  # farthest footprint edge from the centreline, m
+    reach: float  # farthest footprint corner from base_link, m
+
+    @classmethod
+    def from_scenario(cls, scn: Scenario, robot: RobotGeometry) -> CropContact:
+        p = scn.plants
+        radius = np.zeros(len(p))
+        for name in np.unique(p.species):
+            sp = CATALOG[str(name)]
+            m = p.species == name
+            growth = sp.growth_of_stage(p.stage[m])
+            scale = p.height[m] / np.maximum(sp.height(growth), 1e-6)
+            radius[m] = sp.stem_radius(growth) * scale
+        radius[p.is_weed] = 0.0
+        index = np.flatnonzero(~p.is_weed)
+        xy = np.column_stack([p.x, p.y])
+        tree = cKDTree(xy[index] if len(index) else np.zeros((1, 2)))
+        rects = robot.contact_rects
+        return cls(
+            tree,
+            index,
+            xy.tolist(),
+            radius.tolist(),
+            float(radius.max()) if len(radius) else 0.0,
+            rects,
+            max(abs(cy) + hy for _, cy, _, hy in rects),
+            max(math.hypot(abs(cx) + hx, abs(cy) + hy) for cx, cy, hx, hy in rects),
+        )
+
+    def touching(self, x: float, y: float, yaw: float) -> list[int]:
+        """Plant indices of the crops whose stalk touches the footprint at (x, y, yaw)."""
+        if len(self.index) == 0:
+            return []
+        found = self.tree.query_ball_point((x, y), self.reach + self.max_radius)
+        c, s = math.cos(yaw), math.sin(yaw)
+        hits = []
+        for j in found:
+            i = int(self.index[j])
+            dx, dy = self.xy[i][0] - x, self.xy[i][1] - y
+            bx, by = c * dx + s * dy, -s * dx + c * dy  # stalk in base_link
+            r = self.radius[i]
+            for cx, cy, hx, hy in self.rects:
+                fx = max(abs(bx - cx) - hx, 0.0)
+                fy = max(abs(by - cy) - hy, 0.0)
+                if fx * fx + fy * fy <= r * r:
+                    hits.append(i)
+                    break
+        return hits
