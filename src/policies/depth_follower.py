@@ -36,25 +36,25 @@ class DepthFurrowFollower(Policy):
         min_height: float = 0.12,
         near: float = 0.5,
         far: float = 3.0,
-        lane_half_width_prior: float = 0.375,
         **params: Any,
     ) -> None:
         super().__init__(observation_space, action_space, robot, **params)
         self.speed, self.k_lat, self.k_head = speed, k_lateral, k_heading
         self.min_height, self.near, self.far = min_height, near, far
         self.project = DepthProjector(robot.camera, robot.base_height)
-        # the lane's half-width until both rows are seen (then the last one measured): a
-        # controller prior, US maize rows by default, not a fact of the simulated field
-        self.prior = lane_half_width_prior
-        self.half_width = self.prior
+        # The lane's half-width as last measured with both rows in view. The field's row
+        # spacing is not the controller's to know: until it has measured it, one row gives the
+        # lane's direction but not its centre.
+        self.half_width: float | None = None
         self.lost = 0
 
     def reset(self) -> None:
         self.lost = 0
-        self.half_width = self.prior
+        self.half_width = None
 
-    def lane(self, depth: NDArray[np.float32]) -> tuple[float, float] | None:
-        """(lateral offset of the lane centre, its heading) in the robot frame, or None."""
+    def lane(self, depth: NDArray[np.float32]) -> tuple[float | None, float] | None:
+        """(lateral offset of the lane centre or None if unknown, its heading) in the robot
+        frame, or None when no row is in view."""
         pts = self.project.points(depth)
         crop = pts[(pts[:, 2] > self.min_height) & (pts[:, 0] > self.near) & (pts[:, 0] < self.far)]
         fits: list[tuple[float, float] | None] = []
@@ -79,10 +79,11 @@ class DepthFurrowFollower(Policy):
         if left is not None and right is not None:
             self.half_width = float(np.clip((left[0] - right[0]) / 2, 0.2, 1.5))
             return 0.5 * (left[0] + right[0]), math.atan(0.5 * (left[1] + right[1]))
+        hw = self.half_width
         if left is not None:
-            return left[0] - self.half_width, math.atan(left[1])
+            return (None if hw is None else left[0] - hw), math.atan(left[1])
         if right is not None:
-            return right[0] + self.half_width, math.atan(right[1])
+            return (None if hw is None else right[0] + hw), math.atan(right[1])
         return None
 
     def act(self, obs: Obs) -> NDArray[np.float32]:
@@ -92,7 +93,7 @@ class DepthFurrowFollower(Policy):
             return self._twist(0.3 * self.speed, 0.0)
         self.lost = 0
         offset, heading = est
-        w = self.k_lat * offset + self.k_head * heading
+        w = (0.0 if offset is None else self.k_lat * offset) + self.k_head * heading
         v = self.speed / (1.0 + 2.0 * abs(heading))
         return self._twist(v, w)
 

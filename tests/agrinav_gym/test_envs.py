@@ -22,14 +22,55 @@ DEPTH_IMAGE_WARNINGS = ("is an image but its `dtype`", "is an image but the uppe
 
 @pytest.mark.parametrize("env_id", IDS)
 def test_gymnasium_check_env(env_id: str) -> None:
+    """The full checker, render check included: it makes the env in every declared render
+    mode, so a mode that cannot work here (``human`` without a display) must not be declared."""
     env = make(env_id)
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            check_env(env.unwrapped, skip_render_check=True)
+            check_env(env.unwrapped)
         assert [str(w.message) for w in caught] == []
     finally:
         env.close()
+
+
+def test_human_mode_is_declared_only_with_a_display() -> None:
+    from agrinav_gym.env import AgriNavEnv
+
+    modes = AgriNavEnv.metadata["render_modes"]
+    assert "rgb_array" in modes
+    import os
+
+    assert ("human" in modes) == bool(os.environ.get("DISPLAY"))
+    if "human" not in modes:
+        from agrinav_gym.envs import FurrowFollowEnv
+
+        # (gym.make would wrap the env in Gymnasium's HumanRendering instead)
+        with pytest.raises(agrinav_gym.InputError, match="display"):
+            FurrowFollowEnv(scenario_overrides=TINY, render_mode="human")
+
+
+@pytest.mark.parametrize("env_id", ["AgriNav/FurrowFollowDepth-v0", "AgriNav/FieldRoute-v0"])
+def test_camera_extras_and_fresh_arrays_every_step(env_id: str) -> None:
+    """info carries the current RGB and segmentation after every step at every camera rate,
+    and every observation is a new array (nothing the caller keeps changes under it)."""
+    for rate in (20, 5):
+        env = make(
+            env_id, config={"camera": {"rgb": True, "segmentation": True, "rate_hz": rate}}
+        )
+        try:
+            obs, info = env.reset(seed=0)
+            assert info["rgb"].shape == (48, 64, 3) and info["segmentation"].shape == (48, 64)
+            kept = {k: v.copy() for k, v in obs.items()}
+            held = obs
+            for _ in range(6):
+                obs, _, _, _, info = env.step(np.array([0.4, 0.0], np.float32))
+                assert "rgb" in info and "segmentation" in info
+                for k in obs:
+                    assert not np.shares_memory(obs[k], held[k])
+                    np.testing.assert_array_equal(held[k], kept[k])  # the old one is untouched
+        finally:
+            env.close()
 
 
 @pytest.mark.parametrize("env_id", IDS)
