@@ -3,42 +3,20 @@
 from __future__ import annotations
 
 import json
-import math
-import shlex
-import statistics
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 from tqdm import tqdm
 
-from scenario_gen import ScenarioError
+from scenario_gen.atomic import check_output_dir, output_dir
+from scenario_gen.errors import InputError
 
 from .episodes import Episode, VideoWriter, run_episode, trajectory_figure
+from .report import METRICS, bar_chart, command_line, policy_labels, table
 from .suites import EVAL_SEED, Case, suite
 
-METRICS = ("rmse", "mae", "max", "in_furrow_rmse", "headland_rmse", "completion", "crops_hit")
-
-
-def _make(case_or_id: Case | str, scenario: str | None = None, render: bool = False) -> Any:
-    import gymnasium as gym
-
-    import agrinav_gym  # noqa: F401
-
-    if isinstance(case_or_id, Case):
-        kw = case_or_id.env_kwargs()
-        if case_or_id.max_steps is not None:
-            kw["max_episode_steps"] = case_or_id.max_steps
-        env_id = case_or_id.env_id
-    else:
-        env_id = case_or_id
-        kw = {"observations": ["gps", "imu", "odom", "route", "depth"]}
-        if scenario is not None:
-            kw["scenario"] = scenario
-    if render:
-        kw["render_mode"] = "rgb_array"
-    return gym.make(env_id, **kw)
+__all__ = ["METRICS", "bench", "command_line", "run"]
 
 
 def _record(ep: Episode, suite_name: str, scenario: str) -> dict[str, Any]:
@@ -60,6 +38,37 @@ def _write_json(path: Path, data: Any) -> None:
     tmp.replace(path)
 
 
+def _make_env(case_or_id: Case | str, scenario: str | None = None, render: bool = False) -> Any:
+    import gymnasium as gym
+
+    import agrinav_gym
+    from agrinav_gym.registration import NAMESPACE
+
+    if isinstance(case_or_id, Case):
+        kw = case_or_id.env_kwargs()
+        if case_or_id.max_steps is not None:
+            kw["max_episode_steps"] = case_or_id.max_steps
+        env_id = case_or_id.env_id
+    else:
+        env_id = case_or_id
+        kw = {"observations": ["gps", "imu", "odom", "route", "depth"]}
+        if scenario is not None:
+            kw["scenario"] = scenario
+    ids = sorted(i for i in gym.registry if i.startswith(f"{NAMESPACE}/"))
+    if env_id not in gym.registry:
+        raise InputError("--env", env_id, f"allowed: {', '.join(ids or agrinav_gym.ENV_IDS)}")
+    if render:
+        kw["render_mode"] = "rgb_array"
+    return gym.make(env_id, **kw)
+
+
+def _policy(spec: str, env: Any, trust: bool) -> Any:
+    from policies import make_policy
+
+    extra = {"trust_checkpoint": True} if trust and spec.startswith("ppo:") else {}
+    return make_policy(spec, env, **extra)
+
+
 def run(
     env_id: str,
     policy: str,
@@ -68,185 +77,88 @@ def run(
     out: str | Path,
     scenario: str | None = None,
     video: bool = False,
+    force: bool = False,
+    trust_checkpoint: bool = False,
 ) -> list[dict[str, Any]]:
-    from policies import make_policy
-
+    """Episodes of one policy: metrics.json, a trajectory figure per episode, a video."""
     if episodes < 1:
-        raise ScenarioError("--episodes", episodes, "allowed: an integer >= 1")
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    env = _make(env_id, scenario, render=video)
+        raise InputError("--episodes", episodes, "allowed: an integer >= 1")
+    check_output_dir(out, force)
+    env = _make_env(env_id, scenario, render=video)  # everything is checked before --out exists
     records = []
     try:
-        pi = make_policy(policy, env)
-        for k in tqdm(range(episodes), desc=f"{policy} on {env_id}", unit="ep"):
-            writer = VideoWriter(out / f"episode_{k:03d}.webm") if video and k == 0 else None
-            ep = run_episode(env, pi, seed + k, policy, writer)
-            if writer is not None:
-                writer.close()
-            records.append(_record(ep, "run", scenario or "default"))
-            trajectory_figure(
-                ep, out / f"trajectory_{k:03d}.png", f"{policy} · {env_id} · seed {seed + k}"
-            )
+        pi = _policy(policy, env, trust_checkpoint)
+        with output_dir(out, force) as tmp:
+            for k in tqdm(range(episodes), desc=f"{policy} on {env_id}", unit="ep"):
+                writer = VideoWriter(tmp / f"episode_{k:03d}.webm") if video and k == 0 else None
+                try:
+                    ep = run_episode(env, pi, seed + k, policy, writer)
+                finally:
+                    if writer is not None:
+                        writer.close()
+                records.append(_record(ep, "run", scenario or "default"))
+                trajectory_figure(
+                    ep, tmp / f"trajectory_{k:03d}.png", f"{policy} · {env_id} · seed {seed + k}"
+                )
+            _write_json(tmp / "metrics.json", records)
     finally:
         env.close()
-    _write_json(out / "metrics.json", records)
     return records
 
 
 def bench(
-    suite_name: str, policies: Sequence[str], seeds: int, out: str | Path, command: str = ""
+    suite_name: str,
+    policies: Sequence[str],
+    seeds: int,
+    out: str | Path,
+    command: str = "",
+    force: bool = False,
+    trust_checkpoint: bool = False,
 ) -> list[dict[str, Any]]:
-    from policies import make_policy
-
+    """Every policy on every case of a suite, the same held-out seeds for all."""
     if seeds < 1:
-        raise ScenarioError("--seeds", seeds, "allowed: an integer >= 1")
+        raise InputError("--seeds", seeds, "allowed: an integer >= 1")
+    if not policies:
+        raise InputError("--policies", "", "allowed: a comma list such as dwb,rpp,ppo:shipped")
     cases = suite(suite_name)
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    labels = policy_labels(policies)
+    check_output_dir(out, force)
+    for case in cases:  # every policy must fit every case before any episode runs
+        env = _make_env(case)
+        try:
+            for spec in policies:
+                _policy(spec, env, trust_checkpoint)
+        finally:
+            env.close()
     records: list[dict[str, Any]] = []
     total = len(cases) * len(policies) * seeds
-    labels = policy_labels(policies)
-    with tqdm(total=total, desc=f"bench {suite_name}", unit="ep") as bar:
+    with (
+        output_dir(out, force) as tmp,
+        tqdm(total=total, desc=f"bench {suite_name}", unit="ep") as bar,
+    ):
         for case in cases:
-            env = _make(case)
+            env = _make_env(case)
             try:
                 for spec, name in zip(policies, labels, strict=True):
-                    pi = make_policy(spec, env)
+                    pi = _policy(spec, env, trust_checkpoint)
                     for k in range(seeds):
                         ep = run_episode(env, pi, EVAL_SEED + k, name)
                         records.append(_record(ep, suite_name, case.group))
                         if k == 0:
                             trajectory_figure(
                                 ep,
-                                out / f"traj_{_slug(case.group)}_{_slug(name)}.png",
+                                tmp / f"traj_{_slug(case.group)}_{_slug(name)}.png",
                                 f"{name} · {suite_name} · {case.group}",
                             )
                         bar.update(1)
                         bar.set_postfix(case=case.group, policy=name)
             finally:
                 env.close()
-            _write_json(out / "results.json", records)
-    (out / "benchmark.md").write_text(table(records, suite_name, command))
-    bar_chart(records, out / "benchmark.png", suite_name)
+            _write_json(tmp / "results.json", records)
+        (tmp / "benchmark.md").write_text(table(records, suite_name, command))
+        bar_chart(records, tmp / "benchmark.png", suite_name)
     return records
-
-
-def policy_labels(specs: Sequence[str]) -> list[str]:
-    """Row labels: the policy name, or ``ppo:FOLDER`` when several PPO checkpoints compete."""
-    names = [spec.split(":")[0] for spec in specs]
-    labels = []
-    for spec, name in zip(specs, names, strict=True):
-        path = spec.partition(":")[2]
-        if names.count(name) > 1 and path:
-            labels.append(f"{name}:{Path(path.rstrip('/')).name or path}")
-        else:
-            labels.append(name)
-    if len(set(labels)) < len(labels):
-        raise ScenarioError("--policies", ",".join(specs), "allowed: each policy once")
-    return labels
 
 
 def _slug(s: str) -> str:
     return "".join(c if c.isalnum() else "-" for c in s).strip("-")
-
-
-def _mean_std(values: list[Any]) -> str:
-    v = [float(x) for x in values if x is not None and not math.isnan(float(x))]
-    if not v:
-        return "—"
-    m = statistics.fmean(v)
-    s = statistics.stdev(v) if len(v) > 1 else 0.0
-    return f"{m:.3f} ± {s:.3f}"
-
-
-def table(records: list[dict[str, Any]], suite_name: str, command: str) -> str:
-    groups = list(dict.fromkeys(r["scenario"] for r in records))
-    pols = list(dict.fromkeys(r["policy"] for r in records))
-    seeds = len({r["seed"] for r in records})
-    head = ["scenario", "policy", *METRICS, "episodes"]
-    lines = [
-        f"# Benchmark: `{suite_name}` suite",
-        "",
-        f"Mean ± std over {seeds} held-out seed(s) per policy and scenario group; "
-        "cross-track errors in metres (true pose to nearest reference segment), "
-        "completion in % of the route, crops hit per episode.",
-        "",
-        "| " + " | ".join(head) + " |",
-        "|" + "---|" * len(head),
-    ]
-    for g in groups:
-        for p in pols:
-            rows = [r for r in records if r["scenario"] == g and r["policy"] == p]
-            if rows:
-                cells = [_mean_std([r[m] for r in rows]) for m in METRICS]
-                lines.append(f"| {g} | {p} | " + " | ".join(cells) + f" | {len(rows)} |")
-    lines += ["", *failures(records, groups, pols)]
-    lines += [
-        "",
-        "Source paper (Gazebo, Nav2 DWB, zigzag over two rows): RMSE 0.177, MAE 0.109,"
-        " in-furrow 0.200, headland 0.170, max 0.472 m.",
-        "",
-        "Reproduce:",
-        "",
-        "```bash",
-        command or "agrinav bench ...",
-        "```",
-        "",
-    ]
-    return "\n".join(lines)
-
-
-FAILED_BELOW = 90.0  # mean completion (%) under which a policy counts as failing a group
-
-
-def failures(records: list[dict[str, Any]], groups: list[str], pols: list[str]) -> list[str]:
-    """One line per policy: the scenario groups where it does not finish the route."""
-    lines = [f"Where each policy fails (mean completion below {FAILED_BELOW:.0f} %):", ""]
-    for p in pols:
-        bad = []
-        for g in groups:
-            rows = [r for r in records if r["scenario"] == g and r["policy"] == p]
-            if rows:
-                done = statistics.fmean(float(r["completion"]) for r in rows)
-                if done < FAILED_BELOW:
-                    hit = statistics.fmean(float(r["crops_hit"]) for r in rows)
-                    bad.append(f"{g} ({done:.0f} % done, {hit:.1f} crops hit)")
-        lines.append(f"- {p}: " + (", ".join(bad) if bad else "none"))
-    return lines
-
-
-def bar_chart(records: list[dict[str, Any]], path: Path, suite_name: str) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    groups = list(dict.fromkeys(r["scenario"] for r in records))
-    pols = list(dict.fromkeys(r["policy"] for r in records))
-    fig, axes = plt.subplots(1, 2, figsize=(11, 3.8))
-    width = 0.8 / max(len(pols), 1)
-    for i, p in enumerate(pols):
-        for ax, metric in zip(axes, ("rmse", "completion"), strict=True):
-            vals, errs = [], []
-            for g in groups:
-                v = [
-                    float(r[metric])
-                    for r in records
-                    if r["scenario"] == g and r["policy"] == p and r[metric] is not None
-                ]
-                vals.append(np.mean(v) if v else np.nan)
-                errs.append(np.std(v) if v else 0.0)
-            ax.bar(np.arange(len(groups)) + i * width, vals, width, yerr=errs, label=p, capsize=3)
-    for ax, label in zip(axes, ("cross-track RMSE (m)", "completion (%)"), strict=True):
-        ax.set_xticks(np.arange(len(groups)) + 0.4 - width / 2, groups, fontsize=8)
-        ax.set_ylabel(label)
-    axes[0].legend(fontsize=8)
-    fig.suptitle(f"{suite_name} suite")
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-
-
-def command_line(argv: Sequence[str]) -> str:
-    return " ".join(shlex.quote(a) for a in argv)

@@ -10,6 +10,8 @@ from __future__ import annotations
 from pathlib import Path
 
 from scenario_gen import generate, preset, save
+from scenario_gen.atomic import check_output_dir
+from scenario_gen.errors import InputError
 
 
 def demo(out: str | Path, seeds: int = 2) -> Path:
@@ -18,6 +20,9 @@ def demo(out: str | Path, seeds: int = 2) -> Path:
     from .bench import bench
 
     out = Path(out)
+    if seeds < 1:
+        raise InputError("--seeds", seeds, "allowed: an integer >= 1")
+    check_output_dir(out, overwrite=True)  # re-running the demo replaces its own results
     out.mkdir(parents=True, exist_ok=True)
     scn = generate(preset("default"), seed=0)
     save(scn, out / "scenario", overwrite=True)
@@ -26,12 +31,12 @@ def demo(out: str | Path, seeds: int = 2) -> Path:
     try:
         shipped_model("AgriNav/FieldRoute-v0")
         policies.append("ppo:shipped")
-    except ValueError as exc:  # a checkout without the trained model still runs the demo
+    except InputError as exc:  # a checkout without the trained model still runs the demo
         print(f"note: {exc}; benchmarking DWB only")
     cmd = (
         f"agrinav bench --suite paper --policies {','.join(policies)} --seeds {seeds} "
-        f"--out {out / 'paper'}"
+        f"--out {out / 'paper'} --force"
     )
-    bench("paper", policies, seeds, out / "paper", cmd)
+    bench("paper", policies, seeds, out / "paper", cmd, force=True)
     print((out / "paper" / "benchmark.md").read_text())
     return out

@@ -1,225 +1,318 @@
-"""``agrinav train``: PPO on an AgriNav env with hyperparameters from hyperparams/ppo.yml.
+"""``agrinav train``: PPO on an AgriNav env, hyperparameters from ``hyperparams/ppo.yml``.
 
-Every run writes, next to its model: ``config.yml`` (the exact hyperparameters and env
-kwargs), ``command.txt`` (how to reproduce it), ``evaluations.json`` and ``learning_curve.png``
-(periodic evaluation on held-out scenario seeds).
+A run folder holds the final checkpoint (``checkpoint.json`` + ``policy.npz`` +
+``optimizer.npz``, the safe format of ``policies.checkpoint``), ``checkpoints/step_N/`` every
+``checkpoint_every`` steps (resume from any of them), ``config.yml`` (the exact hyperparameters
+in zoo's format, env kwargs, seeds, versions), ``command.txt``, ``evaluations.json`` and
+``learning_curve.png`` (held-out scenario seeds), and ``logs/`` (SB3's logger: CSV, and
+TensorBoard event files when ``tensorboard`` is installed).
 """
 
 from __future__ import annotations
 
 import json
+import os
 import shlex
+import shutil
 import sys
 import time
-from importlib import resources
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from importlib import metadata
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import yaml
 
-from scenario_gen import ScenarioError
+from policies import checkpoint
+from scenario_gen.errors import InputError
 
-HYPERPARAMS = "ppo.yml"
+from . import hyperparams as hpmod
+from .evaluate import evaluate
+from .figures import learning_curve
 
 
-def hyperparams(env_id: str) -> dict[str, Any]:
-    text = resources.files("baselines.hyperparams").joinpath(HYPERPARAMS).read_text()
-    table = yaml.safe_load(text)
-    if env_id not in table:
-        raise ScenarioError(
-            "--env", env_id, f"allowed (with PPO hyperparameters): {', '.join(table)}"
+@dataclass(frozen=True)
+class TrainRun:
+    """Everything a run needs, checked before anything is created."""
+
+    env_id: str
+    out: Path
+    seed: int = 0
+    timesteps: int | None = None
+    eval_every: int = 20_000
+    eval_episodes: int = 4
+    n_envs: int | None = None
+    device: str = "cpu"
+    overrides: dict[str, Any] = field(default_factory=dict)
+    scenario: str | None = None
+    checkpoint_every: int | None = None
+    resume: Path | None = None
+
+
+def _scenario_kwargs(env_kwargs: dict[str, Any], scenario: str | None) -> dict[str, Any]:
+    """Train on a preset, a saved scenario folder or a bank instead of the file's scenario."""
+    if scenario is None:
+        return env_kwargs
+    import scenario_gen as sg
+
+    kw = {
+        k: v for k, v in env_kwargs.items() if k not in ("scenario", "scenario_overrides", "bank")
+    }
+    path = Path(scenario)
+    if (path / "scenario.json").is_file():
+        kw["scenario"] = str(path.resolve())
+    elif (path / "bank.yaml").is_file() or (path.is_dir() and any(path.glob("*/scenario.json"))):
+        kw["bank"] = str(path.resolve())
+    elif scenario in sg.preset_names():
+        kw["scenario"] = scenario
+        return kw
+    else:
+        raise InputError(
+            "--scenario", scenario, "allowed: a preset, a scenario folder or a bank folder"
         )
-    return dict(table[env_id])
+    # a saved scenario cannot be regenerated: only env-side keys stay randomized
+    from agrinav_gym.scenarios import ENV_KEYS
+
+    rand = {k: v for k, v in (kw.get("randomize") or {}).items() if k in ENV_KEYS}
+    kw["randomize"] = rand or None
+    return kw
 
 
-def _make_env(env_id: str, kwargs: dict[str, Any]) -> Any:
+def prepare(run: TrainRun) -> tuple[hpmod.PPOHyperparams, hpmod.EnvSetup, dict[str, Any]]:
+    overrides = dict(run.overrides)
+    if run.n_envs is not None:
+        overrides["n_envs"] = run.n_envs
+    if run.timesteps is not None:
+        overrides["n_timesteps"] = run.timesteps
+    hp, setup = hpmod.load(run.env_id, overrides)
+    if run.out.exists() and (not run.out.is_dir() or any(run.out.iterdir())):
+        raise InputError("--out", str(run.out), "allowed: a new or empty directory")
+    if run.device not in ("cpu", "cuda", "auto"):
+        raise InputError("--device", run.device, "allowed: cpu, cuda, auto")
+    if run.resume is not None:
+        meta = checkpoint.read_meta(run.resume)
+        if meta.get("env_id") != run.env_id or meta.get("optimizer") is None:
+            raise InputError(
+                "--resume",
+                str(run.resume),
+                f"allowed: a training checkpoint of {run.env_id} (with optimizer.npz)",
+            )
+        done = int(meta.get("num_timesteps", 0))
+        if hp.n_timesteps <= done:
+            raise InputError(
+                "--timesteps", hp.n_timesteps, f"allowed: more than the {done} steps already done"
+            )
+    kwargs = _scenario_kwargs(dict(setup.env_kwargs), run.scenario)
     import gymnasium as gym
 
-    import agrinav_gym  # noqa: F401
+    import agrinav_gym  # noqa: F401  (registers the ids)
 
-    return gym.make(env_id, **kwargs)
-
-
-def evaluate(
-    model: Any, env_id: str, kwargs: dict[str, Any], norm: Any, episodes: int, seed: int
-) -> dict[str, float]:
-    """Deterministic episodes on held-out seeds; mean return and the paper's metrics."""
-    env = _make_env(env_id, kwargs)
-    rets, rmse, furrow, comp, succ, crops = [], [], [], [], [], []
-    try:
-        for ep in range(episodes):
-            obs, _ = env.reset(seed=seed + ep)
-            total, done, info = 0.0, False, {}
-            while not done:
-                o = obs
-                if norm is not None:
-                    o = norm.normalize_obs({k: v[None] for k, v in obs.items()})
-                    o = {k: v[0] for k, v in o.items()}
-                action, _ = model.predict(o, deterministic=True)
-                obs, r, term, trunc, info = env.step(action)
-                total += float(r)
-                done = term or trunc
-            m = info["metrics"]
-            rets.append(total)
-            rmse.append(m["rmse"] if m["rmse"] is not None else np.nan)
-            furrow.append(m["in_furrow_rmse"] if m["in_furrow_rmse"] is not None else np.nan)
-            crops.append(m["crops_hit"])
-            comp.append(m["completion"])
-            succ.append(float(info.get("is_success", False)))
-    finally:
-        env.close()
-    return {
-        "return": float(np.mean(rets)),
-        "rmse": float(np.nanmean(rmse)),
-        "in_furrow_rmse": float(np.nanmean(furrow)),
-        "completion": float(np.mean(comp)),
-        "success": float(np.mean(succ)),
-        "crops_hit": float(np.mean(crops)),
-    }
+    probe = gym.make(run.env_id, **kwargs, scenario_seeds=list(setup.train_seeds))
+    probe.close()  # every env kwarg is valid before the run starts
+    return hp, setup, kwargs
 
 
-def train(
-    env_id: str,
-    timesteps: int,
-    seed: int,
-    out: str | Path,
-    eval_every: int = 20000,
-    eval_episodes: int = 4,
-    argv: list[str] | None = None,
-) -> Path:
-    import torch
+def train(run: TrainRun, argv: list[str] | None = None) -> Path:
     from stable_baselines3 import PPO
-    from stable_baselines3.common.callbacks import BaseCallback
     from stable_baselines3.common.env_util import make_vec_env
+    from stable_baselines3.common.logger import configure
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
-    from tqdm import tqdm
 
-    from policies.extractors import DepthAndVector
-
-    if timesteps < 1:
-        raise ScenarioError("--timesteps", timesteps, "allowed: an integer >= 1")
-    out_dir = Path(out)
-    if out_dir.exists() and any(out_dir.iterdir()):
-        raise ScenarioError("--out", str(out_dir), "already holds files; choose a new directory")
-    hp = hyperparams(env_id)
-    env_kwargs = dict(hp.get("env_kwargs", {}))
-    train_kwargs = {**env_kwargs, "scenario_seeds": list(hp["train_seeds"])}
-    eval_kwargs = {**env_kwargs, "scenario_seeds": list(hp["eval_seeds"])}
-    n_envs = int(hp.get("n_envs", 1))
-    torch.set_num_threads(1)  # the env processes need the other core
-    venv = make_vec_env(
-        f"agrinav_gym:{env_id}",
-        n_envs=n_envs,
-        seed=seed,
-        vec_env_cls=SubprocVecEnv if n_envs > 1 else DummyVecEnv,
-        env_kwargs=train_kwargs,
+    hp, setup, kwargs = prepare(run)
+    out = run.out
+    out.mkdir(parents=True, exist_ok=True)
+    venv: Any = make_vec_env(
+        f"agrinav_gym:{run.env_id}",
+        n_envs=hp.n_envs,
+        seed=run.seed,
+        vec_env_cls=SubprocVecEnv if hp.n_envs > 1 else DummyVecEnv,
+        env_kwargs={**kwargs, "scenario_seeds": list(setup.train_seeds)},
     )
     norm = None
-    if hp.get("normalize"):
+    if hp.normalize_obs:
         venv = norm = VecNormalize(venv, norm_obs=True, norm_reward=False, clip_obs=10.0)
-    policy_kwargs = dict(hp.get("policy_kwargs", {}))
-    if hp.get("features_extractor") == "DepthAndVector":
-        policy_kwargs["features_extractor_class"] = DepthAndVector
-    model = PPO(
-        hp["policy"],
-        venv,
-        seed=seed,
-        verbose=0,
-        device="cpu",
-        n_steps=hp["n_steps"],
-        batch_size=hp["batch_size"],
-        n_epochs=hp["n_epochs"],
-        learning_rate=hp["learning_rate"],
-        gamma=hp["gamma"],
-        gae_lambda=hp["gae_lambda"],
-        clip_range=hp["clip_range"],
-        ent_coef=hp["ent_coef"],
-        policy_kwargs=policy_kwargs,
-    )
-    out_dir.mkdir(parents=True, exist_ok=True)
+    model = PPO(env=venv, seed=run.seed, verbose=0, device=run.device, **hp.ppo_kwargs())
+    formats = ["csv", *(["tensorboard"] if _has_tensorboard() else [])]
+    model.set_logger(configure(str(out / "logs"), formats))
+    if run.resume is not None:
+        _restore(model, norm, run.resume)
+    eval_kwargs = {**kwargs, "scenario_seeds": list(setup.eval_seeds)}
+    saver = _Saver(out, run, hp, setup, kwargs)
     history: list[dict[str, float]] = []
-    eval_seed = int(hp["eval_seeds"][0])
     t_start = time.perf_counter()
 
+    def evaluation(m: Any) -> dict[str, float]:
+        res = evaluate(
+            _predictor(m, norm), run.env_id, eval_kwargs, run.eval_episodes, setup.eval_seeds[0]
+        )
+        res.update(timesteps=int(m.num_timesteps), minutes=(time.perf_counter() - t_start) / 60)
+        history.append(res)
+        (out / "evaluations.json").write_text(json.dumps(history, indent=1))
+        return res
+
+    callback = _callback(hp.n_timesteps, run, evaluation, lambda m: saver.periodic(m, norm))
+    try:
+        # resuming, SB3 counts total_timesteps on top of the steps already done
+        model.learn(
+            total_timesteps=hp.n_timesteps - int(model.num_timesteps),
+            callback=callback,
+            reset_num_timesteps=run.resume is None,
+        )
+        evaluation(model)
+    finally:
+        venv.close()
+    saver.final(model, norm, history, argv)
+    learning_curve(history, out / "learning_curve.png", run.env_id)
+    return out
+
+
+def _has_tensorboard() -> bool:
+    try:
+        import tensorboard  # noqa: F401
+    except ImportError:
+        print(
+            "note: tensorboard is not installed (pip install 'agrinav-gym[train]'): CSV logs only"
+        )
+        return False
+    return True
+
+
+def _predictor(model: Any, norm: Any) -> Callable[[dict[str, Any]], Any]:
+    def act(obs: dict[str, Any]) -> Any:
+        o = obs
+        if norm is not None:
+            o = norm.normalize_obs({k: v[None] for k, v in obs.items()})
+            o = {k: v[0] for k, v in o.items()}
+        return model.predict(o, deterministic=True)[0]
+
+    return act
+
+
+def _callback(
+    total: int,
+    run: TrainRun,
+    evaluation: Callable[[Any], dict[str, float]],
+    save: Callable[[Any], None],
+) -> Any:
+    from stable_baselines3.common.callbacks import BaseCallback
+    from tqdm import tqdm
+
     class Progress(BaseCallback):
+        """Progress bar; periodic held-out evaluation logged through SB3's logger; checkpoints."""
+
         def _on_training_start(self) -> None:
-            self.bar = tqdm(total=timesteps, desc=f"train {env_id}", unit="step")
-            self.next_eval = eval_every
+            start = int(self.model.num_timesteps)
+            self.bar = tqdm(total=total, initial=start, desc=f"train {run.env_id}", unit="step")
+            self.next_eval = start + run.eval_every
+            self.next_save = start + (run.checkpoint_every or total + 1)
 
         def _on_step(self) -> bool:
             self.bar.update(self.training_env.num_envs)
             if self.num_timesteps >= self.next_eval:
-                self.next_eval += eval_every
-                res = evaluate(self.model, env_id, eval_kwargs, norm, eval_episodes, eval_seed)
-                res.update(
-                    timesteps=self.num_timesteps, minutes=(time.perf_counter() - t_start) / 60
-                )
-                history.append(res)
+                self.next_eval += run.eval_every
+                res = evaluation(self.model)
+                for k in ("return", "rmse", "in_furrow_rmse", "completion", "success", "crops_hit"):
+                    self.logger.record(f"eval/{k}", res[k])
+                self.logger.dump(self.num_timesteps)
                 self.bar.set_postfix(rmse=f"{res['rmse']:.3f}", done=f"{res['completion']:.0f}%")
-                (out_dir / "evaluations.json").write_text(json.dumps(history, indent=1))
+            if run.checkpoint_every and self.num_timesteps >= self.next_save:
+                self.next_save += run.checkpoint_every
+                save(self.model)
             return True
 
         def _on_training_end(self) -> None:
             self.bar.close()
 
-    model.learn(total_timesteps=timesteps, callback=Progress())
-    final = evaluate(model, env_id, eval_kwargs, norm, eval_episodes, eval_seed)
-    final.update(timesteps=int(model.num_timesteps), minutes=(time.perf_counter() - t_start) / 60)
-    history.append(final)
-    slim_optimizer(model)
-    model.save(out_dir / "model.zip")
-    if norm is not None:
-        norm.save(str(out_dir / "vecnormalize.pkl"))
-    venv.close()
-    config = {
-        "env_id": env_id,
-        "algo": "ppo",
-        "seed": seed,
-        "timesteps": timesteps,
-        "hyperparams": hp,
-        "minutes": final["minutes"],
-    }
-    (out_dir / "config.yml").write_text(yaml.safe_dump(config, sort_keys=False))
-    cmd = argv if argv is not None else sys.argv
-    (out_dir / "command.txt").write_text(" ".join(shlex.quote(a) for a in cmd) + "\n")
-    (out_dir / "evaluations.json").write_text(json.dumps(history, indent=1))
-    learning_curve(history, out_dir / "learning_curve.png", env_id)
-    return out_dir
+    return Progress()
 
 
-def slim_optimizer(model: Any) -> None:
-    """Drop Adam's moment estimates (twice the weights' size) before saving: a shipped
-    checkpoint is for inference, and fine-tuning from it restarts the moments."""
-    pol = model.policy
-    pol.optimizer = pol.optimizer_class(
-        pol.parameters(), lr=model.lr_schedule(1), **pol.optimizer_kwargs
-    )
+class _Saver:
+    def __init__(
+        self,
+        out: Path,
+        run: TrainRun,
+        hp: hpmod.PPOHyperparams,
+        setup: hpmod.EnvSetup,
+        kwargs: dict[str, Any],
+    ) -> None:
+        self.out, self.run, self.hp, self.setup, self.kwargs = out, run, hp, setup, kwargs
 
+    def _meta(self, model: Any) -> dict[str, Any]:
+        return {
+            "env_id": self.run.env_id,
+            "algo": "ppo",
+            "seed": self.run.seed,
+            "num_timesteps": int(model.num_timesteps),
+            "hyperparams": hpmod.to_zoo(self.hp),
+            "env_kwargs": self.kwargs,
+        }
 
-def learning_curve(history: list[dict[str, float]], path: Path, title: str) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    t = [h["minutes"] for h in history]
-    fig, ax = plt.subplots(1, 2, figsize=(10, 3.6))
-    ax[0].plot(t, [h["return"] for h in history], "o-")
-    ax[0].set_xlabel("training time (min, 2-core CPU)")
-    ax[0].set_ylabel("eval return (held-out seeds)")
-    ax[1].plot(t, [h["rmse"] for h in history], "o-", color="tab:red", label="RMSE")
-    if all("in_furrow_rmse" in h for h in history):
-        ax[1].plot(
-            t, [h["in_furrow_rmse"] for h in history], "^-", color="tab:purple", label="in-furrow"
+    def write(self, folder: Path, model: Any, norm: Any) -> None:
+        tmp = folder.with_name(f".{folder.name}.tmp-{os.getpid()}")
+        shutil.rmtree(tmp, ignore_errors=True)
+        name = "DepthMultiInputPolicy" if self.hp.policy != "MultiInputPolicy" else self.hp.policy
+        checkpoint.save(
+            tmp, model.policy, name, self.hp.policy_kwargs, norm, self._meta(model), optimizer=True
         )
-    ax[1].legend(loc="upper left", fontsize=8)
-    ax[1].set_xlabel("training time (min)")
-    ax[1].set_ylabel("cross-track RMSE (m)")
-    ax2 = ax[1].twinx()
-    ax2.plot(t, [h["completion"] for h in history], "s--", color="tab:green")
-    ax2.set_ylabel("completion (%)", color="tab:green")
-    fig.suptitle(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+        shutil.rmtree(folder, ignore_errors=True)
+        tmp.rename(folder)
+
+    def periodic(self, model: Any, norm: Any) -> None:
+        (self.out / "checkpoints").mkdir(exist_ok=True)
+        self.write(self.out / "checkpoints" / f"step_{int(model.num_timesteps):010d}", model, norm)
+
+    def final(
+        self, model: Any, norm: Any, history: list[dict[str, float]], argv: list[str] | None
+    ) -> None:
+        self.write(self.out / "final", model, norm)
+        for f in (self.out / "final").iterdir():
+            f.rename(self.out / f.name)
+        (self.out / "final").rmdir()
+        config = {
+            "env_id": self.run.env_id,
+            "algo": "ppo",
+            "seed": self.run.seed,
+            "hyperparams": hpmod.to_zoo(self.hp),
+            "env_kwargs": self.kwargs,
+            "train_seeds": list(self.setup.train_seeds),
+            "eval_seeds": list(self.setup.eval_seeds),
+            "resumed_from": str(self.run.resume) if self.run.resume else None,
+            "minutes": history[-1]["minutes"] if history else None,
+            "versions": {
+                n: metadata.version(n) for n in ("stable-baselines3", "torch", "agrinav-gym")
+            },
+        }
+        (self.out / "config.yml").write_text(yaml.safe_dump(config, sort_keys=False))
+        cmd = argv if argv is not None else sys.argv
+        (self.out / "command.txt").write_text(" ".join(shlex.quote(a) for a in cmd) + "\n")
+
+
+def _restore(model: Any, norm: Any, folder: Path) -> None:
+    """Weights, Adam's state, normalisation statistics and step count from a checkpoint."""
+    import torch
+
+    loaded = checkpoint.load(folder)
+    model.policy.load_state_dict(loaded.policy.state_dict())
+    meta = loaded.meta
+    opt = meta["optimizer"]
+    with np.load(folder / checkpoint.OPTIMIZER, allow_pickle=False) as z:
+        arrays = {k: np.array(z[k]) for k in z.files}
+    state = model.policy.optimizer.state_dict()
+    names = [n for n, _ in model.policy.named_parameters()]
+    if names != opt["params"]:
+        raise InputError("--resume", str(folder), "its optimizer does not fit this network")
+    for i, n in enumerate(names):
+        entries = {k.split("/", 1)[1]: v for k, v in arrays.items() if k.split("/", 1)[0] == n}
+        if entries:
+            state["state"][i] = {k: torch.from_numpy(v) for k, v in entries.items()}
+    model.policy.optimizer.load_state_dict(state)
+    if norm is not None:
+        n = meta["normalization"]
+        for k, rms in norm.obs_rms.items():
+            rms.mean = np.asarray(n["mean"][k], np.float64)
+            rms.var = np.asarray(n["var"][k], np.float64)
+            rms.count = float(n["count"][k])
+    model.num_timesteps = int(meta["num_timesteps"])
+    model._num_timesteps_at_start = model.num_timesteps

@@ -41,7 +41,7 @@ def shipped_model(env_id: str) -> Path:
             "policy", f"ppo:shipped for {env_id}", f"shipped checkpoints: {', '.join(SHIPPED)}"
         )
     folder = Path(str(resources.files("policies.models").joinpath(SHIPPED[env_id])))
-    if not (folder / "model.zip").is_file():
+    if not (folder / "checkpoint.json").is_file():
         raise InputError("policy", f"ppo:shipped for {env_id}", f"is missing from {folder}")
     return folder
 

@@ -68,7 +68,7 @@ class DWBParams:
         0.15, "depth points lower than this above the ground are soil/ridges, m", 0.0, 2
     )
     prune_distance: float = param(2.0, "local plan length ahead of the robot, m", 0.1, 50)
-    scales: dict[str, float] = param(  # noqa: RUF009  (param returns a dataclass field)
+    scales: dict[str, float] = param(
         {
             "RotateToGoal": 32.0,
             "Oscillation": 1.0,

@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import gymnasium as gym
 import torch
+from stable_baselines3.common.policies import MultiInputActorCriticPolicy
 from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
 from torch import nn
 
@@ -42,3 +45,15 @@ class DepthAndVector(BaseFeaturesExtractor):
         if self.cnn is not None:
             parts.append(self.cnn(obs["depth"] / self.max_range))
         return torch.cat(parts, dim=1)
+
+
+class DepthMultiInputPolicy(MultiInputActorCriticPolicy):
+    """PPO's multi-input actor-critic with the depth CNN as its feature extractor.
+
+    A named class (rather than ``policy_kwargs`` holding a class) so hyperparameter files —
+    ours and rl-baselines3-zoo's, which imports a dotted ``policy`` name — and checkpoints
+    refer to it as plain text."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        kwargs.setdefault("features_extractor_class", DepthAndVector)
+        super().__init__(*args, **kwargs)

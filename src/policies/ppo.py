@@ -1,8 +1,11 @@
-"""Learned policy: a stable-baselines3 PPO checkpoint (plus its VecNormalize statistics)."""
+"""Learned policy: a PPO checkpoint in the safe format (``checkpoint``), deterministic actions.
+
+The checkpoint's observation and action spaces must equal the env's for the keys it uses, so a
+policy never runs on inputs laid out differently from those it was trained on.
+"""
 
 from __future__ import annotations
 
-import pickle
 from pathlib import Path
 from typing import Any
 
@@ -13,6 +16,7 @@ from numpy.typing import NDArray
 from agrinav_gym.interface import RobotInterface
 from scenario_gen.errors import InputError
 
+from . import checkpoint
 from .base import Obs, Policy
 
 
@@ -25,36 +29,43 @@ class PPOPolicy(Policy):
         action_space: spaces.Box,
         robot: RobotInterface,
         path: str | Path = "",
+        trust_checkpoint: bool = False,
         **params: Any,
     ) -> None:
         super().__init__(observation_space, action_space, robot, **params)
-        from stable_baselines3 import PPO
-
         p = Path(path)
-        model_file = p / "model.zip" if p.is_dir() else p
-        if not model_file.is_file():
-            raise InputError("policy", f"ppo:{path}", "allowed: a checkpoint folder or model.zip")
-        self.model = PPO.load(model_file, device="cpu")
+        if (p / checkpoint.META).is_file():
+            loaded = checkpoint.load(p)
+        elif trust_checkpoint and (p.suffix == ".zip" or (p / "model.zip").is_file()):
+            loaded = checkpoint.load_sb3_trusted(p if p.suffix == ".zip" else p / "model.zip")
+        elif p.suffix == ".zip" or (p / "model.zip").is_file():
+            raise InputError(
+                "policy",
+                f"ppo:{path}",
+                "is a Stable-Baselines3 model.zip, which unpickles code when loaded; "
+                "allowed: an AgriNav checkpoint folder, or --trust-checkpoint for a file you trust",
+            )
+        else:
+            raise InputError(
+                "policy", f"ppo:{path}", f"allowed: a checkpoint folder holding {checkpoint.META}"
+            )
         check_spaces(
-            self.model.observation_space,
+            loaded.policy.observation_space,
             observation_space,
-            self.model.action_space,
+            loaded.policy.action_space,
             action_space,
             str(path),
         )
-        self.keys = sorted(self.model.observation_space.spaces)  # type: ignore[attr-defined]
-        self.norm = None
-        stats = model_file.parent / "vecnormalize.pkl"
-        if stats.is_file():
-            with open(stats, "rb") as f:
-                self.norm = pickle.load(f)
+        self.net = loaded.policy
+        self.normalize = loaded.normalizer
+        self.meta = loaded.meta
+        self.keys = sorted(loaded.policy.observation_space.spaces)
 
     def act(self, obs: Obs) -> NDArray[np.float32]:
         o = {k: obs[k] for k in self.keys}
-        if self.norm is not None:
-            o = self.norm.normalize_obs({k: v[None] for k, v in o.items()})
-            o = {k: v[0] for k, v in o.items()}
-        action, _ = self.model.predict(o, deterministic=True)
+        if self.normalize is not None:
+            o = self.normalize(o)
+        action, _ = self.net.predict(o, deterministic=True)
         return self._clip(np.asarray(action, np.float64))
 
 

@@ -55,9 +55,7 @@ def test_camera_extras_and_fresh_arrays_every_step(env_id: str) -> None:
     """info carries the current RGB and segmentation after every step at every camera rate,
     and every observation is a new array (nothing the caller keeps changes under it)."""
     for rate in (20, 5):
-        env = make(
-            env_id, config={"camera": {"rgb": True, "segmentation": True, "rate_hz": rate}}
-        )
+        env = make(env_id, config={"camera": {"rgb": True, "segmentation": True, "rate_hz": rate}})
         try:
             obs, info = env.reset(seed=0)
             assert info["rgb"].shape == (48, 64, 3) and info["segmentation"].shape == (48, 64)

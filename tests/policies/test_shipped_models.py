@@ -31,7 +31,13 @@ def _returns(env: gym.Env, act, seeds: range) -> list[float]:
 @pytest.mark.parametrize("env_id", sorted(SHIPPED))
 def test_shipped_checkpoint_beats_random(env_id: str) -> None:
     folder = shipped_model(env_id)
-    for name in ("model.zip", "command.txt", "config.yml", "learning_curve.png"):
+    for name in (
+        "checkpoint.json",
+        "policy.npz",
+        "command.txt",
+        "config.yml",
+        "learning_curve.png",
+    ):
         assert (folder / name).is_file(), name
     env = gym.make(env_id, scenario_overrides=FIELD)
     try:

@@ -44,7 +44,10 @@ def _terminate(signum: int, _frame: FrameType | None) -> None:
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # --help, or a bad flag already reported in one line
+        return int(exc.code or 0)
     args.argv = ["agrinav", *(argv if argv is not None else sys.argv[1:])]  # for "reproduce"
     previous = signal.signal(signal.SIGTERM, _terminate)
     try:

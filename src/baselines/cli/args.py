@@ -30,17 +30,17 @@ def int_at_least(lo: int, hi: int | None = None) -> Callable[[str], int]:
 seed_type = int_at_least(0, MAX_SEED)
 
 
-def parse_set(items: list[str]) -> dict[str, Any]:
-    """``--set key=value`` pairs, values parsed as YAML scalars/lists."""
+def parse_set(items: list[str], flag: str = "--set") -> dict[str, Any]:
+    """``key=value`` pairs (``--set``, ``--hyperparams``), values parsed as YAML."""
     from scenario_gen.schema import parse_yaml
 
     out: dict[str, Any] = {}
     for item in items:
         key, sep, raw = item.partition("=")
         if not sep or not key.strip():
-            raise InputError("--set", item, "allowed: key=value, e.g. layout.row_spacing=0.76")
+            raise InputError(flag, item, "allowed: key=value, e.g. layout.row_spacing=0.76")
         try:
-            out[key.strip()] = parse_yaml(raw, f"--set {key}") if raw.strip() else None
+            out[key.strip()] = parse_yaml(raw, f"{flag} {key}") if raw.strip() else None
         except yaml.YAMLError:  # pragma: no cover  (parse_yaml reports YAML errors itself)
-            raise InputError(f"--set {key}", raw, "is not a valid YAML value") from None
+            raise InputError(f"{flag} {key}", raw, "is not a valid YAML value") from None
     return out

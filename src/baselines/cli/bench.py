@@ -20,6 +20,7 @@ def add(sub: Any) -> None:
     ru.add_argument("--scenario", help="a scenario directory or preset (default: the env's)")
     ru.add_argument("--out", required=True)
     ru.add_argument("--video", action="store_true", help="write a WebM video of the first episode")
+    _common(ru)
     ru.set_defaults(func=run)
 
     be = sub.add_parser("bench", help="benchmark policies on a suite: results.json, benchmark.md")
@@ -27,14 +28,33 @@ def add(sub: Any) -> None:
     be.add_argument("--policies", required=True, help="comma list: dwb,rpp,depth,ppo:PATH")
     be.add_argument("--seeds", type=int_at_least(1), default=3)
     be.add_argument("--out", required=True)
+    _common(be)
     be.set_defaults(func=bench)
+
+
+def _common(parser: Any) -> None:
+    parser.add_argument("--force", action="store_true", help="replace an existing --out folder")
+    parser.add_argument(
+        "--trust-checkpoint",
+        action="store_true",
+        help="also load Stable-Baselines3 model.zip / vecnormalize.pkl files, which unpickle "
+        "(run code) when loaded: only for files you trust",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
     from baselines.bench import run as run_policy
 
     records = run_policy(
-        args.env, args.policy, args.seed, args.episodes, args.out, args.scenario, args.video
+        args.env,
+        args.policy,
+        args.seed,
+        args.episodes,
+        args.out,
+        args.scenario,
+        args.video,
+        force=args.force,
+        trust_checkpoint=args.trust_checkpoint,
     )
     for r in records:
         print({k: (round(v, 3) if isinstance(v, float) else v) for k, v in r.items()})
@@ -46,6 +66,14 @@ def bench(args: argparse.Namespace) -> int:
     from baselines.bench import command_line
 
     pols = [p.strip() for p in args.policies.split(",") if p.strip()]
-    run_bench(args.suite, pols, args.seeds, args.out, command_line(args.argv))
+    run_bench(
+        args.suite,
+        pols,
+        args.seeds,
+        args.out,
+        command_line(args.argv),
+        force=args.force,
+        trust_checkpoint=args.trust_checkpoint,
+    )
     print((Path(args.out) / "benchmark.md").read_text())
     return 0

@@ -1,0 +1,136 @@
+"""PPO hyperparameters: typed and validated like every other config, in rl-baselines3-zoo's file.
+
+``hyperparams/ppo.yml`` is keyed by env id in rl-baselines3-zoo's format (``n_envs``,
+``n_timesteps``, ``normalize``, ``policy`` — a dotted name zoo imports —, ``policy_kwargs`` and
+PPO's constructor arguments), so ``python -m rl_zoo3.train --algo ppo --conf-file ...`` reads it
+as it is. What zoo takes from its command line instead — the env kwargs and our disjoint
+train/eval scenario-seed ranges (MetaDrive-style splits) — lives in ``hyperparams/envs.yml``.
+Every PPO argument is forwarded, so none vanishes silently; unknown keys are errors.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from importlib import resources
+from typing import Any
+
+from scenario_gen.errors import InputError
+from scenario_gen.schema import from_mapping, param, parse_yaml, to_mapping
+
+POLICIES = ("MultiInputPolicy", "policies.extractors.DepthMultiInputPolicy")
+#: keys zoo consumes itself; the rest go to PPO's constructor
+ZOO_KEYS = ("n_envs", "n_timesteps", "normalize")
+
+
+@dataclass(frozen=True)
+class PPOHyperparams:
+    n_envs: int = param(4, "parallel envs (SubprocVecEnv when > 1)", 1, 256)
+    n_timesteps: int = param(500_000, "environment steps to train for", 1, 10**10)
+    normalize: bool | dict[str, Any] = param(
+        False, "VecNormalize the observations (true, or zoo's {norm_obs, norm_reward})"
+    )
+    policy: str = param("MultiInputPolicy", "policy class", choices=POLICIES)
+    learning_rate: float | str = param(3e-4, "Adam step size, or 'lin_<x>' (linear decay)")
+    n_steps: int = param(512, "rollout length per env", 1, 10**6)
+    batch_size: int = param(256, "minibatch size", 1, 10**7)
+    n_epochs: int = param(10, "passes over each rollout", 1, 1000)
+    gamma: float = param(0.99, "discount", 0.0, 1.0)
+    gae_lambda: float = param(0.95, "GAE λ", 0.0, 1.0)
+    clip_range: float | str = param(0.2, "PPO clip, or 'lin_<x>'")
+    clip_range_vf: float | None = param(None, "value clip (null: none)", 0.0, 100)
+    normalize_advantage: bool = param(True, "normalise advantages per minibatch")
+    ent_coef: float = param(0.0, "entropy bonus", 0.0, 10)
+    vf_coef: float = param(0.5, "value-loss weight", 0.0, 100)
+    max_grad_norm: float = param(0.5, "gradient clip", 0.0, 1e6)
+    use_sde: bool = param(False, "state-dependent exploration")
+    sde_sample_freq: int = param(-1, "gSDE noise resample period (-1: per rollout)", -1, 10**6)
+    target_kl: float | None = param(None, "early-stop epochs above this KL (null: never)", 0, 10)
+    stats_window_size: int = param(100, "episodes averaged in the rollout logs", 1, 10**6)
+    policy_kwargs: dict[str, Any] = param({}, "network: net_arch, log_std_init, activation_fn ...")
+
+    def ppo_kwargs(self) -> dict[str, Any]:
+        """Every PPO constructor argument this holds (all but zoo's own keys)."""
+        from stable_baselines3.common.utils import get_linear_fn
+
+        out = {k: v for k, v in to_mapping(self).items() if k not in ZOO_KEYS}
+        for key in ("learning_rate", "clip_range"):
+            if isinstance(out[key], str):
+                out[key] = get_linear_fn(_lin(out[key], key), 0.0, 1.0)
+        if self.policy != "MultiInputPolicy":
+            from policies.extractors import DepthMultiInputPolicy
+
+            out["policy"] = DepthMultiInputPolicy
+        return out
+
+    @property
+    def normalize_obs(self) -> bool:
+        n = self.normalize
+        return bool(n.get("norm_obs", True)) if isinstance(n, dict) else bool(n)
+
+
+def _lin(text: str, key: str) -> float:
+    kind, _, value = text.partition("_")
+    try:
+        if kind == "lin":
+            return float(value)
+    except ValueError:
+        pass
+    raise InputError(f"hyperparams.{key}", text, "allowed: a number or 'lin_<initial value>'")
+
+
+@dataclass(frozen=True)
+class EnvSetup:
+    """What zoo takes on its command line: env kwargs and the disjoint scenario-seed splits."""
+
+    env_kwargs: dict[str, Any] = param({}, "gym.make kwargs for training and evaluation")
+    train_seeds: tuple[int, int] = param(
+        (0, 1_000_000), "[low, high) scenario seeds to train on", 0, 2**62
+    )
+    eval_seeds: tuple[int, int] = param(
+        (1_000_000_000, 1_001_000_000), "[low, high) held-out scenario seeds", 0, 2**62
+    )
+
+
+def _table(name: str) -> dict[str, Any]:
+    text = resources.files("baselines.hyperparams").joinpath(name).read_text()
+    data = parse_yaml(text, name)
+    return data if isinstance(data, dict) else {}
+
+
+def load(env_id: str, overrides: dict[str, Any] | None = None) -> tuple[PPOHyperparams, EnvSetup]:
+    """The hyperparameters and env setup for ``env_id``, with ``overrides`` applied."""
+    table, envs = _table("ppo.yml"), _table("envs.yml")
+    if env_id not in table:
+        raise InputError("--env", env_id, f"allowed (with PPO hyperparameters): {', '.join(table)}")
+    data = {**table[env_id], **(overrides or {})}
+    hp: PPOHyperparams = from_mapping(PPOHyperparams, data, "hyperparams.")
+    for key in ("learning_rate", "clip_range"):
+        value = getattr(hp, key)
+        if isinstance(value, str):
+            _lin(value, key)
+        elif value <= 0:
+            raise InputError(f"hyperparams.{key}", value, "allowed: a positive number or 'lin_<x>'")
+    if hp.batch_size > hp.n_steps * hp.n_envs:
+        raise InputError(
+            "hyperparams.batch_size",
+            hp.batch_size,
+            f"allowed: at most n_steps × n_envs = {hp.n_steps * hp.n_envs}",
+        )
+    setup: EnvSetup = from_mapping(EnvSetup, envs.get(env_id, {}), f"envs.yml {env_id}.")
+    lo, hi = setup.train_seeds
+    elo, ehi = setup.eval_seeds
+    if not (lo < hi and elo < ehi and (hi <= elo or ehi <= lo)):
+        raise InputError(
+            f"envs.yml {env_id}.eval_seeds",
+            [elo, ehi],
+            f"allowed: a [low, high) range disjoint from train_seeds {[lo, hi]}",
+        )
+    return hp, setup
+
+
+def to_zoo(hp: PPOHyperparams) -> dict[str, Any]:
+    """The hyperparameters as an rl-baselines3-zoo ``ppo.yml`` entry."""
+    return {k: v for k, v in to_mapping(hp).items() if v is not None}
+
+
+__all__ = ["EnvSetup", "PPOHyperparams", "load", "to_zoo"]

@@ -1,0 +1,50 @@
+"""Held-out evaluation of an action function on an env id: mean return and the paper's metrics."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+
+def evaluate(
+    act: Callable[[dict[str, Any]], Any],
+    env_id: str,
+    kwargs: dict[str, Any],
+    episodes: int,
+    seed: int,
+) -> dict[str, float]:
+    """``episodes`` deterministic episodes with reset seeds ``seed``, ``seed + 1``, ..."""
+    import gymnasium as gym
+
+    import agrinav_gym  # noqa: F401  (registers the ids)
+
+    env = gym.make(env_id, **kwargs)
+    rets, rmse, furrow, comp, succ, crops = [], [], [], [], [], []
+    try:
+        for ep in range(episodes):
+            obs, _ = env.reset(seed=seed + ep)
+            total, done = 0.0, False
+            info: dict[str, Any] = {}
+            while not done:
+                obs, r, term, trunc, info = env.step(act(obs))
+                total += float(r)
+                done = term or trunc
+            m = info["metrics"]
+            rets.append(total)
+            rmse.append(m["rmse"] if m["rmse"] is not None else np.nan)
+            furrow.append(m["in_furrow_rmse"] if m["in_furrow_rmse"] is not None else np.nan)
+            crops.append(m["crops_hit"])
+            comp.append(m["completion"])
+            succ.append(float(info.get("is_success", False)))
+    finally:
+        env.close()
+    return {
+        "return": float(np.mean(rets)),
+        "rmse": float(np.nanmean(rmse)),
+        "in_furrow_rmse": float(np.nanmean(furrow)),
+        "completion": float(np.mean(comp)),
+        "success": float(np.mean(succ)),
+        "crops_hit": float(np.mean(crops)),
+    }

@@ -1,0 +1,179 @@
+"""Checkpoints cannot run code; bad ones fail with one clear error; shipped ones load safely."""
+
+import inspect
+import json
+import pickle
+import shutil
+import zipfile
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import agrinav_gym  # noqa: F401
+from policies import checkpoint, make_policy, shipped_model
+from scenario_gen import InputError
+
+TINY = {
+    "field": {"width": 6.0, "length": 14.0},
+    "layout": {"headland": 2.0},
+    "terrain": {"margin": 4.0},
+}
+FR = "AgriNav/FieldRoute-v0"
+OBS = ["imu", "odom", "route"]
+
+
+class _Boom:
+    """Unpickling this writes a marker file: proof that code ran."""
+
+    def __init__(self, marker: str) -> None:
+        self.marker = marker
+
+    def __reduce__(self):  # noqa: ANN204
+        return (Path(self.marker).write_text, ("pwned",))
+
+
+def _env() -> gym.Env:
+    return gym.make(FR, scenario_overrides=TINY, observations=OBS)
+
+
+def test_a_crafted_sb3_checkpoint_runs_nothing_without_trust(tmp_path: Path) -> None:
+    marker = tmp_path / "marker"
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    with zipfile.ZipFile(bad / "model.zip", "w") as z:
+        z.writestr("data", json.dumps({"policy_class": {":serialized:": "x"}}))
+        z.writestr("policy.pth", pickle.dumps(_Boom(str(marker))))
+    (bad / "vecnormalize.pkl").write_bytes(pickle.dumps(_Boom(str(marker))))
+    env = _env()
+    try:
+        for spec in (f"ppo:{bad}", f"ppo:{bad / 'model.zip'}"):
+            with pytest.raises(InputError, match="trust-checkpoint"):
+                make_policy(spec, env)
+        # and the safe loader never unpickles: an object array in policy.npz is refused
+        fake = tmp_path / "fake"
+        shutil.copytree(shipped_model(FR), fake)
+        arrays = dict(np.load(fake / "policy.npz"))
+        arrays["log_std"] = np.array([_Boom(str(marker))], dtype=object)
+        np.savez(fake / "policy.npz", **arrays)
+        with pytest.raises(InputError, match="cannot be read as weights"):
+            make_policy(f"ppo:{fake}", env)
+    finally:
+        env.close()
+    assert not marker.exists()
+
+
+def _shipped_copy(tmp_path: Path) -> Path:
+    d = tmp_path / "ckpt"
+    shutil.copytree(shipped_model(FR), d)
+    return d
+
+
+def _edit(d: Path, **changes: object) -> None:
+    meta = json.loads((d / "checkpoint.json").read_text())
+    for k, v in changes.items():
+        if v is None:
+            meta.pop(k)
+        else:
+            meta[k] = v
+    (d / "checkpoint.json").write_text(json.dumps(meta))
+
+
+@pytest.mark.parametrize(
+    "change,needle",
+    [
+        ({"normalization": None}, "normalisation statistics"),
+        ({"policy": "os.system"}, "checkpoint policy"),
+        ({"policy_kwargs": {"activation_fn": "Sigmoid"}}, "activation_fn"),
+        ({"policy_kwargs": {"net_arch": [64, 64]}}, r"needs \(64"),
+        ({"format": "pickle"}, "format"),
+    ],
+)
+def test_bad_checkpoints_give_one_clear_error(tmp_path: Path, change: dict, needle: str) -> None:
+    d = _shipped_copy(tmp_path)
+    if change.get("normalization", 0) is None:
+        meta = json.loads((d / "checkpoint.json").read_text())
+        meta["normalization"] = None
+        (d / "checkpoint.json").write_text(json.dumps(meta))
+    else:
+        _edit(d, **change)
+    env = _env()
+    try:
+        with pytest.raises(InputError, match=needle):
+            make_policy(f"ppo:{d}", env)
+    finally:
+        env.close()
+
+
+def test_truncated_or_binary_files_are_refused(tmp_path: Path) -> None:
+    d = _shipped_copy(tmp_path)
+    (d / "policy.npz").write_bytes((d / "policy.npz").read_bytes()[:100])
+    env = _env()
+    try:
+        with pytest.raises(InputError, match="cannot be read as weights"):
+            make_policy(f"ppo:{d}", env)
+        (d / "checkpoint.json").write_bytes(b"\x00\xff" * 10)
+        with pytest.raises(InputError, match="checkpoint"):
+            make_policy(f"ppo:{d}", env)
+        with pytest.raises(InputError, match="checkpoint.json"):
+            make_policy(f"ppo:{tmp_path / 'missing'}", env)
+    finally:
+        env.close()
+
+
+def test_spaces_are_checked_against_the_env() -> None:
+    env = gym.make(
+        FR, scenario_overrides=TINY, observations=OBS, config={"task": {"route_points": 5}}
+    )
+    try:
+        with pytest.raises(InputError, match="'route'"):
+            make_policy("ppo:shipped", env)
+    finally:
+        env.close()
+
+
+def test_round_trip_keeps_actions_and_normalisation(tmp_path: Path) -> None:
+    loaded = checkpoint.load(shipped_model(FR))
+    assert loaded.normalizer is not None
+    d = tmp_path / "again"
+    checkpoint.save(
+        d,
+        loaded.policy,
+        "MultiInputPolicy",
+        {"net_arch": [128, 128], "log_std_init": -1.0},
+        None,
+        {},
+    )
+    again = checkpoint.load(d)
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        o = {
+            k: rng.uniform(-1, 1, s.shape).astype(np.float32)
+            for k, s in loaded.policy.observation_space.spaces.items()
+        }
+        a, _ = loaded.policy.predict(o, deterministic=True)
+        b, _ = again.policy.predict(o, deterministic=True)
+        np.testing.assert_array_equal(a, b)
+
+
+def test_hyperparameter_file_is_readable_by_rl_baselines3_zoo() -> None:
+    """Every key is one zoo consumes itself or a PPO constructor argument, n_timesteps is
+    there, a dotted policy imports, and our own validation accepts every entry."""
+    from importlib import import_module, resources
+
+    import yaml
+    from stable_baselines3 import PPO
+
+    from baselines import hyperparams
+
+    zoo_keys = {"n_envs", "n_timesteps", "normalize", "frame_stack", "env_wrapper", "callback"}
+    ppo_args = set(inspect.signature(PPO.__init__).parameters) - {"self", "env"}
+    table = yaml.safe_load(resources.files("baselines.hyperparams").joinpath("ppo.yml").read_text())
+    for env_id, entry in table.items():
+        assert set(entry) <= zoo_keys | ppo_args, set(entry) - zoo_keys - ppo_args
+        assert "n_timesteps" in entry
+        if "." in entry["policy"]:
+            module, _, name = entry["policy"].rpartition(".")
+            assert inspect.isclass(getattr(import_module(module), name))
+        hyperparams.load(env_id)
