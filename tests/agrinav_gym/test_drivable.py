@@ -46,7 +46,7 @@ def test_pure_pursuit_drives_the_default_scenario_without_touching_a_crop(env_id
         env.close()
 
 
-def _contact_with_one_stalk(x: float, y: float, species: str = "corn", stage: int = 3):  # noqa: ANN202
+def _contact_with_one_stalk(x: float, y: float, species: str = "corn", stage: int = 3):
     scn = sg.generate(
         sg.preset(
             "default",

@@ -6,8 +6,8 @@ from pathlib import Path
 import pytest
 import yaml
 
-from baselines.report import METRICS
 from baselines.cli import main
+from baselines.report import METRICS
 
 
 def _train(args: list[str]) -> subprocess.CompletedProcess[str]:
@@ -41,8 +41,11 @@ def test_training_saves_safe_checkpoints_logs_and_resumes(
     common = ["--env", "AgriNav/FurrowFollow-v0", "--seed", "3", "--scenario", str(tiny_scenario)]
     common += ["--n-envs", "1", "--eval-episodes", "1", "--eval-every", "128"]
     proc = _train(
-        [*common, "--timesteps", "256", "--out", str(out), "--checkpoint-every", "128"]
-        + ["--hyperparams", "n_steps=64", "batch_size=32", "learning_rate=lin_0.0003"]
+        [
+            *common,
+            *("--timesteps", "256", "--out", str(out), "--checkpoint-every", "128"),
+            *("--hyperparams", "n_steps=64", "batch_size=32", "learning_rate=lin_0.0003"),
+        ]
     )
     assert proc.returncode == 0, proc.stderr[-2000:]
     for name in ("checkpoint.json", "policy.npz", "optimizer.npz", "config.yml", "command.txt"):
@@ -66,8 +69,11 @@ def test_training_saves_safe_checkpoints_logs_and_resumes(
     # resume from the first checkpoint: it continues at step 128, to 384 in all
     again = tmp_path / "resumed"
     proc = _train(
-        [*common, "--timesteps", "384", "--out", str(again), "--hyperparams", "n_steps=64"]
-        + ["batch_size=32", "--resume", str(out / "checkpoints" / "step_0000000128")]
+        [
+            *common,
+            *("--timesteps", "384", "--out", str(again), "--hyperparams", "n_steps=64"),
+            *("batch_size=32", "--resume", str(out / "checkpoints" / "step_0000000128")),
+        ]
     )
     assert proc.returncode == 0, proc.stderr[-2000:]
     meta = json.loads((again / "checkpoint.json").read_text())
