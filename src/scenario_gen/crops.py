@@ -193,9 +193,16 @@ GREEN = (70, 140, 50)
 DARK = (45, 100, 35)
 
 
-@lru_cache(maxsize=256)
 def crop_mesh(name: str, growth: float) -> Any:
-    """Procedural model of ``name`` at ``growth`` in [0, 1], base at the origin, +z up."""
+    """Procedural model of ``name`` at ``growth`` in [0, 1], base at the origin, +z up.
+
+    Each call returns a mesh of its own (built once per (name, growth) and copied), so a caller
+    that transforms it cannot change what the next caller gets."""
+    return _crop_mesh(name, float(growth)).copy()
+
+
+@lru_cache(maxsize=256)
+def _crop_mesh(name: str, growth: float) -> Any:
     import trimesh
 
     if not 0.0 <= growth <= 1.0:

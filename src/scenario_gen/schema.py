@@ -11,6 +11,7 @@ exponentially before a single key can be checked).
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 import types
 from dataclasses import field as dc_field
@@ -218,10 +219,17 @@ def describe(tp: Any, meta: Any) -> str:
     )
     lo, hi = meta.get("lo"), meta.get("hi")
     if lo is not None and hi is not None:
-        return f"{name} in [{lo:g}, {hi:g}]"
+        return f"{name} in [{_num(lo)}, {_num(hi)}]"
     if lo is not None:
-        return f"{name} >= {lo:g}"
+        return f"{name} >= {_num(lo)}"
     return name
+
+
+def _num(v: float) -> str:
+    if float(v).is_integer() and abs(v) < 1e15:
+        n = int(v)
+        return f"2**{n.bit_length() - 1}" if n > 1 << 20 and n & (n - 1) == 0 else str(n)
+    return f"{v:g}"
 
 
 def field_rows(cls: type, prefix: str = "") -> list[tuple[str, str, str, str]]:
@@ -243,9 +251,7 @@ def field_rows(cls: type, prefix: str = "") -> list[tuple[str, str, str, str]]:
         rows.append(
             (
                 f"{prefix}{f.name}",
-                yaml.safe_dump(_plain(default), default_flow_style=True)
-                .strip()
-                .removesuffix("..."),
+                json.dumps(_plain(default), ensure_ascii=False),
                 describe(tp, f.metadata),
                 str(f.metadata.get("doc", "")),
             )

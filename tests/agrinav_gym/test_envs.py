@@ -204,3 +204,19 @@ def test_rgb_array_render() -> None:
         assert frame.std() > 5  # not a blank image: terrain, robot and plants are drawn
     finally:
         env.close()
+
+
+def test_design_notes_list_every_observation_with_its_shape() -> None:
+    """docs/design.md's observation table is the users' reference: it must match the code."""
+    from pathlib import Path
+
+    from agrinav_gym.interface import GPS_FIELDS, IMU_FIELDS, ODOM_FIELDS
+    from agrinav_gym.observations import OBSERVATION_MODELS
+
+    text = (Path(__file__).resolve().parents[2] / "docs" / "design.md").read_text()
+    rows = {
+        line.split("|")[1].strip(" `"): line for line in text.splitlines() if line.startswith("| `")
+    }
+    assert set(OBSERVATION_MODELS) <= set(rows)
+    for key, n in (("gps", len(GPS_FIELDS)), ("imu", len(IMU_FIELDS)), ("odom", len(ODOM_FIELDS))):
+        assert f"| ({n},) |" in rows[key]

@@ -94,3 +94,12 @@ def test_bad_input_exits_2_with_one_line_and_no_output(
     assert "Traceback" not in proc.stderr
     assert not out.exists()
     assert list(tmp_path.iterdir()) == []
+
+
+def test_config_reference_is_current() -> None:
+    """docs/config.md is generated from the config classes: regenerate it after a change with
+    `python -m baselines.configdoc`."""
+    from baselines.configdoc import reference
+
+    root = Path(__file__).resolve().parents[2]
+    assert (root / "docs" / "config.md").read_text() == reference()

@@ -34,3 +34,10 @@ def test_bad_growth_and_species() -> None:
         crop_mesh("corn", 1.5)
     with pytest.raises(ScenarioError, match="crop.species"):
         crop_mesh("rice", 0.5)
+
+
+def test_crop_mesh_returns_a_mesh_of_its_own() -> None:
+    a = crop_mesh("corn", 0.5)
+    before = crop_mesh("corn", 0.5).vertices.copy()
+    a.apply_translation([1.0, 0.0, 0.0])
+    assert (crop_mesh("corn", 0.5).vertices == before).all()
