@@ -146,7 +146,11 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[Obs, dict[str, Any]]:
         self._check_open("reset")
-        super().reset(seed=seed)
+        if seed is not None and (
+            isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0
+        ):
+            raise InputError("seed", seed, "allowed: None or an integer >= 0")
+        super().reset(seed=None if seed is None else int(seed))
         opts = self._check_options(options)
         rng = self.np_random
         self.scenario, env_values = self.source.sample(rng, self.scenario, opts.get("scenario"))

@@ -1,0 +1,122 @@
+"""Bad input to the env API: one InputError naming the field, never a traceback from inside."""
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from agrinav_gym import InputError
+
+from .helpers import TINY
+
+ID = "AgriNav/FurrowFollow-v0"
+
+
+@pytest.mark.parametrize(
+    "kwargs,field",
+    [
+        ({"config": "fast"}, "config"),
+        ({"config": ["robot"]}, "config"),
+        ({"config": {"robot": "fast"}}, "config.robot"),
+        ({"config": {"reward": {"speed": {"weight": 1}}}}, "config.reward.speed"),
+        ({"config": {"reward": {"cte": {"weight": "big"}}}}, "config.reward.cte.weight"),
+        ({"randomize": "crop.stage"}, "randomize"),
+        ({"randomize": {"crop.stage": [3, 1]}}, "randomize.crop.stage"),
+        ({"randomize": {"crop.stage": [1, 6]}}, "randomize.crop.stage"),
+        ({"randomize": {"crop.stage": [1.5, 3]}}, "randomize.crop.stage"),
+        ({"randomize": {"crop": [1, 2]}}, "randomize.crop"),
+        ({"randomize": {"gnss_mode": {"choices": ["rtk_fixed", "dgps"]}}}, "randomize.gnss_mode"),
+        ({"randomize": {"gnss_mode": [0, 1]}}, "randomize.gnss_mode"),
+        ({"randomize": {"soil_colour": [0.5, 0.6]}}, "randomize.soil_colour"),
+        ({"randomize": {"soil_colour": [[0.5, 0.4], [0.6, 0.5, 0.4]]}}, "randomize.soil_colour"),
+        ({"randomize": {"light_elevation_deg": [10, 400]}}, "randomize.light_elevation_deg"),
+        (
+            {"randomize": {"crop.species": {"choices": ["cabbage"]}, "crop.stage": [1, 5]}},
+            "randomize",
+        ),
+        ({"scenario_seeds": [5, 5]}, "scenario_seeds"),
+        ({"scenario_seed": -1}, "scenario_seed"),
+        ({"scenario_seed": 2**64}, "scenario_seed"),
+        ({"scenario": 42}, "scenario"),
+        ({"scenario_overrides": "wide"}, "scenario_overrides"),
+        ({"observations": ["gps", "gps"]}, "observations"),
+        ({"observations": []}, "observations"),
+        ({"bank": "/no/such/bank"}, "bank"),
+    ],
+)
+def test_bad_constructor_arguments(kwargs: dict[str, Any], field: str) -> None:
+    kwargs.setdefault("scenario_overrides", TINY) if "scenario" not in kwargs else None
+    with pytest.raises(InputError) as info:
+        gym.make(ID, **kwargs).close()
+    assert info.value.field.startswith(field), info.value
+
+
+def test_a_range_error_names_the_range_given_not_a_sampled_value() -> None:
+    with pytest.raises(InputError) as info:
+        gym.make(ID, scenario_overrides=TINY, randomize={"layout.row_spacing": [0.5, 80.0]})
+    assert info.value.value == [0.5, 80.0]
+
+
+@pytest.fixture
+def env() -> Any:
+    e = gym.make(ID, scenario_overrides=TINY).unwrapped
+    yield e
+    e.close()
+
+
+def test_step_before_reset(env: Any) -> None:
+    with pytest.raises(InputError, match="reset"):
+        env.step(np.zeros(2, np.float32))
+
+
+@pytest.mark.parametrize(
+    "action",
+    ["forward", {"v": 1.0}, [1.0], [[1.0, 0.0, 0.0]], [np.nan, 0.0], [np.inf, 0.0], None, object()],
+)
+def test_bad_actions(env: Any, action: Any) -> None:
+    env.reset(seed=0)
+    with pytest.raises(InputError) as info:
+        env.step(action)
+    assert info.value.field == "action"
+
+
+@pytest.mark.parametrize(
+    "options,field",
+    [
+        ("lane 2", "options"),
+        ({"lane": 1.5}, "options.lane"),
+        ({"lane": "2"}, "options.lane"),
+        ({"lane": 99}, "options.lane"),
+        ({"lanes": 2}, "options"),
+        ({"scenario": 3.14}, "scenario"),
+        ({"scenario": "/no/such/scenario"}, "scenario"),
+    ],
+)
+def test_bad_reset_options(env: Any, options: Any, field: str) -> None:
+    with pytest.raises(InputError) as info:
+        env.reset(seed=0, options=options)
+    assert info.value.field == field
+
+
+@pytest.mark.parametrize("seed", [-1, 1.5, "0", True])
+def test_bad_reset_seeds_are_refused_cleanly(env: Any, seed: Any) -> None:
+    with pytest.raises(InputError) as info:
+        env.reset(seed=seed)
+    assert info.value.field == "seed"
+
+
+def test_huge_seeds_are_honoured(env: Any) -> None:
+    a, _ = env.reset(seed=2**64 + 5)
+    b, _ = env.reset(seed=np.uint64(7))
+    c, _ = env.reset(seed=2**64 + 5)
+    assert all(np.array_equal(a[k], c[k]) for k in a) and b.keys() == a.keys()
+
+
+def test_use_after_close(env: Any) -> None:
+    env.reset(seed=0)
+    env.close()
+    env.close()  # closing twice is allowed
+    for call in (lambda: env.reset(seed=0), lambda: env.step(np.zeros(2, np.float32)), env.render):
+        with pytest.raises(InputError, match="close"):
+            call()
