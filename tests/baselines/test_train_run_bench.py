@@ -276,3 +276,46 @@ def test_run_refuses_to_overwrite_without_force(
     (out / "keep.txt").write_text("mine")
     assert main(["run", "--policy", "rpp", "--out", str(out)]) == 2
     assert "--force" in capsys.readouterr().err and (out / "keep.txt").read_text() == "mine"
+
+
+@pytest.mark.parametrize("sig", ["SIGTERM", "SIGKILL"])
+def test_a_killed_run_leaves_nothing_stale(tmp_path: Path, sig: str) -> None:
+    import signal
+    import time
+
+    out = tmp_path / "run"
+    cmd = [sys.executable, "-m", "baselines.cli", "run", "--policy", "rpp", "--episodes", "20"]
+    cmd += ["--env", "AgriNav/FurrowFollow-v0", "--out", str(out)]
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 60
+        while not list(tmp_path.glob(".run.tmp-*")) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        time.sleep(1.0)  # mid-episode
+        proc.send_signal(getattr(signal, sig))
+        proc.wait(timeout=60)
+    finally:
+        proc.kill()
+    assert not out.exists()
+    left = list(tmp_path.glob(".run.*"))
+    assert (left == []) if sig == "SIGTERM" else len(left) >= 1
+    # the next run to the same --out cleans the dead run's temporaries and succeeds
+    assert (
+        main(
+            [
+                "run",
+                "--policy",
+                "rpp",
+                "--env",
+                "AgriNav/FurrowFollow-v0",
+                "--out",
+                str(out),
+                "--scenario",
+                "early-corn",
+                "--episodes",
+                "1",
+            ]
+        )
+        == 0
+    )
+    assert out.is_dir() and list(tmp_path.glob(".run.*")) == []
