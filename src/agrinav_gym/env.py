@@ -241,7 +241,7 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         x, y = self._xy()
         cte, s, k = self.tracker.update(x, y)
         ds, self._s, self._cte, self._k = s - self._s, s, cte, k
-        self.metrics.update(x, y, s)
+        self.metrics.update(x, y, s, abs(cte))
         new = [
             i for i in self.contact.touching(x, y, float(self.state.rpy[2])) if i not in self._hit
         ]

@@ -23,10 +23,11 @@ FloatArray = NDArray[np.float64]
 class RouteProjector:
     """Exact nearest segment of a polyline to a point.
 
-    The nearest point q of the polyline lies on a segment whose nearer endpoint is within
-    L/2 of q (L: the longest segment), so within d_v + L/2 of the query point, where d_v is the
-    distance to the nearest vertex (an upper bound of the answer). Only the segments touching
-    the vertices in that ball are tested.
+    The nearest point q of the polyline lies on a segment whose nearer endpoint is within L/2
+    of q (L: the longest segment), so within d + L/2 of the query point for any upper bound d
+    of the answer — the distance to the nearest vertex, or to any one segment (the task's
+    tracker knows one). Only the segments touching the vertices in that disc are tested; a
+    uniform grid of the vertices finds them with a few dictionary lookups.
     """
 
     def __init__(self, xy: FloatArray, furrow: NDArray[np.bool_]) -> None:
@@ -40,28 +41,62 @@ class RouteProjector:
         self.tree = cKDTree(self.xy)
         f = np.asarray(furrow, bool)
         self.seg_furrow = f[:-1] & f[1:]
+        self.cell = max(10.0 * self.half, 0.25)  # a few vertices per cell
+        self.grid: dict[tuple[int, int], list[int]] = {}
+        for i, (cx, cy) in enumerate(np.floor(self.xy / self.cell).astype(int).tolist()):
+            self.grid.setdefault((cx, cy), []).append(i)
+        self._pts = self.xy.tolist()
+        self._len = self.seg_len.tolist()
+        self._arc = self.arc.tolist()
 
     @property
     def length(self) -> float:
         return float(self.arc[-1])
 
-    def project(self, x: float, y: float) -> tuple[float, int, float]:
-        """(distance, segment index, arc length of the nearest point)."""
-        d_v, _ = self.tree.query((x, y))
-        near = self.tree.query_ball_point((x, y), float(d_v) + self.half + 1e-12)
-        n = len(self.xy) - 1
-        segs = {j for i in near for j in (i - 1, i) if 0 <= j < n}
-        best = (math.inf, 0, 0.0)
-        for k in sorted(segs):
-            ax, ay = self.xy[k]
-            dx, dy = self.xy[k + 1] - self.xy[k]
+    def project(self, x: float, y: float, bound: float | None = None) -> tuple[float, int, float]:
+        """(distance, segment index, arc length of the nearest point); ``bound`` is any upper
+        bound of the distance (else the nearest vertex's distance is used)."""
+        if bound is None:
+            bound = float(self.tree.query((x, y))[0])
+        r = bound + self.half + 1e-9
+        c = self.cell
+        i0, i1 = math.floor((x - r) / c), math.floor((x + r) / c)
+        j0, j1 = math.floor((y - r) / c), math.floor((y + r) / c)
+        if (i1 - i0 + 1) * (j1 - j0 + 1) > 36:  # a loose bound: the KD-tree is cheaper
+            near = self.tree.query_ball_point((x, y), r)
+        else:
+            g = self.grid
+            near = [
+                v for i in range(i0, i1 + 1) for j in range(j0, j1 + 1) for v in g.get((i, j), ())
+            ]
+        n = len(self._pts) - 1
+        segs = sorted({j for v in near for j in (v - 1, v) if 0 <= j < n})
+        if len(segs) > 24:
+            return self._project_many(x, y, np.asarray(segs))
+        pts, best = self._pts, (math.inf, 0, 0.0)
+        for k in segs:
+            ax, ay = pts[k]
+            bx, by = pts[k + 1]
+            dx, dy = bx - ax, by - ay
             L2 = dx * dx + dy * dy
             u = 0.0 if L2 <= 0 else min(max(((x - ax) * dx + (y - ay) * dy) / L2, 0.0), 1.0)
             ex, ey = x - ax - u * dx, y - ay - u * dy
             dist = math.sqrt(ex * ex + ey * ey)
             if dist < best[0]:
-                best = (dist, k, float(self.arc[k] + u * self.seg_len[k]))
+                best = (dist, k, self._arc[k] + u * self._len[k])
         return best
+
+    def _project_many(self, x: float, y: float, segs: NDArray[np.intp]) -> tuple[float, int, float]:
+        a, b = self.xy[segs], self.xy[segs + 1]
+        ab = b - a
+        L2 = (ab * ab).sum(axis=1)
+        rel = np.array([x, y]) - a
+        u = np.clip(np.where(L2 > 0, (rel * ab).sum(axis=1) / np.where(L2 > 0, L2, 1.0), 0.0), 0, 1)
+        e = rel - u[:, None] * ab
+        d = np.sqrt((e * e).sum(axis=1))
+        i = int(np.argmin(d))  # first minimum: the lowest segment index, as the loop keeps
+        k = int(segs[i])
+        return float(d[i]), k, float(self.arc[k] + u[i] * self.seg_len[k])
 
 
 class EpisodeMetrics:
@@ -75,9 +110,10 @@ class EpisodeMetrics:
         self.sums = {k: [0, 0.0, 0.0, 0.0] for k in ("all", "furrow", "headland")}
         self.reached = 0.0  # furthest arc length along the route (the task's tracker)
 
-    def update(self, x: float, y: float, s: float) -> None:
-        """Record a pose; ``s`` is its arc length along the route as the task tracks it."""
-        d, k, _ = self.route.project(x, y)
+    def update(self, x: float, y: float, s: float, bound: float | None = None) -> None:
+        """Record a pose; ``s`` is its arc length along the route as the task tracks it and
+        ``bound`` its distance to any one route segment (speeds up the exact search)."""
+        d, k, _ = self.route.project(x, y, bound)
         self.poses.append((x, y))
         self.errors.append(d)
         for key in ("all", "furrow" if self.route.seg_furrow[k] else "headland"):

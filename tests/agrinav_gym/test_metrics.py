@@ -20,6 +20,14 @@ def _brute(points: np.ndarray, path: np.ndarray) -> tuple[np.ndarray, np.ndarray
     return d.min(axis=1), d.argmin(axis=1)
 
 
+def _brute_each(points: np.ndarray, path: np.ndarray, k: np.ndarray) -> tuple[np.ndarray, None]:
+    """Distance of each point to its own segment k."""
+    a, b = path[k], path[k + 1]
+    ab = b - a
+    u = np.clip(((points - a) * ab).sum(-1) / np.maximum((ab * ab).sum(-1), 1e-18), 0, 1)
+    return np.linalg.norm(points - (a + u[:, None] * ab), axis=-1), None
+
+
 def _metrics(path: np.ndarray, furrow: np.ndarray, poses: np.ndarray) -> dict:
     m = EpisodeMetrics(path, furrow)
     for x, y in poses:
@@ -62,9 +70,17 @@ def test_projector_is_exact_on_a_random_polyline() -> None:
     path = np.cumsum(rng.normal(size=(300, 2)), axis=0)
     pts = rng.normal(size=(2000, 2)) * 8
     proj = RouteProjector(path, np.ones(len(path), bool))
-    got = np.array([proj.project(x, y)[0] for x, y in pts])
     want, _ = _brute(pts, path)
-    np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)
+    for bound in (None, 0.0, 3.0, 50.0):  # vertex bound, exact, loose (vectorised), KD-tree
+        got = [
+            proj.project(x, y, bound if bound != 0.0 else w)
+            for (x, y), w in zip(pts, want, strict=True)
+        ]
+        np.testing.assert_allclose([g[0] for g in got], want, rtol=0, atol=1e-12)
+        # the reported segment holds the nearest point (at a shared vertex either one does)
+        k = np.array([g[1] for g in got])
+        own, _ = _brute_each(pts, path, k)
+        np.testing.assert_allclose(own, want, rtol=0, atol=1e-12)
 
 
 def test_field_route_episode_matches_independent_computation() -> None:
