@@ -71,9 +71,9 @@ def test_projector_is_exact_on_a_random_polyline() -> None:
     pts = rng.normal(size=(2000, 2)) * 8
     proj = RouteProjector(path, np.ones(len(path), bool))
     want, _ = _brute(pts, path)
-    for bound in (None, 0.0, 3.0, 50.0):  # vertex bound, exact, loose (vectorised), KD-tree
+    for slack in (None, 0.0, 3.0, 50.0):  # vertex bound, exact, loose (vectorised), KD-tree
         got = [
-            proj.project(x, y, bound if bound != 0.0 else w)
+            proj.project(x, y, None if slack is None else w + slack)
             for (x, y), w in zip(pts, want, strict=True)
         ]
         np.testing.assert_allclose([g[0] for g in got], want, rtol=0, atol=1e-12)
