@@ -223,6 +223,16 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         """Plant indices (rows of plants.csv) of the crops touched this episode."""
         return frozenset(self._hit)
 
+    def conditions(self) -> dict[str, str]:
+        """What produced this episode's numbers: localisation, camera model, speed limit."""
+        c = self.cfg.camera
+        cam = f"{c.width}x{c.height} analytic proxy" if "depth" in self.obs_models else "none"
+        return {
+            "localisation": f"{self.estimator.name}, GNSS {self.sensors.gnss.cfg.mode}",
+            "camera": cam,
+            "speed_limit": f"{self.cfg.robot.v_max:g} m/s",
+        }
+
     def episode_metrics(self) -> dict[str, Any]:
         return self.metrics.result(len(self._hit))
 

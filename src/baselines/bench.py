@@ -29,6 +29,7 @@ def _record(ep: Episode, suite_name: str, scenario: str) -> dict[str, Any]:
         "steps": ep.steps,
         "termination": ep.termination,
         "seconds": round(ep.seconds, 3),
+        **ep.conditions,
     }
 
 

@@ -25,6 +25,9 @@ class Episode:
     furrow: np.ndarray = field(repr=False)
     plants: np.ndarray = field(repr=False)  # crop positions (M, 2)
     hit: np.ndarray = field(repr=False)  # positions of the crops touched (K, 2)
+    conditions: dict[str, str] = field(
+        default_factory=dict
+    )  # localisation, camera, speed, controller
 
 
 def run_episode(
@@ -61,6 +64,7 @@ def run_episode(
         u.route.furrow.copy(),
         crops[~p.is_weed],
         crops[hit] if len(hit) else np.empty((0, 2)),
+        {**u.conditions(), "controller": policy.describe()},
     )
 
 

@@ -61,6 +61,7 @@ def table(records: list[dict[str, Any]], suite_name: str, command: str) -> str:
             if rows:
                 cells = [_mean_std([r[m] for r in rows]) for m in METRICS]
                 lines.append(f"| {g} | {p} | " + " | ".join(cells) + f" | {len(rows)} |")
+    lines += ["", *conditions(records, groups, pols)]
     lines += ["", *failures(records, groups, pols)]
     lines += [
         "",
@@ -75,6 +76,29 @@ def table(records: list[dict[str, Any]], suite_name: str, command: str) -> str:
         "",
     ]
     return "\n".join(lines)
+
+
+CONDITIONS = ("localisation", "camera", "speed_limit", "controller")
+
+
+def conditions(records: list[dict[str, Any]], groups: list[str], pols: list[str]) -> list[str]:
+    """What produced each row: no number without its localisation, camera, speed limit and
+    controller configuration."""
+    lines = [
+        "Conditions of each row:",
+        "",
+        "| scenario | policy | localisation | camera | speed limit | controller |",
+        "|---|---|---|---|---|---|",
+    ]
+    for g in groups:
+        for p in pols:
+            rows = [r for r in records if r["scenario"] == g and r["policy"] == p]
+            if rows:
+                cells = [
+                    " / ".join(dict.fromkeys(str(r.get(c, "—")) for r in rows)) for c in CONDITIONS
+                ]
+                lines.append(f"| {g} | {p} | " + " | ".join(cells) + " |")
+    return lines
 
 
 FAILED_BELOW = 90.0  # mean completion (%) under which a policy counts as failing a group

@@ -55,6 +55,10 @@ class Policy(ABC):
     def reset(self) -> None:  # noqa: B027  (stateless policies need nothing)
         pass
 
+    def describe(self) -> str:
+        """The controller and its configuration, as a benchmark row states it."""
+        return self.name
+
     @abstractmethod
     def act(self, obs: Obs) -> NDArray[np.float32]: ...
 

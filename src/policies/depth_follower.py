@@ -52,6 +52,9 @@ class DepthFurrowFollower(Policy):
         self.lost = 0
         self.half_width = None
 
+    def describe(self) -> str:
+        return f"depth row follower ({self.speed:g} m/s, rows {self.near:g}-{self.far:g} m ahead)"
+
     def lane(self, depth: NDArray[np.float32]) -> tuple[float | None, float] | None:
         """(lateral offset of the lane centre or None if unknown, its heading) in the robot
         frame, or None when no row is in view."""

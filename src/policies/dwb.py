@@ -271,6 +271,7 @@ class DWB(Policy):
     ) -> None:
         super().__init__(observation_space, action_space, robot, **kwargs)
         self.p = DWBParams.from_yaml(params)
+        self.config_name = Path(params).name if params is not None else "dwb_furrow.yaml"
         self.project = (
             DepthProjector(robot.camera, robot.base_height)
             if "depth" in observation_space.spaces
@@ -281,6 +282,9 @@ class DWB(Policy):
         self.inscribed = inscribed_radius
         self.dt = robot.control_dt
         self.reset()
+
+    def describe(self) -> str:
+        return f"dwb ({self.config_name})"
 
     def reset(self) -> None:
         self.last: tuple[float, float] | None = None

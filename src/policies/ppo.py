@@ -60,6 +60,11 @@ class PPOPolicy(Policy):
         self.normalize = loaded.normalizer
         self.meta = loaded.meta
         self.keys = sorted(loaded.policy.observation_space.spaces)
+        self.source = p.name or str(p)
+
+    def describe(self) -> str:
+        steps = self.meta.get("num_timesteps")
+        return f"ppo ({self.source}{f', {steps:,} steps' if steps else ''})"
 
     def act(self, obs: Obs) -> NDArray[np.float32]:
         o = {k: obs[k] for k in self.keys}

@@ -48,6 +48,12 @@ class RegulatedPurePursuit(Policy):
     def reset(self) -> None:
         self.v = 0.0
 
+    def describe(self) -> str:
+        return (
+            f"rpp (Nav2 RPP-like: {self.v_des:g} m/s, lookahead {self.l_min:g}-{self.l_max:g} m "
+            f"over {self.t_look:g} s)"
+        )
+
     def act(self, obs: Obs) -> NDArray[np.float32]:
         if "odom" in obs:
             self.v = decode_odom(obs["odom"]).v
