@@ -1,4 +1,13 @@
-"""field.geojson: the field, the route and every plant in WGS84, for GIS tools."""
+"""GeoJSON layers in WGS84 (RFC 7946): field, route, plants and planted rows.
+
+One geometry type per layer and file (``field.geojson``, ``route.geojson``,
+``plants.geojson``): GIS formats hold one geometry type per layer, so a file mixing polygons,
+lines and points cannot be converted to a Shapefile. Every feature carries a unique top-level
+``id`` (its index in the file), and plant numbers live in the ``plant_id`` property, so GDAL
+never takes a repeated property for its feature id (``ogr2ogr -f GPKG`` refused the old file).
+Coordinates are lon, lat, ellipsoidal height; ``decimals=None`` keeps full precision (for the
+GeoPackage writer), 8 decimals are ≈1 mm.
+"""
 
 from __future__ import annotations
 
@@ -9,81 +18,148 @@ import numpy as np
 
 from .model import Scenario
 
+LAYERS = ("field", "route", "plants")
 
-def geojson(
+
+def _coords(lon: Any, lat: Any, z: Any, decimals: int | None) -> list[list[float]]:
+    a = np.column_stack([np.atleast_1d(lon), np.atleast_1d(lat), np.atleast_1d(z)])
+    a = a.astype(np.float64)
+    if decimals is not None:
+        a = np.column_stack([np.round(a[:, :2], decimals), np.round(a[:, 2], 3)])
+    out: list[list[float]] = a.tolist()
+    return out
+
+
+def _round_geom(g: Any, decimals: int | None) -> Any:
+    if decimals is None:
+        return g
+    if isinstance(g, dict):
+        return {k: _round_geom(v, decimals) for k, v in g.items()}
+    if isinstance(g, (list, tuple)):
+        if g and isinstance(g[0], float):
+            return [round(v, decimals) for v in g]
+        return [_round_geom(v, decimals) for v in g]
+    return g
+
+
+def collection(name: str, features: list[dict[str, Any]]) -> dict[str, Any]:
+    """A FeatureCollection whose features get unique ids 0..n-1."""
+    for i, f in enumerate(features):
+        f["id"] = i
+    return {"type": "FeatureCollection", "name": name, "features": features}
+
+
+def field_features(scn: Scenario, decimals: int | None = 8) -> list[dict[str, Any]]:
+    geom = scn.field_lonlat.__geo_interface__
+    return [
+        {
+            "type": "Feature",
+            "properties": {"name": scn.spec.name, "area_m2": round(scn.field.area, 2)},
+            "geometry": _round_geom(_plain(geom), decimals),
+        }
+    ]
+
+
+def _plain(g: Any) -> Any:
+    if isinstance(g, dict):
+        return {k: _plain(v) for k, v in g.items()}
+    if isinstance(g, (list, tuple)):
+        return [_plain(v) for v in g]
+    return g
+
+
+def route_features(
+    scn: Scenario, rlat: np.ndarray, rlon: np.ndarray, decimals: int | None = 8
+) -> list[dict[str, Any]]:
+    """One LineString per furrow or headland run; runs share their junction point."""
+    r = scn.route
+    seg = r.segment
+    cuts = np.flatnonzero(seg[1:] != seg[:-1]) + 1
+    bounds = np.concatenate([[0], cuts, [len(seg)]]).astype(int)
+    ralt = scn.geo.enu_to_geodetic(r.xyz[:, 0], r.xyz[:, 1], r.xyz[:, 2])[2]
+    feats = []
+    for a, b in itertools.pairwise(bounds.tolist()):
+        hi = min(b + 1, len(seg))
+        length = float(np.hypot(*np.diff(r.xy[a:hi], axis=0).T).sum())
+        feats.append(
+            {
+                "type": "Feature",
+                "properties": {
+                    "segment": str(seg[a]),
+                    "lane": int(r.lane[a]),
+                    "length_m": round(length, 3),
+                },
+                "geometry": {
+                    "type": "LineString",
+                    "coordinates": _coords(rlon[a:hi], rlat[a:hi], ralt[a:hi], decimals),
+                },
+            }
+        )
+    return feats
+
+
+def plant_features(
+    scn: Scenario,
+    lat: np.ndarray,
+    lon: np.ndarray,
+    alt: np.ndarray,
+    decimals: int | None = 8,
+) -> list[dict[str, Any]]:
+    p = scn.plants
+    xyz = _coords(lon, lat, alt, decimals)
+    r = (lambda v, d: round(float(v), d)) if decimals is not None else (lambda v, d: float(v))
+    return [
+        {
+            "type": "Feature",
+            "properties": {
+                "plant_id": i,
+                "species": str(p.species[i]),
+                "stage": r(p.stage[i], 3),
+                "height": r(p.height[i], 3),
+                "roll": r(p.roll[i], 6),
+                "pitch": r(p.pitch[i], 6),
+                "yaw": r(p.yaw[i], 6),
+                "x_enu": r(p.x[i], 4),
+                "y_enu": r(p.y[i], 4),
+                "z_enu": r(p.z[i], 4),
+            },
+            "geometry": {"type": "Point", "coordinates": xyz[i]},
+        }
+        for i in range(len(p))
+    ]
+
+
+def row_features(scn: Scenario, decimals: int | None = 8, step: float = 1.0) -> list[dict]:
+    """Each planted row as a line on the terrain, a vertex at most ``step`` metres apart."""
+    rows = scn.rows
+    feats = []
+    for i, (s, t0, t1) in enumerate(zip(rows.offsets, rows.starts, rows.ends, strict=True)):
+        n = max(2, int(np.ceil((t1 - t0) / step)) + 1)
+        t = np.linspace(t0, t1, n)
+        x, y = rows.to_enu(t, np.full(n, s))
+        z = scn.terrain.height_at(x, y)
+        lat, lon, alt = scn.geo.enu_to_geodetic(x, y, z)
+        feats.append(
+            {
+                "type": "Feature",
+                "properties": {"row": i, "length_m": round(float(t1 - t0), 3)},
+                "geometry": {"type": "LineString", "coordinates": _coords(lon, lat, alt, decimals)},
+            }
+        )
+    return feats
+
+
+def scenario_layers(
     scn: Scenario,
     lat: np.ndarray,
     lon: np.ndarray,
     alt: np.ndarray,
     rlat: np.ndarray,
     rlon: np.ndarray,
-) -> dict[str, Any]:
-    def rnd(v: Any) -> Any:
-        return np.round(np.asarray(v, dtype=np.float64), 8).tolist()
-
-    feats: list[dict[str, Any]] = [
-        {
-            "type": "Feature",
-            "properties": {
-                "kind": "field",
-                "name": scn.spec.name,
-                "area_m2": round(scn.field.area, 2),
-            },
-            "geometry": _round_geom(scn.field_lonlat.__geo_interface__),
-        }
-    ]
-    seg = scn.route.segment
-    cuts = np.flatnonzero(seg[1:] != seg[:-1]) + 1
-    bounds = np.concatenate([[0], cuts, [len(seg)]])
-    z = scn.route.xyz[:, 2] + scn.geo.alt
-    for a, b in itertools.pairwise(bounds):
-        hi = min(b + 1, len(seg))  # share the junction so the line is continuous
-        feats.append(
-            {
-                "type": "Feature",
-                "properties": {
-                    "kind": "route",
-                    "segment": str(seg[a]),
-                    "lane": int(scn.route.lane[a]),
-                },
-                "geometry": {
-                    "type": "LineString",
-                    "coordinates": np.column_stack(
-                        [rnd(rlon[a:hi]), rnd(rlat[a:hi]), np.round(z[a:hi], 3)]
-                    ).tolist(),
-                },
-            }
-        )
-    p = scn.plants
-    for i in range(len(p)):
-        feats.append(
-            {
-                "type": "Feature",
-                "properties": {
-                    "kind": "plant",
-                    "id": i,
-                    "species": str(p.species[i]),
-                    "stage": round(float(p.stage[i]), 3),
-                    "height": round(float(p.height[i]), 3),
-                },
-                "geometry": {
-                    "type": "Point",
-                    "coordinates": [
-                        round(float(lon[i]), 8),
-                        round(float(lat[i]), 8),
-                        round(float(alt[i]), 3),
-                    ],
-                },
-            }
-        )
-    return {"type": "FeatureCollection", "name": scn.spec.name, "features": feats}
-
-
-def _round_geom(g: Any) -> Any:
-    if isinstance(g, dict):
-        return {k: _round_geom(v) for k, v in g.items()}
-    if isinstance(g, (list, tuple)):
-        if g and isinstance(g[0], float):
-            return [round(v, 8) for v in g]
-        return [_round_geom(v) for v in g]
-    return g
+) -> dict[str, dict[str, Any]]:
+    """The GeoJSON files of a scenario folder, by layer name (``LAYERS``)."""
+    return {
+        "field": collection("field", field_features(scn)),
+        "route": collection("route", route_features(scn, rlat, rlon)),
+        "plants": collection("plants", plant_features(scn, lat, lon, alt)),
+    }

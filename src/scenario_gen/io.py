@@ -1,7 +1,8 @@
 """Scenario directories: written atomically, read back exactly enough to reuse.
 
 Layout: ``scenario.json`` (format version, spec, seed, datum, CRS, LoD, counts, versions),
-``terrain.npz``, ``plants.csv``, ``route.csv``, ``field.geojson`` (WGS84) and ``preview.png``.
+``terrain.npz``, ``plants.csv``, ``route.csv``, ``field.geojson``, ``route.geojson`` and
+``plants.geojson`` (WGS84, one geometry type each) and ``preview.png``.
 Everything is first written to a hidden sibling folder which is renamed into place only once
 complete, so a failure never leaves a half-written scenario.
 """
@@ -20,7 +21,7 @@ from shapely import wkt
 from .atomic import output_dir
 from .errors import InputError
 from .geodesy import GeoFrame
-from .geojson import geojson
+from .geojson import scenario_layers
 from .layout import RowFrame
 from .model import Plants, Scenario
 from .preview import render_preview
@@ -140,7 +141,8 @@ def _write_all(scn: Scenario, d: Path, preview: bool) -> None:
         spacing=t.spacing,
         lod=-1 if t.lod is None else t.lod,
     )
-    (d / "field.geojson").write_text(json.dumps(geojson(scn, lat, lon, alt, rlat, rlon)))
+    for name, layer in scenario_layers(scn, lat, lon, alt, rlat, rlon).items():
+        (d / f"{name}.geojson").write_text(json.dumps(layer))
     (d / "scenario.json").write_text(json.dumps(metadata_dict(scn), indent=2) + "\n")
     if preview:
         render_preview(scn, d / "preview.png")

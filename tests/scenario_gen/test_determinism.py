@@ -34,6 +34,8 @@ def test_same_seed_same_files(tmp_path: Path) -> None:
         "plants.csv",
         "route.csv",
         "field.geojson",
+        "route.geojson",
+        "plants.geojson",
         "terrain.npz",
         "preview.png",
     ):

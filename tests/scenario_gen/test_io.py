@@ -22,7 +22,16 @@ def saved(tmp_path_factory: pytest.TempPathFactory):
 def test_directory_has_every_output(saved) -> None:
     _, out = saved
     assert sorted(p.name for p in out.iterdir()) == sorted(
-        ["scenario.json", "terrain.npz", "plants.csv", "route.csv", "field.geojson", "preview.png"]
+        [
+            "scenario.json",
+            "terrain.npz",
+            "plants.csv",
+            "route.csv",
+            "field.geojson",
+            "route.geojson",
+            "plants.geojson",
+            "preview.png",
+        ]
     )
     assert (out / "preview.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
@@ -67,13 +76,19 @@ def test_load_round_trip(saved) -> None:
 
 def test_geojson_is_wgs84_and_matches_plants(saved) -> None:
     scn, out = saved
-    gj = json.loads((out / "field.geojson").read_text())
-    kinds = [f["properties"]["kind"] for f in gj["features"]]
-    assert kinds.count("field") == 1 and kinds.count("plant") == len(scn.plants)
-    assert kinds.count("route") >= 3  # headland, furrow, headland, ...
-    pts = np.array(
-        [f["geometry"]["coordinates"] for f in gj["features"] if f["properties"]["kind"] == "plant"]
-    )
+    layers = {
+        n: json.loads((out / f"{n}.geojson").read_text()) for n in ("field", "route", "plants")
+    }
+    for name, fc in layers.items():
+        # one geometry type per file, unique feature ids: GDAL converts each to any format
+        types = {f["geometry"]["type"] for f in fc["features"]}
+        assert len(types) == 1, (name, types)
+        assert [f["id"] for f in fc["features"]] == list(range(len(fc["features"])))
+    assert len(layers["field"]["features"]) == 1
+    assert len(layers["route"]["features"]) >= 3  # headland, furrow, headland, ...
+    plants = layers["plants"]["features"]
+    assert [f["properties"]["plant_id"] for f in plants] == list(range(len(scn.plants)))
+    pts = np.array([f["geometry"]["coordinates"] for f in plants])
     lat, lon, _ = scn.geo.enu_to_geodetic(scn.plants.x, scn.plants.y, scn.plants.z)
     np.testing.assert_allclose(pts[:, 0], lon, atol=1e-8)  # 1e-8 deg ≈ 1 mm
     np.testing.assert_allclose(pts[:, 1], lat, atol=1e-8)

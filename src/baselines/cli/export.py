@@ -1,0 +1,79 @@
+"""``agrinav export``: a saved scenario for Gazebo, ROS 2 / Nav2, GIS tools or 3-D software."""
+
+from __future__ import annotations
+
+import argparse
+import time
+from importlib import resources
+from typing import Any
+
+from scenario_gen.errors import InputError
+
+
+def add(sub: Any) -> None:
+    from scenario_gen.export import MESH_FORMATS, TARGETS
+
+    ex = sub.add_parser(
+        "export",
+        help="export a scenario folder for Gazebo, Nav2, GIS or as meshes",
+        description="Export a saved scenario folder: --to gazebo (SDF worlds and models), "
+        "nav2 (the world plus a ROS 2 launch file, GPS waypoints and the reference path), "
+        "gis (GeoTIFF, GeoPackage, GeoJSON) or mesh (GLB/OBJ/PLY/DAE). See docs/exports.md.",
+    )
+    ex.add_argument("dir", metavar="DIR", help="a scenario folder written by agrinav scenario")
+    ex.add_argument("--to", required=True, choices=TARGETS, help="what to export for")
+    ex.add_argument("--out", required=True, help="output folder (must not exist, or --force)")
+    ex.add_argument("--force", action="store_true", help="replace an existing output folder")
+    ex.add_argument(
+        "--plants",
+        choices=("auto", "include", "tiles"),
+        default="auto",
+        help="gazebo/nav2: one <include> per plant, or merged static tiles "
+        "(auto: tiles above --include-limit plants)",
+    )
+    ex.add_argument("--include-limit", type=int, help="gazebo/nav2: auto's limit (default 5000)")
+    ex.add_argument("--tile-plants", type=int, help="gazebo/nav2: plants per merged tile")
+    ex.add_argument(
+        "--heightmap",
+        action="store_true",
+        help="gazebo/nav2: also a 16-bit heightmap terrain and a Gazebo Sim world using it",
+    )
+    ex.add_argument(
+        "--formats",
+        default="glb",
+        help=f"mesh: comma-separated formats from {','.join(MESH_FORMATS)} (default glb)",
+    )
+    ex.add_argument("--with-plants", action="store_true", help="mesh: also the merged plants")
+    ex.set_defaults(func=run)
+
+
+def robot_urdf() -> str:
+    """The Summit-XL URDF agrinav_gym simulates; scenario_gen never imports agrinav_gym."""
+    return str(resources.files("agrinav_gym.assets").joinpath("summit_xl.urdf"))
+
+
+def run(args: argparse.Namespace) -> int:
+    from scenario_gen.export import ExportOptions, export
+
+    data: dict[str, Any] = {
+        "plants": args.plants,
+        "heightmap": args.heightmap,
+        "formats": [f.strip() for f in args.formats.split(",") if f.strip()],
+        "mesh_plants": args.with_plants,
+    }
+    if args.include_limit is not None:
+        data["include_limit"] = args.include_limit
+    if args.tile_plants is not None:
+        data["tile_plants"] = args.tile_plants
+    if args.to == "nav2":
+        data["robot_urdf"] = robot_urdf()
+    opts = ExportOptions.from_dict(data)
+    if args.to != "mesh" and (args.with_plants or args.formats != "glb"):
+        raise InputError("--formats/--with-plants", args.to, "allowed only with --to mesh")
+    t0 = time.perf_counter()
+    info = export(args.dir, args.to, args.out, opts, overwrite=args.force)
+    info["seconds"] = round(time.perf_counter() - t0, 2)
+    width = max(map(len, info))
+    for k, v in info.items():
+        print(f"{k:<{width}}  {v}")
+    return 0

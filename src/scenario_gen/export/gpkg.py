@@ -1,0 +1,138 @@
+"""A GeoPackage (OGC 12-128, version 1.2) writer on the standard library's sqlite3.
+
+Only what feature layers need: the three required metadata tables, one table per layer with an
+integer primary key, a ``geom`` column of GeoPackage binary geometry (``GP`` header, SRS id,
+XY envelope, ISO WKB) and typed attribute columns. GDAL, QGIS and any OGC reader open it; no
+GDAL is needed to write it.
+"""
+
+from __future__ import annotations
+
+import sqlite3
+import struct
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import shapely
+from pyproj import CRS
+from shapely.geometry import shape
+
+APPLICATION_ID = 0x47504B47  # "GPKG"
+USER_VERSION = 10200
+_SQL_TYPES = {int: "INTEGER", float: "DOUBLE", str: "TEXT"}
+
+
+@dataclass(frozen=True)
+class Layer:
+    name: str
+    geometry_type: str  # GeoPackage name: POINT, LINESTRING, POLYGON, MULTIPOLYGON, GEOMETRY
+    features: list[dict[str, Any]]  # GeoJSON features (full-precision coordinates)
+    srs_id: int = 4326
+    description: str = ""
+
+
+def _blob(geom: Any, srs_id: int) -> bytes:
+    has_z = bool(shapely.has_z(geom))
+    wkb = shapely.to_wkb(geom, output_dimension=3 if has_z else 2, byte_order=1, flavor="iso")
+    if geom.geom_type == "Point":  # a point's envelope is itself: the spec says leave it out
+        return b"GP" + bytes([0, 0b00000001]) + struct.pack("<i", srs_id) + wkb
+    minx, miny, maxx, maxy = geom.bounds
+    flags = 0b00000011  # little endian, envelope [minx, maxx, miny, maxy]
+    header = b"GP" + bytes([0, flags]) + struct.pack("<i", srs_id)
+    return header + struct.pack("<4d", minx, maxx, miny, maxy) + wkb
+
+
+def write_gpkg(path: Path, layers: list[Layer], crs: dict[int, CRS]) -> None:
+    """Write ``layers`` to a new GeoPackage; ``crs`` maps each SRS id used to its CRS."""
+    con = sqlite3.connect(path)
+    try:
+        _write(con, layers, crs)
+        con.commit()
+    finally:
+        con.close()
+
+
+def _write(con: sqlite3.Connection, layers: list[Layer], crs: dict[int, CRS]) -> None:
+    cur = con.cursor()
+    cur.execute(f"PRAGMA application_id = {APPLICATION_ID}")
+    cur.execute(f"PRAGMA user_version = {USER_VERSION}")
+    cur.executescript(
+        """
+        CREATE TABLE gpkg_spatial_ref_sys (
+          srs_name TEXT NOT NULL, srs_id INTEGER NOT NULL PRIMARY KEY,
+          organization TEXT NOT NULL, organization_coordsys_id INTEGER NOT NULL,
+          definition TEXT NOT NULL, description TEXT);
+        CREATE TABLE gpkg_contents (
+          table_name TEXT NOT NULL PRIMARY KEY, data_type TEXT NOT NULL,
+          identifier TEXT UNIQUE, description TEXT DEFAULT '',
+          last_change DATETIME NOT NULL DEFAULT (strftime('%Y-%m-%dT%H:%M:%fZ','now')),
+          min_x DOUBLE, min_y DOUBLE, max_x DOUBLE, max_y DOUBLE, srs_id INTEGER,
+          CONSTRAINT fk_gc_r_srs_id FOREIGN KEY (srs_id) REFERENCES gpkg_spatial_ref_sys(srs_id));
+        CREATE TABLE gpkg_geometry_columns (
+          table_name TEXT NOT NULL, column_name TEXT NOT NULL,
+          geometry_type_name TEXT NOT NULL, srs_id INTEGER NOT NULL,
+          z TINYINT NOT NULL, m TINYINT NOT NULL,
+          CONSTRAINT pk_geom_cols PRIMARY KEY (table_name, column_name),
+          CONSTRAINT fk_gc_tn FOREIGN KEY (table_name) REFERENCES gpkg_contents(table_name),
+          CONSTRAINT fk_gc_srs FOREIGN KEY (srs_id) REFERENCES gpkg_spatial_ref_sys (srs_id));
+        """
+    )
+    srs = [
+        ("Undefined cartesian SRS", -1, "NONE", -1, "undefined", "undefined cartesian"),
+        ("Undefined geographic SRS", 0, "NONE", 0, "undefined", "undefined geographic"),
+    ]
+    for sid, c in sorted(crs.items()):
+        epsg = c.to_epsg()
+        srs.append(
+            (
+                c.name,
+                sid,
+                "EPSG" if epsg == sid else "NONE",
+                sid,
+                c.to_wkt("WKT1_GDAL"),
+                c.name,
+            )
+        )
+    cur.executemany("INSERT INTO gpkg_spatial_ref_sys VALUES (?, ?, ?, ?, ?, ?)", srs)
+    for layer in layers:
+        _layer(cur, layer)
+
+
+def _layer(cur: sqlite3.Cursor, layer: Layer) -> None:
+    geoms = [shape(f["geometry"]) for f in layer.features]
+    props = [f.get("properties", {}) for f in layer.features]
+    columns: dict[str, type] = {}
+    for p in props:
+        for k, v in p.items():
+            columns.setdefault(k, type(v) if type(v) in _SQL_TYPES else str)
+    cols_sql = "".join(f', "{k}" {_SQL_TYPES[t]}' for k, t in columns.items())
+    q = f'"{layer.name}"'
+    cur.execute(
+        f"CREATE TABLE {q} (fid INTEGER PRIMARY KEY AUTOINCREMENT NOT NULL, "
+        f"geom {layer.geometry_type}{cols_sql})"
+    )
+    bounds = shapely.total_bounds(geoms) if geoms else [None] * 4
+    cur.execute(
+        "INSERT INTO gpkg_contents (table_name, data_type, identifier, description, "
+        "min_x, min_y, max_x, max_y, srs_id) VALUES (?, 'features', ?, ?, ?, ?, ?, ?, ?)",
+        (layer.name, layer.name, layer.description, *map(_num, bounds), layer.srs_id),
+    )
+    has_z = int(any(bool(shapely.has_z(g)) for g in geoms))
+    cur.execute(
+        "INSERT INTO gpkg_geometry_columns VALUES (?, 'geom', ?, ?, ?, 0)",
+        (layer.name, layer.geometry_type, layer.srs_id, has_z),
+    )
+    names = ", ".join(["geom", *(f'"{k}"' for k in columns)])
+    marks = ", ".join("?" * (len(columns) + 1))
+    cur.executemany(
+        f"INSERT INTO {q} ({names}) VALUES ({marks})",
+        (
+            (_blob(g, layer.srs_id), *(p.get(k) for k in columns))
+            for g, p in zip(geoms, props, strict=True)
+        ),
+    )
+
+
+def _num(v: Any) -> float | None:
+    return None if v is None else float(v)

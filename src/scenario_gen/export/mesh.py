@@ -1,0 +1,75 @@
+"""Meshes for 3-D tools: the terrain (and optionally every plant, merged) as GLB/OBJ/PLY/DAE.
+
+The terrain goes through ``sources.export_terrain_mesh`` (the mesh a scenario can be generated
+from, so a round trip works). Plants are the Gazebo tiles' geometry in one mesh — each plant's
+model at its pose and exact size, coloured per face.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..model import Scenario
+from ..sources import export_terrain_mesh
+from .options import ExportOptions
+from .plantmodels import assign
+from .tiles import rotations
+
+
+def merged_plants(scn: Scenario) -> Any:
+    """Every plant's mesh at its pose and height, as one face-coloured trimesh (ENU, Z up)."""
+    import trimesh
+
+    from .meshes import face_colours
+
+    a = assign(scn)
+    p = scn.plants
+    parts = []
+    for m, pm in enumerate(a.models):
+        sel = np.flatnonzero(a.model == m)
+        if len(sel) == 0:
+            continue
+        v = np.asarray(pm.mesh.vertices, np.float64)
+        f = np.asarray(pm.mesh.faces, np.int64)
+        rot = rotations(p.roll[sel], p.pitch[sel], p.yaw[sel])
+        rot *= (p.height[sel] / pm.height)[:, None, None]
+        verts = np.einsum("kij,vj->kvi", rot, v) + np.column_stack([p.x, p.y, p.z])[sel, None]
+        faces = f[None] + len(v) * np.arange(len(sel))[:, None, None]
+        mesh = trimesh.Trimesh(verts.reshape(-1, 3), faces.reshape(-1, 3), process=False)
+        rgb = np.tile(face_colours(pm.mesh), (len(sel), 1))
+        mesh.visual = trimesh.visual.ColorVisuals(
+            mesh, face_colors=np.column_stack([rgb, np.full(len(rgb), 255, np.uint8)])
+        )
+        parts.append(mesh)
+    return trimesh.util.concatenate(parts) if parts else None
+
+
+def export_mesh(scn: Scenario, out: Path, opts: ExportOptions) -> dict[str, Any]:
+    from .preview import render_export_preview
+    from .readme import mesh_readme
+
+    files = []
+    for fmt in opts.formats:
+        name = f"terrain.{fmt}"
+        export_terrain_mesh(scn.terrain, out / name)
+        files.append(name)
+    if opts.mesh_plants:
+        plants = merged_plants(scn)
+        if plants is not None:
+            for fmt in opts.formats:
+                name = f"plants.{fmt}"
+                if fmt in ("glb", "gltf"):  # glTF is Y-up: x east, y up, z south
+                    y_up = plants.copy()
+                    y_up.vertices = np.column_stack(
+                        [plants.vertices[:, 0], plants.vertices[:, 2], -plants.vertices[:, 1]]
+                    )
+                    y_up.export(out / name)
+                else:
+                    plants.export(out / name)
+                files.append(name)
+    (out / "README.md").write_text(mesh_readme(scn, files))
+    render_export_preview(scn, out / "preview.png")
+    return {"files": files}

@@ -1,0 +1,166 @@
+"""Merged static tiles: a large field as a few hundred Gazebo models instead of one per plant.
+
+The source paper measured ≈1.45 MB of Gazebo memory per plant model. Above a threshold
+(``ExportOptions.include_limit``) plants are baked into square tiles of about
+``tile_plants`` plants each: per tile one static model whose visuals are the plants' real
+meshes, transformed (pose and exact per-plant scale, no size binning), merged per colour into
+binary STL, and whose collisions are the plants' stem cylinders. Tiles are written one at a
+time, so memory stays bounded by one tile whatever the field size.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..model import Scenario
+from .meshes import face_colours, write_stl
+from .plantmodels import Assignment, fmt, model_config, stem_collision
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+
+def rotations(roll: FloatArray, pitch: FloatArray, yaw: FloatArray) -> FloatArray:
+    """(n, 3, 3) rotation matrices R = Rz(yaw)·Ry(pitch)·Rx(roll) (URDF and SDF rpy)."""
+    cr, sr = np.cos(roll), np.sin(roll)
+    cp, sp = np.cos(pitch), np.sin(pitch)
+    cy, sy = np.cos(yaw), np.sin(yaw)
+    r = np.empty((len(np.atleast_1d(roll)), 3, 3))
+    r[:, 0, 0] = cy * cp
+    r[:, 0, 1] = cy * sp * sr - sy * cr
+    r[:, 0, 2] = cy * sp * cr + sy * sr
+    r[:, 1, 0] = sy * cp
+    r[:, 1, 1] = sy * sp * sr + cy * cr
+    r[:, 1, 2] = sy * sp * cr - cy * sr
+    r[:, 2, 0] = -sp
+    r[:, 2, 1] = cp * sr
+    r[:, 2, 2] = cp * cr
+    return r
+
+
+@dataclass(frozen=True, eq=False)
+class Tile:
+    name: str
+    origin: tuple[float, float]
+    side: float
+    plants: IntArray
+
+
+def make_tiles(scn: Scenario, plants_per_tile: int) -> list[Tile]:
+    """Square tiles sized to hold about ``plants_per_tile`` plants at the field's density."""
+    p = scn.plants
+    if len(p) == 0:
+        return []
+    area = max(float(scn.field.area), 1e-6)
+    side = max(math.sqrt(plants_per_tile * area / len(p)), 0.5)
+    x0, y0 = float(p.x.min()), float(p.y.min())
+    ix = np.floor((p.x - x0) / side).astype(np.int64)
+    iy = np.floor((p.y - y0) / side).astype(np.int64)
+    order = np.lexsort((np.arange(len(p)), ix, iy))
+    keys = iy[order] * (int(ix.max()) + 1) + ix[order]
+    cuts = np.flatnonzero(np.diff(keys)) + 1
+    tiles = []
+    # a dense corner of an irregular field may exceed the target; split it, never overfill
+    cap = 2 * plants_per_tile
+    for members in np.split(order, cuts):
+        r, c = int(iy[members[0]]), int(ix[members[0]])
+        chunks = [members[i : i + cap] for i in range(0, len(members), cap)]
+        for k, chunk in enumerate(chunks):
+            suffix = f"_{k}" if len(chunks) > 1 else ""
+            tiles.append(
+                Tile(
+                    f"agrinav_tile_r{r:03d}_c{c:03d}{suffix}",
+                    (x0 + c * side, y0 + r * side),
+                    side,
+                    np.sort(chunk),
+                )
+            )
+    return tiles
+
+
+@dataclass(frozen=True, eq=False)
+class _Shape:
+    triangles: FloatArray  # (f, 3, 3) at nominal size
+    colour: IntArray  # (f,) index into the palette
+
+
+def _shapes(a: Assignment) -> tuple[list[_Shape], NDArray[np.uint8]]:
+    rgb = [face_colours(pm.mesh) for pm in a.models]
+    palette = np.unique(np.concatenate(rgb), axis=0) if rgb else np.empty((0, 3), np.uint8)
+    shapes = []
+    for pm, c in zip(a.models, rgb, strict=True):
+        v = np.asarray(pm.mesh.vertices, np.float64)[np.asarray(pm.mesh.faces)]
+        idx = np.array([np.flatnonzero((palette == col).all(axis=1))[0] for col in c], np.int64)
+        shapes.append(_Shape(v, idx))
+    return shapes, palette
+
+
+def write_tiles(
+    models_dir: Path, scn: Scenario, a: Assignment, tiles: list[Tile]
+) -> Iterator[tuple[Tile, int]]:
+    """Write each tile's model folder; yields (tile, triangles) as each one is done."""
+    shapes, palette = _shapes(a)
+    p = scn.plants
+    nominal = np.array([pm.height for pm in a.models])
+    radius = np.array([pm.proxy_radius for pm in a.models])
+    for tile in tiles:
+        sel = tile.plants
+        ox, oy = tile.origin
+        scale = p.height[sel] / nominal[a.model[sel]]
+        rot = rotations(p.roll[sel], p.pitch[sel], p.yaw[sel])
+        pos = np.column_stack([p.x[sel] - ox, p.y[sel] - oy, p.z[sel]])
+        folder = models_dir / tile.name
+        (folder / "meshes").mkdir(parents=True)
+        by_colour: dict[int, list[FloatArray]] = {}
+        for m in np.unique(a.model[sel]).tolist():
+            k = a.model[sel] == m
+            sh = shapes[m]
+            tri = np.einsum("kij,fvj->kfvi", rot[k] * scale[k, None, None], sh.triangles)
+            tri += pos[k, None, None, :]
+            for c in np.unique(sh.colour).tolist():
+                by_colour.setdefault(c, []).append(tri[:, sh.colour == c].reshape(-1, 3, 3))
+        visuals = []
+        total = 0
+        for c in sorted(by_colour):
+            tri = np.concatenate(by_colour[c])
+            total += len(tri)
+            write_stl(folder / "meshes" / f"colour{c:02d}.stl", tri)
+            r, g, b = (palette[c] / 255.0).tolist()
+            visuals.append(
+                f'<visual name="colour{c:02d}"><geometry><mesh>'
+                f"<uri>model://{tile.name}/meshes/colour{c:02d}.stl</uri></mesh></geometry>"
+                f"<material><ambient>{fmt(r, g, b, 1, digits=4)}</ambient>"
+                f"<diffuse>{fmt(r, g, b, 1, digits=4)}</diffuse>"
+                f"<specular>0.05 0.05 0.05 1</specular></material></visual>"
+            )
+        cols = []
+        centre = pos + 0.5 * p.height[sel, None] * rot[:, :, 2]  # the plant axis is R's z column
+        for j, i in enumerate(sel.tolist()):
+            r_stem = radius[a.model[i]] * scale[j]
+            if r_stem <= 0:
+                continue
+            cx, cy, cz = centre[j]
+            pose = fmt(cx, cy, cz) + " " + fmt(p.roll[i], p.pitch[i], p.yaw[i], digits=7)
+            cols.append(stem_collision(f"stem_{i:06d}", pose, r_stem, float(p.height[i])))
+        body = "\n      ".join(visuals + cols)
+        (folder / "model.sdf").write_text(
+            f"""<?xml version="1.0"?>
+<sdf version="1.7">
+  <model name="{tile.name}">
+    <static>true</static>
+    <link name="link">
+      {body}
+    </link>
+  </model>
+</sdf>
+"""
+        )
+        desc = f"{len(sel)} plants merged (static), {total} triangles; agrinav export"
+        (folder / "model.config").write_text(model_config(tile.name, desc))
+        yield tile, total

@@ -1,0 +1,101 @@
+"""``agrinav export``: one line and exit status 2 for bad input, nothing written."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from baselines.cli import main
+from scenario_gen import generate, preset, save
+
+
+@pytest.fixture(scope="module")
+def scenario(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    spec = preset(
+        "default",
+        field={"width": 6.0, "length": 8.0},
+        layout={"headland": 1.5},
+        terrain={"margin": 3.0},
+        route={"lead_in": 1.0},
+    )
+    out = tmp_path_factory.mktemp("cli") / "scn"
+    save(generate(spec, 1), out, preview=False)
+    return out
+
+
+def _error(capsys: pytest.CaptureFixture[str], argv: list[str]) -> str:
+    try:
+        rc = main(argv)
+    except SystemExit as exc:  # argparse's own refusals exit from the parser
+        rc = exc.code
+    assert rc == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "Traceback" not in err, err
+    return err
+
+
+@pytest.mark.parametrize("to", ["gazebo", "nav2", "gis", "mesh"])
+def test_export_each_target(scenario: Path, tmp_path: Path, capsys, to: str) -> None:
+    out = tmp_path / to
+    assert main(["export", str(scenario), "--to", to, "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "target" in text and str(out) in text
+    assert (out / "README.md").is_file() and (out / "preview.png").is_file()
+    # the output folder appears whole: no temporaries left beside it
+    assert sorted(p.name for p in tmp_path.iterdir()) == [to]
+
+
+def test_bad_inputs_write_nothing(scenario: Path, tmp_path: Path, capsys) -> None:
+    out = tmp_path / "out"
+    plain = tmp_path / "plain"
+    plain.mkdir()
+    cases = [
+        (["export", str(tmp_path / "nope"), "--to", "gis"], "scenario: got"),
+        (["export", str(plain), "--to", "gis"], "no scenario.json"),
+        (["export", str(scenario), "--to", "unity"], "invalid choice: 'unity'"),
+        (["export", str(scenario), "--to", "mesh", "--formats", "fbx"], "formats[0]: got 'fbx'"),
+        (["export", str(scenario), "--to", "gis", "--formats", "obj"], "only with --to mesh"),
+        (["export", str(scenario), "--to", "gazebo", "--tile-plants", "0"], "tile_plants: got 0"),
+        (["export", str(scenario), "--to", "gis", "--out", str(scenario)], "already exists"),
+        (
+            ["export", str(scenario), "--to", "gis", "--out", str(scenario), "--force"],
+            "is the scenario folder itself",
+        ),
+    ]
+    for argv, needle in cases:
+        if "--out" not in argv:
+            argv = [*argv, "--out", str(out)]
+        assert needle in _error(capsys, argv)
+        assert not out.exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["plain"]
+
+
+def test_existing_out_needs_force(scenario: Path, tmp_path: Path, capsys) -> None:
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "keep.txt").write_text("mine")
+    assert "--force" in _error(capsys, ["export", str(scenario), "--to", "gis", "--out", str(out)])
+    assert [p.name for p in out.iterdir()] == ["keep.txt"]
+    assert main(["export", str(scenario), "--to", "gis", "--out", str(out), "--force"]) == 0
+    assert (out / "terrain.tif").is_file() and not (out / "keep.txt").exists()
+
+
+def test_broken_scenario_folders(scenario: Path, tmp_path: Path, capsys) -> None:
+    import shutil
+
+    broken = tmp_path / "broken"
+    shutil.copytree(scenario, broken)
+    meta = json.loads((broken / "scenario.json").read_text())
+    meta["spec"]["crop"]["model"] = str(tmp_path / "gone.glb")
+    (broken / "scenario.json").write_text(json.dumps(meta))
+    out = tmp_path / "out"
+    err = _error(capsys, ["export", str(broken), "--to", "gazebo", "--out", str(out)])
+    assert "crop.model" in err and "gone.glb" in err and not out.exists()
+    (broken / "terrain.npz").unlink()
+    err = _error(capsys, ["export", str(broken), "--to", "gis", "--out", str(out)])
+    assert "cannot be read as a scenario folder" in err and not out.exists()
+    (broken / "scenario.json").write_text("{not json")
+    assert "scenario" in _error(capsys, ["export", str(broken), "--to", "gis", "--out", str(out)])
+    assert not out.exists()

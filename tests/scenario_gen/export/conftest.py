@@ -1,0 +1,44 @@
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from scenario_gen import Scenario, generate, save
+
+from ..helpers import plane, small
+from .tools import build_sdf_check
+
+
+@pytest.fixture(scope="session")
+def sdf_check() -> Path:
+    return build_sdf_check()
+
+
+@pytest.fixture(scope="session")
+def hill(tmp_path_factory: pytest.TempPathFactory) -> tuple[Scenario, Path]:
+    """A 20° slope with weeds: large roll/pitch make a rotation-convention slip visible.
+
+    Tiny on purpose: libsdformat spends ≈50 ms per <include> (benchmarks/bench_export.py).
+    """
+    spec = plane(
+        20.0,
+        30.0,
+        field={"width": 4.0, "length": 5.0},
+        layout={"weed_density": 1.0, "headland": 1.0, "plant_spacing": 0.3},
+        terrain={"margin": 3.0},
+        route={"lead_in": 1.0},
+    )
+    scn = generate(spec, seed=7)
+    out = tmp_path_factory.mktemp("hill") / "scn"
+    save(scn, out, preview=False)
+    return scn, out
+
+
+@pytest.fixture(scope="session")
+def dem(tmp_path_factory: pytest.TempPathFactory) -> tuple[Scenario, Path]:
+    """The default preset on a small field of the embedded DEM (a source CRS, EPSG:4326)."""
+    scn = generate(small(), seed=3)
+    out = tmp_path_factory.mktemp("dem") / "scn"
+    save(scn, out, preview=False)
+    return scn, out

@@ -1,0 +1,225 @@
+"""Gazebo worlds checked by libsdformat and lat/lon recomputed with ignition-math (Gazebo's own)."""
+
+from __future__ import annotations
+
+import re
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from scenario_gen import Scenario, load
+from scenario_gen.export import ExportOptions, export
+from scenario_gen.export.plantmodels import SCALE_STEP, assign
+from scenario_gen.export.tiles import rotations
+
+from .tools import Check, ground_metres, quat_to_matrix, run_check, run_checks
+
+
+@pytest.fixture(scope="module")
+def included(hill, tmp_path_factory) -> tuple[Scenario, Path]:
+    _, src = hill
+    out = tmp_path_factory.mktemp("gz") / "include"
+    export(src, "gazebo", out, ExportOptions(plants="include"))
+    return load(src), out
+
+
+@pytest.fixture(scope="module")
+def tiled(hill, tmp_path_factory) -> tuple[Scenario, Path]:
+    _, src = hill
+    out = tmp_path_factory.mktemp("gz") / "tiles"
+    export(src, "gazebo", out, ExportOptions(plants="tiles", tile_plants=10, heightmap=True))
+    return load(src), out
+
+
+@pytest.fixture(scope="module")
+def checks(included, sdf_check) -> dict[str, Check]:
+    _, out = included
+    names = ("field.sdf", "field_classic.world")
+    worlds = [out / "worlds" / w for w in names]
+    return dict(zip(names, run_checks(sdf_check, worlds, out / "models"), strict=True))
+
+
+def _plant_rows(scn: Scenario, check: Check) -> np.ndarray:
+    names = [f"plant_{i:06d}" for i in range(len(scn.plants))]
+    assert set(names) <= set(check.models)
+    return np.array([check.models[n] for n in names])
+
+
+def test_worlds_pass_the_sdformat_checks(checks, included) -> None:
+    scn, _ = included
+    for world, c in checks.items():
+        assert c.returncode == 0 and c.valid, (world, c.stderr)
+        assert len(c.models) == len(scn.plants) + 1  # plants and the terrain
+        assert c.spherical[:3] == pytest.approx((scn.geo.lat, scn.geo.lon, scn.geo.alt), abs=1e-9)
+    assert checks["field.sdf"].spherical[3] == 0.0
+    assert checks["field_classic.world"].spherical[3] == 180.0
+    # every mesh resolved to a file of this export
+    assert all(Path(m).is_file() for m in checks["field.sdf"].meshes)
+
+
+def test_navsat_latlon_matches_plants_csv(checks, included) -> None:
+    """Gazebo Sim's NavSat formula (LOCAL2, heading 0) and Gazebo Classic's GPS formula
+    (SphericalFromLocal, heading 180) both give plants.csv's lat/lon/alt within 1 cm."""
+    scn, _ = included
+    lat, lon, alt = scn.geo.enu_to_geodetic(scn.plants.x, scn.plants.y, scn.plants.z)
+    sim = _plant_rows(scn, checks["field.sdf"])
+    classic = _plant_rows(scn, checks["field_classic.world"])
+    for rows, cols in ((sim, slice(7, 10)), (classic, slice(10, 13))):
+        la, lo, al = rows[:, cols].T
+        assert ground_metres(scn.geo.lat, la - lat, lo - lon).max() < 0.01
+        assert np.abs(al - alt).max() < 0.01
+    # the test can fail: Classic's formula on the heading-0 world puts plants at (-x, -y)
+    la, lo, _ = sim[:, 10:13].T
+    far = np.hypot(scn.plants.x, scn.plants.y) > 1.0
+    assert far.sum() > 10
+    assert ground_metres(scn.geo.lat, la - lat, lo - lon)[far].min() > 1.99
+
+
+def test_sdf_pose_is_the_scenarios_rpy(checks, included) -> None:
+    """libsdformat reads <pose> x y z roll pitch yaw as R = Rz(yaw)·Ry(pitch)·Rx(roll)."""
+    scn, _ = included
+    p = scn.plants
+    rows = _plant_rows(scn, checks["field.sdf"])
+    np.testing.assert_allclose(rows[:, :3], np.column_stack([p.x, p.y, p.z]), atol=1e-6)
+    got = quat_to_matrix(rows[:, 3:7])
+    want = rotations(p.roll, p.pitch, p.yaw)
+    assert np.abs(got - want).max() < 1e-6
+    assert np.abs(p.roll).max() > 0.15 and np.abs(p.pitch).max() > 0.15  # a real slope
+    # the other order (Rx·Ry·Rz) would be told apart on this slope
+    rx = rotations(p.roll, 0 * p.roll, 0 * p.roll)
+    ry = rotations(0 * p.roll, p.pitch, 0 * p.roll)
+    rz = rotations(0 * p.roll, 0 * p.roll, p.yaw)
+    assert np.abs(got - rx @ ry @ rz).max() > 1e-2
+
+
+def test_plant_sizes_and_stem_proxies(checks, included) -> None:
+    scn, _ = included
+    p = scn.plants
+    a = assign(scn)
+    nominal = np.array([m.height for m in a.models])[a.model]
+    assert np.abs(nominal * a.scale / p.height - 1).max() <= (SCALE_STEP - 1) / 2 + 1e-9
+    assert {m.species for m in a.models} == {"corn", "weed"}
+    c = checks["field.sdf"]
+    for i in np.flatnonzero(~p.is_weed)[:50]:
+        x, y, z, *_, radius, length = c.collisions[f"plant_{i:06d}/stem"]
+        pm = a.models[a.model[i]]
+        assert radius == pytest.approx(pm.proxy_radius * a.scale[i], rel=1e-3)
+        assert length == pytest.approx(pm.height * a.scale[i], rel=1e-3)
+        axis = rotations(p.roll[i : i + 1], p.pitch[i : i + 1], p.yaw[i : i + 1])[0, :, 2]
+        centre = np.array([p.x[i], p.y[i], p.z[i]]) + 0.5 * length * axis
+        np.testing.assert_allclose([x, y, z], centre, atol=1e-5)
+    weeds = np.flatnonzero(p.is_weed)
+    assert len(weeds) and not any(f"plant_{i:06d}/stem" in c.collisions for i in weeds)
+
+
+def test_collada_models_load_with_their_textures(included) -> None:
+    import trimesh
+
+    scn, out = included
+    a = assign(scn)
+    for pm in a.models:
+        dae = out / "models" / pm.name / "meshes" / "plant.dae"
+        # Gazebo's model layout keeps textures beside meshes/, so the DAE says ../materials
+        where = trimesh.resolvers.FilePathResolver(dae, allow_anywhere=True)
+        mesh = trimesh.load(dae, force="mesh", resolver=where)
+        assert len(mesh.faces) == len(pm.mesh.faces)
+        assert mesh.visual.kind == "texture"
+        assert mesh.visual.material.baseColorTexture is not None
+        np.testing.assert_allclose(mesh.bounds, pm.mesh.bounds, atol=1e-4)
+    terrain = trimesh.load(out / "models/agrinav_terrain/meshes/terrain.dae", force="mesh")
+    assert len(terrain.vertices) == scn.terrain.size
+    assert terrain.bounds[1, 2] == pytest.approx(scn.terrain.heights.max(), abs=1e-4)
+
+
+def test_heightmap_holds_the_terrain(tiled, sdf_check) -> None:
+    from PIL import Image
+
+    scn, out = tiled
+    c = run_check(sdf_check, out / "worlds" / "field_heightmap.sdf", out / "models")
+    assert c.returncode == 0 and c.valid, c.stderr
+    img = np.asarray(
+        Image.open(out / "models/agrinav_terrain_heightmap/materials/textures/heightmap.png")
+    )
+    n = img.shape[0]
+    assert img.shape == (n, n) and img.dtype == np.uint16 and (n - 1) & (n - 2) == 0
+    sdf = (out / "models/agrinav_terrain_heightmap/model.sdf").read_text()
+    size = [float(v) for v in re.search(r"<size>([^<]+)</size>", sdf).group(1).split()]
+    pos = [float(v) for v in re.search(r"<pos>([^<]+)</pos>", sdf).group(1).split()]
+    # node (row r from the top = north, column c) -> ENU point, height by Gazebo's rule
+    r, c = n - 1, n // 3  # southern edge, a third of the way east
+    x = pos[0] - size[0] / 2 + c * size[0] / (n - 1)
+    y = pos[1] + size[1] / 2 - r * size[1] / (n - 1)
+    z = pos[2] + img[r, c] / 65535.0 * size[2]
+    assert z == pytest.approx(float(scn.terrain.height_at(x, y)), abs=size[2] / 65535 + 1e-6)
+
+
+def test_checker_catches_broken_worlds(included, sdf_check, tmp_path) -> None:
+    _, out = included
+    bad = tmp_path / "bad"
+    shutil.copytree(out, bad)
+    world = bad / "worlds" / "field.sdf"
+    # the terrain and three plants: each check then takes a fraction of a second
+    full = world.read_text()
+    head, _, _ = full.partition("<include>")
+    text = head + "\n".join(re.findall(r"<include>.*?</include>", full)[:4]) + "</world></sdf>"
+
+    def check(t: str) -> Check:
+        world.write_text(t)
+        return run_check(sdf_check, world, bad / "models")
+
+    dup = check(text.replace("<name>plant_000001</name>", "<name>plant_000000</name>"))
+    assert dup.returncode != 0 and not dup.valid
+    gone = check(text.replace("model://agrinav_terrain<", "model://agrinav_nothing<"))
+    assert gone.returncode != 0 and "agrinav_nothing" in gone.stderr
+    lat = check(text.replace("<latitude_deg>", "<latitude_deg>1", 1))  # 136.5°
+    assert lat.returncode != 0 and "spherical" in lat.stderr
+    pose = re.sub(r"(<name>plant_000000</name><pose>)[^<]+", r"\1nan 0 0 0 0 0", text)
+    assert pose != text and check(pose).returncode != 0
+    world.write_text(text)
+    assert run_check(sdf_check, world, bad / "models").valid  # the cut-down world is fine
+    (bad / "models/agrinav_terrain/materials/textures/soil.png").unlink()
+    tex = run_check(sdf_check, world, bad / "models")
+    assert tex.returncode != 0 and "soil.png" in tex.stderr
+    (bad / "models/agrinav_terrain/materials/textures/soil.png").write_bytes(b"")
+    first = re.search(r"model://([^<]+)</uri><name>plant_000000<", text).group(1)
+    plant = bad / "models" / first / "model.sdf"
+    plant.write_text(plant.read_text().replace("<radius>", "<radius>-"))
+    neg = run_check(sdf_check, world, bad / "models")
+    assert neg.returncode != 0 and "non-positive" in neg.stderr
+
+
+def test_tiles_bake_every_plant(tiled, sdf_check) -> None:
+    import trimesh
+
+    scn, out = tiled
+    c = run_check(sdf_check, out / "worlds" / "field.sdf", out / "models")
+    assert c.returncode == 0 and c.valid, c.stderr
+    p = scn.plants
+    tiles = [m for m in c.models if m.startswith("tile_")]
+    assert len(tiles) >= 4 and len(c.models) == len(tiles) + 1
+    a = assign(scn)
+    faces = np.array([len(m.mesh.faces) for m in a.models])[a.model].sum()
+    stl = [trimesh.load(f) for f in (out / "models").glob("agrinav_tile_*/meshes/*.stl")]
+    assert sum(len(m.faces) for m in stl) == faces
+    # every crop's stem cylinder, in the world frame, sits on its plant at its exact height
+    stems = {k.split("/stem_")[1]: v for k, v in c.collisions.items() if "/stem_" in k}
+    crops = np.flatnonzero(~p.is_weed)
+    assert sorted(map(int, stems)) == crops.tolist()
+    got = np.array([stems[f"{i:06d}"] for i in crops])
+    axis = rotations(p.roll, p.pitch, p.yaw)[crops, :, 2]
+    centre = np.column_stack([p.x, p.y, p.z])[crops] + 0.5 * p.height[crops, None] * axis
+    np.testing.assert_allclose(got[:, :3], centre, atol=2e-6)
+    np.testing.assert_allclose(got[:, 8], p.height[crops], atol=1e-5)
+    # tile meshes are in their tile's frame: shifted by the include pose they cover the plants
+    lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+    for folder in (out / "models").glob("agrinav_tile_*"):
+        origin = c.models[folder.name.removeprefix("agrinav_")][:3]
+        for f in (folder / "meshes").glob("*.stl"):
+            b = trimesh.load(f).bounds + origin
+            lo, hi = np.minimum(lo, b[0]), np.maximum(hi, b[1])
+    reach = 1.0  # m: beyond the widest canopy here (V10 corn, ≈0.8 m across)
+    assert (lo[:2] > np.array([p.x.min(), p.y.min()]) - reach).all()
+    assert (hi[:2] < np.array([p.x.max(), p.y.max()]) + reach).all()
+    assert hi[2] == pytest.approx((p.z + p.height).max(), abs=0.5)
