@@ -92,7 +92,7 @@ def test_broken_scenario_folders(scenario: Path, tmp_path: Path, capsys) -> None
     (broken / "scenario.json").write_text(json.dumps(meta))
     out = tmp_path / "out"
     err = _error(capsys, ["export", str(broken), "--to", "gazebo", "--out", str(out)])
-    assert "crop.model" in err and "gone.glb" in err and not out.exists()
+    assert "crop.model" in err and "no longer exists" in err and not out.exists()
     (broken / "terrain.npz").unlink()
     err = _error(capsys, ["export", str(broken), "--to", "gis", "--out", str(out)])
     assert "cannot be read as a scenario folder" in err and not out.exists()

@@ -25,9 +25,10 @@ import numpy as np
 from tqdm import tqdm
 
 from ..model import Scenario
+from .meshes import save_png
 from .options import ExportOptions
 from .plantmodels import Assignment, assign, fmt, model_config, write_models
-from .terrainmesh import heightmap, save_png16, write_terrain_dae
+from .terrainmesh import heightmap, save_png16, soil_texture, write_terrain_dae
 from .tiles import make_tiles, write_tiles
 
 TERRAIN = "agrinav_terrain"
@@ -163,15 +164,22 @@ def terrain_model(scn: Scenario, models: Path) -> None:
 def heightmap_model(scn: Scenario, models: Path) -> None:
     folder = models / TERRAIN_HM
     (folder / "materials" / "textures").mkdir(parents=True)
-    img, side, (cx, cy), rng = heightmap(scn.terrain)
-    save_png16(img, folder / "materials" / "textures" / "heightmap.png")
+    textures = folder / "materials" / "textures"
+    img, side, (cx, cy), rng, square = heightmap(scn.terrain)
+    save_png16(img, textures / "heightmap.png")
+    save_png(soil_texture(square), textures / "soil.png")  # shaded like the mesh's texture
+    flat = np.zeros((8, 8, 3), np.uint8) + np.array([128, 128, 255], np.uint8)
+    save_png(flat, textures / "flat_normal.png")  # lighting comes from the heightmap itself
     zmin = float(scn.terrain.heights.min())
-    tex = f"model://{TERRAIN}/materials/textures/soil.png"
+    tex = f"model://{TERRAIN_HM}/materials/textures"
     hm = (
         f"<heightmap><uri>model://{TERRAIN_HM}/materials/textures/heightmap.png</uri>"
         f"<size>{fmt(side, side, rng)}</size><pos>{fmt(cx, cy, zmin)}</pos>"
     )
-    visual = f"{hm}<texture><diffuse>{tex}</diffuse><normal>{tex}</normal><size>{side:.3f}</size>"
+    visual = (
+        f"{hm}<texture><diffuse>{tex}/soil.png</diffuse><normal>{tex}/flat_normal.png</normal>"
+        f"<size>{side:.3f}</size>"
+    )
     (folder / "model.sdf").write_text(
         f"""<?xml version="1.0"?>
 <sdf version="1.7">

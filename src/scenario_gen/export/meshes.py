@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, TextIO
 from xml.sax.saxutils import escape
 
 import numpy as np
@@ -102,44 +102,55 @@ def textured_mesh(mesh: Any) -> tuple[MeshData, NDArray[np.uint8]] | None:
 
 
 def face_colours(mesh: Any) -> NDArray[np.uint8]:
-    """(f, 3) RGB per face of a trimesh: its face colours, or its texture sampled at the UVs."""
+    """(f, 3) RGB per face of a trimesh: its face colours, or its texture at each face's UV
+    centroid (one texel per face: a flat-shaded copy of a textured model)."""
+    from trimesh.visual.color import uv_to_color
+
     visual = mesh.visual
+    faces = np.asarray(mesh.faces)
     if getattr(visual, "kind", None) == "texture":
+        material = visual.material
+        image = getattr(material, "image", None) or getattr(material, "baseColorTexture", None)
+        if image is not None and visual.uv is not None:
+            centroid = np.asarray(visual.uv, np.float64)[faces].mean(axis=1)
+            return np.asarray(uv_to_color(centroid, image), np.uint8)[:, :3]
         visual = visual.to_color()
     if getattr(visual, "kind", None) == "vertex":
         vc = np.asarray(visual.vertex_colors, np.float64)[:, :3]
-        return np.asarray(np.round(vc[np.asarray(mesh.faces)].mean(axis=1)), np.uint8)
+        return np.asarray(np.round(vc[faces].mean(axis=1)), np.uint8)
     return np.asarray(visual.face_colors, np.uint8)[:, :3]
 
 
-def _floats(a: FloatArray, decimals: int) -> str:
-    flat = np.round(np.asarray(a, np.float64).ravel(), decimals) + 0.0  # no "-0.0"
-    return " ".join(f"%.{decimals}f" % v for v in flat.tolist())
+CHUNK = 1 << 18  # numbers formatted at a time: bounded memory for million-vertex terrains
 
 
-def _ints(a: IntArray) -> str:
-    return " ".join(map(str, np.asarray(a).ravel().tolist()))
+def _write_floats(f: TextIO, a: FloatArray, decimals: int) -> None:
+    flat = np.asarray(a, np.float64).ravel()
+    form = f"%.{decimals}f"
+    for i in range(0, len(flat), CHUNK):
+        part = np.round(flat[i : i + CHUNK], decimals) + 0.0  # + 0.0: no "-0.0"
+        # one format string for the whole chunk: a third faster than formatting one by one
+        f.write((" " if i else "") + " ".join([form] * len(part)) % tuple(part.tolist()))
+
+
+def _write_ints(f: TextIO, a: IntArray) -> None:
+    flat = np.asarray(a).ravel()
+    for i in range(0, len(flat), CHUNK):
+        f.write((" " if i else "") + " ".join(map(str, flat[i : i + CHUNK].tolist())))
 
 
 def write_dae(path: Path, md: MeshData, texture: str, name: str, decimals: int = 5) -> None:
-    """COLLADA 1.4.1, Z up, metres: one textured triangle list named ``name``."""
-    n_src = [
-        ("positions", md.positions, 3, "XYZ"),
-        ("normals", md.normals, 3, "XYZ"),
-        ("uvs", md.uvs, 2, "ST"),
-    ]
-    sources = []
-    for sid, arr, stride, names in n_src:
-        params = "".join(f'<param name="{c}" type="float"/>' for c in names)
-        sources.append(
-            f'<source id="{sid}"><float_array id="{sid}-array" count="{arr.size}">'
-            f"{_floats(arr, decimals if sid == 'positions' else 5)}</float_array>"
-            f'<technique_common><accessor source="#{sid}-array" count="{len(arr)}" '
-            f'stride="{stride}">{params}</accessor></technique_common></source>'
-        )
-    corners = np.stack([md.faces, md.normal_index, md.uv_index], axis=2)  # (f, 3 corners, 3)
+    """COLLADA 1.4.1, Z up, metres: one textured triangle list named ``name``, streamed.
+
+    When normals and texture coordinates are indexed like the positions (a smooth mesh such
+    as the terrain) every corner carries one index instead of three.
+    """
+    shared = np.array_equal(md.normal_index, md.faces) and np.array_equal(md.uv_index, md.faces)
+    offsets = (0, 0, 0) if shared else (0, 1, 2)
     tex = escape(texture)
-    text = f"""<?xml version="1.0" encoding="utf-8"?>
+    with open(path, "w") as f:
+        f.write(
+            f"""<?xml version="1.0" encoding="utf-8"?>
 <COLLADA xmlns="http://www.collada.org/2005/11/COLLADASchema" version="1.4.1">
 <asset><contributor><authoring_tool>agrinav export</authoring_tool></contributor>
 <unit name="meter" meter="1"/><up_axis>Z_UP</up_axis></asset>
@@ -154,13 +165,35 @@ def write_dae(path: Path, md: MeshData, texture: str, name: str, decimals: int =
 <library_materials><material id="material" name="material">
 <instance_effect url="#material-effect"/></material></library_materials>
 <library_geometries><geometry id="mesh" name="{escape(name)}"><mesh>
-{"".join(sources)}
-<vertices id="vertices"><input semantic="POSITION" source="#positions"/></vertices>
+"""
+        )
+        for sid, arr, stride, names, digits in (
+            ("positions", md.positions, 3, "XYZ", decimals),
+            ("normals", md.normals, 3, "XYZ", 5),
+            ("uvs", md.uvs, 2, "ST", 6),
+        ):
+            params = "".join(f'<param name="{c}" type="float"/>' for c in names)
+            f.write(f'<source id="{sid}"><float_array id="{sid}-array" count="{arr.size}">')
+            _write_floats(f, arr, digits)
+            f.write(
+                f'</float_array><technique_common><accessor source="#{sid}-array" '
+                f'count="{len(arr)}" stride="{stride}">{params}</accessor></technique_common>'
+                "</source>\n"
+            )
+        f.write(
+            f"""<vertices id="vertices"><input semantic="POSITION" source="#positions"/></vertices>
 <triangles material="material" count="{len(md.faces)}">
-<input semantic="VERTEX" source="#vertices" offset="0"/>
-<input semantic="NORMAL" source="#normals" offset="1"/>
-<input semantic="TEXCOORD" source="#uvs" offset="2" set="0"/>
-<p>{_ints(corners)}</p></triangles></mesh></geometry></library_geometries>
+<input semantic="VERTEX" source="#vertices" offset="{offsets[0]}"/>
+<input semantic="NORMAL" source="#normals" offset="{offsets[1]}"/>
+<input semantic="TEXCOORD" source="#uvs" offset="{offsets[2]}" set="0"/>
+<p>"""
+        )
+        if shared:
+            _write_ints(f, md.faces)
+        else:
+            _write_ints(f, np.stack([md.faces, md.normal_index, md.uv_index], axis=2))
+        f.write(
+            f"""</p></triangles></mesh></geometry></library_geometries>
 <library_visual_scenes><visual_scene id="scene"><node id="node" name="{escape(name)}">
 <instance_geometry url="#mesh"><bind_material><technique_common>
 <instance_material symbol="material" target="#material">
@@ -170,7 +203,7 @@ def write_dae(path: Path, md: MeshData, texture: str, name: str, decimals: int =
 <scene><instance_visual_scene url="#scene"/></scene>
 </COLLADA>
 """
-    path.write_text(text)
+        )
 
 
 STL_DTYPE = np.dtype([("normal", "<f4", (3,)), ("v", "<f4", (3, 3)), ("attr", "<u2")])
@@ -194,4 +227,4 @@ def write_stl(path: Path, triangles: FloatArray) -> None:
 def save_png(image: NDArray[np.uint8], path: Path) -> None:
     from PIL import Image
 
-    Image.fromarray(np.ascontiguousarray(image)).save(path, optimize=True)
+    Image.fromarray(np.ascontiguousarray(image)).save(path, compress_level=6)

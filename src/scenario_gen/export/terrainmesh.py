@@ -50,12 +50,16 @@ def write_terrain_dae(t: Terrain, mesh_path: Path, texture_path: Path) -> None:
     write_dae(mesh_path, terrain_mesh_data(t), Path(rel).as_posix(), "terrain", decimals=4)
 
 
-def heightmap(t: Terrain) -> tuple[NDArray[np.uint16], float, tuple[float, float], float]:
+Heightmap = tuple[NDArray[np.uint16], float, tuple[float, float], float, Terrain]
+
+
+def heightmap(t: Terrain) -> Heightmap:
     """16-bit heightmap resampled on a square (2^n + 1)-node grid covering the terrain.
 
-    Returns (image with row 0 north, side length in m, centre (x, y), z range in m); pixel value
-    v is the height zmin + v / 65535 · range. The grid spacing differs from the scenario's, so
-    the mesh stays the exact surface and this is the approximate, Gazebo-native alternative.
+    Returns (image with row 0 north, side length in m, centre (x, y), z range in m, the square
+    grid as a Terrain); pixel value v is the height zmin + v / 65535 · range. The grid spacing
+    differs from the scenario's, so the mesh stays the exact surface and this is the
+    approximate, Gazebo-native alternative.
     """
     xmin, ymin, xmax, ymax = t.bounds
     side = max(xmax - xmin, ymax - ymin)
@@ -66,7 +70,8 @@ def heightmap(t: Terrain) -> tuple[NDArray[np.uint16], float, tuple[float, float
     lo, hi = float(z.min()), float(z.max())
     rng = max(hi - lo, 1e-6)
     img = np.round((z - lo) / rng * 65535.0).astype(np.uint16)[::-1]
-    return img, side, (xmin + side / 2, ymin + side / 2), rng
+    square = Terrain(z, xmin, ymin, side / (n - 1))
+    return img, side, (xmin + side / 2, ymin + side / 2), rng, square
 
 
 def save_png16(image: NDArray[np.uint16], path: Path) -> None:

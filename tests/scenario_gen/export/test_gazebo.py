@@ -11,6 +11,7 @@ import pytest
 
 from scenario_gen import Scenario, load
 from scenario_gen.export import ExportOptions, export
+from scenario_gen.export import tiles as tiles_mod
 from scenario_gen.export.plantmodels import SCALE_STEP, assign
 from scenario_gen.export.tiles import rotations
 
@@ -199,27 +200,90 @@ def test_tiles_bake_every_plant(tiled, sdf_check) -> None:
     p = scn.plants
     tiles = [m for m in c.models if m.startswith("tile_")]
     assert len(tiles) >= 4 and len(c.models) == len(tiles) + 1
+    assert not c.collisions  # no per-plant <collision>: see tiles.PRISM_SIDES
     a = assign(scn)
     faces = np.array([len(m.mesh.faces) for m in a.models])[a.model].sum()
-    stl = [trimesh.load(f) for f in (out / "models").glob("agrinav_tile_*/meshes/*.stl")]
+    stl = [trimesh.load(f) for f in (out / "models").glob("agrinav_tile_*/meshes/colour*.stl")]
     assert sum(len(m.faces) for m in stl) == faces
-    # every crop's stem cylinder, in the world frame, sits on its plant at its exact height
-    stems = {k.split("/stem_")[1]: v for k, v in c.collisions.items() if "/stem_" in k}
-    crops = np.flatnonzero(~p.is_weed)
-    assert sorted(map(int, stems)) == crops.tolist()
-    got = np.array([stems[f"{i:06d}"] for i in crops])
-    axis = rotations(p.roll, p.pitch, p.yaw)[crops, :, 2]
-    centre = np.column_stack([p.x, p.y, p.z])[crops] + 0.5 * p.height[crops, None] * axis
-    np.testing.assert_allclose(got[:, :3], centre, atol=2e-6)
-    np.testing.assert_allclose(got[:, 8], p.height[crops], atol=1e-5)
+    # each tile's collision is one mesh of stem prisms, in plant order, on each crop's axis
+    prism = len(tiles_mod.prism())
+    for tile in tiles_mod.make_tiles(scn, 10):
+        crops = tile.plants[~p.is_weed[tile.plants]]
+        stems = out / "models" / tile.name / "meshes" / "stems.stl"
+        assert stems.is_file() == bool(len(crops))
+        if not len(crops):
+            continue
+        tri = trimesh.load(stems).triangles.reshape(len(crops), prism, 3, 3)
+        origin = c.models[tile.name.removeprefix("agrinav_")][:3]
+        axis = rotations(p.roll, p.pitch, p.yaw)[crops, :, 2]
+        base = np.column_stack([p.x, p.y, p.z])[crops]
+        verts = tri.reshape(len(crops), -1, 3) + origin
+        centre = np.array([np.unique(v.round(7), axis=0).mean(axis=0) for v in verts])
+        np.testing.assert_allclose(centre, base + 0.5 * p.height[crops, None] * axis, atol=2e-5)
+        rel = verts - base[:, None, :]
+        along = np.einsum("kvi,ki->kv", rel, axis)
+        np.testing.assert_allclose(along.max(axis=1), p.height[crops], atol=2e-5)
+        across = np.linalg.norm(rel - along[..., None] * axis[:, None, :], axis=2).max(axis=1)
+        r = np.array([a.models[a.model[i]].proxy_radius for i in crops])
+        r *= p.height[crops] / np.array([a.models[a.model[i]].height for i in crops])
+        np.testing.assert_allclose(across, r / np.cos(np.pi / tiles_mod.PRISM_SIDES), rtol=1e-4)
     # tile meshes are in their tile's frame: shifted by the include pose they cover the plants
     lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
     for folder in (out / "models").glob("agrinav_tile_*"):
         origin = c.models[folder.name.removeprefix("agrinav_")][:3]
-        for f in (folder / "meshes").glob("*.stl"):
+        for f in (folder / "meshes").glob("colour*.stl"):
             b = trimesh.load(f).bounds + origin
             lo, hi = np.minimum(lo, b[0]), np.maximum(hi, b[1])
     reach = 1.0  # m: beyond the widest canopy here (V10 corn, ≈0.8 m across)
     assert (lo[:2] > np.array([p.x.min(), p.y.min()]) - reach).all()
     assert (hi[:2] < np.array([p.x.max(), p.y.max()]) + reach).all()
     assert hi[2] == pytest.approx((p.z + p.height).max(), abs=0.5)
+
+
+def test_user_model_keeps_its_texture(tmp_path, sdf_check) -> None:
+    """crop.model: a textured glTF plant becomes the base model, texture and all."""
+    import trimesh
+    from PIL import Image
+
+    from scenario_gen import generate, save
+
+    from ..helpers import plane
+
+    # two crossed quads 1 m tall, Y up as glTF wants, red below and green above
+    v = [[-0.1, 0, 0], [0.1, 0, 0], [0.1, 1, 0], [-0.1, 1, 0]]
+    v += [[0, 0, -0.1], [0, 0, 0.1], [0, 1, 0.1], [0, 1, -0.1]]
+    f = [[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]]
+    uv = np.array([[0, 0], [1, 0], [1, 1], [0, 1]] * 2, float)
+    img = Image.new("RGB", (4, 4), (200, 30, 30))
+    img.paste((30, 160, 40), (0, 0, 4, 2))  # the image's top half: high v
+    visual = trimesh.visual.TextureVisuals(uv=uv, image=img)
+    model = tmp_path / "plant.glb"
+    trimesh.Trimesh(np.array(v, float), f, visual=visual, process=False).export(model)
+    spec = plane(
+        field={"width": 3.0, "length": 3.6},
+        layout={"headland": 0.8, "plant_spacing": 0.5},
+        terrain={"margin": 2.5},
+        route={"lead_in": 0.8},
+        crop={"model": str(model)},
+    )
+    src = tmp_path / "scn"
+    save(generate(spec, 2), src, preview=False)
+    scn = load(src)
+    out = tmp_path / "gz"
+    export(src, "gazebo", out, ExportOptions(plants="include"))
+    (base,) = [m for m in assign(scn).models if m.species == "corn"]
+    assert base.name.startswith("agrinav_plant_corn") and base.source == str(model)
+    dae = out / "models" / base.name / "meshes" / "plant.dae"
+    where = trimesh.resolvers.FilePathResolver(dae, allow_anywhere=True)
+    mesh = trimesh.load(dae, force="mesh", resolver=where)
+    tex = np.asarray(mesh.visual.material.baseColorTexture.convert("RGB"))
+    assert tex.shape == (4, 4, 3) and (tex == np.asarray(img)).all()
+    assert mesh.bounds[1, 2] == pytest.approx(base.height, rel=1e-4)  # Z up, nominal height
+    c = run_check(sdf_check, out / "worlds" / "field.sdf", out / "models")
+    assert c.valid, c.stderr
+    # in tiles the texture becomes flat colours: both halves of the image survive
+    tiled = tmp_path / "tiles"
+    export(src, "gazebo", tiled, ExportOptions(plants="tiles"))
+    sdf = next(tiled.glob("models/agrinav_tile_*/model.sdf")).read_text()
+    for rgb in ((200, 30, 30), (30, 160, 40)):
+        assert "<diffuse>" + " ".join(f"{c / 255:.4f}" for c in rgb) + " 1.0000" in sdf
