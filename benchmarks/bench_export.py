@@ -97,8 +97,9 @@ def main() -> None:
         steps = tqdm(total=5, desc="bench_export", unit="step")
         default = work / "default"
         measure(agrinav("scenario", "--out", str(default), "--no-preview"))
-        # a field of about big-plants plants at the default spacing (7.4 plants per m² planted)
-        side = math.sqrt(args.big_plants / 7.1)
+        # a field of about big-plants plants at the default spacing: 7.4 plants per planted m²,
+        # ≈ 6.9 per field m² once headlands and edge margins are left out
+        side = math.sqrt(args.big_plants / (6.9 * 1.45))
         big = work / "big"
         gen_big = measure(
             agrinav(
@@ -137,7 +138,7 @@ def main() -> None:
                 "export", str(default), "--to", "gazebo", "--plants", "include", "--out", str(inc)
             )
         )
-        sizes = [50, 200, 800]
+        sizes = [50, 200, 400]
         parse = {}
         for n in sizes:
             w = inc / "worlds" / f"cut{n}.sdf"

@@ -107,25 +107,31 @@ def plant_features(
 ) -> list[dict[str, Any]]:
     p = scn.plants
     xyz = _coords(lon, lat, alt, decimals)
-    r = (lambda v, d: round(float(v), d)) if decimals is not None else (lambda v, d: float(v))
+
+    def col(v: np.ndarray, d: int) -> list[float]:
+        a = np.asarray(v, np.float64)
+        out: list[float] = (np.round(a, d) if decimals is not None else a).tolist()
+        return out
+
+    names = ("stage", "height", "roll", "pitch", "yaw", "x_enu", "y_enu", "z_enu")
+    cols = zip(
+        col(p.stage, 3),
+        col(p.height, 3),
+        col(p.roll, 6),
+        col(p.pitch, 6),
+        col(p.yaw, 6),
+        col(p.x, 4),
+        col(p.y, 4),
+        col(p.z, 4),
+        strict=True,
+    )
     return [
         {
             "type": "Feature",
-            "properties": {
-                "plant_id": i,
-                "species": str(p.species[i]),
-                "stage": r(p.stage[i], 3),
-                "height": r(p.height[i], 3),
-                "roll": r(p.roll[i], 6),
-                "pitch": r(p.pitch[i], 6),
-                "yaw": r(p.yaw[i], 6),
-                "x_enu": r(p.x[i], 4),
-                "y_enu": r(p.y[i], 4),
-                "z_enu": r(p.z[i], 4),
-            },
+            "properties": {"plant_id": i, "species": sp, **dict(zip(names, vals, strict=True))},
             "geometry": {"type": "Point", "coordinates": xyz[i]},
         }
-        for i in range(len(p))
+        for i, (sp, vals) in enumerate(zip(p.species.tolist(), cols, strict=True))
     ]
 
 

@@ -59,7 +59,7 @@ def export_scenario(
     if to not in TARGETS:
         raise InputError("--to", to, f"allowed: one of {', '.join(TARGETS)}")
     check_output_dir(out, overwrite)
-    if to in ("gazebo", "nav2", "mesh"):
+    if to in ("gazebo", "nav2") or (to == "mesh" and opts.mesh_plants):
         user_model_path(scn)
     if to == "nav2":
         _check_robot(opts.robot_urdf)

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import shapely
 from pyproj import CRS
 from shapely.geometry import shape
@@ -32,15 +33,21 @@ class Layer:
     description: str = ""
 
 
-def _blob(geom: Any, srs_id: int) -> bytes:
-    has_z = bool(shapely.has_z(geom))
-    wkb = shapely.to_wkb(geom, output_dimension=3 if has_z else 2, byte_order=1, flavor="iso")
-    if geom.geom_type == "Point":  # a point's envelope is itself: the spec says leave it out
-        return b"GP" + bytes([0, 0b00000001]) + struct.pack("<i", srs_id) + wkb
-    minx, miny, maxx, maxy = geom.bounds
-    flags = 0b00000011  # little endian, envelope [minx, maxx, miny, maxy]
-    header = b"GP" + bytes([0, flags]) + struct.pack("<i", srs_id)
-    return header + struct.pack("<4d", minx, maxx, miny, maxy) + wkb
+def _blobs(geoms: list[Any], srs_id: int) -> list[bytes]:
+    """GeoPackage binary geometries: ``GP`` header, SRS id, XY envelope (none for points)."""
+    arr = np.array(geoms, dtype=object)
+    has_z = bool(shapely.has_z(arr).any()) if len(arr) else False
+    wkb = shapely.to_wkb(arr, output_dimension=3 if has_z else 2, byte_order=1, flavor="iso")
+    srs = struct.pack("<i", srs_id)
+    points = shapely.get_type_id(arr) == 0
+    bounds = shapely.bounds(arr)  # minx, miny, maxx, maxy
+    out = []
+    for w, pt, (x0, y0, x1, y1) in zip(wkb.tolist(), points.tolist(), bounds.tolist(), strict=True):
+        if pt:  # a point's envelope is itself: the spec says leave it out
+            out.append(b"GP\x00\x01" + srs + w)
+        else:  # flags: little endian, envelope [minx, maxx, miny, maxy]
+            out.append(b"GP\x00\x03" + srs + struct.pack("<4d", x0, x1, y0, y1) + w)
+    return out
 
 
 def write_gpkg(path: Path, layers: list[Layer], crs: dict[int, CRS]) -> None:
@@ -100,7 +107,7 @@ def _write(con: sqlite3.Connection, layers: list[Layer], crs: dict[int, CRS]) ->
 
 
 def _layer(cur: sqlite3.Cursor, layer: Layer) -> None:
-    geoms = [shape(f["geometry"]) for f in layer.features]
+    geoms = _geometries(layer.features)
     props = [f.get("properties", {}) for f in layer.features]
     columns: dict[str, type] = {}
     for p in props:
@@ -118,7 +125,7 @@ def _layer(cur: sqlite3.Cursor, layer: Layer) -> None:
         "min_x, min_y, max_x, max_y, srs_id) VALUES (?, 'features', ?, ?, ?, ?, ?, ?, ?)",
         (layer.name, layer.name, layer.description, *map(_num, bounds), layer.srs_id),
     )
-    has_z = int(any(bool(shapely.has_z(g)) for g in geoms))
+    has_z = int(bool(shapely.has_z(np.array(geoms, dtype=object)).any())) if geoms else 0
     cur.execute(
         "INSERT INTO gpkg_geometry_columns VALUES (?, 'geom', ?, ?, ?, 0)",
         (layer.name, layer.geometry_type, layer.srs_id, has_z),
@@ -128,10 +135,20 @@ def _layer(cur: sqlite3.Cursor, layer: Layer) -> None:
     cur.executemany(
         f"INSERT INTO {q} ({names}) VALUES ({marks})",
         (
-            (_blob(g, layer.srs_id), *(p.get(k) for k in columns))
-            for g, p in zip(geoms, props, strict=True)
+            (blob, *(p.get(k) for k in columns))
+            for blob, p in zip(_blobs(geoms, layer.srs_id), props, strict=True)
         ),
     )
+
+
+def _geometries(features: list[dict[str, Any]]) -> list[Any]:
+    """Shapely geometries of GeoJSON features; points in one vectorized call."""
+    kinds = {f["geometry"]["type"] for f in features}
+    if kinds == {"Point"}:
+        xyz = np.array([f["geometry"]["coordinates"] for f in features], np.float64)
+        out: list[Any] = shapely.points(xyz).tolist()
+        return out
+    return [shape(f["geometry"]) for f in features]
 
 
 def _num(v: Any) -> float | None:

@@ -21,8 +21,8 @@ def _head(scn: Scenario, what: str) -> str:
 def gazebo_section(g: GazeboSummary) -> str:
     plants = (
         f"{g.plants} plants merged into {g.tiles} static tiles (`models/agrinav_tile_*`: real "
-        "plant meshes, exact pose and size, per-colour binary STL, one stem-cylinder collision "
-        "per crop plant)"
+        "plant meshes at exact pose and size as per-colour binary STL; the crops' stem proxies "
+        "as one collision mesh of 8-sided prisms per tile)"
         if g.mode == "tiles"
         else f"{g.plants} plants, one `<include>` each with the scenario's pose "
         "(x y z roll pitch yaw, R = Rz·Ry·Rx); one model per species/growth holds the mesh "
