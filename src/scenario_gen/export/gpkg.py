@@ -153,3 +153,18 @@ def _geometries(features: list[dict[str, Any]]) -> list[Any]:
 
 def _num(v: Any) -> float | None:
     return None if v is None else float(v)
+
+
+def read_geometries(path: Path, layer: str) -> list[Any]:
+    """The geometries of one layer of a GeoPackage (what the GIS preview draws, read back)."""
+    con = sqlite3.connect(path)
+    try:
+        rows = con.execute(f'SELECT geom FROM "{layer}" ORDER BY fid').fetchall()
+    finally:
+        con.close()
+    out = []
+    for (blob,) in rows:
+        envelope = (blob[3] >> 1) & 0b111
+        start = 8 + {0: 0, 1: 32, 2: 48, 3: 48, 4: 64}[envelope]
+        out.append(shapely.from_wkb(bytes(blob[start:])))
+    return out

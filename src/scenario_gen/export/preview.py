@@ -36,6 +36,20 @@ def _background(scn: Scenario, geotiff: Path | None) -> tuple[np.ndarray, Extent
     return t.heights, (xmin - s, xmax + s, ymin - s, ymax + s), "terrain hillshade"
 
 
+def _gpkg_plants(scn: Scenario, gpkg: Path) -> tuple[np.ndarray, np.ndarray]:
+    """Plant points of a written GeoPackage in the GeoTIFF's CRS (its x/y are ENU x/y)."""
+    import shapely
+    from pyproj import Transformer
+
+    from .gis import local_crs
+    from .gpkg import read_geometries
+
+    lonlat = shapely.get_coordinates(np.array(read_geometries(gpkg, "plants"), dtype=object))
+    to_local = Transformer.from_crs("EPSG:4326", local_crs(scn.geo), always_xy=True)
+    x, y = to_local.transform(lonlat[:, 0], lonlat[:, 1])
+    return np.asarray(x), np.asarray(y)
+
+
 def render_export_preview(
     scn: Scenario,
     path: Path,
@@ -72,12 +86,17 @@ def render_export_preview(
         from .tiles import make_tiles
 
         tiles = make_tiles(scn, opts.tile_plants)
-        for t in tiles:
-            ax.add_patch(
-                Rectangle(t.origin, t.side, t.side, fill=False, ec="orange", lw=0.8, alpha=0.8)
-            )
+        for t in tiles:  # the extent of what each tile holds
+            x0, y0 = p.x[t.plants].min(), p.y[t.plants].min()
+            w, h = p.x[t.plants].max() - x0, p.y[t.plants].max() - y0
+            ax.add_patch(Rectangle((x0, y0), w, h, fill=False, ec="orange", lw=1.0, alpha=0.9))
         ax.scatter(p.x, p.y, s=dot, c="limegreen", linewidths=0)
         title += f"\nGazebo: {gazebo.tiles} merged static tiles (orange), {gazebo.triangles:,} tri"
+    elif geotiff is not None and (geotiff.parent / "layers.gpkg").is_file():
+        px, py = _gpkg_plants(scn, geotiff.parent / "layers.gpkg")
+        sc = ax.scatter(px, py, s=dot, c=p.height, cmap="viridis", linewidths=0)
+        fig.colorbar(sc, ax=ax, shrink=0.7, label="plant height (m)")
+        title += "\nplants: layers.gpkg read back, projected into the GeoTIFF's CRS"
     else:
         sc = ax.scatter(p.x, p.y, s=dot, c=p.height, cmap="viridis", linewidths=0)
         fig.colorbar(sc, ax=ax, shrink=0.7, label="plant height (m)")

@@ -117,6 +117,11 @@ def test_geopackage_layers_read_back_by_ogr(gis) -> None:
     x, y, z = scn.geo.geodetic_to_enu(lat, lon, alt)
     assert np.abs(np.column_stack([x - p.x, y - p.y, z - p.z])).max() < 0.001
     assert [r["species"] for r in rows] == p.species.tolist()
+    # the preview's own reader agrees with GDAL's
+    from scenario_gen.export.gpkg import read_geometries
+
+    mine = np.array([g.coords[0] for g in read_geometries(out / "layers.gpkg", "plants")])
+    np.testing.assert_allclose(mine, np.column_stack([lon, lat, alt]), rtol=0, atol=1e-12)
     n_rows = _run("ogrinfo", "-so", str(out / "layers.gpkg"), "rows").stdout
     assert f"Feature Count: {len(scn.rows.offsets)}" in n_rows
 
