@@ -7,8 +7,9 @@ cannot scale what it includes. So each species/growth (or the user's ``crop.mode
 off by at most half a step (1 %). Weeds grow continuously, so their growth is binned too
 (``GROWTH_STEPS``); a crop field has one growth and keeps it exactly.
 
-Collision proxy: a stem cylinder of the catalog's ``proxy_radius`` times the plant's scale, the
-same circle agrinav_gym counts crop contact with, as tall as the plant. Weeds have none.
+Collision proxy: a stem cylinder of the catalog's stem radius at the model's growth times the
+plant's scale — the circle agrinav_gym counts crop contact with — as tall as the plant. Weeds
+have none.
 """
 
 from __future__ import annotations
@@ -44,7 +45,7 @@ class PlantModel:
     label: str
     mesh: Any  # trimesh: base at the origin, +z up, ``height`` tall
     height: float
-    proxy_radius: float  # stem proxy at nominal size, m; 0 = no collision
+    proxy_radius: float  # stem radius at this growth and nominal size, m; 0 = no collision
     source: str  # "catalog" or the user model's path
 
     def variant(self, step: int) -> str:
@@ -134,7 +135,7 @@ def assign(scn: Scenario) -> Assignment:
                     f"{name} {_stage_label(name, g)}",
                     mesh,
                     nominal,
-                    sp.proxy_radius,
+                    float(sp.stem_radius(g)),
                     source,
                 )
             )

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from scenario_gen import Scenario, load
+from scenario_gen import CATALOG, Scenario, load
 from scenario_gen.export import ExportOptions, export
 from scenario_gen.export import tiles as tiles_mod
 from scenario_gen.export.plantmodels import SCALE_STEP, assign
@@ -107,6 +107,10 @@ def test_plant_sizes_and_stem_proxies(checks, included) -> None:
         x, y, z, *_, radius, length = c.collisions[f"plant_{i:06d}/stem"]
         pm = a.models[a.model[i]]
         assert radius == pytest.approx(pm.proxy_radius * a.scale[i], rel=1e-3)
+        # the stalk circle agrinav_gym counts crop contact with, within the 1 % size binning
+        sp = CATALOG[str(p.species[i])]
+        g = sp.growth_of_stage(p.stage[i])
+        assert radius == pytest.approx(sp.stem_radius(g) * p.height[i] / sp.height(g), rel=0.011)
         assert length == pytest.approx(pm.height * a.scale[i], rel=1e-3)
         axis = rotations(p.roll[i : i + 1], p.pitch[i : i + 1], p.yaw[i : i + 1])[0, :, 2]
         centre = np.array([p.x[i], p.y[i], p.z[i]]) + 0.5 * length * axis
