@@ -219,7 +219,15 @@ def plot(r: dict, path: Path) -> None:
     fig = Figure(figsize=(7.5, 4.2), dpi=110)
     FigureCanvasAgg(fig)
     ax = fig.add_subplot()
-    ax.plot(n, secs, "o-", label="one <include> per plant")
+    ax.plot(n, secs, "o-", label="one <include> per plant (measured)")
+    big = r["plants_big"]
+    ax.plot(
+        [n[-1], big],
+        [secs[-1], secs[-1] + s["per_include_ms"] / 1e3 * (big - n[-1])],
+        ":",
+        color="C0",
+        label="… extrapolated at the measured cost per include",
+    )
     ax.plot(
         [r["plants_big"]],
         [s["tiled_100k"]["seconds"]],

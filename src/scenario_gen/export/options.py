@@ -13,7 +13,7 @@ TARGETS = ("gazebo", "nav2", "gis", "mesh")
 MESH_FORMATS = ("glb", "obj", "ply", "dae")
 
 #: Above this many plants the world uses merged tiles. Parsing alone costs libsdformat 12
-#: (Gazebo Fortress's parser) ≈50 ms and ≈5 MB per <include> (benchmarks/bench_export.py), and
+#: (Gazebo Fortress's parser) ≈60 ms and ≈5 MB per <include> (benchmarks/bench_export.py), and
 #: the source paper measured ≈1.45 MB of Gazebo memory per plant model at run time: 1,000
 #: plants are ≈1 min and ≈6 GB before the first simulation step.
 INCLUDE_LIMIT = 1000
@@ -28,7 +28,7 @@ class ExportOptions:
         choices=("auto", "include", "tiles"),
     )
     include_limit: int = _f(INCLUDE_LIMIT, "auto: the most plants written as includes", 0, 10**7)
-    tile_plants: int = _f(1000, "merged tiles hold about this many plants each", 10, 10**6)
+    tile_plants: int = _f(1000, "merged tiles hold about this many plants each", 1, 10**6)
     heightmap: bool = _f(
         False, "Gazebo: also write the terrain as a 16-bit heightmap and a world using it"
     )

@@ -25,7 +25,7 @@ from .plantmodels import Assignment, fmt, model_config
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 #: Stem proxies of a tile are one collision mesh of prisms: one SDF <collision> per plant costs
-#: libsdformat ≈240 kB of DOM each (a 100k-plant world would not load in 24 GB).
+#: libsdformat ≥240 kB of DOM each (a 99k-plant world did not load within 24 GB).
 PRISM_SIDES = 8
 
 

@@ -19,13 +19,13 @@ def sdf_check() -> Path:
 def hill(tmp_path_factory: pytest.TempPathFactory) -> tuple[Scenario, Path]:
     """A 20° slope with weeds: large roll/pitch make a rotation-convention slip visible.
 
-    Tiny on purpose: libsdformat spends ≈50 ms per <include> (benchmarks/bench_export.py).
+    Tiny on purpose: libsdformat spends ≈60 ms per <include> (benchmarks/bench_export.py).
     """
     spec = plane(
         20.0,
         30.0,
-        field={"width": 4.0, "length": 5.0},
-        layout={"weed_density": 1.0, "headland": 1.0, "plant_spacing": 0.3},
+        field={"width": 3.5, "length": 4.5},
+        layout={"weed_density": 1.0, "headland": 1.0, "plant_spacing": 0.4},
         terrain={"margin": 3.0},
         route={"lead_in": 1.0},
     )

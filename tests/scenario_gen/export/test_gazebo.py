@@ -30,7 +30,7 @@ def included(hill, tmp_path_factory) -> tuple[Scenario, Path]:
 def tiled(hill, tmp_path_factory) -> tuple[Scenario, Path]:
     _, src = hill
     out = tmp_path_factory.mktemp("gz") / "tiles"
-    export(src, "gazebo", out, ExportOptions(plants="tiles", tile_plants=10, heightmap=True))
+    export(src, "gazebo", out, ExportOptions(plants="tiles", tile_plants=4, heightmap=True))
     return load(src), out
 
 
@@ -203,7 +203,7 @@ def test_tiles_bake_every_plant(tiled, sdf_check) -> None:
     assert c.returncode == 0 and c.valid, c.stderr
     p = scn.plants
     tiles = [m for m in c.models if m.startswith("tile_")]
-    assert len(tiles) >= 4 and len(c.models) == len(tiles) + 1
+    assert len(tiles) >= 3 and len(c.models) == len(tiles) + 1
     assert not c.collisions  # no per-plant <collision>: see tiles.PRISM_SIDES
     a = assign(scn)
     faces = np.array([len(m.mesh.faces) for m in a.models])[a.model].sum()
@@ -211,7 +211,7 @@ def test_tiles_bake_every_plant(tiled, sdf_check) -> None:
     assert sum(len(m.faces) for m in stl) == faces
     # each tile's collision is one mesh of stem prisms, in plant order, on each crop's axis
     prism = len(tiles_mod.prism())
-    for tile in tiles_mod.make_tiles(scn, 10):
+    for tile in tiles_mod.make_tiles(scn, 4):
         crops = tile.plants[~p.is_weed[tile.plants]]
         stems = out / "models" / tile.name / "meshes" / "stems.stl"
         assert stems.is_file() == bool(len(crops))

@@ -88,7 +88,7 @@ def run_check(exe: Path, world: Path, models: Path) -> Check:
 
 
 def run_checks(exe: Path, worlds: list[Path], models: Path) -> list[Check]:
-    """Check several worlds in parallel processes (each include costs libsdformat ≈50 ms)."""
+    """Check several worlds in parallel processes (each include costs libsdformat ≈60 ms)."""
     procs = [
         subprocess.Popen(
             [str(exe), str(w), "-m", str(models)],
