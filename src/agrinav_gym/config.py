@@ -22,17 +22,44 @@ class RobotConfig:
     w_max: float = _f(1.5, "yaw rate at action +1, rad/s (controller limit 3)", 0.05, 3.0)
     a_max: float = _f(0.6, "linear acceleration limit, m/s² (DESIGN §5)", 0.01, 10)
     alpha_max: float = _f(1.5, "angular acceleration limit, rad/s² (DESIGN §5)", 0.01, 50)
-    skid_factor: float = _f(
-        3.0, "wheel-separation multiplier of the skid-steer kinematics (slip)", 1.0, 10
+    # A skid-steer's controller widens the track by χ so commanded yaw rates are met (ROS
+    # diff_drive_controller's wheel_separation_multiplier); null: χ derived from the soil model
+    # (sim.tyres.in_place_turn_ratio), as if calibrated on this soil.
+    skid_factor: float | None = _f(
+        None, "track multiplier χ of the wheel-speed command (null: from the soil)", 1.0, 10
     )
     wheel_force: float = _f(80.0, "wheel motor torque limit, N·m", 1, 1000)
-    friction: float = _f(1.0, "tyre-soil friction coefficient", 0.05, 3)
     physics_hz: int = _f(240, "physics rate, Hz (a multiple of control_hz)", 10, 2000)
     control_hz: int = _f(20, "control rate, Hz (Nav2 controller frequency)", 1, 200)
     solver_iterations: int = _f(10, "pybullet constraint solver iterations", 1, 200)
     camera_x: float = _f(0.25, "camera position ahead of base_link, m", -1, 1)
     camera_height: float = _f(0.55, "camera height above base_link (mast ≈ 0.5 m), m", 0.1, 3)
     camera_pitch_deg: float = _f(25.0, "camera pitch below the horizon, degrees", -30, 90)
+
+
+@dataclass(frozen=True)
+class SoilConfig:
+    """Tyre–soil contact (sim.tyres, docs/physics.md): every wheel force comes from these."""
+
+    friction: float = _f(
+        0.6, "peak tyre–soil traction coefficient μ (grass, firm soil ≈ 0.5–0.8)", 0.05, 3
+    )
+    rolling_resistance: float = _f(
+        0.06, "motion resistance ratio c_rr (firm soil 0.04–0.08, tilled 0.1–0.2)", 0.0, 0.5
+    )
+    shear_modulus: float = _f(
+        0.025, "Janosi–Hanamoto shear deformation modulus K, m (soils ≈ 0.01–0.05)", 0.002, 0.2
+    )
+    contact_length: float = _f(
+        0.1, "tyre–soil contact length l (shear relaxation length), m", 0.01, 0.5
+    )
+    vertical_stiffness: float = _f(
+        6.0e4, "tyre + soil vertical stiffness per wheel, N/m", 5.0e3, 3.0e5
+    )
+    damping_ratio: float = _f(0.3, "vertical damping ratio ζ of each wheel's corner", 0.0, 2.0)
+    shear_damping: float = _f(
+        0.05, "soil viscosity time of the shear deflection (damps stiction at rest), s", 0.0, 1.0
+    )
 
 
 @dataclass(frozen=True)
@@ -105,6 +132,7 @@ class RenderConfig:
 @dataclass(frozen=True)
 class EnvConfig:
     robot: RobotConfig = dc_field(default_factory=RobotConfig)
+    soil: SoilConfig = dc_field(default_factory=SoilConfig)
     camera: CameraConfig = dc_field(default_factory=CameraConfig)
     render: RenderConfig = dc_field(default_factory=RenderConfig)
     gnss: GnssConfig = dc_field(default_factory=GnssConfig)
@@ -151,6 +179,15 @@ class EnvConfig:
                     rate,
                     f"allowed: a divisor of robot.control_hz ({r.control_hz})",
                 )
+        # The tyres' vertical springs are integrated explicitly at the physics rate: a 6.5 kg
+        # wheel on stiffness k oscillates at √(k/m); keep √(k/m)·Δt ≤ 1 (stable below 2).
+        k_max = 6.5 * r.physics_hz**2
+        if self.soil.vertical_stiffness > k_max:
+            raise InputError(
+                "config.soil.vertical_stiffness",
+                self.soil.vertical_stiffness,
+                f"allowed: at most {k_max:.3g} N/m at physics_hz {r.physics_hz}",
+            )
         if self.camera.min_range >= self.camera.max_range:
             raise InputError(
                 "config.camera.min_range", self.camera.min_range, "allowed: below max_range"

@@ -125,7 +125,7 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
             scenario, scenario_overrides, scenario_seed, scenario_seeds, bank, randomize
         )
         self.scenario = self.source.first
-        self.world = World(self.cfg.robot, gui=render_mode == "human")
+        self.world = World(self.cfg.robot, self.cfg.soil, gui=render_mode == "human")
         self._closed = False
         self.interface = robot_interface(self.cfg, self.world.geometry)
         self.task = TASKS[self.task_name](self.cfg.task, self.interface)

@@ -83,7 +83,9 @@ def test_climbs_a_12_degree_slope() -> None:
         p, _ = _true_pose(env)
         climbed = p[2] - p0[2]
         run = p[0] - p0[0]
-        assert run > 3.2  # ≥ 80 % of the commanded 4 m: wheel slip, not sliding back
+        # ≈ 15 % tyre slip at 45 % of the traction limit (μ 0.6, tests/agrinav_gym/test_tyres)
+        # and 0.8 s of acceleration ramp: ≥ 70 % of the commanded 4 m, not sliding back
+        assert run > 2.8
         assert climbed == pytest.approx(run * math.tan(math.radians(12.0)), abs=0.05)
     finally:
         env.close()
@@ -100,3 +102,22 @@ def test_sensor_mounts_in_the_config_match_the_urdf_frames() -> None:
     assert frames["gps_link"] == pytest.approx((g.antenna_x, 0.0, g.antenna_height))
     geo = RobotGeometry.from_urdf()
     assert (geo.wheel_radius, geo.track, geo.wheelbase) == pytest.approx((0.11, 0.47, 0.458))
+
+
+@pytest.mark.parametrize("v", [0.0, 0.5])
+def test_accelerometer_reads_sensor_noise_not_contact_chatter_on_flat_ground(v: float) -> None:
+    # MTi-300: 60 µg/√Hz at the 20 Hz output rate; on flat ground the body's true specific
+    # force is constant, so what remains is the sensor's own noise (a few µg of bias aside)
+    env = make(scenario_overrides=FLAT, config={**STILL, "task": {"corridor": 5.0}})
+    try:
+        env.reset(seed=0, options={"lane": 3})
+        f = []
+        for k in range(160):
+            env.step(np.array([v, 0.0], np.float32))
+            if k >= 40:  # after the acceleration ramp
+                f.append(env.unwrapped.readings.accel.copy())
+        sigma = 60e-6 * 9.81 * math.sqrt(20)
+        # 120 samples pin a std to about ±7 % (1σ)
+        assert np.std(f, axis=0) == pytest.approx([sigma] * 3, rel=0.25)
+    finally:
+        env.close()
