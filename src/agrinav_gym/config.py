@@ -157,7 +157,9 @@ class LocalisationConfig:
     """
 
     kind: str = _f("ekf", "estimator of the pose policies see", choices=("ekf", "blend", "ideal"))
-    init_position_sigma: float = _f(0.5, "prior std of the start position, m", 0.0, 100)
+    init_position_sigma: float = _f(
+        0.5, "std of the start position when there is no fix at the start, m", 0.0, 100
+    )
     init_yaw_sigma_deg: float = _f(3.0, "prior std of the start heading, degrees", 0.0, 180)
     pose_noise: float = _f(1e-4, "process noise density of x and y, m²/s", 0.0, 10)
     yaw_noise: float = _f(1e-5, "process noise density of the heading, rad²/s", 0.0, 10)

@@ -230,7 +230,7 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         c = self.cfg.camera
         cam = f"{c.width}x{c.height} analytic proxy" if "depth" in self.obs_models else "none"
         return {
-            "localisation": f"{self.estimator.name}, GNSS {self.sensors.gnss.cfg.mode}",
+            "localisation": self._localisation_label(),
             "camera": cam,
             "speed_limit": f"{self.cfg.robot.v_max:g} m/s",
         }
@@ -319,6 +319,14 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         if isinstance(depth, DepthObservation):
             info.update(depth.extras())
         return info
+
+    def _localisation_label(self) -> str:
+        g = self.sensors.gnss.cfg
+        name = self.estimator.name
+        if name == "ideal":
+            return "ideal (ground truth pose)"
+        fix = "canopy/multipath fix modes" if g.fix.model == "canopy" else "constant mode"
+        return f"{name}, GNSS {g.mode} best, {fix}, {g.latency_s:g} s latency"
 
     def _localisation_info(self) -> dict[str, Any]:
         """Which estimator, the receiver's fix mode and the estimate's true error (for

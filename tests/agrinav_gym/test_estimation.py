@@ -39,20 +39,24 @@ def test_ekf_is_consistent_over_a_drive(mode: str) -> None:
 
 
 @pytest.mark.parametrize(
-    "mode,ekf_max",
+    "mode,ekf_max,gain",
     [
-        ("rtk_fixed", 0.03),  # a few cm: the fix's 1 cm plus slip between fixes
-        ("rtk_float", 0.5),  # float's 0.25 m CEP, correlated over 30 s
+        # a few cm: the fix's 1 cm plus slip between fixes; the blend is a latency behind
+        ("rtk_fixed", 0.03, 0.5),
+        # float's 0.25 m CEP is correlated over 30 s: nothing averages it away within a
+        # 40 s drive, so both sit near it; the EKF gains the latency and part of the slow error
+        # that dead reckoning exposes (measured 15 % over these seeds)
+        ("rtk_float", 0.3, 0.9),
     ],
 )
-def test_ekf_beats_the_blend(mode: str, ekf_max: float) -> None:
+def test_ekf_beats_the_blend(mode: str, ekf_max: float, gain: float) -> None:
     ekf, blend = [], []
-    for seed in range(4):
+    for seed in range(8):
         for kind, out in (("ekf", ekf), ("blend", blend)):
             e = drive(kind, mode, seed).errors[SETTLE:]
             out.append(np.sqrt(np.mean(e[:, 0] ** 2 + e[:, 1] ** 2)))
     assert np.mean(ekf) < ekf_max
-    assert np.mean(ekf) < 0.8 * np.mean(blend)
+    assert np.mean(ekf) < gain * np.mean(blend)
 
 
 def test_ekf_applies_each_fix_at_its_epoch() -> None:
@@ -114,3 +118,22 @@ def test_localisation_config_documents_every_field() -> None:
 
     for f in dataclasses.fields(LocalisationConfig):
         assert f.metadata["doc"]
+
+
+def test_the_estimator_does_not_change_the_drive_or_the_sensor_draws() -> None:
+    # same seed and actions: the true path and every reading are the same whatever estimates
+    runs = {}
+    for kind in ("ekf", "blend", "ideal"):
+        env = make(config={"localisation": {"kind": kind}})
+        try:
+            env.reset(seed=3)
+            u = env.unwrapped
+            rows = []
+            for _ in range(30):
+                env.step(np.array([0.6, 0.1], np.float32))
+                rows.append(np.concatenate([u.state.pos, u.readings.gnss_enu, u.readings.accel]))
+            runs[kind] = np.asarray(rows)
+        finally:
+            env.close()
+    assert np.array_equal(runs["ekf"], runs["blend"])
+    assert np.array_equal(runs["ekf"], runs["ideal"])

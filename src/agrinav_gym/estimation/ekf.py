@@ -33,6 +33,7 @@ from . import FloatArray, Readings
 N = 12
 X, Y, PSI, VX, VY, W, AX, AY, BIAS, EE, EN, SCALE = range(N)
 G = 9.81
+DIFFUSE = 1e6  # m², a position prior the first fix overrides completely
 
 
 def _wrap(a: float) -> float:
@@ -79,11 +80,13 @@ class Ekf:
 
     # ------------------------------------------------------------------ protocol
     def reset(self, x: float, y: float, yaw: float, rng: np.random.Generator) -> None:
-        """Start at the given pose drawn from the configured prior (a real robot's first
-        estimate is off by about that much before the first fix)."""
+        """Start near the given pose, drawn from the configured prior: the heading is the
+        IMU's; the position is replaced by the first fix when there is one (else it is the
+        last known position, e.g. from the headland, off by about ``init_position_sigma``)."""
         c = self.cfg
         sp, sy = c.init_position_sigma, math.radians(c.init_yaw_sigma_deg)
-        d = rng.standard_normal(3)
+        # a child stream: the env's own draws (sensor noise) stay the same whatever the estimator
+        d = rng.spawn(1)[0].standard_normal(3)
         self.s = np.zeros(N)
         self.s[:3] = x + sp * d[0], y + sp * d[1], _wrap(yaw + sy * d[2])
         var = np.zeros(N)
@@ -101,6 +104,11 @@ class Ekf:
         self.k += 1
         if self.k > 0:
             self._predict(dt)
+        elif r.gnss_new and r.gnss_mode != "none":
+            # navsat_transform's way: the first fix places the robot; the start prior only
+            # stands in when the receiver has no fix yet
+            self.P[X, :] = self.P[:, X] = self.P[Y, :] = self.P[:, Y] = 0.0
+            self.P[X, X] = self.P[Y, Y] = DIFFUSE
         self._fuse_step(r)
         self._remember(r)
         if r.gnss_new and r.gnss_mode != "none":
