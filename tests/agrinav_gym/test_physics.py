@@ -34,10 +34,6 @@ def test_drives_5m_straight_on_flat_ground() -> None:
         env.close()
 
 
-@pytest.mark.xfail(
-    reason="skid-steer turning stick-slips and wanders off its centre (issue 10 drive physics)",
-    strict=False,
-)
 def test_turns_in_place() -> None:
     env = make(scenario_overrides=FLAT, config={**STILL, "task": {"corridor": 5.0}})
     try:
@@ -50,8 +46,10 @@ def test_turns_in_place() -> None:
             turned += (yaw - yaw_prev + math.pi) % (2 * math.pi) - math.pi
             yaw_prev = yaw
         p, _ = _true_pose(env)
-        assert turned > math.radians(120)  # skid-steer: ≈1.3 rad/s of the 1.5 commanded
-        assert np.linalg.norm(p[:2] - p0[:2]) < 0.1  # about its own centre
+        # the command ramps at 1.5 rad/s² to 1.5 rad/s: 0.75 rad in the first second, then
+        # 1.5 rad/s for two; the yaw rate follows it within 10 % (tests/agrinav_gym/test_tyres)
+        assert turned == pytest.approx(0.75 + 2 * 1.5, rel=0.1)
+        assert np.linalg.norm(p[:2] - p0[:2]) < 0.02  # about its own centre
     finally:
         env.close()
 
