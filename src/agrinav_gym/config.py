@@ -22,17 +22,44 @@ class RobotConfig:
     w_max: float = _f(1.5, "yaw rate at action +1, rad/s (controller limit 3)", 0.05, 3.0)
     a_max: float = _f(0.6, "linear acceleration limit, m/s² (DESIGN §5)", 0.01, 10)
     alpha_max: float = _f(1.5, "angular acceleration limit, rad/s² (DESIGN §5)", 0.01, 50)
-    skid_factor: float = _f(
-        3.0, "wheel-separation multiplier of the skid-steer kinematics (slip)", 1.0, 10
+    # A skid-steer's controller widens the track by χ so commanded yaw rates are met (ROS
+    # diff_drive_controller's wheel_separation_multiplier); null: χ derived from the soil model
+    # (sim.tyres.in_place_turn_ratio), as if calibrated on this soil.
+    skid_factor: float | None = _f(
+        None, "track multiplier χ of the wheel-speed command (null: from the soil)", 1.0, 10
     )
     wheel_force: float = _f(80.0, "wheel motor torque limit, N·m", 1, 1000)
-    friction: float = _f(1.0, "tyre-soil friction coefficient", 0.05, 3)
     physics_hz: int = _f(240, "physics rate, Hz (a multiple of control_hz)", 10, 2000)
     control_hz: int = _f(20, "control rate, Hz (Nav2 controller frequency)", 1, 200)
     solver_iterations: int = _f(10, "pybullet constraint solver iterations", 1, 200)
     camera_x: float = _f(0.25, "camera position ahead of base_link, m", -1, 1)
     camera_height: float = _f(0.55, "camera height above base_link (mast ≈ 0.5 m), m", 0.1, 3)
     camera_pitch_deg: float = _f(25.0, "camera pitch below the horizon, degrees", -30, 90)
+
+
+@dataclass(frozen=True)
+class SoilConfig:
+    """Tyre–soil contact (sim.tyres, docs/physics.md): every wheel force comes from these."""
+
+    friction: float = _f(
+        0.6, "peak tyre–soil traction coefficient μ (grass, firm soil ≈ 0.5–0.8)", 0.05, 3
+    )
+    rolling_resistance: float = _f(
+        0.06, "motion resistance ratio c_rr (firm soil 0.04–0.08, tilled 0.1–0.2)", 0.0, 0.5
+    )
+    shear_modulus: float = _f(
+        0.025, "Janosi–Hanamoto shear deformation modulus K, m (soils ≈ 0.01–0.05)", 0.002, 0.2
+    )
+    contact_length: float = _f(
+        0.1, "tyre–soil contact length l (shear relaxation length), m", 0.01, 0.5
+    )
+    vertical_stiffness: float = _f(
+        6.0e4, "tyre + soil vertical stiffness per wheel, N/m", 5.0e3, 3.0e5
+    )
+    damping_ratio: float = _f(0.3, "vertical damping ratio ζ of each wheel's corner", 0.0, 2.0)
+    shear_damping: float = _f(
+        0.05, "soil viscosity time of the shear deflection (damps stiction at rest), s", 0.0, 1.0
+    )
 
 
 @dataclass(frozen=True)
@@ -52,9 +79,52 @@ class CameraConfig:
 
 
 @dataclass(frozen=True)
+class GnssFixConfig:
+    """Fix-mode model (sensors.fixmode, docs/localisation.md): canopy over the antenna and
+    multipath decide RTK fixed / float / standalone / no fix."""
+
+    model: str = _f(
+        "canopy",
+        "canopy: the mode follows the sky the crop leaves; constant: always the best mode",
+        choices=("canopy", "constant"),
+    )
+    elevation_mask_deg: float = _f(10.0, "satellites below this elevation are not used", 0, 60)
+    foliage_db_per_m: float = _f(
+        2.0, "L-band signal loss per metre of path through crop canopy, dB/m", 0.0, 50.0
+    )
+    carrier_db: float = _f(
+        3.0, "foliage loss up to which carrier phase stays usable for RTK, dB", 0, 60
+    )
+    code_db: float = _f(15.0, "foliage loss up to which code (a position) is tracked, dB", 0, 60)
+    fixed_sky: float = _f(0.5, "carrier-tracked sky fraction RTK fixed needs", 0.0, 1.0)
+    float_sky: float = _f(0.25, "carrier-tracked sky fraction RTK float needs", 0.0, 1.0)
+    standalone_sky: float = _f(0.1, "code-tracked sky fraction a standalone fix needs", 0.0, 1.0)
+    loss_s: float = _f(0.5, "mean time to drop to the supported mode, s", 0.01, 100)
+    acquire_standalone_s: float = _f(1.0, "mean time from no fix to standalone, s", 0.01, 600)
+    acquire_float_s: float = _f(3.0, "mean time from standalone to RTK float, s", 0.01, 600)
+    acquire_fixed_s: float = _f(
+        10.0, "mean time from float to fixed (ambiguity resolution), s", 0.01, 600
+    )
+    multipath_mtbf_s: float = _f(
+        600.0, "mean time between multipath slips fixed -> float under open sky, s", 1, 1e6
+    )
+    azimuth_cells: int = _f(24, "sky model azimuth cells", 4, 360)
+    elevation_cells: int = _f(6, "sky model elevation cells above the mask", 1, 90)
+    update_m: float = _f(0.5, "recompute the sky when the antenna has moved this far, m", 0, 10)
+
+
+@dataclass(frozen=True)
 class GnssConfig:
-    mode: str = _f("rtk_fixed", "fix mode", choices=("rtk_fixed", "rtk_float", "standalone"))
+    mode: str = _f(
+        "rtk_fixed",
+        "best fix mode of the receiver setup (rtk_*: with base-station corrections)",
+        choices=("rtk_fixed", "rtk_float", "standalone"),
+    )
     rate_hz: int = _f(10, "update rate, Hz (ZED-F9P up to 20; a divisor of control_hz)", 1, 20)
+    latency_s: float = _f(
+        0.1, "delay from a fix's epoch to its arrival at the robot's computer, s", 0.0, 2.0
+    )
+    fix: GnssFixConfig = dc_field(default_factory=GnssFixConfig)
     baseline_km: float = _f(1.0, "distance to the RTK base station, km (the 1 ppm term)", 0, 100)
     antenna_x: float = _f(-0.25, "antenna position behind base_link (rear mast), m", -1, 1)
     antenna_height: float = _f(0.60, "antenna height above base_link, m", 0, 3)
@@ -75,6 +145,57 @@ class ImuConfig:
 @dataclass(frozen=True)
 class OdomConfig:
     noise: float = _f(0.01, "relative std of each wheel speed reading", 0, 1)
+
+
+@dataclass(frozen=True)
+class LocalisationConfig:
+    """Which pose the policies get (estimation/, docs/localisation.md) and the EKF's model.
+
+    ``ekf``: a robot_localization-style EKF fusing GNSS (with its latency), IMU and wheel
+    odometry; ``blend``: each fix through the lever arm, odometry between fixes, no filter;
+    ``ideal``: ground truth — for debugging only, no real robot has it.
+    """
+
+    kind: str = _f("ekf", "estimator of the pose policies see", choices=("ekf", "blend", "ideal"))
+    init_position_sigma: float = _f(
+        0.5, "std of the start position when there is no fix at the start, m", 0.0, 100
+    )
+    init_yaw_sigma_deg: float = _f(3.0, "prior std of the start heading, degrees", 0.0, 180)
+    pose_noise: float = _f(1e-4, "process noise density of x and y, m²/s", 0.0, 10)
+    yaw_noise: float = _f(1e-5, "process noise density of the heading, rad²/s", 0.0, 10)
+    velocity_noise: float = _f(0.01, "process noise density of vx and vy, m²/s³", 0.0, 100)
+    accel_noise: float = _f(
+        0.4, "random-walk density of ax, ay, (m/s²)²/s (0.6 m/s² limit reached in ≈ 1 s)", 0, 100
+    )
+    yaw_accel_noise: float = _f(
+        2.25, "random-walk density of the yaw rate, (rad/s)²/s (1.5 rad/s² limit)", 0, 1000
+    )
+    odom_speed_rel: float = _f(0.03, "odometry speed white noise relative to speed", 0.0, 1.0)
+    odom_scale_sigma: float = _f(
+        0.1, "prior std of the odometry speed scale error (slip, tyre deflection)", 0.0, 1.0
+    )
+    odom_scale_noise: float = _f(
+        1e-4, "random-walk density of the odometry speed scale error, 1/s", 0.0, 1.0
+    )
+    odom_yaw_rel: float = _f(0.15, "odometry yaw-rate std relative to it (after χ)", 0.0, 1.0)
+    odom_floor: float = _f(0.01, "odometry speed and yaw-rate std floor, m/s and rad/s", 1e-4, 1)
+    lateral_sigma: float = _f(
+        0.05, "std of the skid-steer's zero lateral velocity pseudo-measurement, m/s", 1e-3, 10
+    )
+    gyro_sigma_deg_s: float = _f(
+        0.05, "yaw-rate std of the gyro at the control rate, °/s", 1e-4, 10
+    )
+    use_accel: bool = _f(True, "fuse the accelerometer's horizontal specific force")
+    accel_sigma: float = _f(
+        0.05, "accelerometer std after removing gravity (0.2° attitude error), m/s²", 1e-3, 10
+    )
+    heading_bias_deg: float = _f(1.0, "IMU heading error std (MTi-300: 1° RMS), degrees", 0.0, 45)
+    heading_bias_tau_s: float = _f(10.0, "correlation time of the IMU heading error, s", 0.05, 1e5)
+    gnss_white: float = _f(0.003, "white part of each GNSS fix's error, m", 1e-4, 10)
+    gnss_tau_rtk_fixed_s: float = _f(5.0, "correlation time of RTK-fixed errors, s", 0.05, 1e4)
+    gnss_tau_rtk_float_s: float = _f(30.0, "correlation time of RTK-float errors, s", 0.05, 1e4)
+    gnss_tau_standalone_s: float = _f(60.0, "correlation time of standalone errors, s", 0.05, 1e4)
+    history_s: float = _f(1.0, "oldest fix age processed (older ones are dropped), s", 0.05, 10)
 
 
 @dataclass(frozen=True)
@@ -105,11 +226,13 @@ class RenderConfig:
 @dataclass(frozen=True)
 class EnvConfig:
     robot: RobotConfig = dc_field(default_factory=RobotConfig)
+    soil: SoilConfig = dc_field(default_factory=SoilConfig)
     camera: CameraConfig = dc_field(default_factory=CameraConfig)
     render: RenderConfig = dc_field(default_factory=RenderConfig)
     gnss: GnssConfig = dc_field(default_factory=GnssConfig)
     imu: ImuConfig = dc_field(default_factory=ImuConfig)
     odom: OdomConfig = dc_field(default_factory=OdomConfig)
+    localisation: LocalisationConfig = dc_field(default_factory=LocalisationConfig)
     task: TaskConfig = dc_field(default_factory=TaskConfig)
     #: reward term name -> its parameters (``rewards.REWARD_TERMS``), weights included
     reward: dict[str, Any] = dc_field(default_factory=dict)
@@ -151,6 +274,21 @@ class EnvConfig:
                     rate,
                     f"allowed: a divisor of robot.control_hz ({r.control_hz})",
                 )
+        # The tyres' vertical springs are integrated explicitly at the physics rate: a 6.5 kg
+        # wheel on stiffness k oscillates at √(k/m); keep √(k/m)·Δt ≤ 1 (stable below 2).
+        k_max = 6.5 * r.physics_hz**2
+        if self.soil.vertical_stiffness > k_max:
+            raise InputError(
+                "config.soil.vertical_stiffness",
+                self.soil.vertical_stiffness,
+                f"allowed: at most {k_max:.3g} N/m at physics_hz {r.physics_hz}",
+            )
+        if self.gnss.latency_s > self.localisation.history_s:
+            raise InputError(
+                "config.gnss.latency_s",
+                self.gnss.latency_s,
+                f"allowed: at most localisation.history_s ({self.localisation.history_s} s)",
+            )
         if self.camera.min_range >= self.camera.max_range:
             raise InputError(
                 "config.camera.min_range", self.camera.min_range, "allowed: below max_range"

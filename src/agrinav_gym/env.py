@@ -33,6 +33,7 @@ from .metrics import EpisodeMetrics
 from .observations import OBSERVATION_MODELS, DepthObservation, Snapshot
 from .routes import RoutePath, Tracker
 from .scenarios import ScenarioSource
+from .sensors.fixmode import Canopy
 from .sensors.suite import SensorSuite
 from .sim.contact import CropContact
 from .sim.plants import PlantField
@@ -125,14 +126,15 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
             scenario, scenario_overrides, scenario_seed, scenario_seeds, bank, randomize
         )
         self.scenario = self.source.first
-        self.world = World(self.cfg.robot, gui=render_mode == "human")
+        self.world = World(self.cfg.robot, self.cfg.soil, gui=render_mode == "human")
         self._closed = False
         self.interface = robot_interface(self.cfg, self.world.geometry)
         self.task = TASKS[self.task_name](self.cfg.task, self.interface)
         self.dt = self.interface.control_dt
         self.substeps = self.cfg.robot.physics_hz // self.cfg.robot.control_hz
         self.sensors = SensorSuite(self.cfg, self.world.geometry, self.dt)
-        self.estimator = make_estimator("blend")
+        loc = self.cfg.localisation
+        self.estimator = make_estimator(loc.kind, loc, self.world.skid_factor, self.dt)
         self.obs_models = {
             k: OBSERVATION_MODELS[k](self.cfg, self.interface) for k in self.observation_names
         }
@@ -228,7 +230,7 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         c = self.cfg.camera
         cam = f"{c.width}x{c.height} analytic proxy" if "depth" in self.obs_models else "none"
         return {
-            "localisation": f"{self.estimator.name}, GNSS {self.sensors.gnss.cfg.mode}",
+            "localisation": self._localisation_label(),
             "camera": cam,
             "speed_limit": f"{self.cfg.robot.v_max:g} m/s",
         }
@@ -308,6 +310,7 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
             "lon": self._latlon[1],
             "rewards": parts,
             "is_success": bool(ctx and ctx.success),
+            "localisation": self._localisation_info(),
             "metrics": self.episode_metrics(),
         }
         if ctx is not None and ctx.termination is not None:
@@ -316,6 +319,25 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         if isinstance(depth, DepthObservation):
             info.update(depth.extras())
         return info
+
+    def _localisation_label(self) -> str:
+        g = self.sensors.gnss.cfg
+        name = self.estimator.name
+        if name == "ideal":
+            return "ideal (ground truth pose)"
+        fix = "canopy/multipath fix modes" if g.fix.model == "canopy" else "constant mode"
+        return f"{name}, GNSS {g.mode} best, {fix}, {g.latency_s:g} s latency"
+
+    def _localisation_info(self) -> dict[str, Any]:
+        """Which estimator, the receiver's fix mode and the estimate's true error (for
+        evaluation: policies never see it)."""
+        ex, ey, eyaw = self.estimator.pose
+        return {
+            "estimator": self.estimator.name,
+            "gnss_mode": self.readings.gnss_mode,
+            "position_error": math.hypot(ex - self.state.pos[0], ey - self.state.pos[1]),
+            "yaw_error": _wrap(eyaw - float(self.state.rpy[2])),
+        }
 
     # ------------------------------------------------------------------ helpers
     def _xy(self) -> tuple[float, float]:
@@ -327,6 +349,7 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         if self._fields_of is not scn:
             self.plants = PlantField.from_scenario(scn)
             self.contact = CropContact.from_scenario(scn, self.world.geometry)
+            self.sensors.set_canopy(Canopy(scn))
             self._fields_of = scn
 
     def _clearance(self) -> float:

@@ -22,8 +22,10 @@ GPS_FIELDS = ("east", "north", "up", "fix_code", "fix_age")  # antenna fix (ENU 
 IMU_FIELDS = ("fx", "fy", "fz", "wx", "wy", "wz", "roll", "pitch", "sin_yaw", "cos_yaw")
 ODOM_FIELDS = ("v", "w")  # wheel-odometry forward speed m/s, yaw rate rad/s
 ROUTE_POINT_FIELDS = ("x", "y", "furrow")  # robot-frame route point (m) and its furrow flag
-#: GNSS fix codes in the ``gps`` observation (NMEA GGA-like: higher is better).
-FIX_CODES = {"standalone": 0, "rtk_float": 1, "rtk_fixed": 2}
+#: GNSS fix codes in the ``gps`` observation (NMEA GGA-like: higher is better). With no fix the
+#: last position is held and reads as the lowest quality; its growing fix age tells it apart
+#: (a code of its own would change the space the shipped checkpoints were trained on).
+FIX_CODES = {"none": 0, "standalone": 0, "rtk_float": 1, "rtk_fixed": 2}
 
 
 @dataclass(frozen=True)

@@ -34,10 +34,6 @@ def test_drives_5m_straight_on_flat_ground() -> None:
         env.close()
 
 
-@pytest.mark.xfail(
-    reason="skid-steer turning stick-slips and wanders off its centre (issue 10 drive physics)",
-    strict=False,
-)
 def test_turns_in_place() -> None:
     env = make(scenario_overrides=FLAT, config={**STILL, "task": {"corridor": 5.0}})
     try:
@@ -50,8 +46,10 @@ def test_turns_in_place() -> None:
             turned += (yaw - yaw_prev + math.pi) % (2 * math.pi) - math.pi
             yaw_prev = yaw
         p, _ = _true_pose(env)
-        assert turned > math.radians(120)  # skid-steer: ≈1.3 rad/s of the 1.5 commanded
-        assert np.linalg.norm(p[:2] - p0[:2]) < 0.1  # about its own centre
+        # the command ramps at 1.5 rad/s² to 1.5 rad/s: 0.75 rad in the first second, then
+        # 1.5 rad/s for two; the yaw rate follows it within 10 % (tests/agrinav_gym/test_tyres)
+        assert turned == pytest.approx(0.75 + 2 * 1.5, rel=0.1)
+        assert np.linalg.norm(p[:2] - p0[:2]) < 0.02  # about its own centre
     finally:
         env.close()
 
@@ -83,7 +81,9 @@ def test_climbs_a_12_degree_slope() -> None:
         p, _ = _true_pose(env)
         climbed = p[2] - p0[2]
         run = p[0] - p0[0]
-        assert run > 3.2  # ≥ 80 % of the commanded 4 m: wheel slip, not sliding back
+        # ≈ 15 % tyre slip at 45 % of the traction limit (μ 0.6, tests/agrinav_gym/test_tyres)
+        # and 0.8 s of acceleration ramp: ≥ 70 % of the commanded 4 m, not sliding back
+        assert run > 2.8
         assert climbed == pytest.approx(run * math.tan(math.radians(12.0)), abs=0.05)
     finally:
         env.close()
@@ -100,3 +100,22 @@ def test_sensor_mounts_in_the_config_match_the_urdf_frames() -> None:
     assert frames["gps_link"] == pytest.approx((g.antenna_x, 0.0, g.antenna_height))
     geo = RobotGeometry.from_urdf()
     assert (geo.wheel_radius, geo.track, geo.wheelbase) == pytest.approx((0.11, 0.47, 0.458))
+
+
+@pytest.mark.parametrize("v", [0.0, 0.5])
+def test_accelerometer_reads_sensor_noise_not_contact_chatter_on_flat_ground(v: float) -> None:
+    # MTi-300: 60 µg/√Hz at the 20 Hz output rate; on flat ground the body's true specific
+    # force is constant, so what remains is the sensor's own noise (a few µg of bias aside)
+    env = make(scenario_overrides=FLAT, config={**STILL, "task": {"corridor": 5.0}})
+    try:
+        env.reset(seed=0, options={"lane": 3})
+        f = []
+        for k in range(160):
+            env.step(np.array([v, 0.0], np.float32))
+            if k >= 40:  # after the acceleration ramp
+                f.append(env.unwrapped.readings.accel.copy())
+        sigma = 60e-6 * 9.81 * math.sqrt(20)
+        # 120 samples pin a std to about ±7 % (1σ)
+        assert np.std(f, axis=0) == pytest.approx([sigma] * 3, rel=0.25)
+    finally:
+        env.close()

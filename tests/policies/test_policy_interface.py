@@ -56,8 +56,9 @@ FLAT_1M = {
     [
         # a straight lane: within the RTK GNSS + IMU heading noise of the estimated pose
         ("AgriNav/FurrowFollow-v0", 0.03, 0.05),
-        # the zigzag's headland U-turn (0.5 m radius) is the hard part for a path follower
-        ("AgriNav/FieldRoute-v0", 0.08, 0.35),
+        # the zigzag's headland U-turn (0.5 m radius) is the hard part for a path follower:
+        # pure pursuit cuts it by up to half its 0.9 m maximum lookahead
+        ("AgriNav/FieldRoute-v0", 0.08, 0.45),
     ],
 )
 def test_classical_controllers_follow_straight_and_curved_paths(

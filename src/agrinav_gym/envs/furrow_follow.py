@@ -22,11 +22,13 @@ class FurrowFollowEnv(AgriNavEnv):
 
     ## Observation Space
     ``Dict`` of the selected sensors (default ``gps, imu, odom, route``):
-    ``gps`` (5,): ENU antenna fix (m), fix mode (2 RTK fixed, 1 float, 0 standalone), fix age (s);
+    ``gps`` (5,): ENU antenna fix (m), fix mode (2 RTK fixed, 1 float, 0 standalone or none:
+    the last fix held, its age growing), fix age (s); modes follow the canopy over the antenna;
     ``imu`` (10,): specific force (m/s²), angular rate (rad/s), roll, pitch, sin/cos heading —
     all body frame with MTi-300 noise; ``odom`` (2,): wheel-odometry v (m/s), ω (rad/s);
     ``route`` (3·K,): the next K = 10 route points, 0.4 m apart, in the robot frame of the
-    *estimated* pose (GNSS + IMU + odometry, never ground truth), each with a furrow flag;
+    *estimated* pose (``config.localisation``: an EKF over GNSS + IMU + odometry by default,
+    never ground truth unless ``ideal`` is asked for), each with a furrow flag;
     ``depth`` (1, 48, 64): D455-like z-depth in metres, 0 = invalid.
 
     ## Rewards

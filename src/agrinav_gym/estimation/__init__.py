@@ -3,16 +3,22 @@
 The env feeds every control step's ``Readings`` to a ``StateEstimator``; the ``route``
 observation and every controller see its ``pose``, never ground truth. ``blend`` is the GNSS/INS
 blend (a GNSS fix brought to base_link through the lever arm rotated by the IMU attitude, wheel
-odometry between fixes).
+odometry between fixes); ``ekf`` a robot_localization-style EKF with GNSS latency (the default);
+``ideal`` ground truth, for debugging only.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
+
+from scenario_gen.errors import InputError
+
+if TYPE_CHECKING:
+    from ..config import LocalisationConfig
 
 FloatArray = NDArray[np.float64]
 
@@ -31,6 +37,8 @@ class Readings:
     rpy: FloatArray  # (3,) IMU attitude estimate, rad (with its errors)
     odom: FloatArray  # (2,) wheel-odometry v m/s, w rad/s
     antenna_lever: FloatArray  # (3,) antenna position in base_link, m
+    #: ground-truth (x, y, yaw) of base_link: for the ``ideal`` estimator (debugging) only
+    truth: FloatArray | None = None
 
 
 class StateEstimator(Protocol):
@@ -47,12 +55,28 @@ class StateEstimator(Protocol):
     def covariance(self) -> FloatArray: ...
 
 
-def make_estimator(kind: str) -> StateEstimator:
+def make_estimator(
+    kind: str,
+    cfg: LocalisationConfig | None = None,
+    skid_factor: float = 1.0,
+    dt: float = 0.05,
+) -> StateEstimator:
+    """``ekf`` (robot_localization-style EKF), ``blend`` (GNSS/INS blend, no filter) or
+    ``ideal`` (ground truth, debugging only). ``skid_factor`` is the drive's χ (the EKF reads
+    odometry yaw rates through it), ``dt`` the control period."""
     from .blend import GnssInsBlend
+    from .ekf import Ekf
+    from .ideal import IdealEstimator
 
     if kind == "blend":
         return GnssInsBlend()
-    raise ValueError(f"unknown estimator {kind!r}")
+    if kind == "ideal":
+        return IdealEstimator()
+    if kind == "ekf":
+        from ..config import LocalisationConfig as Cfg
+
+        return Ekf(cfg if cfg is not None else Cfg(), skid_factor, dt)
+    raise InputError("config.localisation.kind", kind, "allowed: ekf, blend, ideal")
 
 
 __all__ = ["Readings", "StateEstimator", "make_estimator"]

@@ -23,8 +23,9 @@ class GnssInsBlend:
         self.yaw = 0.0
 
     def reset(self, x: float, y: float, yaw: float, rng: np.random.Generator) -> None:
-        self.xy = np.zeros(2)
-        self.yaw = 0.0
+        # replaced by the first fix; dead-reckoned from here only if the receiver has none
+        self.xy = np.array([x, y], np.float64)
+        self.yaw = yaw
 
     def update(self, r: Readings, dt: float) -> None:
         roll, pitch, yaw = (float(v) for v in r.rpy)

@@ -9,7 +9,8 @@ import numpy as np
 from ..config import EnvConfig
 from ..estimation import Readings
 from ..sim.world import RobotGeometry, RobotState
-from .gnss import Gnss, error_sigma
+from .fixmode import Canopy
+from .gnss import Gnss
 from .imu import Imu, WheelOdometry
 
 
@@ -24,11 +25,18 @@ class SensorSuite:
         self.odometry = WheelOdometry(cfg.odom, geometry.wheel_radius, geometry.track)
         g = cfg.gnss
         self.lever = np.array([g.antenna_x, 0.0, g.antenna_height])
-        self.sigma = error_sigma(cfg.gnss)
+        self._canopy: Canopy | None = None
 
     def set_gnss_mode(self, mode: str) -> None:
-        self.gnss = Gnss(replace(self.cfg.gnss, mode=mode), self.dt)
-        self.sigma = error_sigma(self.gnss.cfg)
+        """The receiver's best mode (e.g. standalone: no base-station corrections)."""
+        if mode != self.gnss.cfg.mode:
+            self.gnss = Gnss(replace(self.cfg.gnss, mode=mode), self.dt)
+            self.gnss.set_canopy(self._canopy)
+
+    def set_canopy(self, canopy: Canopy | None) -> None:
+        """The crop over the antenna (the fix-mode model's sky); call when the field changes."""
+        self._canopy = canopy
+        self.gnss.set_canopy(canopy)
 
     def antenna(self, s: RobotState) -> np.ndarray:
         return s.pos + s.rot @ self.lever
@@ -36,27 +44,27 @@ class SensorSuite:
     def reset(self, s: RobotState, rng: np.random.Generator) -> Readings:
         self.imu.reset(rng)
         self.gnss.reset(self.antenna(s), rng)
-        return self._readings(s, rng, np.zeros(2))
+        return self._pack(s, self.imu.measure(s.rot, s.vel, s.ang, s.rpy, rng), np.zeros(2))
 
     def step(self, s: RobotState, rng: np.random.Generator) -> Readings:
         self.gnss.step(self.antenna(s), rng, self.dt)
         imu = self.imu.measure(s.rot, s.vel, s.ang, s.rpy, rng)
-        return self._pack(imu, self.odometry.measure(s.wheels, rng))
+        return self._pack(s, imu, self.odometry.measure(s.wheels, rng))
 
-    def _readings(self, s: RobotState, rng: np.random.Generator, odom: np.ndarray) -> Readings:
-        return self._pack(self.imu.measure(s.rot, s.vel, s.ang, s.rpy, rng), odom)
-
-    def _pack(self, imu: tuple[np.ndarray, np.ndarray, np.ndarray], odom: np.ndarray) -> Readings:
+    def _pack(
+        self, s: RobotState, imu: tuple[np.ndarray, np.ndarray, np.ndarray], odom: np.ndarray
+    ) -> Readings:
         f, w, rpy = imu
         return Readings(
             gnss_enu=self.gnss.reading,
             gnss_new=self.gnss.updated,
-            gnss_mode=self.gnss.cfg.mode,
-            gnss_sigma=self.sigma,
+            gnss_mode=self.gnss.mode,
+            gnss_sigma=self.gnss.sigma,
             gnss_age=self.gnss.age,
             accel=f,
             gyro=w,
             rpy=rpy,
             odom=odom,
             antenna_lever=self.lever,
+            truth=np.array([s.pos[0], s.pos[1], s.rpy[2]]),
         )

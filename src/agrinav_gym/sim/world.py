@@ -1,4 +1,8 @@
-"""One pybullet client per env: the terrain heightfield and the Summit-XL."""
+"""One pybullet client per env: the terrain heightfield and the Summit-XL.
+
+The wheels touch the ground through ``sim.tyres`` (explicit tyre–soil forces on the terrain's
+bilinear surface); the heightfield window is the ground the chassis would hit.
+"""
 
 from __future__ import annotations
 
@@ -18,7 +22,8 @@ from numpy.typing import NDArray
 
 from scenario_gen import Terrain
 
-from ..config import RobotConfig
+from ..config import RobotConfig, SoilConfig
+from .tyres import TyreModel, in_place_turn_ratio
 
 FloatArray = NDArray[np.float64]
 
@@ -44,6 +49,7 @@ class RobotGeometry:
     footprint: tuple[float, float]  # length, width (DESIGN §5: 0.724 x 0.616 m nav footprint)
     chassis: tuple[float, float, float]  # collision box size (x, y, z), m
     frames: dict[str, tuple[float, float, float]]  # sensor link origins in base_link
+    mass: float  # total, kg (every link's inertial mass)
 
     @property
     def contact_rects(self) -> tuple[tuple[float, float, float, float], ...]:
@@ -73,6 +79,7 @@ class RobotGeometry:
         assert cyl is not None and box is not None
         chassis = tuple(float(v) for v in str(box.get("size")).split())
         frames = {n[: -len("_joint")]: xyz(n) for n in joints if n.endswith("link_joint")}
+        mass = sum(float(str(m.get("value"))) for m in root.iter("mass"))
         return cls(
             float(str(cyl.get("radius"))),
             float(str(cyl.get("length"))),
@@ -81,6 +88,7 @@ class RobotGeometry:
             (0.724, 0.616),
             (chassis[0], chassis[1], chassis[2]),
             frames,
+            mass,
         )
 
 
@@ -121,8 +129,11 @@ def urdf_path() -> str:
 class World:
     """The physics client with terrain and robot; rebuilt only when the terrain changes."""
 
-    def __init__(self, robot: RobotConfig, gui: bool = False) -> None:
+    def __init__(
+        self, robot: RobotConfig, soil: SoilConfig | None = None, gui: bool = False
+    ) -> None:
         self.cfg = robot
+        self.soil = soil if soil is not None else SoilConfig()
         if gui and sys.platform.startswith("linux") and not os.environ.get("DISPLAY"):
             # pybullet's GUI blocks forever without an X display instead of failing
             from scenario_gen.errors import InputError
@@ -134,6 +145,13 @@ class World:
             )
         self.client = p.connect(p.GUI if gui else p.DIRECT)
         self.geometry = RobotGeometry.from_urdf()
+        g = self.geometry
+        self.tyres = TyreModel(self.soil, g.wheel_radius, 0.25 * g.mass, 1.0 / robot.physics_hz)
+        self.skid_factor = (
+            robot.skid_factor
+            if robot.skid_factor is not None
+            else 1.0 / in_place_turn_ratio(self.soil, g.wheelbase, g.track)
+        )
         self._terrain: Terrain | None = None
         self.robot = -1
         self.wheels: list[int] = []
@@ -156,7 +174,8 @@ class World:
             physicsClientId=cid,
         )
         self._terrain = terrain
-        self.patch = TerrainPatch(cid, terrain, self.cfg.friction, row_angle)
+        self.tyres.reset(terrain)
+        self.patch = TerrainPatch(cid, terrain, self.soil.friction, row_angle)
         self.robot = -1
         self._spawn_robot([0, 0, float(terrain.heights.max()) + 1.0], [0, 0, 0, 1])
         p.configureDebugVisualizer(p.COV_ENABLE_RENDERING, 1, physicsClientId=cid)
@@ -194,6 +213,7 @@ class World:
         # A fresh body: resetting the old one would keep its contact manifolds and warm-start
         # impulses, and the first steps of an episode would depend on the one before.
         self._spawn_robot([x, y, z], q)
+        self.tyres.reset(terrain)
         self.drive(0.0, 0.0)
 
     def _spawn_robot(self, pos: list[float], quat: Any) -> None:
@@ -209,13 +229,13 @@ class World:
             for j in range(p.getNumJoints(self.robot, physicsClientId=cid))
         ]
         self.wheels = [names.index(n) for n in WHEEL_JOINTS]
-        for j in self.wheels:
-            p.changeDynamics(self.robot, j, lateralFriction=self.cfg.friction, physicsClientId=cid)
+        for j in self.wheels:  # the tyre model is the wheels' only contact with the ground
+            p.setCollisionFilterGroupMask(self.robot, j, 0, 0, physicsClientId=cid)
 
     # ------------------------------------------------------------------ stepping
     def drive(self, v: float, w: float) -> None:
-        """Skid-steer: body twist -> wheel speeds through the slip-expanded track."""
-        half = 0.5 * self.geometry.track * self.cfg.skid_factor * w
+        """Skid-steer: body twist -> wheel speeds through the slip-expanded track χ·track."""
+        half = 0.5 * self.geometry.track * self.skid_factor * w
         r = self.geometry.wheel_radius
         left, right = (v - half) / r, (v + half) / r
         p.setJointMotorControlArray(
@@ -228,8 +248,9 @@ class World:
         )
 
     def step(self, substeps: int) -> None:
-        cid = self.client
+        cid, robot, wheels, tyres = self.client, self.robot, self.wheels, self.tyres
         for _ in range(substeps):
+            tyres.apply(cid, robot, wheels)
             p.stepSimulation(physicsClientId=cid)
 
     def follow(self, x: float, y: float, heading: float | None = None) -> None:

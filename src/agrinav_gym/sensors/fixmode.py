@@ -1,0 +1,170 @@
+"""GNSS fix mode driven by the crop canopy over the antenna, plus random multipath slips.
+
+**Sky.** The sky above the elevation mask is cut into azimuth × elevation cells. Along each
+cell's ray from the antenna, the path length through the crop canopy is summed (each plant's
+canopy is a vertical cylinder of the catalog canopy width, from the bare lower stalk to the
+plant's top, holding its share of the row's foliage where neighbours overlap); the signal loses
+``foliage_db_per_m`` per metre of canopy. A satellite in that cell can
+be carrier-phase tracked (RTK) while the loss is below ``carrier_db`` and code tracked (a
+standalone fix) below ``code_db``. The solid-angle-weighted fractions of the sky where each
+holds are ``q_carrier`` and ``q_code``.
+
+**Modes.** Fixed needs ``q_carrier ≥ fixed_sky``, float ``≥ float_sky``, a standalone fix
+``q_code ≥ standalone_sky``: the mode the sky *supports* (capped by the receiver's best mode,
+e.g. no RTK without base-station corrections). The receiver's mode is a Markov chain over
+none < standalone < float < fixed evaluated at each fix epoch: above the supported mode it drops
+to it after a mean ``loss_s`` (lock is lost within a few epochs); below it, it climbs one level
+after a mean ``acquire_*_s`` (reacquisition, corrections, ambiguity resolution). In the
+supported fixed mode, multipath slips it to float at a mean interval ``multipath_mtbf_s``
+divided by the clear-sky fraction (fewer clean satellites, more slips). Every draw comes from
+the rng passed in: same seed, same modes.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial import cKDTree
+
+from scenario_gen import CATALOG, Scenario
+
+from ..config import GnssFixConfig
+
+FloatArray = NDArray[np.float64]
+
+LEVELS = ("none", "standalone", "rtk_float", "rtk_fixed")
+#: the lower stalk bears no green leaves (as sim.plants.LEAF_BASE for the camera)
+LEAF_BASE = 0.2
+#: canopy farther than this from the antenna is ignored: a low ray that crossed this much
+#: foliage is far past every tracking threshold anyway
+MAX_RANGE_M = 8.0
+
+
+class Canopy:
+    """Every plant's foliage as a cylinder: centre, radius, bottom and top height (ENU)."""
+
+    def __init__(self, scn: Scenario) -> None:
+        p = scn.plants
+        radius = np.zeros(len(p))
+        for name in np.unique(p.species):
+            sp = CATALOG[str(name)]
+            m = p.species == name
+            growth = sp.growth_of_stage(p.stage[m])
+            scale = p.height[m] / np.maximum(sp.height(growth), 1e-6)
+            radius[m] = 0.5 * sp.canopy_width(growth) * scale
+        self.xy = np.column_stack([p.x, p.y]).astype(np.float64)
+        self.radius = radius
+        self.bottom = np.asarray(p.z + LEAF_BASE * p.height, np.float64)
+        self.top = np.asarray(p.z + p.height, np.float64)
+        self.tree = cKDTree(self.xy if len(self.xy) else np.zeros((1, 2)))
+        # Neighbours' canopies overlap along a row (0.18 m apart, 1 m wide): each cylinder
+        # holds its share s/(2ρ) of the row's foliage, so the summed paths through overlapping
+        # cylinders equal the path through the row's canopy (exactly along the row).
+        self.share = np.ones(len(p))
+        if len(p) > 1:
+            gap, _ = self.tree.query(self.xy, k=2)
+            self.share = np.minimum(1.0, gap[:, 1] / np.maximum(2.0 * radius, 1e-9))
+        self.max_radius = float(radius.max()) if len(radius) else 0.0
+        self.max_top = float(self.top.max()) if len(self.top) else -math.inf
+
+    def __len__(self) -> int:
+        return len(self.radius)
+
+
+class SkyModel:
+    """Usable-sky fractions for carrier and code tracking at an antenna position."""
+
+    def __init__(self, cfg: GnssFixConfig, canopy: Canopy) -> None:
+        self.cfg = cfg
+        self.canopy = canopy
+        az = (np.arange(cfg.azimuth_cells) + 0.5) * (2 * math.pi / cfg.azimuth_cells)
+        mask = math.radians(cfg.elevation_mask_deg)
+        edges = np.linspace(mask, 0.5 * math.pi, cfg.elevation_cells + 1)
+        el = 0.5 * (edges[:-1] + edges[1:])
+        self.cos_az, self.sin_az = np.cos(az), np.sin(az)
+        self.tan_el, self.sec_el = np.tan(el), 1.0 / np.cos(el)
+        # solid angle of a band: ∫cos(el) d(el), the same for every azimuth cell
+        band = np.sin(edges[1:]) - np.sin(edges[:-1])
+        self.weight = np.broadcast_to(band / band.sum() / len(az), (len(az), len(el)))
+        self.mask_tan = math.tan(mask)
+
+    def attenuation(self, antenna: FloatArray) -> FloatArray:
+        """Foliage loss in dB of every (azimuth, elevation) cell's ray from ``antenna``."""
+        c = self.canopy
+        out = np.zeros(self.weight.shape)
+        above = c.max_top - antenna[2]
+        if len(c) == 0 or above <= 0.0:
+            return out
+        reach = min(MAX_RANGE_M, above / self.mask_tan + c.max_radius)
+        idx = np.asarray(c.tree.query_ball_point(antenna[:2], reach), dtype=np.intp)
+        if len(idx) == 0:
+            return out
+        idx = idx[c.top[idx] > antenna[2]]
+        d = c.xy[idx] - antenna[:2]
+        rho = c.radius[idx, None]
+        # along- and cross-track offsets of each plant from each azimuth's vertical plane
+        t = d[:, :1] * self.cos_az + d[:, 1:] * self.sin_az
+        x = -d[:, :1] * self.sin_az + d[:, 1:] * self.cos_az
+        half = np.sqrt(np.maximum(rho * rho - x * x, 0.0))  # half chord, 0 if missed
+        lo = np.maximum(t - half, 0.0)[..., None]
+        hi = (t + half)[..., None]
+        # the ray is within the foliage's height band for s in [s_bottom, s_top]
+        s_bot = np.maximum(c.bottom[idx] - antenna[2], 0.0)[:, None, None] / self.tan_el
+        s_top = (c.top[idx] - antenna[2])[:, None, None] / self.tan_el
+        length = np.maximum(np.minimum(hi, s_top) - np.maximum(lo, s_bot), 0.0)
+        path = np.einsum("i,ijk->jk", c.share[idx], length) * self.sec_el
+        out += self.cfg.foliage_db_per_m * path
+        return out
+
+    def usable(self, antenna: FloatArray) -> tuple[float, float]:
+        """(q_carrier, q_code): solid-angle fractions of the sky each kind of tracking sees."""
+        a = self.attenuation(antenna)
+        return (
+            float(self.weight[a < self.cfg.carrier_db].sum()),
+            float(self.weight[a < self.cfg.code_db].sum()),
+        )
+
+
+class FixModeChain:
+    """The receiver's fix mode as a Markov chain over LEVELS, stepped at each fix epoch."""
+
+    def __init__(self, cfg: GnssFixConfig, best: str, epoch_s: float) -> None:
+        self.cfg = cfg
+        self.best = LEVELS.index(best)
+        self.epoch_s = epoch_s
+        acquire = (cfg.acquire_standalone_s, cfg.acquire_float_s, cfg.acquire_fixed_s)
+        self.p_up = [1.0 - math.exp(-epoch_s / t) for t in acquire]
+        self.p_loss = 1.0 - math.exp(-epoch_s / cfg.loss_s)
+        self.level = self.best
+
+    def supported(self, q_carrier: float, q_code: float) -> int:
+        c = self.cfg
+        if q_code < c.standalone_sky:
+            return 0
+        if self.best >= 3 and q_carrier >= c.fixed_sky:
+            return 3
+        if self.best >= 2 and q_carrier >= c.float_sky:
+            return 2
+        return 1
+
+    def reset(self, q_carrier: float, q_code: float) -> str:
+        """Start converged: the receiver has been running before the episode."""
+        self.level = self.supported(q_carrier, q_code)
+        return LEVELS[self.level]
+
+    def step(self, q_carrier: float, q_code: float, rng: np.random.Generator) -> str:
+        sup = self.supported(q_carrier, q_code)
+        u = float(rng.random())  # one draw per epoch, whatever happens
+        if self.level > sup:
+            if u < self.p_loss:
+                self.level = sup
+        elif self.level < sup:
+            if u < self.p_up[self.level]:
+                self.level += 1
+        elif self.level == 3:
+            rate = 1.0 / (self.cfg.multipath_mtbf_s * max(q_carrier, 0.05))
+            if u < 1.0 - math.exp(-self.epoch_s * rate):
+                self.level = 2
+        return LEVELS[self.level]

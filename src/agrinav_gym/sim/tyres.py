@@ -1,0 +1,183 @@
+"""Wheel–ground forces of the skid-steer robot, computed explicitly each physics step.
+
+pybullet's own wheel contact was measured unfit for a skid-steer (docs/physics.md): its friction
+pyramid is aligned with the world axes, so an in-place turn ran 0.27–0.42 rad/s for one
+command depending on the heading; the turn rate changed with the physics rate (0.56 → 0.81 of
+the kinematic rate from 240 to 960 Hz); and spheres rolling over the heightfield's triangles
+chattered (normal force 0–300 N per wheel, contact normals tilted 15° on flat ground). So the
+wheels do not collide with the ground at all; each physics step every wheel gets
+
+* a **normal force** from the tyre and soil's vertical compliance: a spring–damper on the
+  wheel's penetration of the terrain's bilinear surface (the surface the sensors see);
+* a **shear (traction) force** from the Janosi–Hanamoto law ``τ = τ_max (1 − e^(−j/K))``,
+  ``τ_max = μ N``, where the shear displacement ``j`` of the contact patch is a state: it
+  grows with the slip velocity and relaxes as the tread leaves the patch, over the contact
+  length ``l`` (``dj/dt = s − (|u|/l) j``, the first-order "relaxation length" tyre model).
+  Rolling, the steady shear is ``j = l·s/|u|`` — the slip ratio times ``l``, as in the brush
+  and terramechanics models; at rest ``j`` is the elastic deflection that holds the robot on a
+  slope (no creep);
+* a **rolling (motion) resistance** ``c_rr N`` against the wheel's travel.
+
+The forces act at the contact point on the wheel link, so the velocity-controlled wheel motors
+feel their reaction torque. Pure Python floats: four wheels cost less in scalars than in numpy.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import pybullet as p
+
+from scenario_gen import Terrain
+
+from ..config import SoilConfig
+
+#: plastic limit of the shear state, in units of K: beyond it τ is within 2 % of τ_max
+SHEAR_CAP = 4.0
+#: below this travel speed (m/s) the motion resistance fades in linearly, so it never pushes
+#: a robot at rest
+RR_SPEED = 0.01
+
+
+class TyreModel:
+    """Per-wheel normal, shear and rolling-resistance forces from the soil parameters."""
+
+    def __init__(self, soil: SoilConfig, radius: float, corner_mass: float, dt: float) -> None:
+        self.soil = soil
+        self.radius = radius
+        self.dt = dt
+        self.kz = soil.vertical_stiffness
+        self.cz = 2.0 * soil.damping_ratio * math.sqrt(soil.vertical_stiffness * corner_mass)
+        self.shear = [[0.0, 0.0, 0.0] for _ in range(4)]
+        self.normal = [0.0, 0.0, 0.0, 0.0]
+        self._terrain: Terrain | None = None
+
+    def reset(self, terrain: Terrain) -> None:
+        self._terrain = terrain
+        self._h = terrain.heights
+        self._x0, self._y0, self._sp = terrain.x0, terrain.y0, terrain.spacing
+        self._ny, self._nx = terrain.heights.shape
+        self.shear = [[0.0, 0.0, 0.0] for _ in range(4)]
+        self.normal = [0.0, 0.0, 0.0, 0.0]
+
+    def surface(self, x: float, y: float) -> tuple[float, float, float]:
+        """Height and slope (∂z/∂x, ∂z/∂y) of the bilinear terrain at (x, y)."""
+        sp = self._sp
+        u = min(max((x - self._x0) / sp, 0.0), self._nx - 1.0)
+        v = min(max((y - self._y0) / sp, 0.0), self._ny - 1.0)
+        j = min(int(u), self._nx - 2)
+        i = min(int(v), self._ny - 2)
+        fu, fv = u - j, v - i
+        h = self._h
+        a, b = h.item(i, j), h.item(i, j + 1)
+        c, d = h.item(i + 1, j), h.item(i + 1, j + 1)
+        z0, z1 = a + (b - a) * fu, c + (d - c) * fu
+        return z0 + (z1 - z0) * fv, ((b - a) * (1.0 - fv) + (d - c) * fv) / sp, (z1 - z0) / sp
+
+    def apply(self, client: int, robot: int, wheels: Sequence[int]) -> None:
+        """Compute and apply this step's forces on the four wheel links."""
+        links = p.getLinkStates(robot, wheels, computeLinkVelocity=1, physicsClientId=client)
+        spins = p.getJointStates(robot, wheels, physicsClientId=client)
+        s = self.soil
+        dt, r, big_k, length = self.dt, self.radius, s.shear_modulus, s.contact_length
+        for i, link in enumerate(links):
+            c, q, v, w = link[0], link[5], link[6], link[7]
+            h, hx, hy = self.surface(c[0], c[1])
+            inv = 1.0 / math.sqrt(hx * hx + hy * hy + 1.0)
+            nx, ny, nz = -hx * inv, -hy * inv, inv
+            dist = (c[2] - h) * nz  # wheel centre to the local tangent plane
+            n_force = self.kz * (r - dist) - self.cz * (v[0] * nx + v[1] * ny + v[2] * nz)
+            if dist >= r or n_force <= 0.0:  # airborne: the patch's shear is gone
+                self.shear[i] = [0.0, 0.0, 0.0]
+                self.normal[i] = 0.0
+                continue
+            self.normal[i] = n_force
+            rx, ry, rz = -dist * nx, -dist * ny, -dist * nz  # centre -> contact point
+            # velocity of the tyre material at the contact point, tangential part = slip
+            vx = v[0] + w[1] * rz - w[2] * ry
+            vy = v[1] + w[2] * rx - w[0] * rz
+            vz = v[2] + w[0] * ry - w[1] * rx
+            vn = vx * nx + vy * ny + vz * nz
+            sx, sy, sz = vx - vn * nx, vy - vn * ny, vz - vn * nz
+            jx, jy, jz = self.shear[i]
+            u = abs(spins[i][1]) * r  # tread speed through the patch
+            if u > 1e-6:  # exact step of dj/dt = s − (u/l) j
+                decay = math.exp(-u * dt / length)
+                gain = length / u * (1.0 - decay)
+                kx, ky, kz = jx * decay + sx * gain, jy * decay + sy * gain, jz * decay + sz * gain
+            else:
+                kx, ky, kz = jx + sx * dt, jy + sy * dt, jz + sz * dt
+            kn = kx * nx + ky * ny + kz * nz
+            kx, ky, kz = kx - kn * nx, ky - kn * ny, kz - kn * nz
+            mag = math.sqrt(kx * kx + ky * ky + kz * kz)
+            if mag > SHEAR_CAP * big_k:
+                f = SHEAR_CAP * big_k / mag
+                kx, ky, kz, mag = kx * f, ky * f, kz * f, SHEAR_CAP * big_k
+            tmax = s.friction * n_force
+            elastic = tmax * (1.0 - math.exp(-mag / big_k)) / mag if mag > 0.0 else 0.0
+            # soil viscosity on the deflection rate: damps the stiction spring at rest, zero in
+            # steady rolling (dj/dt = 0 there)
+            damp = tmax / big_k * s.shear_damping / dt
+            fx = -elastic * kx - damp * (kx - jx)
+            fy = -elastic * ky - damp * (ky - jy)
+            fz = -elastic * kz - damp * (kz - jz)
+            ft = math.sqrt(fx * fx + fy * fy + fz * fz)
+            if ft > tmax:
+                f = tmax / ft
+                fx, fy, fz = fx * f, fy * f, fz * f
+            self.shear[i] = [kx, ky, kz]
+            # rolling direction = axle × normal; the axle is the wheel frame's y axis
+            qx, qy, qz, qw = q
+            ax, ay, az = (
+                2 * (qx * qy - qw * qz),
+                1 - 2 * (qx * qx + qz * qz),
+                2 * (qy * qz + qw * qx),
+            )
+            ex, ey, ez = ay * nz - az * ny, az * nx - ax * nz, ax * ny - ay * nx
+            en = math.sqrt(ex * ex + ey * ey + ez * ez)
+            travel = (v[0] * ex + v[1] * ey + v[2] * ez) / en
+            rr = -s.rolling_resistance * n_force * max(-1.0, min(1.0, travel / RR_SPEED)) / en
+            p.applyExternalForce(
+                robot,
+                wheels[i],
+                [
+                    fx + rr * ex + n_force * nx,
+                    fy + rr * ey + n_force * ny,
+                    fz + rr * ez + n_force * nz,
+                ],
+                [c[0] + rx, c[1] + ry, c[2] + rz],
+                p.WORLD_FRAME,
+                physicsClientId=client,
+            )
+
+
+def in_place_turn_ratio(soil: SoilConfig, wheelbase: float, track: float) -> float:
+    """True yaw rate / kinematic yaw rate ``(v_r − v_l)/track`` of a steady in-place turn.
+
+    Moment balance of four wheels at (±a, ±b) whose treads run at ±U while the body turns at
+    Ω = k·U/b: each patch slips by U·(k − 1, ±k·a/b), its shear is ``l·n`` (n the slip's
+    length over U), its force ``μN (1 − e^(−l n/K))`` against the slip, and the rolling
+    resistance ``c_rr N`` opposes each wheel's travel. The yaw moment vanishes where
+
+        (1 − e^(−l n/K)) · ((1 − k) − (a/b)² k) / n = c_rr / μ.
+
+    With no resistance and saturated shear, k = 1/(1 + (a/b)²): the rigid-Coulomb limit that
+    depends on the wheelbase/track ratio alone. The skid-steer "effective track" χ = 1/k.
+    """
+    a, b = 0.5 * wheelbase, 0.5 * track
+    ab2 = (a / b) ** 2
+    target = soil.rolling_resistance / soil.friction
+    lk = soil.contact_length / soil.shear_modulus
+
+    def moment(k: float) -> float:
+        n = math.hypot(k - 1.0, k * a / b)
+        return (1.0 - math.exp(-lk * n)) * ((1.0 - k) - ab2 * k) / n - target
+
+    lo, hi = 1e-6, 1.0 / (1.0 + ab2)
+    if moment(lo) <= 0.0:  # resistance beats every shear: the robot cannot turn in place
+        return lo
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if moment(mid) > 0.0 else (lo, mid)
+    return 0.5 * (lo + hi)
