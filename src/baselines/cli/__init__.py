@@ -17,9 +17,9 @@ from typing import NoReturn
 
 from scenario_gen.errors import InputError
 
-from . import bench, demo, scenario, train
+from . import bench, demo, scenario, studio, train
 
-COMMANDS = (scenario, train, bench, demo)
+COMMANDS = (scenario, train, bench, demo, studio)
 
 
 class Parser(argparse.ArgumentParser):
