@@ -124,7 +124,11 @@ def install_model(upload: Path, name: str, models_dir: Path, height: float) -> P
     from scenario_gen.sources import MESH_SUFFIXES
 
     safe = Path(name).name
-    if not safe or safe.startswith(".") or Path(safe).suffix.lower() not in (*MESH_SUFFIXES, ".zip"):
+    if (
+        not safe
+        or safe.startswith(".")
+        or Path(safe).suffix.lower() not in (*MESH_SUFFIXES, ".zip")
+    ):
         raise InputError(
             "crop.model", name, f"allowed: a mesh ({', '.join(MESH_SUFFIXES)}) or a .zip"
         )

@@ -8,7 +8,6 @@ added when the user ticks it.
 
 from __future__ import annotations
 
-import copy
 import hashlib
 import json
 import tempfile
@@ -24,6 +23,7 @@ from scenario_gen.errors import InputError
 from scenario_gen.generate import growth_of
 
 from . import actions, fields, layers
+from .card import ScenarioCard
 from .preview import Preview, SiteCache, layout_preview
 from .session import Session, Terrain
 from .widgets import SECTIONS, Form
@@ -73,7 +73,6 @@ class Page:
         self.form = Form(self.on_change)
         self.preview: Preview | None = None
         self.detail_box: tuple[float, float, float, float] | None = None
-        self.saved: str | None = None
         self._pending_error: InputError | None = None
 
     # ------------------------------------------------------------------ layout
@@ -91,30 +90,34 @@ class Page:
             ui.label("AgriNav studio").classes("text-h6")
             ui.label(self.studio.elevation(self.s).label).classes("text-caption")
             ui.space()
-            ui.select(preset_names(), value=self.s.preset, label="preset", on_change=self.on_preset).props(
-                'dense dark options-dark=false data-key="preset"'
-            ).classes("w-40")
+            ui.select(
+                preset_names(), value=self.s.preset, label="preset", on_change=self.on_preset
+            ).props('dense dark options-dark=false data-key="preset"').classes("w-40")
             self.online = ui.checkbox("online base map", on_change=self.on_online).props("dark")
             self.online.tooltip("OpenStreetMap tiles from the internet; everything else is local")
         with ui.row().classes("w-full no-wrap gap-2").style("height: calc(100vh - 64px)"):
             with ui.column().classes("h-full gap-1").style("flex: 1 1 62%"):
                 centre = _centre(first)
-                self.map = ui.leaflet(
-                    center=centre,
-                    zoom=18,
-                    draw_control={
-                        "draw": {
-                            "polygon": True,
-                            "rectangle": True,
-                            "polyline": False,
-                            "circle": False,
-                            "marker": False,
-                            "circlemarker": False,
+                self.map = (
+                    ui.leaflet(
+                        center=centre,
+                        zoom=18,
+                        draw_control={
+                            "draw": {
+                                "polygon": True,
+                                "rectangle": True,
+                                "polyline": False,
+                                "circle": False,
+                                "marker": False,
+                                "circlemarker": False,
+                            },
+                            "edit": {"edit": True, "remove": True},
                         },
-                        "edit": {"edit": True, "remove": True},
-                    },
-                    options={"maxZoom": 24, "zoomSnap": 0.25, "preferCanvas": False},
-                ).classes("w-full").style("height: calc(100vh - 130px)")
+                        options={"maxZoom": 24, "zoomSnap": 0.25, "preferCanvas": False},
+                    )
+                    .classes("w-full")
+                    .style("height: calc(100vh - 130px)")
+                )
                 self.map.clear_layers()  # NiceGUI adds an online OpenStreetMap layer by default
                 with ui.row().classes("w-full gap-4 text-caption items-center"):
                     self.counts = ui.label("").props('data-key="counts"')
@@ -144,33 +147,39 @@ class Page:
                     "Draw a polygon or rectangle on the map (polygons drawn inside another are "
                     "holes), edit or delete it with the toolbar, or load a GeoJSON."
                 ).classes("text-caption")
-                self.form.labels["field"] = self._error_label("field")
+                self.form.labels["field"] = self.error_label("field")
                 with ui.row().classes("items-center"):
-                    ui.upload(label="load GeoJSON", auto_upload=True, on_upload=self.on_geojson).props(
-                        'accept=".geojson,.json" flat dense data-key="upload-geojson"'
-                    ).classes("w-56")
+                    ui.upload(
+                        label="load GeoJSON", auto_upload=True, on_upload=self.on_geojson
+                    ).props('accept=".geojson,.json" flat dense data-key="upload-geojson"').classes(
+                        "w-56"
+                    )
                     ui.button("clear field", on_click=self.on_clear_field).props("flat dense")
             for section, title in SECTIONS:
                 exp = ui.expansion(title, value=section == "layout").classes("w-full")
                 with exp.props(f'data-section="{section}"'):
-                    self.form.labels[f"{section}."] = self._error_label(section)
+                    self.form.labels[f"{section}."] = self.error_label(f"{section}.")
                     if section == "crop":
                         self._model_picker()
                     self.form.section(section, values)
-            self._scenario_card(values)
+            self.card = ScenarioCard(self, values)
 
-    def _error_label(self, where: str) -> Any:
+    def error_label(self, where: str) -> Any:
         label = ui.label("").classes("text-negative text-caption").props(f'data-error="{where}"')
         label.set_visibility(False)
         return label
 
     def _model_picker(self) -> None:
-        self.model = ui.select(
-            self._model_options(), value="", label="crop model", on_change=self.on_model
-        ).classes("w-full").props('data-key="crop.model"')
+        self.model = (
+            ui.select(self._model_options(), value="", label="crop model", on_change=self.on_model)
+            .classes("w-full")
+            .props('data-key="crop.model"')
+        )
         self.model.without_auto_validation()
         self.form.widgets["crop.model"] = self.model
-        ui.upload(label="upload a model (.zip or mesh)", auto_upload=True, on_upload=self.on_model_upload).props(
+        ui.upload(
+            label="upload a model (.zip or mesh)", auto_upload=True, on_upload=self.on_model_upload
+        ).props(
             'accept=".zip,.glb,.gltf,.obj,.ply,.dae,.stl" flat dense data-key="upload-model"'
         ).classes("w-full")
 
@@ -181,49 +190,6 @@ class Page:
                 if not p.name.startswith("."):
                     opts[str(p)] = p.name
         return opts
-
-    def _scenario_card(self, values: dict[str, Any]) -> None:
-        with ui.card().classes("w-full"):
-            ui.label("Scenario").classes("text-subtitle1")
-            self.form.section("name", values)
-            self.seed = ui.number("seed", value=self.s.seed, on_change=self.on_seed).classes("w-full")
-            self.seed.without_auto_validation()
-            self.seed.props.update({"data-key": "seed", "hint": "generation seed · an integer in [0, 2**63)"})
-            self.form.widgets["seed"] = self.seed
-            self.out = ui.input("output folder", value=str(self.studio.workspace / self.s.spec().name),
-                                on_change=lambda _: self.update_command()).classes("w-full")
-            self.out.without_auto_validation()
-            self.out.props.update({"data-key": "out"})
-            self.form.widgets["out"] = self.out
-            self.overwrite = ui.switch("overwrite", on_change=lambda _: self.update_command())
-            with ui.row():
-                ui.button("generate and save", on_click=self.on_generate).props('data-key="generate"')
-            self.form.labels["general"] = self._error_label("general")
-            self.result = ui.label("").classes("text-caption").props('data-key="result"')
-            ui.label("equivalent command").classes("text-caption")
-            self.command = ui.code("", language="bash").classes("w-full").props('data-key="command"')
-            ui.separator()
-            formats = actions.export_formats()
-            with ui.row().classes("items-center"):
-                self.fmt = ui.select(list(formats), value=formats[0] if formats else None, label="export")
-                self.fmt.classes("w-40").props('data-key="export-format"')
-                self.fmt.without_auto_validation()
-                b = ui.button("export", on_click=self.on_export).props('data-key="export"')
-                if not formats:
-                    self.fmt.disable()
-                    b.disable()
-                    b.tooltip("this install has no exporter (agrinav export, issue 12)")
-            self.form.widgets["export"] = self.fmt
-            ui.separator()
-            with ui.row().classes("items-center"):
-                self.policy = ui.select(list(actions.POLICIES), value="rpp", label="policy")
-                self.policy.classes("w-40").props('data-key="policy"')
-                self.policy.without_auto_validation()
-                ui.button("run", on_click=self.on_run).props('data-key="run"')
-            self.form.widgets["policy"] = self.policy
-            self.form.labels["scenario"] = self._error_label("scenario")
-            self.run_box = ui.column().classes("w-full")
-        self.update_command()
 
     # ------------------------------------------------------------------ map drawing
     def _safe_preview(self) -> Preview | None:
@@ -251,12 +217,13 @@ class Page:
         data = pv.payload()
         data["outline"] = self.s.field_geom is None
         ui.run_javascript(f"studio.show({json.dumps(data)})")
-        shown = "" if pv.stride == 1 else f" (every {pv.stride}th drawn)"
+        shown = "" if pv.stride == 1 else f" (1 in {pv.stride} drawn)"
         self.counts.set_text(
             f"{pv.n_plants:,} plants{shown} · {pv.n_weeds:,} weeds · {pv.n_rows} rows · "
-            f"{pv.area_m2:,.0f} m² · route {pv.route_m:.1f} m · computed in {1000 * pv.seconds:.0f} ms"
+            f"{pv.area_m2:,.0f} m² · route {pv.route_m:.1f} m · "
+            f"computed in {1000 * pv.seconds:.0f} ms"
         )
-        self.update_command()
+        self.card.update_command()
 
     def fit(self, pv: Preview) -> None:
         south, west, north, east = _bbox(pv)
@@ -281,7 +248,13 @@ class Page:
         """Terrain in detail around the field, re-rendered when the field leaves it."""
         south, west, north, east = _bbox(pv)
         box = self.detail_box
-        if box is not None and box[0] <= west and box[1] <= south and box[2] >= east and box[3] >= north:
+        if (
+            box is not None
+            and box[0] <= west
+            and box[1] <= south
+            and box[2] >= east
+            and box[3] >= north
+        ):
             return
         self.detail_box = layers.around((west, south, east, north), DETAIL_PAD_M)
         self.show_layer("detail", self.detail_box, 800)
@@ -371,7 +344,13 @@ class Page:
 
     def on_online(self, e: Any) -> None:
         if e.value:
-            js = f"studio.base = L.tileLayer({json.dumps(OSM)}, {{maxZoom: 24, maxNativeZoom: 19, attribution: '© OpenStreetMap contributors'}}).addTo(studio.map)"
+            opts = {
+                "maxZoom": 24,
+                "maxNativeZoom": 19,
+                "attribution": "© OpenStreetMap contributors",
+            }
+            layer = f"L.tileLayer({json.dumps(OSM)}, {json.dumps(opts)})"
+            js = f"studio.base = {layer}.addTo(studio.map)"
         else:
             js = "if (studio.base) { studio.map.removeLayer(studio.base); studio.base = null; }"
         ui.run_javascript(js)
@@ -393,70 +372,6 @@ class Page:
                 self.form.show(exc, sticky=True)
                 return
         self.model.set_options(self._model_options(), value=str(target))
-
-    def update_command(self) -> None:
-        try:
-            self.command.set_content(self.s.command(self.out.value, bool(self.overwrite.value)))
-        except (InputError, AttributeError):
-            pass  # built before the scenario card exists, or a refused value: keep the last
-
-    async def on_generate(self) -> None:
-        self.result.set_text("")
-        if self.form.input_errors:
-            keys = ", ".join(sorted(self.form.input_errors))
-            self.form.show(InputError("general", keys, "fix this input first; nothing was written"))
-            return
-        session, out = copy.deepcopy(self.s), str(self.out.value or "")
-        self.result.set_text("generating…")
-        try:
-            summary = await run.io_bound(actions.generate_and_save, session, out, bool(self.overwrite.value))
-        except InputError as exc:
-            self.result.set_text("nothing was written")
-            self.form.show(exc)
-            return
-        self.form.clear_shown()
-        self.saved = out
-        self.result.set_text(
-            f"saved {out}: {summary['plants']:,} plants, {summary['rows']} rows, "
-            f"relief {summary['relief_m']} m" + (f"; field in {summary['field_file']}" if summary["field_file"] else "")
-        )
-
-    async def on_export(self) -> None:
-        if self.saved is None:
-            self.form.show(InputError("scenario", None, "generate and save the scenario first"))
-            return
-        out = f"{self.saved}-{self.fmt.value}"
-        try:
-            where = await run.io_bound(actions.export, self.saved, str(self.fmt.value), out,
-                                       bool(self.overwrite.value))
-        except InputError as exc:
-            self.form.show(exc)
-            return
-        self.result.set_text(f"exported {self.fmt.value} to {where}")
-
-    async def on_run(self) -> None:
-        if self.saved is None:
-            self.form.show(InputError("scenario", None, "generate and save the scenario first"))
-            return
-        policy = str(self.policy.value)
-        out = f"{self.saved}-run-{policy.replace(':', '-')}"
-        self.run_box.clear()
-        with self.run_box:
-            ui.spinner()
-            ui.label(f"running {policy} on {self.saved}…").classes("text-caption")
-        try:
-            rec = await run.io_bound(actions.run_policy, self.saved, policy, out,
-                                     overwrite=bool(self.overwrite.value))
-        except InputError as exc:
-            self.run_box.clear()
-            self.form.show(exc)
-            return
-        self.run_box.clear()
-        with self.run_box:
-            ui.image(rec["figure"]).classes("w-full").props('data-key="trajectory"')
-            ui.table(columns=[{"name": "metric", "label": "metric", "field": "metric"},
-                              {"name": "value", "label": "value", "field": "value"}],
-                     rows=actions.metrics_rows(rec)).props('dense flat data-key="metrics"').classes("w-full")
 
 
 def _flat(d: dict[str, Any], prefix: str = "") -> dict[str, Any]:

@@ -75,9 +75,10 @@ def combine(polys: list[Polygon]) -> BaseGeometry | None:
     if not polys:
         return None
     depth = [sum(o.contains(p) for j, o in enumerate(polys) if j != i) for i, p in enumerate(polys)]
-    keep = shapely.union_all([p for p, d in zip(polys, depth, strict=True) if d % 2 == 0])
-    holes = [p for p, d in zip(polys, depth, strict=True) if d % 2 == 1]
-    geom = keep.difference(shapely.union_all(holes)) if holes else keep
+    geom = shapely.union_all([p for p, d in zip(polys, depth, strict=True) if d == 0])
+    for level in range(1, max(depth) + 1):  # holes, then islands in holes, ...
+        ring = shapely.union_all([p for p, d in zip(polys, depth, strict=True) if d == level])
+        geom = geom.difference(ring) if level % 2 else geom.union(ring)
     if geom.is_empty or not isinstance(geom, (Polygon, MultiPolygon)):
         raise InputError("field", geom.geom_type, "the drawn polygons leave no field")
     return geom

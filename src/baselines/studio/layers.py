@@ -46,7 +46,12 @@ class DemElevation(Elevation):
         c = np.array([0, cols, cols, 0, cols / 2, 0, cols, cols / 2], np.float64)
         r = np.array([0, 0, rows, rows, 0, rows / 2, rows / 2, rows], np.float64)
         lon, lat = dem.to_lonlat().transform(*dem.pixel_to_crs(c, r))
-        self.extent = (float(np.min(lon)), float(np.min(lat)), float(np.max(lon)), float(np.max(lat)))
+        self.extent = (
+            float(np.min(lon)),
+            float(np.min(lat)),
+            float(np.max(lon)),
+            float(np.max(lat)),
+        )
         holes = dem.hole_mask
         self._filled = np.where(holes, np.nanmean(dem.elevation), dem.elevation)
         self._holes = holes.astype(np.float64)
@@ -77,7 +82,7 @@ class MeshElevation(Elevation):
         self.extent = (float(lon[0]), float(lat[0]), float(lon[1]), float(lat[1]))
 
     def __call__(self, lon: FloatArray, lat: FloatArray) -> FloatArray:
-        x, y, _ = self.geo.geodetic_to_enu(lat, lon, 0.0)
+        x, y, _ = self.geo.geodetic_to_enu(lat, lon, self.geo.alt)  # on the datum level
         z = np.asarray(self._interp(np.asarray(x), np.asarray(y)), np.float64)
         return z + self.geo.alt
 
@@ -94,7 +99,7 @@ class PlaneElevation(Elevation):
         self.extent = (float(lon[0]), float(lat[0]), float(lon[1]), float(lat[1]))
 
     def __call__(self, lon: FloatArray, lat: FloatArray) -> FloatArray:
-        x, y, _ = self.geo.geodetic_to_enu(lat, lon, 0.0)
+        x, y, _ = self.geo.geodetic_to_enu(lat, lon, self.geo.alt)  # on the datum level
         return self.geo.alt + self._grad[0] * np.asarray(x) + self._grad[1] * np.asarray(y)
 
 
@@ -144,7 +149,12 @@ def render(
     from matplotlib.figure import Figure
 
     w0, s0, e0, n0 = elev.extent
-    west, south, east, north = max(bbox[0], w0), max(bbox[1], s0), min(bbox[2], e0), min(bbox[3], n0)
+    west, south, east, north = (
+        max(bbox[0], w0),
+        max(bbox[1], s0),
+        min(bbox[2], e0),
+        min(bbox[3], n0),
+    )
     if not (east > west and north > south):
         return None
     ys, yn = float(merc_y(south)), float(merc_y(north))
@@ -178,8 +188,15 @@ def render(
     levels = np.arange(math.floor(zmin / interval) * interval, zmax + interval, interval)
     if len(levels) > 1:
         gx, gy = np.meshgrid(np.arange(w) + 0.5, h - np.arange(h) - 0.5)
-        cs = ax.contour(gx, gy, np.where(ok, z, np.nan), levels=levels, colors="#4a3520",
-                        linewidths=0.6, alpha=0.8)
+        cs = ax.contour(
+            gx,
+            gy,
+            np.where(ok, z, np.nan),
+            levels=levels,
+            colors="#4a3520",
+            linewidths=0.6,
+            alpha=0.8,
+        )
         ax.clabel(cs, levels[:: max(1, len(levels) // 6)], fontsize=7, fmt="%g m")
     ax.set_xlim(0, w)
     ax.set_ylim(0, h)
@@ -188,7 +205,9 @@ def render(
     return Layer(buf.getvalue(), ((south, west), (north, east)), zmin, zmax, interval)
 
 
-def around(latlon_box: tuple[float, float, float, float], pad_m: float) -> tuple[float, float, float, float]:
+def around(
+    latlon_box: tuple[float, float, float, float], pad_m: float
+) -> tuple[float, float, float, float]:
     """A lon/lat box grown by ``pad_m`` metres each side (west, south, east, north)."""
     west, south, east, north = latlon_box
     dlat = math.degrees(pad_m / EARTH_R)

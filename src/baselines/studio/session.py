@@ -97,7 +97,11 @@ class Session:
 
     # ------------------------------------------------------------------ the command line
     def args(
-        self, out: str | None, field_path: str | None, force: bool = False, with_overrides: bool = True
+        self,
+        out: str | None,
+        field_path: str | None,
+        force: bool = False,
+        with_overrides: bool = True,
     ) -> list[str]:
         """``agrinav scenario`` arguments (without the program and subcommand names)."""
         a = ["--preset", self.preset, *self.terrain.args()]

@@ -23,7 +23,14 @@ from scenario_gen.spec import ScenarioSpec
 #: Keys set elsewhere: the terrain source by the command line, the field by the map, the
 #: crop model by the model picker.
 NOT_IN_FORM = frozenset(
-    {"terrain.source", "terrain.path", "terrain.datum", "terrain.up_axis", "field.geojson", "crop.model"}
+    {
+        "terrain.source",
+        "terrain.path",
+        "terrain.datum",
+        "terrain.up_axis",
+        "field.geojson",
+        "crop.model",
+    }
 )
 SECTIONS = (
     ("field", "Field rectangle (used until a polygon is drawn)"),
@@ -37,7 +44,11 @@ SECTIONS = (
 
 def rows(section: str) -> list[tuple[str, str, str, str]]:
     """(key, default, allowed, doc) of a section's fields shown in the form."""
-    return [r for r in field_rows(ScenarioSpec) if r[0].split(".")[0] == section and r[0] not in NOT_IN_FORM]
+    return [
+        r
+        for r in field_rows(ScenarioSpec)
+        if r[0].split(".")[0] == section and r[0] not in NOT_IN_FORM
+    ]
 
 
 def parse(key: str, value: Any) -> Any:
@@ -78,6 +89,7 @@ class Form:
         choices = meta.get("choices")
         types = [a for a in get_args(tp) if a is not type(None)] or [tp]
         handler = self._handler(key)
+        w: Any
         if choices:
             w = ui.select(list(choices), value=value, label=name, on_change=handler)
         elif types == [bool]:

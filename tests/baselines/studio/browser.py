@@ -58,11 +58,23 @@ def studio_server(workspace: Path, *args: str) -> Iterator[str]:
     # Not PYTEST_*: NiceGUI switches to its own test mode when it sees them.
     env = {k: v for k, v in os.environ.items() if not k.startswith("PYTEST_")}
     env.update({"PYTHONPATH": str(ROOT / "src"), "MPLBACKEND": "Agg"})
-    log = open(workspace / "studio.log", "w")  # noqa: SIM115  (closed below)
+    log = open(workspace / "studio.log", "w")  # closed in the finally below
     proc = subprocess.Popen(
-        [sys.executable, "-m", "baselines.cli", "studio", "--port", str(port),
-         "--workspace", str(workspace), *args],
-        cwd=workspace, env=env, stdout=log, stderr=subprocess.STDOUT,
+        [
+            sys.executable,
+            "-m",
+            "baselines.cli",
+            "studio",
+            "--port",
+            str(port),
+            "--workspace",
+            str(workspace),
+            *args,
+        ],
+        cwd=workspace,
+        env=env,
+        stdout=log,
+        stderr=subprocess.STDOUT,
     )
     url = f"http://127.0.0.1:{port}/"
     try:
@@ -131,7 +143,9 @@ def set_number(page: Any, key: str, value: str) -> None:
 def field_text(page: Any, key: str) -> str:
     """The text of a form field: label, value, hint or error message."""
     return str(
-        page.evaluate(f"document.querySelector('[data-key=\"{key}\"]').closest('.q-field').innerText")
+        page.evaluate(
+            f"document.querySelector('[data-key=\"{key}\"]').closest('.q-field').innerText"
+        )
     )
 
 

@@ -70,9 +70,7 @@ def test_studio_end_to_end(tmp_path: Path) -> None:
         page.wait_for_function("Object.keys(window.studio.overlays).length >= 2")
         box = page.locator(".leaflet-container").first.bounding_box()
         page.mouse.move(box["x"] + 0.5 * box["width"], box["y"] + 0.5 * box["height"])
-        page.wait_for_function(
-            "document.body.innerText.includes('elevation') && /\\d+\\.\\d+ m/.test(document.body.innerText)"
-        )
+        page.wait_for_function("/elevation \\d+\\.\\d+ m/.test(document.body.innerText)")
         shot(page, tmp_path, "start")
 
         # draw a field: the preview switches from the preset's rectangle to the polygon
