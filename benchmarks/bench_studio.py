@@ -139,16 +139,19 @@ def _fill(page: object, key: str, value: str) -> None:
 
 
 def _changes(page: object, key: str, values: list[str], repeat: int, what: str) -> None:
-    page.evaluate("window.studio.latencies = []")  # type: ignore[attr-defined]
+    page.evaluate("window.studio.latencies = []; window.studio.arrivals = []")  # type: ignore[attr-defined]
     for k in range(repeat):
         _fill(page, key, values[k % len(values)])
         page.wait_for_timeout(150)  # type: ignore[attr-defined]
     lat = sorted(page.evaluate("window.studio.latencies"))  # type: ignore[attr-defined]
+    arr = page.evaluate("window.studio.arrivals")  # type: ignore[attr-defined]
     counts = page.locator('[data-key="counts"]').inner_text()  # type: ignore[attr-defined]
     p90 = lat[min(len(lat) - 1, int(0.9 * len(lat)))]
     print(
         f"browser, {what}: change -> redrawn median {statistics.median(lat):.0f} ms, "
-        f"p90 {p90:.0f} ms, max {lat[-1]:.0f} ms over {len(lat)} changes; page says: {counts}"
+        f"p90 {p90:.0f} ms, max {lat[-1]:.0f} ms over {len(lat)} changes; the preview data "
+        f"was back from the server after {statistics.median(arr):.0f} ms (median)\n"
+        f"    page says: {counts}"
     )
 
 

@@ -89,29 +89,41 @@ def run_policy(
 
 
 def export_api() -> Any | None:
-    """The export module of ``agrinav export`` (issue 12) when this install has it."""
-    for name in ("scenario_gen.export", "baselines.export"):
-        try:
-            return importlib.import_module(name)
-        except ImportError:
-            continue
-    return None
+    """``scenario_gen.export`` (``agrinav export``, issue 12) when this install has it."""
+    try:
+        return importlib.import_module("scenario_gen.export")
+    except ImportError:
+        return None
 
 
 def export_formats() -> tuple[str, ...]:
+    """The export targets (``gazebo``, ``nav2``, ``gis``, ``mesh``), or none without it."""
     api = export_api()
-    return tuple(getattr(api, "FORMATS", ())) if api is not None else ()
+    return tuple(getattr(api, "TARGETS", ())) if api is not None else ()
 
 
-def export(scenario: str, fmt: str, out: str, overwrite: bool = False) -> str:
-    """Export a saved scenario through ``agrinav export``'s Python API."""
+def robot_urdf() -> str:
+    """The Summit-XL URDF the envs simulate: what a Nav2 export spawns (as the CLI passes)."""
+    from importlib import resources
+
+    return str(resources.files("agrinav_gym.assets").joinpath("summit_xl.urdf"))
+
+
+def export(scenario: str, fmt: str, out: str, overwrite: bool = False) -> dict[str, Any]:
+    """Export a saved scenario through ``scenario_gen.export.export`` with the CLI's defaults
+    (``agrinav export DIR --to FMT --out OUT``); it checks everything before writing."""
     api = export_api()
     if api is None:
         raise InputError("export", fmt, "this install has no exporter (agrinav export)")
+    if fmt not in export_formats():
+        raise InputError("export", fmt, f"allowed: one of {', '.join(export_formats())}")
     if not (Path(scenario) / "scenario.json").is_file():
         raise InputError("scenario", scenario, "generate and save the scenario first")
-    result = api.export(scenario, fmt, out, overwrite=overwrite)
-    return str(result if result is not None else out)
+    data: dict[str, Any] = {"robot_urdf": robot_urdf()} if fmt == "nav2" else {}
+    info: dict[str, Any] = api.export(
+        scenario, fmt, out, api.ExportOptions.from_dict(data), overwrite=overwrite
+    )
+    return info
 
 
 def install_model(upload: Path, name: str, models_dir: Path, height: float) -> Path:

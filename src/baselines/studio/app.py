@@ -8,6 +8,7 @@ added when the user ticks it.
 
 from __future__ import annotations
 
+import asyncio
 import hashlib
 import json
 import tempfile
@@ -223,6 +224,11 @@ class Page:
             f"{pv.area_m2:,.0f} m² · route {pv.route_m:.1f} m · "
             f"computed in {1000 * pv.seconds:.0f} ms"
         )
+        # The command box re-renders highlighted code: let the map go out first.
+        background_tasks.create(self._command_soon(), name="studio command")
+
+    async def _command_soon(self) -> None:
+        await asyncio.sleep(0.05)
         self.card.update_command()
 
     def fit(self, pv: Preview) -> None:

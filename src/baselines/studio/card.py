@@ -113,14 +113,16 @@ class ScenarioCard:
             self.form.show(InputError("scenario", None, "generate and save the scenario first"))
             return
         out = f"{self.saved}-{self.fmt.value}"
+        self.result.set_text(f"exporting {self.fmt.value}…")
         try:
-            where = await run.io_bound(
+            await run.io_bound(
                 actions.export, self.saved, str(self.fmt.value), out, bool(self.overwrite.value)
             )
         except InputError as exc:
+            self.result.set_text("nothing was written")
             self.form.show(exc)
             return
-        self.result.set_text(f"exported {self.fmt.value} to {where}")
+        self.result.set_text(f"exported {self.fmt.value} to {out}")
 
     async def on_run(self) -> None:
         if self.saved is None:
@@ -143,7 +145,9 @@ class ScenarioCard:
         assert rec is not None
         self.run_box.clear()
         with self.run_box:
-            ui.image(rec["figure"]).classes("w-full").props('data-key="trajectory"')
+            ui.image(rec["figure"]).classes("w-full").props(
+                'data-key="trajectory" loading=eager fit=contain'
+            )
             ui.table(
                 columns=[
                     {"name": "metric", "label": "metric", "field": "metric"},

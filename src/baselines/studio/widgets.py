@@ -136,7 +136,7 @@ class Form:
             if part in self.widgets:
                 return part
         head = field.split(".")[0].split("[")[0]
-        for key in (f"{head}.", head):
+        for key in (head, f"{head}."):
             if key in self.labels:
                 return key
         return "general" if "general" in self.labels else None

@@ -127,3 +127,47 @@ def test_run_and_export_need_a_saved_scenario(tmp_path: Path) -> None:
         with pytest.raises(InputError) as e:
             actions.export(str(tmp_path), "gazebo", str(tmp_path / "x"))
         assert e.value.field == "export"
+
+
+def test_export_calls_the_exporters_api_like_the_cli(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The contract with ``scenario_gen.export`` (issue 12): export(dir, to, out, options,
+    overwrite=...), the robot URDF passed for nav2 as ``agrinav export`` does."""
+    import sys
+    import types
+    from dataclasses import dataclass
+    from typing import Any
+
+    calls: list[tuple[Any, ...]] = []
+
+    @dataclass(frozen=True)
+    class Options:
+        robot_urdf: str | None = None
+
+        @classmethod
+        def from_dict(cls, data: dict[str, Any]) -> Options:
+            return cls(**data)
+
+    def export(directory: str, to: str, out: str, opts: Options, overwrite: bool) -> dict[str, Any]:
+        calls.append((directory, to, out, opts, overwrite))
+        return {"target": to, "out": out}
+
+    fake = types.ModuleType("scenario_gen.export")
+    fake.TARGETS = ("gazebo", "nav2", "gis", "mesh")  # type: ignore[attr-defined]
+    fake.ExportOptions = Options  # type: ignore[attr-defined]
+    fake.export = export  # type: ignore[attr-defined]
+    monkeypatch.setitem(sys.modules, "scenario_gen.export", fake)
+    scn = tmp_path / "scn"
+    scn.mkdir()
+    (scn / "scenario.json").write_text("{}")
+    assert actions.export_formats() == fake.TARGETS  # type: ignore[attr-defined]
+    assert actions.export(str(scn), "nav2", "o", overwrite=True) == {"target": "nav2", "out": "o"}
+    ((_, to, out, opts, overwrite),) = calls
+    assert (to, out, overwrite) == ("nav2", "o", True)
+    assert opts.robot_urdf is not None and Path(opts.robot_urdf).is_file()
+    actions.export(str(scn), "gis", "g")
+    assert calls[-1][3].robot_urdf is None
+    with pytest.raises(InputError) as e:
+        actions.export(str(scn), "unity", "u")
+    assert e.value.field == "export"

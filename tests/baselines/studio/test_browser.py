@@ -126,10 +126,14 @@ def test_studio_end_to_end(tmp_path: Path) -> None:
         # run a policy on it: trajectory figure and metrics
         field(page, "run").click()
         page.wait_for_selector('[data-key="trajectory"] img', timeout=90_000)
+        field(page, "trajectory").scroll_into_view_if_needed()
+        page.wait_for_function(  # the figure is served by the studio and decoded
+            "(() => { const i = document.querySelector('[data-key=\"trajectory\"] img');"
+            " return i && i.complete && i.naturalWidth > 500; })()"
+        )
         metrics = field(page, "metrics").inner_text()
         assert "rmse" in metrics and "completion" in metrics
         assert (Path(str(out) + "-run-rpp") / "metrics.json").is_file()
-        field(page, "trajectory").scroll_into_view_if_needed()
         shot(page, tmp_path, "run")
 
         # a self-intersecting polygon: the error is shown at the field, generation refused

@@ -12,6 +12,7 @@ window.studio = (function () {
     overlays: {},
     lastChange: null, // performance.now() of the last parameter or field change
     latencies: [], // change -> redrawn preview, ms
+    arrivals: [], // change -> preview data received from the server, ms
     drawnAt: 0,
     shown: 0, // previews drawn
   };
@@ -115,6 +116,7 @@ window.studio = (function () {
 
   // The preview: plants, weeds, route and field outline, then the time since the change.
   S.show = function (d) {
+    if (S.lastChange !== null) S.arrivals.push(performance.now() - S.lastChange);
     S.plants.setData({ plants: d.plants, weeds: d.weeds, dot_m: d.dot_m });
     S.route.clearLayers();
     for (const [tag, flat] of d.route) {
