@@ -171,3 +171,15 @@ def test_export_calls_the_exporters_api_like_the_cli(
     with pytest.raises(InputError) as e:
         actions.export(str(scn), "unity", "u")
     assert e.value.field == "export"
+
+
+def test_export_with_the_real_exporter(tmp_path: Path) -> None:
+    """Runs once ``agrinav export`` (issue 12) is in this tree: the button's call end to end."""
+    pytest.importorskip("scenario_gen.export", reason="agrinav export (issue 12) not merged yet")
+    s = _small(False)
+    actions.generate_and_save(s, str(tmp_path / "scn"))
+    info = actions.export(str(tmp_path / "scn"), "mesh", str(tmp_path / "scn-mesh"))
+    assert info["target"] == "mesh" and any((tmp_path / "scn-mesh").iterdir())
+    with pytest.raises(InputError) as e:  # exists: refused before anything is written
+        actions.export(str(tmp_path / "scn"), "mesh", str(tmp_path / "scn-mesh"))
+    assert e.value.field == "out"
