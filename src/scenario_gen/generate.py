@@ -4,9 +4,13 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
+from shapely.geometry import MultiPolygon, Polygon
+from shapely.geometry.base import BaseGeometry
 
 from . import crops
 from .errors import InputError
@@ -22,8 +26,8 @@ from .furrows import add_relief
 from .layout import Layout, layout
 from .model import Plants, Scenario
 from .routes import zigzag
-from .sources import build_terrain, open_site
-from .spec import CropSpec, ScenarioSpec
+from .sources import Site, build_terrain, open_site
+from .spec import CropSpec, ScenarioSpec, TerrainSpec
 from .terrain import Terrain
 
 FloatArray = NDArray[np.float64]
@@ -88,32 +92,36 @@ def check_spec(spec: ScenarioSpec) -> None:
         )
 
 
-def generate(spec: ScenarioSpec, seed: int) -> Scenario:
-    """Build the scenario ``spec`` describes; the same (spec, seed) gives the same bits."""
+def streams(seed: int) -> dict[str, np.random.Generator]:
+    """One independent generator per generation step (``STREAMS``), spawned from ``seed``."""
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed < 2**63:
         raise InputError("seed", seed, "allowed: an integer in [0, 2**63)")
-    check_spec(spec)
-    t_start = time.perf_counter()
-    rng = dict(
-        zip(
-            STREAMS,
-            (
-                np.random.default_rng(s)
-                for s in np.random.SeedSequence(int(seed)).spawn(len(STREAMS))
-            ),
-            strict=True,
-        )
-    )
-    sp = crops.species(spec.crop.species)
-    growth = (
-        spec.crop.growth if spec.crop.growth is not None else sp.growth_of_stage(spec.crop.stage)
-    )
+    children = np.random.SeedSequence(int(seed)).spawn(len(STREAMS))
+    return dict(zip(STREAMS, (np.random.default_rng(s) for s in children), strict=True))
 
-    if spec.crop.model is not None:
-        from .models import load_model
 
-        load_model(spec.crop.model, float(sp.height(growth)))  # refuse a bad model up front
-    field_ll = read_geojson(spec.field.geojson) if spec.field.geojson else None
+@dataclass(frozen=True)
+class FieldPlan:
+    """Where the field lies before any terrain is sampled: the site, the ENU field polygon, the
+    row direction and the extent of the terrain grid (field plus margin)."""
+
+    site: Site
+    poly: Polygon | MultiPolygon
+    angle: float  # rad, counter-clockwise from east
+    bounds: tuple[float, float, float, float]
+
+
+SiteOpener = Callable[[TerrainSpec, "tuple[float, float] | None", float], Site]
+
+
+def plan_field(
+    spec: ScenarioSpec, field_ll: BaseGeometry | None, opener: SiteOpener = open_site
+) -> FieldPlan:
+    """Open the site and place the field (a lon/lat polygon, or the spec's rectangle).
+
+    ``generate`` and the studio's live preview both call this, so the preview puts the field,
+    the rows and the plants exactly where generation will; ``opener`` lets a caller cache sites.
+    """
     if (
         field_ll is not None
         and spec.terrain.source in ("embedded", "dem")
@@ -125,9 +133,7 @@ def generate(spec: ScenarioSpec, seed: int) -> Scenario:
             "a GeoJSON field fixes the site; leave terrain.site at its default",
         )
     diag = math.hypot(spec.field.width, spec.field.length) + 2 * spec.terrain.margin
-    site = open_site(
-        spec.terrain, centroid_latlon(field_ll) if field_ll is not None else None, diag
-    )
+    site = opener(spec.terrain, centroid_latlon(field_ll) if field_ll is not None else None, diag)
     if field_ll is not None:
         poly = check_field(lonlat_to_enu(field_ll, site.geo), "field.geojson")
         default_angle = long_axis_deg(poly)
@@ -139,16 +145,39 @@ def generate(spec: ScenarioSpec, seed: int) -> Scenario:
     )
     m = spec.terrain.margin
     xmin, ymin, xmax, ymax = poly.bounds
-    base = build_terrain(site, (xmin - m, ymin - m, xmax + m, ymax + m), spec.terrain.lod)
+    return FieldPlan(site, poly, angle, (xmin - m, ymin - m, xmax + m, ymax + m))
 
-    lay = layout(poly, spec.layout, angle, rng["jitter"], rng["gaps"], rng["weeds"])
+
+def growth_of(crop: CropSpec) -> float:
+    """The crop's continuous growth in [0, 1]: ``crop.growth``, or that of ``crop.stage``."""
+    sp = crops.species(crop.species)
+    return float(crop.growth if crop.growth is not None else sp.growth_of_stage(crop.stage))
+
+
+def generate(spec: ScenarioSpec, seed: int) -> Scenario:
+    """Build the scenario ``spec`` describes; the same (spec, seed) gives the same bits."""
+    rng = streams(seed)
+    check_spec(spec)
+    t_start = time.perf_counter()
+    sp = crops.species(spec.crop.species)
+    growth = growth_of(spec.crop)
+    if spec.crop.model is not None:
+        from .models import load_model
+
+        load_model(spec.crop.model, float(sp.height(growth)))  # refuse a bad model up front
+    field_ll = read_geojson(spec.field.geojson) if spec.field.geojson else None
+    plan = plan_field(spec, field_ll)
+    site, poly = plan.site, plan.poly
+    base = build_terrain(site, plan.bounds, spec.terrain.lod)
+
+    lay = layout(poly, spec.layout, plan.angle, rng["jitter"], rng["gaps"], rng["weeds"])
     terrain = add_relief(base, lay.rows, lay.planting_area, spec.furrows, rng["roughness"])
-    plants = place_plants(lay, terrain, spec.crop, float(growth), rng["plants"])
+    plants = place_plants(lay, terrain, spec.crop, growth, rng["plants"])
     route = zigzag(lay.rows, spec.route, terrain)
     info = {
         "credit": site.credit,
         **site.info,
-        "growth": float(growth),
+        "growth": growth,
         "candidates": lay.candidates,
         "generate_seconds": time.perf_counter() - t_start,
     }

@@ -49,7 +49,10 @@ def open_site(spec: TerrainSpec, field_lonlat: tuple[float, float] | None, exten
     return _mesh_site(spec)
 
 
-def build_terrain(site: Site, bounds: tuple[float, float, float, float], lod: int) -> Terrain:
+def terrain_grid(
+    site: Site, bounds: tuple[float, float, float, float], lod: int
+) -> tuple[float, float, int, int, float]:
+    """(x0, y0, nx, ny, spacing) of the LoD grid over ``bounds``, refused when too large."""
     spacing = site.geo.gsd(lod)
     x0, y0, nx, ny = grid_for_bounds(*bounds, spacing)
     if nx * ny > 60_000_000:
@@ -59,6 +62,11 @@ def build_terrain(site: Site, bounds: tuple[float, float, float, float], lod: in
             f"gives a {nx}x{ny} grid over the field; "
             "allowed: at most 60 million samples (lower the LoD or the margin)",
         )
+    return x0, y0, nx, ny, spacing
+
+
+def build_terrain(site: Site, bounds: tuple[float, float, float, float], lod: int) -> Terrain:
+    x0, y0, nx, ny, spacing = terrain_grid(site, bounds, lod)
     gx, gy = np.meshgrid(x0 + spacing * np.arange(nx), y0 + spacing * np.arange(ny))
     z = site.heights(gx.ravel(), gy.ravel()).reshape(ny, nx)
     return Terrain(z, x0, y0, spacing, lod)

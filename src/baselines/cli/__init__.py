@@ -17,9 +17,9 @@ from typing import NoReturn
 
 from scenario_gen.errors import InputError
 
-from . import bench, demo, export, scenario, train
+from . import bench, demo, export, scenario, studio, train
 
-COMMANDS = (scenario, export, train, bench, demo)
+COMMANDS = (scenario, export, train, bench, demo, studio)
 
 
 class Parser(argparse.ArgumentParser):

@@ -1,0 +1,171 @@
+"""What the studio's buttons do, as plain functions (the page runs them in a worker thread).
+
+Every action checks all of its input before it writes anything, like the CLI: a bad value, a
+field off the terrain or an existing output folder raises ``InputError`` and leaves the disk as
+it was.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib
+import json
+import os
+import shutil
+import tempfile
+from pathlib import Path
+from typing import Any
+
+from scenario_gen.atomic import check_output_dir
+from scenario_gen.errors import InputError
+
+from .session import Session, field_file
+
+#: Policies the page offers: names ``policies.make_policy`` takes.
+POLICIES = ("dwb", "rpp", "ppo:shipped")
+RUN_ENV = "AgriNav/FieldRoute-v0"
+
+
+def generate_and_save(session: Session, out: str, overwrite: bool = False) -> dict[str, Any]:
+    """Generate the session's scenario and save it to ``out`` (and the drawn field beside it).
+
+    The scenario is generated in memory first, from a temporary copy of the field file, so
+    nothing is written unless generation succeeds; the field file then goes next to the folder
+    (``<out>.field.geojson``), which ``scenario.json`` and the copied command refer to.
+    """
+    from scenario_gen import generate, save
+
+    if not out or not out.strip():
+        raise InputError("out", out, "allowed: a folder path")
+    check_output_dir(out, overwrite)
+    path = field_file(out) if session.field_text is not None else None
+    spec = session.spec(str(path) if path is not None else None)
+    if path is not None:
+        assert session.field_text is not None
+        if path.exists() and not overwrite and path.read_text() != session.field_text:
+            raise InputError("out", str(path), "exists with another field; allowed: overwrite")
+        with tempfile.TemporaryDirectory(prefix="agrinav-studio-") as tmp:
+            probe = Path(tmp) / "field.geojson"
+            probe.write_text(session.field_text)
+            scn = generate(session.spec(str(probe)), session.seed)
+        scn = dataclasses.replace(scn, spec=spec)  # same bits as read from ``path``
+    else:
+        scn = generate(spec, session.seed)
+    previous = path.read_text() if path is not None and path.exists() else None
+    if path is not None:
+        assert session.field_text is not None
+        _write_atomic(path, session.field_text)
+    try:
+        save(scn, out, overwrite=overwrite)
+    except BaseException:
+        if path is not None:  # put the field file back as it was
+            if previous is None:
+                path.unlink(missing_ok=True)
+            else:
+                _write_atomic(path, previous)
+        raise
+    return {**scn.summary(), "out": out, "field_file": str(path) if path else None}
+
+
+def _write_atomic(path: Path, text: str) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    tmp.write_text(text)
+    tmp.replace(path)
+
+
+def run_policy(
+    scenario: str, policy: str, out: str, seed: int = 1_000_000_000, overwrite: bool = False
+) -> dict[str, Any]:
+    """One episode of ``policy`` on the saved scenario: metrics and the trajectory figure."""
+    from baselines.bench import run
+
+    if policy not in POLICIES:
+        raise InputError("policy", policy, f"allowed: one of {', '.join(POLICIES)}")
+    if not (Path(scenario) / "scenario.json").is_file():
+        raise InputError("scenario", scenario, "generate and save the scenario first")
+    records = run(RUN_ENV, policy, seed, 1, out, scenario=scenario, force=overwrite)
+    return {**records[0], "figure": str(Path(out) / "trajectory_000.png")}
+
+
+def export_api() -> Any | None:
+    """``scenario_gen.export`` (``agrinav export``, issue 12) when this install has it."""
+    try:
+        return importlib.import_module("scenario_gen.export")
+    except ImportError:
+        return None
+
+
+def export_formats() -> tuple[str, ...]:
+    """The export targets (``gazebo``, ``nav2``, ``gis``, ``mesh``), or none without it."""
+    api = export_api()
+    return tuple(getattr(api, "TARGETS", ())) if api is not None else ()
+
+
+def robot_urdf() -> str:
+    """The Summit-XL URDF the envs simulate: what a Nav2 export spawns (as the CLI passes)."""
+    from importlib import resources
+
+    return str(resources.files("agrinav_gym.assets").joinpath("summit_xl.urdf"))
+
+
+def export(scenario: str, fmt: str, out: str, overwrite: bool = False) -> dict[str, Any]:
+    """Export a saved scenario through ``scenario_gen.export.export`` with the CLI's defaults
+    (``agrinav export DIR --to FMT --out OUT``); it checks everything before writing."""
+    api = export_api()
+    if api is None:
+        raise InputError("export", fmt, "this install has no exporter (agrinav export)")
+    if fmt not in export_formats():
+        raise InputError("export", fmt, f"allowed: one of {', '.join(export_formats())}")
+    if not (Path(scenario) / "scenario.json").is_file():
+        raise InputError("scenario", scenario, "generate and save the scenario first")
+    data: dict[str, Any] = {"robot_urdf": robot_urdf()} if fmt == "nav2" else {}
+    info: dict[str, Any] = api.export(
+        scenario, fmt, out, api.ExportOptions.from_dict(data), overwrite=overwrite
+    )
+    return info
+
+
+def install_model(upload: Path, name: str, models_dir: Path, height: float) -> Path:
+    """Check an uploaded crop model (mesh or .zip) like the CLI does, then keep it.
+
+    The archive goes through ``scenario_gen.models.load_model`` (``safe_extract``'s checks and a
+    mesh load) from a temporary file; only a model that loads is copied into ``models_dir``.
+    """
+    from scenario_gen.models import load_model
+    from scenario_gen.sources import MESH_SUFFIXES
+
+    safe = Path(name).name
+    if (
+        not safe
+        or safe.startswith(".")
+        or Path(safe).suffix.lower() not in (*MESH_SUFFIXES, ".zip")
+    ):
+        raise InputError(
+            "crop.model", name, f"allowed: a mesh ({', '.join(MESH_SUFFIXES)}) or a .zip"
+        )
+    with tempfile.TemporaryDirectory(prefix="agrinav-model-") as tmp:
+        probe = Path(tmp) / safe
+        shutil.copyfile(upload, probe)
+        load_model(probe, height)
+    models_dir.mkdir(parents=True, exist_ok=True)
+    target = models_dir / safe
+    tmp_target = models_dir / f".{safe}.tmp"
+    shutil.copyfile(upload, tmp_target)
+    tmp_target.replace(target)
+    return target
+
+
+def metrics_rows(record: dict[str, Any]) -> list[dict[str, str]]:
+    """The run's metrics as (metric, value) rows for a table."""
+    from baselines.report import METRICS
+
+    rows = []
+    for key in (*METRICS, "steps", "termination"):
+        v = record.get(key)
+        rows.append({"metric": key, "value": "—" if v is None else _fmt(v)})
+    return rows
+
+
+def _fmt(v: Any) -> str:
+    return f"{v:.3f}" if isinstance(v, float) else json.dumps(v) if not isinstance(v, str) else v

@@ -1,0 +1,186 @@
+"""Driving the studio in Debian's Chromium through Playwright: server, browser, helpers."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import socket
+import subprocess
+import sys
+import time
+import urllib.request
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+CHROMIUM = "/usr/bin/chromium"
+FLAGS = [
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--no-first-run",
+    "--disable-sync",
+]
+ROOT = Path(__file__).resolve().parents[3]
+
+
+def require_browser() -> None:
+    """Skip when the browser stack is missing; in CI (CI=true) that is a failure instead."""
+    missing = []
+    for module in ("playwright", "nicegui"):
+        try:
+            __import__(module)
+        except ImportError:
+            missing.append(f"python package {module}")
+    if not Path(CHROMIUM).exists():
+        missing.append(f"{CHROMIUM} (apt-get install chromium)")
+    if missing:
+        why = "browser tests need " + ", ".join(missing)
+        if os.environ.get("CI"):
+            pytest.fail(why + " (.ci/run installs them)")
+        pytest.skip(why)
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+@contextmanager
+def studio_server(workspace: Path, *args: str) -> Iterator[str]:
+    """``agrinav studio`` in a subprocess; yields its URL, stops it afterwards."""
+    port = free_port()
+    # Not PYTEST_*: NiceGUI switches to its own test mode when it sees them.
+    env = {k: v for k, v in os.environ.items() if not k.startswith("PYTEST_")}
+    env.update({"PYTHONPATH": str(ROOT / "src"), "MPLBACKEND": "Agg"})
+    log = open(workspace / "studio.log", "w")  # closed in the finally below
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "baselines.cli",
+            "studio",
+            "--port",
+            str(port),
+            "--workspace",
+            str(workspace),
+            *args,
+        ],
+        cwd=workspace,
+        env=env,
+        stdout=log,
+        stderr=subprocess.STDOUT,
+    )
+    url = f"http://127.0.0.1:{port}/"
+    try:
+        deadline = time.monotonic() + 60
+        while True:
+            if proc.poll() is not None:
+                raise RuntimeError((workspace / "studio.log").read_text())
+            try:
+                urllib.request.urlopen(url + "studio/static/studio.js", timeout=2).read()
+                break
+            except OSError:
+                if time.monotonic() > deadline:
+                    raise
+                time.sleep(0.1)
+        yield url
+    finally:
+        proc.terminate()
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+        log.close()
+
+
+@contextmanager
+def browser_page(requests: list[str]) -> Iterator[Any]:
+    """A Chromium page that records the URL of every request it makes."""
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=FLAGS)
+        try:
+            page = browser.new_page(viewport={"width": 1400, "height": 900})
+            page.on("request", lambda r: requests.append(r.url))
+            page.set_default_timeout(30_000)
+            yield page
+        finally:
+            browser.close()
+
+
+def outside_localhost(urls: list[str], port_url: str) -> list[str]:
+    local = ("http://127.0.0.1:", "ws://127.0.0.1:", "data:", "blob:", "about:")
+    return [u for u in urls if not u.startswith(local)]
+
+
+def shot(page: Any, tmp: Path, name: str) -> None:
+    """Screenshot into the test's tmp dir and, with AGRINAV_SCREENSHOTS set, docs/images."""
+    path = tmp / f"studio-{name}.png"
+    page.screenshot(path=str(path))
+    if os.environ.get("AGRINAV_SCREENSHOTS"):
+        out = ROOT / "docs" / "images"
+        out.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(path, out / path.name)
+
+
+def field(page: Any, key: str) -> Any:
+    """The element of a generated widget (its ``data-key`` is the dotted spec key)."""
+    return page.locator(f'[data-key="{key}"]').first
+
+
+def set_number(page: Any, key: str, value: str) -> None:
+    field(page, key).fill(value)  # Quasar puts data-* attributes on the native <input>
+
+
+def field_text(page: Any, key: str) -> str:
+    """The text of a form field: label, value, hint or error message."""
+    return str(
+        page.evaluate(
+            f"document.querySelector('[data-key=\"{key}\"]').closest('.q-field').innerText"
+        )
+    )
+
+
+def wait_field(page: Any, key: str, text: str, present: bool = True) -> None:
+    sel = f"document.querySelector('[data-key=\"{key}\"]').closest('.q-field').innerText"
+    page.wait_for_function(f"{'' if present else '!'}{sel}.includes({text!r})")
+
+
+def counts(page: Any) -> str:
+    return str(field(page, "counts").inner_text())
+
+
+def plants(page: Any) -> int:
+    return int(counts(page).split(" plants")[0].replace(",", ""))
+
+
+def wait_shown(page: Any, before: int) -> None:
+    page.wait_for_function(f"window.studio.shown > {before}")
+
+
+def shown(page: Any) -> int:
+    return int(page.evaluate("window.studio.shown"))
+
+
+def draw_polygon(page: Any, fractions: list[tuple[float, float]]) -> None:
+    """Draw a polygon with leaflet-draw by clicking its vertices, then the first again."""
+    box = page.locator(".leaflet-container").first.bounding_box()
+    page.locator(".leaflet-draw-draw-polygon").click()
+    pts = [(box["x"] + fx * box["width"], box["y"] + fy * box["height"]) for fx, fy in fractions]
+    for x, y in [*pts, pts[0]]:
+        page.mouse.click(x, y)
+        page.wait_for_timeout(120)
+
+
+def open_section(page: Any, section: str) -> None:
+    """Expand a collapsed section of the form (its header is the first item)."""
+    page.locator(f'[data-section="{section}"] .q-item').first.click()
+    page.wait_for_timeout(300)

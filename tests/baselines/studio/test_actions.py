@@ -1,0 +1,185 @@
+"""The buttons' actions: same bytes as the CLI, nothing written on bad input, safe uploads."""
+
+from __future__ import annotations
+
+import shlex
+import zipfile
+from pathlib import Path
+
+import pytest
+from shapely.geometry import Polygon
+
+from baselines.cli import main
+from baselines.studio import actions
+from baselines.studio.session import Session, field_file
+from scenario_gen.errors import InputError
+
+FILES = ("scenario.json", "plants.csv", "route.csv", "field.geojson", "terrain.npz")
+
+
+def _small(drawn: bool) -> Session:
+    s = Session(seed=3)
+    s.set("layout.headland", 2.0)
+    s.set("terrain.margin", 4.0)
+    s.set("terrain.lod", 19)
+    if drawn:
+        d = 0.0001
+        lat, lon = 36.55, -84.14
+        s.set_field(
+            Polygon(
+                [
+                    (lon - d, lat - d),
+                    (lon + d, lat - d),
+                    (lon + 1.2 * d, lat + d),
+                    (lon - d, lat + d),
+                ]
+            )
+        )
+    else:
+        s.set("field.width", 8.0)
+        s.set("field.length", 12.0)
+    return s
+
+
+@pytest.mark.parametrize("drawn", [False, True])
+def test_generate_and_save_equals_the_cli(
+    tmp_path: Path, drawn: bool, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.chdir(tmp_path)
+    s = _small(drawn)
+    summary = actions.generate_and_save(s, "page")
+    assert summary["out"] == "page" and (tmp_path / "page" / "scenario.json").is_file()
+    assert (tmp_path / "page.field.geojson").is_file() == drawn
+    argv = shlex.split(s.command("page"))  # the page's command, into another folder
+    argv[argv.index("--out") + 1] = "cli"
+    assert main(argv[1:]) == 0
+    for name in FILES:
+        assert (tmp_path / "page" / name).read_bytes() == (tmp_path / "cli" / name).read_bytes(), (
+            name
+        )
+
+
+def test_bad_input_writes_nothing(tmp_path: Path) -> None:
+    s = _small(True)
+    out = tmp_path / "scn"
+    out.mkdir()
+    with pytest.raises(InputError) as e:  # exists, no overwrite
+        actions.generate_and_save(s, str(out))
+    assert e.value.field == "out" and not field_file(out).exists()
+    s.set("route.lanes", 400)  # only generation finds this one
+    with pytest.raises(InputError) as e:
+        actions.generate_and_save(s, str(tmp_path / "new"))
+    assert e.value.field == "route.lanes"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["scn"]
+    with pytest.raises(InputError):
+        actions.generate_and_save(s, "  ")
+
+
+def test_overwrite_restores_the_field_file_when_generation_fails(tmp_path: Path) -> None:
+    s = _small(True)
+    out = str(tmp_path / "scn")
+    actions.generate_and_save(s, out)
+    before = field_file(out).read_text()
+    other = _small(True)
+    d = 0.0002
+    other.set_field(Polygon([(-84.14, 36.55), (-84.14 + d, 36.55), (-84.14, 36.55 + d)]))
+    other.set("route.lanes", 400)
+    with pytest.raises(InputError):
+        actions.generate_and_save(other, out, overwrite=True)
+    assert field_file(out).read_text() == before
+
+
+def _zip(path: Path, members: dict[str, bytes]) -> Path:
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as z:
+        for name, data in members.items():
+            z.writestr(name, data)
+    return path
+
+
+OBJ = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 2 4\nf 1 3 4\nf 2 3 4\n"
+
+
+def test_model_upload_is_checked_like_the_cli(tmp_path: Path) -> None:
+    models = tmp_path / "models"
+    bad = _zip(tmp_path / "up1", {"../evil.obj": OBJ})
+    with pytest.raises(InputError) as e:
+        actions.install_model(bad, "plant.zip", models, 1.0)
+    assert e.value.field == "crop.model" and "zip-slip" in str(e.value)
+    assert not models.exists()
+    with pytest.raises(InputError):
+        actions.install_model(bad, "plant.exe", models, 1.0)
+    good = _zip(tmp_path / "up2", {"plant/stem.obj": OBJ})
+    kept = actions.install_model(good, "../plant.zip", models, 1.0)
+    assert kept == models / "plant.zip" and kept.read_bytes() == good.read_bytes()
+    s = Session()
+    s.set("crop.model", str(kept))
+    assert s.spec().crop.model == str(kept)
+
+
+def test_run_and_export_need_a_saved_scenario(tmp_path: Path) -> None:
+    with pytest.raises(InputError) as e:
+        actions.run_policy(str(tmp_path), "rpp", str(tmp_path / "run"))
+    assert e.value.field == "scenario"
+    with pytest.raises(InputError) as e:
+        actions.run_policy(str(tmp_path), "bogus", str(tmp_path / "run"))
+    assert e.value.field == "policy"
+    if actions.export_api() is None:
+        with pytest.raises(InputError) as e:
+            actions.export(str(tmp_path), "gazebo", str(tmp_path / "x"))
+        assert e.value.field == "export"
+
+
+def test_export_calls_the_exporters_api_like_the_cli(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The contract with ``scenario_gen.export`` (issue 12): export(dir, to, out, options,
+    overwrite=...), the robot URDF passed for nav2 as ``agrinav export`` does."""
+    import sys
+    import types
+    from dataclasses import dataclass
+    from typing import Any
+
+    calls: list[tuple[Any, ...]] = []
+
+    @dataclass(frozen=True)
+    class Options:
+        robot_urdf: str | None = None
+
+        @classmethod
+        def from_dict(cls, data: dict[str, Any]) -> Options:
+            return cls(**data)
+
+    def export(directory: str, to: str, out: str, opts: Options, overwrite: bool) -> dict[str, Any]:
+        calls.append((directory, to, out, opts, overwrite))
+        return {"target": to, "out": out}
+
+    fake = types.ModuleType("scenario_gen.export")
+    fake.TARGETS = ("gazebo", "nav2", "gis", "mesh")  # type: ignore[attr-defined]
+    fake.ExportOptions = Options  # type: ignore[attr-defined]
+    fake.export = export  # type: ignore[attr-defined]
+    monkeypatch.setitem(sys.modules, "scenario_gen.export", fake)
+    scn = tmp_path / "scn"
+    scn.mkdir()
+    (scn / "scenario.json").write_text("{}")
+    assert actions.export_formats() == fake.TARGETS  # type: ignore[attr-defined]
+    assert actions.export(str(scn), "nav2", "o", overwrite=True) == {"target": "nav2", "out": "o"}
+    ((_, to, out, opts, overwrite),) = calls
+    assert (to, out, overwrite) == ("nav2", "o", True)
+    assert opts.robot_urdf is not None and Path(opts.robot_urdf).is_file()
+    actions.export(str(scn), "gis", "g")
+    assert calls[-1][3].robot_urdf is None
+    with pytest.raises(InputError) as e:
+        actions.export(str(scn), "unity", "u")
+    assert e.value.field == "export"
+
+
+def test_export_with_the_real_exporter(tmp_path: Path) -> None:
+    """Runs once ``agrinav export`` (issue 12) is in this tree: the button's call end to end."""
+    pytest.importorskip("scenario_gen.export", reason="agrinav export (issue 12) not merged yet")
+    s = _small(False)
+    actions.generate_and_save(s, str(tmp_path / "scn"))
+    info = actions.export(str(tmp_path / "scn"), "mesh", str(tmp_path / "scn-mesh"))
+    assert info["target"] == "mesh" and any((tmp_path / "scn-mesh").iterdir())
+    with pytest.raises(InputError) as e:  # exists: refused before anything is written
+        actions.export(str(tmp_path / "scn"), "mesh", str(tmp_path / "scn-mesh"))
+    assert e.value.field == "out"

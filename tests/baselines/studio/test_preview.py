@@ -1,0 +1,84 @@
+"""The live preview puts every plant and waypoint where ``generate`` does, and its errors are
+the generator's, named by field."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from shapely.geometry import Polygon
+
+from baselines.studio.preview import SiteCache, layout_preview, plan_layout
+from baselines.studio.session import Session
+from scenario_gen import generate
+from scenario_gen.errors import InputError
+
+
+def _pentagon_with_hole(lat: float, lon: float) -> Polygon:
+    d = 0.00025  # ≈ 25 m
+    shell = [
+        (lon - d, lat - d),
+        (lon + d, lat - d),
+        (lon + d, lat + d),
+        (lon, lat + 1.4 * d),
+        (lon - d, lat + d),
+    ]
+    hole = [(lon - 0.2 * d, lat - 0.2 * d), (lon + 0.2 * d, lat - 0.2 * d), (lon, lat + 0.2 * d)]
+    return Polygon(shell, [hole])
+
+
+@pytest.mark.parametrize("drawn", [False, True])
+def test_preview_is_the_generated_layout_to_the_bit(tmp_path: Path, drawn: bool) -> None:
+    s = Session(seed=5)
+    s.set("layout.weed_density", 0.2)
+    s.set("layout.gap_run_prob", 0.05)
+    sites = SiteCache()
+    if drawn:
+        s.set_field(_pentagon_with_hole(36.55, -84.14))
+        path = tmp_path / "f.geojson"
+        assert s.field_text is not None
+        path.write_text(s.field_text)
+        spec = s.spec(str(path))
+    else:
+        spec = s.spec()
+    _, lay, route = plan_layout(s.spec(), s.seed, s.field_geom, sites)
+    scn = generate(spec, s.seed)
+    assert np.array_equal(lay.x, scn.plants.x) and np.array_equal(lay.y, scn.plants.y)
+    assert np.array_equal(lay.is_weed, scn.plants.is_weed)
+    assert np.array_equal(route.xyz[:, :2], scn.route.xyz[:, :2])
+    pv = layout_preview(s.spec(), s.seed, s.field_geom, sites)
+    assert pv.n_plants == int((~scn.plants.is_weed).sum()) and pv.stride == 1
+    lat, lon, _ = scn.geo.enu_to_geodetic(
+        scn.plants.x[~scn.plants.is_weed], scn.plants.y[~scn.plants.is_weed]
+    )
+    assert np.allclose(pv.plants, np.column_stack([lat, lon]), atol=1e-12, rtol=0)
+
+
+def test_large_fields_are_drawn_decimated_with_the_true_count() -> None:
+    s = Session()
+    full = layout_preview(s.spec(), 0, None, SiteCache())
+    small = layout_preview(s.spec(), 0, None, SiteCache(), max_drawn=500)
+    assert small.n_plants == full.n_plants > 2000
+    assert small.stride == -(-full.n_plants // 500) and len(small.plants) <= 500
+    assert np.array_equal(small.plants, full.plants[:: small.stride])
+
+
+def test_errors_name_the_field_they_concern() -> None:
+    sites = SiteCache()
+    s = Session()
+    s.set_field(_pentagon_with_hole(50.0, 10.0))  # far off the embedded DEM
+    with pytest.raises(InputError) as e:
+        layout_preview(s.spec(), 0, s.field_geom, sites)
+    assert e.value.field == "field" and "off the DEM" in str(e.value)
+    s = Session()
+    s.set("route.lanes", 500)
+    with pytest.raises(InputError) as e:
+        layout_preview(s.spec(), 0, None, sites)
+    assert e.value.field == "route.lanes"
+    s = Session()
+    s.set("terrain.margin", 0.0)
+    s.set("route.lead_in", 30.0)
+    with pytest.raises(InputError) as e:
+        layout_preview(s.spec(), 0, None, sites)
+    assert e.value.field == "route"  # the generator's own check, on the grid's exact extent
