@@ -1,7 +1,7 @@
 """Fit the analytic proxy's parameters to the crop meshes (issue 9) and draw the figure.
 
-For every species and catalog stage, ``agrinav_gym.sim.proxy_fit.fit_stage`` renders flat lanes
-with the mesh camera and searches (fill, base, reach) minimising the proxy's per-pixel depth
+For every species and catalog stage, ``agrinav_gym.sim.proxy_fit.fit_stage`` renders lanes with
+the mesh camera and searches (fill, base, reach) minimising the proxy's per-pixel depth
 difference. This script runs all fits, rewrites the ``FITTED`` table in
 ``src/agrinav_gym/sim/proxy_fit.py`` and draws ``docs/img/proxy_fit.png``:
 

@@ -36,9 +36,9 @@ REFERENCE_MODE = (848, 480)
 COLOR_OFFSET = 0.059  # m along the baseline, towards the right imager
 COLOR_HFOV_DEG = 90.0
 COLOR_VFOV_DEG = math.degrees(2 * math.atan(math.tan(math.radians(45.0)) * 480 / 848))  # 59.0°
-#: nothing comes nearer than this to the lens; occluders outside the left image are assumed
-#: farther (they could hide a point from the right imager alone)
-NEAREST_OCCLUDER = 0.2
+#: occluders outside the left image (which could hide a point from the right imager alone) are
+#: taken to be no nearer than the camera's near limit
+NEAREST_OCCLUDER = 0.4
 
 
 def focal_848() -> float:
@@ -102,8 +102,8 @@ def shadow_candidates(z: FloatArray, fx: float, baseline: float) -> NDArray[np.b
     The segment from a point P (column u, depth z) to the right imager projects into the left
     image on P's row, to its right, at columns u_s with 1/z_s = 1/z + (u_s − u)/(f·B). An
     occluder must be nearer than that segment somewhere, so P is a candidate only if a pixel
-    u' > u (on its row or the rows beside it, one pixel of slack) has
-    1/z(u') ≥ 1/z + (u' − u − 1)/(f·B) — or if the segment leaves the image to the right before
+    u' > u (on its row or the rows beside it, half a pixel of slack) has
+    1/z(u') ≥ 1/z + (u' − u − ½)/(f·B) — or if the segment leaves the image to the right before
     it comes nearer than ``NEAREST_OCCLUDER``. Candidates are then tested exactly by a ray.
     """
     w = z.shape[1]
@@ -118,7 +118,7 @@ def shadow_candidates(z: FloatArray, fx: float, baseline: float) -> NDArray[np.b
     near = after.copy()
     near[1:] = np.maximum(near[1:], after[:-1])
     near[:-1] = np.maximum(near[:-1], after[1:])
-    occluder = near >= inv - (col + 1.0) / fb
+    occluder = near >= inv - (col + 0.5) / fb
     leaves = inv + (w - 1 - col) / fb < 1.0 / NEAREST_OCCLUDER
     out: NDArray[np.bool_] = (occluder | leaves) & (inv > 0)
     return out

@@ -61,6 +61,7 @@ class DepthCamera:
         self.rays_body = d @ model.rotation.T  # +pitch about y tilts the axis down
         self.mount = np.asarray(model.position, np.float64)
         self.edge = corner_pixels(model.width, model.height)
+        self.t_lim = (cfg.max_range + 0.05) / self.forward  # ray length to the far limit
         self._ground: tuple[Terrain, MeshScene] | None = None
         self._scene: tuple[Terrain, MeshScene] | None = None
         self._cylinders: tuple[PlantField, int] | None = None
@@ -95,8 +96,7 @@ class DepthCamera:
         labels: bool = False,
     ) -> DepthFrame:
         o, rays = self.pose(rot, pos)
-        t_lim = (self.cfg.max_range + 0.05) / self.forward
-        t, lab = self.cast(o, rays, terrain, plants, t_lim)
+        t, lab = self.cast(o, rays, terrain, plants, self.t_lim)
         z = t * self.forward
         hit = np.isfinite(z)
         if rng is not None and self.cfg.subpixel > 0:

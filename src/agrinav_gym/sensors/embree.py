@@ -264,12 +264,13 @@ class Scene:
 
 @dataclass
 class Hits:
-    """Per ray: distance (inf: no hit), geometry/primitive ids (-1: none), barycentrics."""
+    """Per ray: distance (inf: no hit), geometry/primitive ids (-1: none), barycentrics.
+    ``u``, ``v`` and the ids are views into the caster's buffer: valid until its next query."""
 
     t: F32
-    geom: NDArray[np.int64]  # geometry id within the hit's own scene (the prototype's)
-    prim: NDArray[np.int64]  # triangle
-    inst: NDArray[np.int64]  # instance geometry id in the cast scene (-1: not instanced)
+    geom: NDArray[np.int32]  # geometry id within the hit's own scene (the prototype's)
+    prim: NDArray[np.int32]  # triangle
+    inst: NDArray[np.int32]  # instance geometry id in the cast scene (-1: not instanced)
     u: F32
     v: F32
 
@@ -296,24 +297,25 @@ class Caster:
         f, u, npk = self._packets(n)
         pad = npk * PACKET - n
 
-        def put(col: int, vals: Any) -> None:
-            a = np.asarray(vals, np.float32)
-            if a.ndim == 0:
-                f[:, col : col + PACKET] = a
-            elif pad:
-                f[:-1, col : col + PACKET] = a[: n - (PACKET - pad)].reshape(-1, PACKET)
-                f[-1, col : col + PACKET - pad] = a[n - (PACKET - pad) :]
-                f[-1, col + PACKET - pad : col + PACKET] = a[-1]
-            else:
-                f[:, col : col + PACKET] = a.reshape(-1, PACKET)
+        def lanes(vals: Any, width: int) -> Any:
+            """(n, width) or (n,) values as (npk, width·8) packet columns, padding repeated."""
+            a = np.asarray(vals, np.float32).reshape(n, width)
+            if pad:
+                a = np.concatenate([a, np.repeat(a[-1:], pad, axis=0)])
+            return a.reshape(npk, PACKET, width).transpose(0, 2, 1).reshape(npk, width * PACKET)
 
         o = np.asarray(o, np.float32)
-        for k in range(3):
-            put(ORG + PACKET * k, o[..., k])
-            put(DIR + PACKET * k, d[:, k])
-        put(TNEAR, tnear)
-        put(TIME, 0.0)
-        put(TFAR, tfar)
+        if o.ndim == 1:
+            f[:, ORG : ORG + 3 * PACKET] = np.repeat(o, PACKET)
+        else:
+            f[:, ORG : ORG + 3 * PACKET] = lanes(o, 3)
+        f[:, DIR : DIR + 3 * PACKET] = lanes(d, 3)
+        for col, val in ((TNEAR, tnear), (TFAR, tfar)):
+            if np.ndim(val) == 0:
+                f[:, col : col + PACKET] = val
+            else:
+                f[:, col : col + PACKET] = lanes(val, 1)
+        f[:, TIME : TIME + PACKET] = 0.0
         u[:, MASK : MASK + PACKET] = INVALID
         u[:, RAY_ID : FLAGS + PACKET] = 0
         return f, u, npk
@@ -350,15 +352,13 @@ class Caster:
         def col(c: int, a: Any) -> Any:
             return a[:, c : c + PACKET].reshape(-1)[:n]
 
-        def ids(c: int) -> NDArray[np.int64]:
-            x = col(c, u).astype(np.int64)
-            x[x == INVALID] = -1
-            return x
+        def ids(c: int) -> NDArray[np.int32]:
+            out: NDArray[np.int32] = col(c, u).view(np.int32)  # INVALID reads -1
+            return out
 
         geom = ids(GEOM)
-        t = col(TFAR, f).copy()
-        t[geom < 0] = np.inf
-        return Hits(t, geom, ids(PRIM), ids(INST), col(HIT_U, f).copy(), col(HIT_V, f).copy())
+        t = np.where(geom >= 0, col(TFAR, f), np.float32(np.inf))
+        return Hits(t, geom, ids(PRIM), ids(INST), col(HIT_U, f), col(HIT_V, f))
 
     def occluded(self, scene: Scene, o: Any, d: F32, tnear: Any, tfar: Any) -> NDArray[np.bool_]:
         """Whether anything lies on each segment ``o + t·d``, ``tnear <= t <= tfar``."""

@@ -42,10 +42,10 @@ class SceneHits:
     label: NDArray[np.uint8]  # OTHER / SOIL / CROP / WEED
     plant: NDArray[np.int32]  # plant index (row of plants.csv), -1 elsewhere
     proto: NDArray[np.int32]  # prototype index of the plant hit, -1 elsewhere
-    prim: NDArray[np.int64]  # triangle of the prototype (plants) or of the terrain tile
+    prim: NDArray[np.int32]  # triangle of the prototype (plants) or of the terrain tile
     u: F32
     v: F32
-    inst: NDArray[np.int64]  # top-level geometry id (see ``add_static``), -1 where no hit
+    inst: NDArray[np.int32]  # top-level geometry id (see ``add_static``), -1 where no hit
 
 
 @dataclass
@@ -244,25 +244,21 @@ class MeshScene:
         """First hits of world rays ``o + t·d`` (call ``view`` first for the region they span)."""
         rel = (np.asarray(o, np.float64) - self.origin).astype(np.float32)
         h = self.caster.intersect(self.top, rel, d.astype(np.float32, copy=False), tnear, tfar)
-        n = len(h.t)
         t = h.t.astype(np.float64)
-        label = np.full(n, OTHER, np.uint8)
-        plant = np.full(n, -1, np.int32)
-        proto = np.full(n, -1, np.int32)
-        hit = h.inst >= 0
-        on_plant = hit & (h.inst < self._n_plants)
-        ground = hit & (h.inst >= self._n_plants) & (h.inst < self._n_ground)
+        inst = h.inst.copy()
+        on_plant = (inst >= 0) & (inst < self._n_plants)
+        ground = (inst >= self._n_plants) & (inst < self._n_ground)
+        label = np.where(ground, SOIL, OTHER).astype(np.uint8)
+        plant = np.where(on_plant, inst, -1).astype(np.int32)
+        proto = np.where(on_plant, h.geom, -1).astype(np.int32)
         if on_plant.any():
-            plant[on_plant] = h.inst[on_plant]
-            proto[on_plant] = h.geom[on_plant]
-            label[on_plant] = self._labels[h.geom[on_plant]]
+            label[on_plant] = self._labels[proto[on_plant]]
         if ground.any():
-            label[ground] = SOIL
             oo = np.asarray(o, np.float64)
             t[ground] = refine_ground(
                 self.terrain, oo if oo.ndim == 1 else oo[ground], d[ground], t[ground]
             )
-        return SceneHits(t, label, plant, proto, h.prim, h.u, h.v, h.inst)
+        return SceneHits(t, label, plant, proto, h.prim.copy(), h.u.copy(), h.v.copy(), inst)
 
     def occluded(
         self, o: FloatArray, d: FloatArray, tnear: object, tfar: object
@@ -342,28 +338,38 @@ def refine_ground(
 ) -> FloatArray:
     """Ray parameters moved from the terrain triangles onto the bilinear height surface.
 
-    Newton on f(t) = o_z + t·d_z − h(o_xy + t·d_xy), repeated only for rays not yet within
-    1e-6 m; a ray that does not converge (grazing a ridge) keeps the triangle's t, which is
-    within the cell's twist (a few mm) of the surface.
+    Newton on f(t) = o_z + t·d_z − h(o_xy + t·d_xy). Within one grid cell f is a quadratic in
+    t whose curvature is the cell's twist, so from the triangle's t (a few mm away) one step
+    leaves an error of order twist·step² (≪ 1e-6 m) — rays whose step stays in their cell are
+    done after it; the others repeat until within 1e-6 m. A ray that does not converge (grazing
+    a ridge) keeps the triangle's t, within the cell's twist (a few mm) of the surface.
     """
     o = np.asarray(o, np.float64)
     d = np.asarray(d, np.float64)
     t0 = np.asarray(t, np.float64)
     t = t0.copy()
     todo = np.arange(len(t))
-    for _ in range(iterations + 1):
+    s = terrain.spacing
+    for k in range(iterations + 1):
         oo = o if o.ndim == 1 else o[todo]
         dd = d[todo]
         p = oo + t[todo, None] * dd
         h, hx, hy = bilinear(terrain, p[:, 0], p[:, 1])
         f = p[:, 2] - h
         open_ = np.abs(f) >= 1e-6
-        todo, f, dd, hx, hy = todo[open_], f[open_], dd[open_], hx[open_], hy[open_]
+        todo, f, dd, hx, hy, p = todo[open_], f[open_], dd[open_], hx[open_], hy[open_], p[open_]
         if len(todo) == 0:
             return t
         df = dd[:, 2] - hx * dd[:, 0] - hy * dd[:, 1]
-        step = f / np.where(np.abs(df) > 1e-9, df, np.inf)
-        t[todo] -= np.clip(step, -0.05, 0.05)
+        step = np.clip(f / np.where(np.abs(df) > 1e-9, df, np.inf), -0.05, 0.05)
+        t[todo] -= step
+        if k == 0:  # one step that stays in its cell has converged (see above)
+            q = p[:, :2] - step[:, None] * dd[:, :2]
+            cell = np.floor((p[:, :2] - (terrain.x0, terrain.y0)) / s)
+            moved = (np.floor((q - (terrain.x0, terrain.y0)) / s) != cell).any(axis=1)
+            todo = todo[moved]
+            if len(todo) == 0:
+                return t
     oo = o if o.ndim == 1 else o[todo]
     p = oo + t[todo, None] * d[todo]
     h, _, _ = bilinear(terrain, p[:, 0], p[:, 1])
