@@ -70,7 +70,7 @@ def step_costs(blocks: int) -> dict[str, float]:
         ),
     }
     times: dict[str, list[float]] = {k: [] for k in envs}
-    for k, env in envs.items():
+    for env in envs.values():
         env.reset(seed=0)
         _drive(env, 50, 0)  # warm: tiles, prototypes, caches
     for b in range(blocks):
@@ -256,9 +256,8 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=5, help="848x480 frames per renderer")
     ap.add_argument("--threads", type=int, default=2, help="mesh camera threads at 848x480")
     args = ap.parse_args()
-    print(
-        f"machine: {platform.platform()}, {os.cpu_count()} cores, Python {platform.python_version()}"
-    )
+    py = platform.python_version()
+    print(f"machine: {platform.platform()}, {os.cpu_count()} cores, Python {py}")
 
     s = step_costs(args.blocks)
     print("\n1. env step (paper-p1, S-curve), median ms per step")
@@ -293,7 +292,8 @@ def main() -> None:
             f"   {label}: {r['plants']} plants, {r['attached_plants']} loaded; generate "
             f"{r['generate']:.2f} s; scene + first frame {r['first']:.2f} s; frame "
             f"{r['frame'] * 1e3:.2f} ms; RSS +{r['rss'] / 2**20:.1f} MiB "
-            f"({r['rss'] / r['plants']:.0f} B/plant), traced {r['traced'] / r['plants']:.0f} B/plant"
+            f"({r['rss'] / r['plants']:.0f} B/plant), traced "
+            f"{r['traced'] / r['plants']:.0f} B/plant"
         )
     n = dense["plants"] - small["plants"]
     print(

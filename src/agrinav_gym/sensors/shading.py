@@ -65,7 +65,8 @@ def lambert(albedo: FloatArray, normal: FloatArray, d: FloatArray, light: FloatA
     n = normal / np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-12)
     flip = np.sign(-(n * d).sum(axis=1))
     n = n * np.where(flip == 0, 1.0, flip)[:, None]
-    lit = AMBIENT + (1.0 - AMBIENT) * np.clip(n @ light, 0.0, 1.0)
+    cos = n[:, 0] * light[0] + n[:, 1] * light[1] + n[:, 2] * light[2]  # no BLAS for (n, 3)
+    lit = AMBIENT + (1.0 - AMBIENT) * np.clip(cos, 0.0, 1.0)
     out: FloatArray = albedo * lit[:, None]
     return out
 

@@ -239,9 +239,16 @@ class MeshScene:
 
     # ------------------------------------------------------------------ queries
     def cast(
-        self, o: FloatArray, d: FloatArray, tnear: object = 0.0, tfar: object = np.inf
+        self,
+        o: FloatArray,
+        d: FloatArray,
+        tnear: object = 0.0,
+        tfar: object = np.inf,
+        refine: bool = True,
     ) -> SceneHits:
-        """First hits of world rays ``o + t·d`` (call ``view`` first for the region they span)."""
+        """First hits of world rays ``o + t·d`` (call ``view`` first for the region they span);
+        ``refine=False`` leaves terrain hits on the triangles (within the cells' twist, mm: for
+        shading, not for measuring)."""
         rel = (np.asarray(o, np.float64) - self.origin).astype(np.float32)
         h = self.caster.intersect(self.top, rel, d.astype(np.float32, copy=False), tnear, tfar)
         t = h.t.astype(np.float64)
@@ -253,7 +260,7 @@ class MeshScene:
         proto = np.where(on_plant, h.geom, -1).astype(np.int32)
         if on_plant.any():
             label[on_plant] = self._labels[proto[on_plant]]
-        if ground.any():
+        if refine and ground.any():
             oo = np.asarray(o, np.float64)
             t[ground] = refine_ground(
                 self.terrain, oo if oo.ndim == 1 else oo[ground], d[ground], t[ground]

@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 from ..config import CameraConfig, RenderConfig
 from ..interface import CameraModel
 from ..sensors.embree import Caster
-from ..sensors.mesh_camera import MeshCamera, robot_scene
+from ..sensors.mesh_camera import MeshCamera, robot_scene, rotate
 from ..sensors.shading import to_u8
 from .mesh_scene import MeshScene
 from .plant_meshes import ROBOT
@@ -61,10 +61,10 @@ class ChaseView:
         corners = o + (rays.body[rays.edge] * far[rays.edge, None]) @ heading.T
         pts = [o[None, :2], corners[:, :2], self.inset._view_points(s.rot, s.pos, True)]
         scene.view(np.vstack(pts))
-        hits = scene.cast(o, d, 0.0, far)
+        hits = scene.cast(o, d, 0.0, far, refine=False)
         # the robot, in its true pose: rays into base_link, against its URDF mesh
         ob = (s.rot.T @ (o - s.pos)).astype(np.float32)
-        db = (d @ s.rot).astype(np.float32)
+        db = rotate(np.ascontiguousarray(d.T), s.rot.T)
         bot = Caster(scene.dev).intersect(robot_scene(), ob, db, 0.0, np.minimum(hits.t, FAR))
         closer = bot.t < hits.t
         hits.t[closer] = bot.t[closer]
