@@ -64,6 +64,12 @@ class SoilConfig:
 
 @dataclass(frozen=True)
 class CameraConfig:
+    model: str = _f(
+        "proxy",
+        "'proxy': analytic cylinders fitted to the crop meshes (fast, RL); 'mesh': the crop "
+        "meshes themselves, ray-cast with Embree (D455 stereo model, RGB, instance ids)",
+        choices=("proxy", "mesh"),
+    )
     width: int = _f(64, "image width, pixels (848 for datasets)", 8, 1280)
     height: int = _f(48, "image height, pixels (480 for datasets)", 6, 800)
     hfov_deg: float = _f(87.0, "horizontal field of view (D455 depth)", 10, 170)
@@ -72,10 +78,17 @@ class CameraConfig:
     max_range: float = _f(6.0, "farthest valid depth, m (D455 ideal range)", 0.5, 50)
     subpixel: float = _f(0.08, "stereo subpixel accuracy s in σ = z²·s/(f·B)", 0.0, 1)
     baseline: float = _f(0.095, "stereo baseline B, m (D455 95 mm)", 0.01, 1)
-    native_width: int = _f(1280, "sensor width whose focal length sets the noise", 64, 4096)
+    native_width: int = _f(
+        1280, "proxy: sensor width whose focal length sets the noise (mesh: the image's)", 64, 4096
+    )
     rate_hz: int = _f(20, "update rate, Hz (a divisor of control_hz)", 1, 200)
     rgb: bool = _f(False, "also produce an RGB image (info['rgb'])")
-    segmentation: bool = _f(False, "also produce a mask 0 other, 1 soil, 2 crop, 3 weed")
+    segmentation: bool = _f(
+        False,
+        "also produce a mask 0 other, 1 soil, 2 crop, 3 weed, 4 robot (info['segmentation']); "
+        "mesh: and plant ids, rows of plants.csv, -1 elsewhere (info['instance'])",
+    )
+    threads: int = _f(1, "mesh: threads casting rays (1 for RL, where envs run in parallel)", 1, 64)
 
 
 @dataclass(frozen=True)

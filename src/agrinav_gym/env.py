@@ -36,8 +36,9 @@ from .scenarios import ScenarioSource
 from .sensors.fixmode import Canopy
 from .sensors.suite import SensorSuite
 from .sim.contact import CropContact
+from .sim.mesh_scene import SceneCache
 from .sim.plants import PlantField
-from .sim.render import chase_view
+from .sim.render import ChaseView
 from .sim.world import RobotGeometry, RobotState, World
 from .tasks import TASKS
 
@@ -142,6 +143,9 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         self.action_space = spaces.Box(-1.0, 1.0, (2,), np.float32)
         self.route: RoutePath | None = None
         self._fields_of: Scenario | None = None
+        self._chase: ChaseView | None = None
+        self._chase_scenes = SceneCache()
+        self._lighting: tuple[Any, float, float] = (None, 33.7, 68.4)
 
     # ------------------------------------------------------------------ gym API
     def reset(
@@ -206,8 +210,10 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         self._check_open("render")
         if self.render_mode != "rgb_array" or self.route is None:
             return None
-        self.world.load_visuals(self.scenario)
-        return chase_view(self.world.client, self.state, self.cfg.render)
+        if self._chase is None:
+            self._chase = ChaseView(self.cfg.render, self.interface.camera, self.cfg.camera)
+        self._chase.set_lighting(*self._lighting)
+        return self._chase.render(self._chase_scenes.get(self.scenario), self.state)
 
     def close(self) -> None:
         if not getattr(self, "_closed", True):
@@ -228,7 +234,8 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
     def conditions(self) -> dict[str, str]:
         """What produced this episode's numbers: localisation, camera model, speed limit."""
         c = self.cfg.camera
-        cam = f"{c.width}x{c.height} analytic proxy" if "depth" in self.obs_models else "none"
+        kind = "crop meshes (Embree)" if c.model == "mesh" else "analytic proxy"
+        cam = f"{c.width}x{c.height} {kind}" if "depth" in self.obs_models else "none"
         return {
             "localisation": self._localisation_label(),
             "camera": cam,
@@ -359,13 +366,14 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
     def _apply_env_values(self, values: dict[str, Any]) -> None:
         if "gnss_mode" in values:
             self.sensors.set_gnss_mode(str(values["gnss_mode"]))
+        self._lighting = (
+            values.get("soil_colour"),
+            values.get("light_azimuth_deg", 33.7),
+            values.get("light_elevation_deg", 68.4),
+        )
         depth = self.obs_models.get("depth")
         if isinstance(depth, DepthObservation):
-            depth.camera.set_lighting(
-                values.get("soil_colour"),
-                values.get("light_azimuth_deg", 33.7),
-                values.get("light_elevation_deg", 68.4),
-            )
+            depth.camera.set_lighting(*self._lighting)
 
     def _check_open(self, what: str) -> None:
         if self._closed:

@@ -25,6 +25,8 @@ from .estimation import Readings
 from .interface import FIX_CODES, GPS_FIELDS, IMU_FIELDS, ODOM_FIELDS, RobotInterface
 from .routes import RoutePath, Tracker
 from .sensors.depth import DepthCamera, DepthFrame
+from .sensors.mesh_camera import MeshCamera
+from .sim.mesh_scene import SceneCache
 from .sim.plants import PlantField
 from .sim.world import RobotState
 
@@ -173,13 +175,22 @@ class RouteObservation(ObservationModel):
 @observation
 class DepthObservation(ObservationModel):
     """D455-like z-depth (1, H, W) in metres, 0 = invalid, at ``camera.rate_hz``; the frame's
-    RGB and segmentation (when enabled) go to ``info``."""
+    RGB, segmentation and (mesh camera) plant ids, when enabled, go to ``info``.
+
+    ``camera.model`` picks the fidelity: the analytic proxy (``DepthCamera``) or the crop meshes
+    (``MeshCamera`` over the scenario's ``MeshScene``)."""
 
     key: ClassVar[str] = "depth"
 
     def __init__(self, cfg: EnvConfig, robot: RobotInterface) -> None:
         super().__init__(cfg, robot)
-        self.camera = DepthCamera(cfg.camera, robot.camera)
+        c = cfg.camera
+        self.camera: DepthCamera | MeshCamera = (
+            MeshCamera(c, robot.camera, c.threads)
+            if c.model == "mesh"
+            else DepthCamera(c, robot.camera)
+        )
+        self.scenes = SceneCache()
         self.every = max(1, round(cfg.robot.control_hz / cfg.camera.rate_hz))
         self.frame: DepthFrame | None = None
 
@@ -194,15 +205,25 @@ class DepthObservation(ObservationModel):
         if self.frame is None or snap.step % self.every == 0:
             c = self.cfg.camera
             s = snap.state
-            self.frame = self.camera.render(
-                s.rot,
-                s.pos,
-                snap.scenario.terrain,
-                snap.plants,
-                snap.rng,
-                rgb=c.rgb,
-                labels=c.segmentation,
-            )
+            if isinstance(self.camera, MeshCamera):
+                self.frame = self.camera.render(
+                    s.rot,
+                    s.pos,
+                    self.scenes.get(snap.scenario),
+                    snap.rng,
+                    rgb=c.rgb,
+                    labels=c.segmentation,
+                )
+            else:
+                self.frame = self.camera.render(
+                    s.rot,
+                    s.pos,
+                    snap.scenario.terrain,
+                    snap.plants,
+                    snap.rng,
+                    rgb=c.rgb,
+                    labels=c.segmentation,
+                )
         return self.frame.depth[None].copy()
 
     def extras(self) -> dict[str, Any]:
@@ -212,4 +233,6 @@ class DepthObservation(ObservationModel):
             out["rgb"] = self.frame.rgb.copy()
         if self.frame is not None and self.frame.label is not None:
             out["segmentation"] = self.frame.label.copy()
+        if self.frame is not None and self.frame.instance is not None:
+            out["instance"] = self.frame.instance.copy()
         return out

@@ -147,7 +147,7 @@ def _ribbon(
     return v, np.concatenate([f, f[:, ::-1]])
 
 
-def _leaf(
+def _leaf_ribbon(
     base: FloatArray,
     azimuth: float,
     length: float,
@@ -193,20 +193,30 @@ GREEN = (70, 140, 50)
 DARK = (45, 100, 35)
 
 
-def crop_mesh(name: str, growth: float) -> Any:
+def crop_mesh(name: str, growth: float, leaf_length: float = 1.0, leaf_droop: float = 1.0) -> Any:
     """Procedural model of ``name`` at ``growth`` in [0, 1], base at the origin, +z up.
 
-    Each call returns a mesh of its own (built once per (name, growth) and copied), so a caller
-    that transforms it cannot change what the next caller gets."""
-    return _crop_mesh(name, float(growth)).copy()
+    ``leaf_length`` and ``leaf_droop`` scale every leaf's length and droop (sensitivity studies;
+    1 is the catalog model). Each call returns a mesh of its own (built once per arguments and
+    copied), so a caller that transforms it cannot change what the next caller gets."""
+    return _crop_mesh(name, float(growth), float(leaf_length), float(leaf_droop)).copy()
 
 
 @lru_cache(maxsize=256)
-def _crop_mesh(name: str, growth: float) -> Any:
+def _crop_mesh(name: str, growth: float, leaf_length: float = 1.0, leaf_droop: float = 1.0) -> Any:
     import trimesh
 
     if not 0.0 <= growth <= 1.0:
         raise InputError("crop.growth", growth, "allowed: a number in [0, 1]")
+    for field, value in (("leaf_length", leaf_length), ("leaf_droop", leaf_droop)):
+        if not 0.0 < value <= 10.0:
+            raise InputError(f"crop.{field}", value, "allowed: a factor in (0, 10]")
+
+    def _leaf(
+        base: FloatArray, azimuth: float, length: float, width: float, rise: float, droop: float
+    ) -> tuple[FloatArray, NDArray[np.int64]]:
+        return _leaf_ribbon(base, azimuth, length * leaf_length, width, rise, droop * leaf_droop)
+
     sp = species(name)
     h, w = float(sp.height(growth)), float(sp.canopy_width(growth))
     parts: list[tuple[Any, tuple[int, int, int]]] = []

@@ -178,29 +178,32 @@ def test_a_plant_seen_from_below_its_leaf_band() -> None:
     assert frame.depth[12, 16] == pytest.approx(t * cam.forward[i], abs=1e-6)
 
 
-@pytest.mark.parametrize("stage", [1, 5])
-def test_tall_maize_leaves_close_over_the_lane_at_camera_height(stage: int) -> None:
-    from scenario_gen import generate, preset
+@pytest.mark.parametrize("stage", [1, 3, 5])
+def test_maize_proxies_follow_the_fitted_model(stage: int) -> None:
+    """Core radius = fill × canopy width, leaf band from base × height to the top reaching
+    reach × half the canopy width × |sin(yaw − row)|, all scaled with the plant's height."""
+    from agrinav_gym.sim.proxy_fit import proxy_params
+    from scenario_gen import CATALOG, generate, preset
 
     scn = generate(preset("default", crop={"stage": stage}, layout={"row_spacing": 1.0}), 0)
     field = PlantField.from_scenario(scn)
-    band = slice(len(field), None)  # leaf bands follow the plants' cores
-    xy = field.xy[band]
-    ground = np.asarray(scn.terrain.height_at(xy[:, 0], xy[:, 1]))
-    camera_z = 0.11 + 0.55  # base_link + mast, above the ground
-    at_camera = (field.z[band] - ground <= camera_z) & (field.top[band] - ground >= camera_z)
-    if stage == 1:  # V3, 0.3 m: no leaf reaches the camera's height
-        assert not at_camera.any()
-        return
-    # R1, 2.5 m nominal: leaves across the row reach 0.9 of half the 1 m canopy (scaled with the
-    # plant's height) into the 1 m lane, less as the leaf plane turns along the row
-    height = (field.top[band] - field.z[band]) / 0.8  # bands start at 20 % of the height
-    reach = field.radius[band] / (0.45 * height / 2.5)
-    assert reach.max() <= 1 + 1e-9 and reach.max() > 0.99
-    _, lateral = scn.rows.to_rows(xy[:, 0], xy[:, 1])
-    to_lane = np.abs(np.mod(lateral - scn.rows.offsets[0], 1.0) - 0.5)
-    assert (to_lane[at_camera] > 0.4).all()  # the bands stand on the rows
-    assert (to_lane[at_camera] - field.radius[band][at_camera]).min() < 0.1  # 10 cm left
+    p = scn.plants
+    sp = CATALOG["corn"]
+    growth = sp.growth_of_stage(stage)
+    fill, base, reach = (float(v) for v in proxy_params("corn", growth))
+    scale = p.height / float(sp.height(growth))
+    width = float(sp.canopy_width(growth)) * scale
+    n = len(field)
+    assert np.allclose(field.radius[:n], fill * width)
+    assert np.allclose(field.top[:n] - field.z[:n], p.height)
+    band = slice(n, None)
+    across = np.abs(np.sin(p.yaw - scn.rows.angle))
+    leaf = 0.5 * reach * width * across
+    has = np.flatnonzero(leaf > fill * width)  # bands only where they reach past the core
+    assert len(field.radius[band]) == len(has)
+    assert np.allclose(field.radius[band], leaf[has])
+    assert np.allclose(field.z[band], p.z[has] + base * p.height[has])
+    assert np.allclose(field.xy[band], np.column_stack([p.x, p.y])[has])
 
 
 def test_only_planar_leaved_crops_grow_leaf_bands() -> None:

@@ -1,9 +1,12 @@
-"""Stereo depth camera (RealSense D455-like), ray-cast analytically with numpy.
+"""The analytic depth camera (the fast proxy of the D455): terrain and plant cylinders.
 
 Rendering a pybullet image costs 6-42 ms here (DESIGN §8); this casts one ray per pixel
-against the terrain (a bracketed march with secant refinement over the bilinear height grid)
-and against the plants as vertical cylinders of their visible canopy radius, pairing rays and
-plants through their azimuth intervals so only rays that can hit a plant are tested.
+against the terrain's bilinear height surface and against the plants as vertical capped
+cylinders (``PlantField``). Both go through Embree in one query (``MeshScene``): the terrain's
+triangles bracket each crossing and Newton puts it on the bilinear surface; the cylinders are
+Embree's capped cones of equal radii, intersected analytically. ``ground_hits`` (a march with
+secant refinement) and ``plant_hits`` (cylinders paired with rays through their azimuth
+intervals) are the same geometry in numpy: the references the fast path is tested against.
 
 Depth is z-depth along the optical axis, as the D455 reports it. Noise follows the stereo
 error law σ_z = z²·s / (f·B) with the native sensor's focal length; pixels outside
@@ -23,8 +26,10 @@ from scenario_gen import Terrain
 
 from ..config import CameraConfig
 from ..interface import CameraModel
+from ..sim.mesh_scene import MeshScene
 from ..sim.plants import PlantField
 from ..sim.world import SOIL_RGB
+from .embree import Scene
 
 FloatArray = NDArray[np.float64]
 OTHER, SOIL, CROP, WEED = 0, 1, 2, 3
@@ -35,8 +40,13 @@ MAX_MARCH = 24
 @dataclass
 class DepthFrame:
     depth: NDArray[np.float32]  # (H, W) metres, 0 = invalid
-    label: NDArray[np.uint8] | None = None  # (H, W) OTHER/SOIL/CROP/WEED
+    label: NDArray[np.uint8] | None = None  # (H, W) OTHER/SOIL/CROP/WEED(/ROBOT)
     rgb: NDArray[np.uint8] | None = None  # (H, W, 3)
+    # mesh camera only: plant index (row of plants.csv) per depth pixel, -1 elsewhere, and
+    # the labels of the colour camera's own pixels (RGB is seen from the colour camera)
+    instance: NDArray[np.int32] | None = None
+    rgb_label: NDArray[np.uint8] | None = None
+    rgb_instance: NDArray[np.int32] | None = None
 
 
 class DepthCamera:
@@ -50,6 +60,11 @@ class DepthCamera:
         self.forward = d[:, 0].copy()  # cos of the angle to the optical axis
         self.rays_body = d @ model.rotation.T  # +pitch about y tilts the axis down
         self.mount = np.asarray(model.position, np.float64)
+        self.edge = corner_pixels(model.width, model.height)
+        self.t_lim = (cfg.max_range + 0.05) / self.forward  # ray length to the far limit
+        self._ground: tuple[Terrain, MeshScene] | None = None
+        self._scene: tuple[Terrain, MeshScene] | None = None
+        self._cylinders: tuple[PlantField, int] | None = None
         self.f_native = 0.5 * cfg.native_width / math.tan(math.radians(cfg.hfov_deg) / 2)
         self.soil_rgb = np.array(SOIL_RGB)
         self.light = np.array([0.3, 0.2, 0.93]) / np.linalg.norm([0.3, 0.2, 0.93])
@@ -81,10 +96,7 @@ class DepthCamera:
         labels: bool = False,
     ) -> DepthFrame:
         o, rays = self.pose(rot, pos)
-        t_lim = (self.cfg.max_range + 0.05) / self.forward
-        t_g = ground_hits(o, rays, terrain, t_lim)
-        t_p, weed = plant_hits(o, rays, plants, t_lim)
-        t = np.minimum(t_g, t_p)
+        t, lab = self.cast(o, rays, terrain, plants, self.t_lim)
         z = t * self.forward
         hit = np.isfinite(z)
         if rng is not None and self.cfg.subpixel > 0:
@@ -94,15 +106,58 @@ class DepthCamera:
         shape = (self.cfg.height, self.cfg.width)
         frame = DepthFrame(np.where(valid, z, 0.0).astype(np.float32).reshape(shape))
         if labels or rgb:
-            lab = np.where(
-                t_p < t_g, np.where(weed, WEED, CROP), np.where(np.isfinite(t_g), SOIL, OTHER)
-            )
             lab = np.where(t * self.forward <= self.cfg.max_range, lab, OTHER).astype(np.uint8)
             if labels:
                 frame.label = lab.reshape(shape)
             if rgb:
                 frame.rgb = self._shade(o, rays, t, lab, terrain).reshape(*shape, 3)
         return frame
+
+    def cast(
+        self,
+        o: FloatArray,
+        rays: FloatArray,
+        terrain: Terrain,
+        plants: PlantField,
+        t_lim: FloatArray,
+    ) -> tuple[FloatArray, NDArray[np.uint8]]:
+        """First hit per ray within ``t_lim`` (inf where none) and its class."""
+        if self._scene is None or self._scene[0] is not terrain:
+            self._scene = (terrain, MeshScene(terrain))
+            self._cylinders = None
+        scene = self._scene[1]
+        if self._cylinders is None or self._cylinders[0] is not plants:
+            if self._cylinders is not None and self._cylinders[1] >= 0:
+                scene.remove_static(self._cylinders[1])
+            gid = -1
+            if len(plants.radius):
+                cyl = Scene(scene.dev, "medium")
+                base = np.column_stack([plants.xy, plants.z]) - scene.origin
+                top = np.column_stack([plants.xy, plants.top]) - scene.origin
+                cyl.attach_cylinders(0, base, top, plants.radius.astype(np.float32))
+                cyl.commit()
+                gid = scene.add_static(cyl)
+            self._cylinders = (plants, gid)
+        gid = self._cylinders[1]
+        e = self.edge
+        scene.view(np.vstack([o[None, :2], (o + rays[e] * t_lim[e, None])[:, :2]]))
+        h = scene.cast(o, rays, 0.0, t_lim)
+        on = (h.inst == gid) & (gid >= 0)
+        weed = plants.is_weed[np.where(on, h.prim, 0)] if len(plants.radius) else on
+        lab = np.where(on, np.where(weed, WEED, CROP), h.label).astype(np.uint8)
+        return h.t, lab
+
+    def ground(
+        self, o: FloatArray, rays: FloatArray, terrain: Terrain, t_lim: FloatArray
+    ) -> FloatArray:
+        """``ground_hits`` through Embree: the terrain's triangles bracket each crossing, Newton
+        puts it on the bilinear surface (equal to the march within 1e-5 m, several × faster)."""
+        if self._ground is None or self._ground[0] is not terrain:
+            self._ground = (terrain, MeshScene(terrain))
+        scene = self._ground[1]
+        e = self.edge
+        scene.view(np.vstack([o[None, :2], (o + rays[e] * t_lim[e, None])[:, :2]]))
+        return scene.cast(o, rays, 0.0, t_lim).t
 
     def _shade(
         self,
@@ -124,8 +179,15 @@ class DepthCamera:
         return (np.clip(out, 0, 1) * 255).astype(np.uint8)
 
 
+def corner_pixels(width: int, height: int) -> NDArray[np.int64]:
+    """The four corner pixels: a frustum's ground footprint is the hull of the apex and the far
+    ends of the corner rays (the projection of a convex pyramid)."""
+    return np.array([0, width - 1, (height - 1) * width, height * width - 1], np.int64)
+
+
 def ground_hits(o: FloatArray, rays: FloatArray, terrain: Terrain, t_lim: FloatArray) -> FloatArray:
-    """Ray length to the first terrain crossing (inf where none within ``t_lim``)."""
+    """Ray length to the first terrain crossing (inf where none within ``t_lim``): a bracketed
+    march with secant refinement, the reference ``DepthCamera.ground`` is tested against."""
     reach = float(t_lim.max())
     s = terrain.spacing
     ny, nx = terrain.shape

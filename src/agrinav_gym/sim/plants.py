@@ -1,10 +1,11 @@
 """Plants as analytic proxies: no pybullet body per plant (DESIGN §8).
 
-The depth camera intersects vertical cylinders: every plant has a core of the
-canopy's visible radius from the ground to its top. Species with planar leaves (maize) add a
-leaf band above the bare lower stalk: how far it reaches into the inter-row depends on the
-leaf plane's azimuth (the plant's yaw) against the row, and a tall crop's leaves close over the
-lane at the camera's height, as in the field.
+The depth camera intersects vertical cylinders: every plant has a core from the ground to its
+top, and species with planar leaves (maize) add a leaf band above the bare lower stalk whose
+reach into the inter-row follows the leaf plane's azimuth (the plant's yaw) against the row, so
+a tall crop's leaves close over the lane at the camera's height, as in the field. The core's
+radius, the band's base and its reach are fitted to the crop meshes per species and growth
+stage (``proxy_fit``; docs/sensors.md), not chosen by hand.
 Per plant this holds a handful of floats plus its KD-tree node: a few hundred bytes.
 """
 
@@ -18,15 +19,9 @@ from scipy.spatial import cKDTree
 
 from scenario_gen import CATALOG, Scenario
 
-FloatArray = NDArray[np.float64]
+from .proxy_fit import ParamsFn, proxy_params
 
-#: Visible canopy radius as a fraction of the species' canopy width: leaves overlap in a row, so
-#: a row reads as a wall about this thick to a stereo camera.
-CANOPY_FILL = 0.2
-#: The lower part of a stalk bears no green leaves (the lowest ones senesce as the plant grows).
-LEAF_BASE = 0.2
-#: Leaf tips droop: the reach a camera sees is this fraction of half the canopy width.
-LEAF_REACH = 0.9
+FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True, eq=False)
@@ -42,11 +37,15 @@ class PlantField:
     n_plants: int  # cylinders [0, n_plants) are the plants' cores, the rest leaf bands
 
     @classmethod
-    def from_scenario(cls, scn: Scenario) -> PlantField:
+    def from_scenario(cls, scn: Scenario, params: ParamsFn | None = None) -> PlantField:
+        """The proxies of ``scn``'s plants; ``params(species, growth)`` gives (fill, base, reach)
+        (default: the fitted ``proxy_params``)."""
+        params = params or proxy_params
         p = scn.plants
         names = np.unique(p.species)
         radius = np.empty(len(p))
         leaf = np.empty(len(p))
+        base = np.empty(len(p))
         # fraction of the leaf plane's reach that points across the rows
         across = np.abs(np.sin(p.yaw - scn.rows.angle))
         for name in names:
@@ -55,8 +54,10 @@ class PlantField:
             growth = sp.growth_of_stage(p.stage[m])
             scale = p.height[m] / np.maximum(sp.height(growth), 1e-6)
             width = sp.canopy_width(growth) * scale
-            radius[m] = CANOPY_FILL * width
-            leaf[m] = 0.5 * LEAF_REACH * width * across[m] if sp.planar_leaves else 0.0
+            fill, frac, reach = params(str(name), growth)
+            radius[m] = fill * width
+            leaf[m] = 0.5 * reach * width * across[m] if sp.planar_leaves else 0.0
+            base[m] = frac * p.height[m]
         xy = np.column_stack([p.x, p.y]).astype(np.float64)
         band = np.flatnonzero((leaf > radius) & ~p.is_weed)
         cyl_xy = np.concatenate([xy, xy[band]])
@@ -64,7 +65,7 @@ class PlantField:
         tree = cKDTree(cyl_xy if len(cyl_xy) else np.zeros((1, 2)))
         return cls(
             cyl_xy,
-            np.concatenate([p.z, p.z[band] + LEAF_BASE * p.height[band]]),
+            np.concatenate([p.z, p.z[band] + base[band]]),
             np.concatenate([p.z + p.height, p.z[band] + p.height[band]]),
             cyl_radius,
             np.concatenate([p.is_weed, np.zeros(len(band), bool)]),

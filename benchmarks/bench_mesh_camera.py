@@ -1,0 +1,311 @@
+"""Mesh camera benchmarks (issue 9 performance targets), ratios measured side by side.
+
+1. env step cost with the camera against the state-only step (gps, imu, odom, route), on the
+   paper's P1 field, driving the same S-curve, blocks interleaved so drift cancels:
+   64 × 48 mesh depth + segmentation (target ≤ 4×) and the analytic proxy depth (≤ 2×);
+2. 848 × 480 RGB-D + semantic + instance frames against pybullet's ``getCameraImage``
+   (TinyRenderer) at the same pose and resolution, the same meshes (every plant and the terrain)
+   loaded as visual shapes merged per tile (≤ 100k vertices each), alternating (≥ 20×);
+3. memory per plant (≤ 4 KB): RSS and traced allocations of a scene that has rendered, fields
+   of two densities each in a fresh process, per plant and marginal;
+4. a 100,000-plant field: scene build + first frame (≤ 10 s), generation timed apart;
+5. frame cost on the 100k field against the 2k one (cost flat in field size).
+
+Medians of several runs. Run: ``python benchmarks/bench_mesh_camera.py`` (a few minutes).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import platform
+import statistics
+import subprocess
+import sys
+import time
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+import agrinav_gym  # noqa: F401  (registers the envs)
+import scenario_gen as sg
+
+STATE = ("gps", "imu", "odom", "route")
+BLOCK = 150
+
+
+def _drive(env: gym.Env, n: int, start: int) -> float:
+    total = 0.0
+    for i in range(start, start + n):
+        a = np.array([0.6, 0.15 * np.sin(i / 15.0)], np.float32)
+        t0 = time.perf_counter()
+        _, _, term, trunc, _ = env.step(a)
+        total += time.perf_counter() - t0
+        if term or trunc:
+            env.reset()
+    return total / n
+
+
+def step_costs(blocks: int) -> dict[str, float]:
+    """Median seconds per env step: state only, + proxy depth, + mesh depth and segmentation."""
+    base = {"task": {"max_crops_hit": 10**6, "corridor": 2.0}}
+    envs = {
+        "state": gym.make(
+            "AgriNav/FurrowFollow-v0", scenario="paper-p1", observations=STATE, config=base
+        ),
+        "proxy": gym.make(
+            "AgriNav/FurrowFollow-v0",
+            scenario="paper-p1",
+            observations=(*STATE, "depth"),
+            config=base,
+        ),
+        "mesh": gym.make(
+            "AgriNav/FurrowFollow-v0",
+            scenario="paper-p1",
+            observations=(*STATE, "depth"),
+            config={**base, "camera": {"model": "mesh", "segmentation": True}},
+        ),
+    }
+    times: dict[str, list[float]] = {k: [] for k in envs}
+    for env in envs.values():
+        env.reset(seed=0)
+        _drive(env, 50, 0)  # warm: tiles, prototypes, caches
+    for b in range(blocks):
+        for k, env in envs.items():
+            env.reset(seed=b)
+            times[k].append(_drive(env, BLOCK, 0))
+    for env in envs.values():
+        env.close()
+    return {k: statistics.median(v) for k, v in times.items()}
+
+
+def _pose(scn: sg.Scenario) -> tuple[np.ndarray, np.ndarray]:
+    rows = scn.rows
+    mid = len(rows.offsets) // 2
+    lane = 0.5 * (rows.offsets[mid - 1] + rows.offsets[mid])
+    t = 0.5 * (rows.starts.min() + rows.ends.max())
+    x, y = rows.to_enu(np.array([t]), np.array([lane]))
+    c, s = math.cos(rows.angle), math.sin(rows.angle)
+    rot = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
+    return rot, np.array([x[0], y[0], float(scn.terrain.height_at(x[0], y[0])) + 0.11])
+
+
+def load_pybullet(scn: sg.Scenario, scene: Any) -> tuple[int, int]:
+    """The scenario's plants (the same prototypes and placements) and terrain as pybullet
+    visual meshes merged per tile (≤ 100k vertices each); returns (client, triangles)."""
+    import pybullet as p
+
+    cid = p.connect(p.DIRECT)
+    p.configureDebugVisualizer(p.COV_ENABLE_RENDERING, 0, physicsClientId=cid)
+    pm = scene.plants
+    verts: list[np.ndarray] = []
+    faces: list[np.ndarray] = []
+    count = [0, 0]  # vertices in the current batch, triangles in all
+
+    def flush(rgba: list[float]) -> None:
+        if verts:
+            vs = p.createVisualShape(
+                p.GEOM_MESH,
+                vertices=np.vstack(verts).tolist(),
+                indices=np.vstack(faces).ravel().tolist(),
+                rgbaColor=rgba,
+                physicsClientId=cid,
+            )
+            p.createMultiBody(0, -1, vs, physicsClientId=cid)
+        verts.clear()
+        faces.clear()
+        count[0] = 0
+
+    for i in np.argsort(scene._key(pm.x, pm.y), kind="stable"):  # tile by tile
+        pr = pm.prototypes[int(pm.proto[i])]
+        verts.append(pm.world_vertices(int(i)))
+        faces.append(pr.faces.astype(np.int64) + count[0])
+        count[0] += len(pr.vertices)
+        count[1] += len(pr.faces)
+        if count[0] > 100_000 - 2_000:
+            flush([0.3, 0.6, 0.2, 1.0])
+    flush([0.3, 0.6, 0.2, 1.0])
+    t = scn.terrain
+    ny, nx = t.shape
+    step = 220  # 221² vertices < 100k
+    for i0 in range(0, ny - 1, step):
+        for j0 in range(0, nx - 1, step):
+            sub = sg.Terrain(
+                t.heights[i0 : i0 + step + 1, j0 : j0 + step + 1],
+                t.x0 + j0 * t.spacing,
+                t.y0 + i0 * t.spacing,
+                t.spacing,
+            ).to_trimesh()
+            verts.append(np.asarray(sub.vertices))
+            faces.append(np.asarray(sub.faces))
+            count[1] += len(sub.faces)
+            flush([0.45, 0.33, 0.22, 1.0])
+    p.configureDebugVisualizer(p.COV_ENABLE_RENDERING, 1, physicsClientId=cid)
+    return cid, count[1]
+
+
+def dataset_frames(name: str, over: dict[str, Any], repeat: int, threads: int) -> dict[str, Any]:
+    import pybullet as p
+
+    from agrinav_gym.config import EnvConfig
+    from agrinav_gym.env import robot_interface
+    from agrinav_gym.sensors.mesh_camera import MeshCamera
+    from agrinav_gym.sim.mesh_scene import MeshScene
+    from agrinav_gym.sim.world import RobotGeometry
+
+    scn = sg.generate(sg.preset(name, **over), 0)
+    scene = MeshScene.from_scenario(scn)
+    cid, tris = load_pybullet(scn, scene)
+    cfg = EnvConfig.from_dict({"camera": {"width": 848, "height": 480}})
+    model = robot_interface(cfg, RobotGeometry.from_urdf()).camera
+    cam = MeshCamera(cfg.camera, model, threads=threads)
+    rot, pos = _pose(scn)
+    o = pos + rot @ np.asarray(model.position)
+    axis = rot @ model.rotation
+    view = p.computeViewMatrix(
+        o.tolist(), (o + axis[:, 0]).tolist(), axis[:, 2].tolist(), physicsClientId=cid
+    )
+    proj = p.computeProjectionMatrixFOV(
+        cfg.camera.vfov_deg, 848 / 480, 0.1, 2 * cfg.camera.max_range, physicsClientId=cid
+    )
+    rng = np.random.default_rng(0)
+    cam.render(rot, pos, scene, rng, rgb=True, labels=True)  # first frame: tiles, prototypes
+    ours, tiny = [], []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        p.getCameraImage(848, 480, view, proj, renderer=p.ER_TINY_RENDERER, physicsClientId=cid)
+        tiny.append(time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        cam.render(rot, pos, scene, rng, rgb=True, labels=True)
+        ours.append(time.perf_counter() - t0)
+    p.disconnect(cid)
+    return {
+        "plants": len(scn.plants),
+        "triangles": tris,
+        "tiny": statistics.median(tiny),
+        "mesh": statistics.median(ours),
+    }
+
+
+MEMORY_CHILD = r"""
+import json, sys, time, tracemalloc, numpy as np, scenario_gen as sg
+def rss():
+    with open("/proc/self/statm") as f:
+        return int(f.read().split()[1]) * 4096
+preset, over = sys.argv[1], json.loads(sys.argv[2])
+from agrinav_gym.config import EnvConfig
+from agrinav_gym.env import robot_interface
+from agrinav_gym.sensors.embree import device
+from agrinav_gym.sensors.mesh_camera import MeshCamera
+from agrinav_gym.sim.mesh_scene import MeshScene
+from agrinav_gym.sim.world import RobotGeometry
+device()
+t0 = time.perf_counter()
+scn = sg.generate(sg.preset(preset, **over), 0)
+gen = time.perf_counter() - t0
+cfg = EnvConfig.from_dict({"camera": {"segmentation": True}})
+cam = MeshCamera(cfg.camera, robot_interface(cfg, RobotGeometry.from_urdf()).camera)
+rows = scn.rows
+mid = len(rows.offsets) // 2
+lane = 0.5 * (rows.offsets[mid - 1] + rows.offsets[mid])
+t_mid = 0.5 * (rows.starts.min() + rows.ends.max())
+c, s = np.cos(rows.angle), np.sin(rows.angle)
+rot = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
+def pose(k):
+    x, y = rows.to_enu(np.array([t_mid + 0.05 * k]), np.array([lane]))
+    return np.array([x[0], y[0], float(scn.terrain.height_at(x[0], y[0])) + 0.11])
+before = rss()
+tracemalloc.start()
+t0 = time.perf_counter()
+scene = MeshScene.from_scenario(scn)
+cam.render(rot, pose(0), scene, np.random.default_rng(0), labels=True)
+first = time.perf_counter() - t0
+frames = []
+for k in range(1, 200):
+    t1 = time.perf_counter()
+    cam.render(rot, pose(k), scene, np.random.default_rng(k), labels=True)
+    frames.append(time.perf_counter() - t1)
+traced, _ = tracemalloc.get_traced_memory()
+print(json.dumps({
+    "plants": len(scn.plants), "generate": gen, "first": first,
+    "frame": float(np.median(frames)), "rss": rss() - before, "traced": traced,
+    "attached_plants": sum(len(scene._cache[k].plants) for k in scene._attached),
+}))
+"""
+
+
+def child(preset: str, over: dict[str, Any]) -> dict[str, Any]:
+    env = dict(os.environ)
+    res = subprocess.run(
+        [sys.executable, "-c", MEMORY_CHILD, preset, json.dumps(over)],
+        capture_output=True,
+        text=True,
+        check=True,
+        env=env,
+    )
+    out: dict[str, Any] = json.loads(res.stdout.strip().splitlines()[-1])
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--blocks", type=int, default=7, help="interleaved blocks of env steps")
+    ap.add_argument("--frames", type=int, default=5, help="848x480 frames per renderer")
+    ap.add_argument("--threads", type=int, default=2, help="mesh camera threads at 848x480")
+    args = ap.parse_args()
+    py = platform.python_version()
+    print(f"machine: {platform.platform()}, {os.cpu_count()} cores, Python {py}")
+
+    s = step_costs(args.blocks)
+    print("\n1. env step (paper-p1, S-curve), median ms per step")
+    print(f"   state only (gps, imu, odom, route): {s['state'] * 1e3:.3f}")
+    for k, target in (("proxy", 2.0), ("mesh", 4.0)):
+        print(
+            f"   + {k} depth 64x48{' + segmentation' if k == 'mesh' else ''}: "
+            f"{s[k] * 1e3:.3f}  ratio {s[k] / s['state']:.2f} (target <= {target:g})"
+        )
+
+    print("\n2. 848x480 RGB-D + semantic + instance vs pybullet TinyRenderer, median ms")
+    for label, (name, over) in {
+        "paper-p1": ("paper-p1", {}),
+        "maize 2.5 m, 1 m rows": (
+            "default",
+            {"crop": {"stage": 5}, "layout": {"row_spacing": 1.0}},
+        ),
+    }.items():
+        r = dataset_frames(name, over, args.frames, args.threads)
+        print(
+            f"   {label} ({r['plants']} plants, {r['triangles']} triangles in pybullet): "
+            f"TinyRenderer {r['tiny'] * 1e3:.0f}, mesh camera {r['mesh'] * 1e3:.0f} "
+            f"({args.threads} threads): {r['tiny'] / r['mesh']:.1f}x faster (target >= 20)"
+        )
+
+    print("\n3-5. fields of growing size (each in a fresh process)")
+    small = child("paper-p1", {})
+    dense = child("paper-p1", {"layout": {"plant_spacing": 0.05}})
+    big = child("default", {"field": {"width": 110.0, "length": 131.0}})
+    for label, r in (("paper-p1", small), ("paper-p1 at 0.05 m", dense), ("100k field", big)):
+        print(
+            f"   {label}: {r['plants']} plants, {r['attached_plants']} loaded; generate "
+            f"{r['generate']:.2f} s; scene + first frame {r['first']:.2f} s; frame "
+            f"{r['frame'] * 1e3:.2f} ms; RSS +{r['rss'] / 2**20:.1f} MiB "
+            f"({r['rss'] / r['plants']:.0f} B/plant), traced "
+            f"{r['traced'] / r['plants']:.0f} B/plant"
+        )
+    n = dense["plants"] - small["plants"]
+    print(
+        f"   marginal per plant (paper-p1, 1 m -> 0.05 m spacing): RSS "
+        f"{(dense['rss'] - small['rss']) / n:.0f} B, traced "
+        f"{(dense['traced'] - small['traced']) / n:.0f} B (target <= 4096)"
+    )
+    print(
+        f"   100k field: scene build + first frame {big['first']:.2f} s (target <= 10), "
+        f"frame cost 100k / 2k = {big['frame'] / small['frame']:.2f}"
+    )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,315 @@
+"""The D455 on the plant meshes: depth, RGB, semantic and instance images by Embree ray casting.
+
+One ray per pixel from the depth origin (the left imager) against the terrain tiles and the
+instanced plant meshes of a ``MeshScene`` gives z-depth, the semantic class (soil / crop / weed
+/ robot, 0 where nothing is within range) and the plant's index (the row of plants.csv). The
+stereo model of ``d455`` then invalidates what the pair cannot match: the right imager's
+occlusion shadow (candidate pixels from the epipolar test, each confirmed by an exact ray from
+the right imager), points outside the right imager's view, and the range limits; noise is
+σ_z = z²·s/(f·B) with this mode's focal length, drawn for every pixel from the one ``rng``.
+RGB is cast again from the colour camera's pose (59 mm along the baseline) and shaded.
+
+The robot is rigid and the camera fixed on it, so its own parts appear in its camera at a
+constant mask and depth: cast once in base_link, merged per frame at no cost (with the default
+mast nothing of the robot is in view).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..config import CameraConfig
+from ..interface import CameraModel
+from ..sim.mesh_scene import MeshScene, SceneHits, bilinear
+from ..sim.plant_meshes import OTHER, ROBOT, SOIL, Prototype, rotation_rpy, sample_texture
+from ..sim.robot_mesh import robot_prototype
+from ..sim.world import SOIL_RGB
+from . import d455, shading
+from .depth import DepthFrame, corner_pixels
+from .embree import Caster, Scene, device
+
+FloatArray = NDArray[np.float64]
+RGB_FAR = 2.0  # × max_range: how far the colour camera sees geometry before the haze
+
+
+@dataclass(frozen=True)
+class PixelRays:
+    """A pinhole's unit rays in base_link, the cosine to its optical axis, its mount."""
+
+    body: FloatArray  # (n, 3)
+    forward: FloatArray  # (n,)
+    mount: FloatArray  # (3,)
+    column: FloatArray  # (n,) pixel column
+    edge: NDArray[np.int64]  # the corner pixels (the view's hull)
+    columns: NDArray[np.float32]  # (3, n) the body rays' components, contiguous
+
+    @classmethod
+    def of(cls, m: CameraModel) -> PixelRays:
+        d = m.pixel_rays()
+        d /= np.linalg.norm(d, axis=1, keepdims=True)
+        col = np.tile(np.arange(m.width, dtype=np.float64), m.height)
+        edge = corner_pixels(m.width, m.height)
+        body = d @ m.rotation.T
+        cols = np.ascontiguousarray(body.T, np.float32)
+        return cls(body, d[:, 0].copy(), np.asarray(m.position, float), col, edge, cols)
+
+    def world(self, rot: FloatArray, pos: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Camera origin and float32 world rays; the rotation is done per component because a
+        float64 (n, 3) @ (3, 3) product hits a slow BLAS path (≈ 100 ms at 848 × 480)."""
+        return pos + rot @ self.mount, rotate(self.columns, rot)
+
+
+class MeshCamera:
+    """``model`` gives intrinsics and mount (``RobotInterface.camera``); ``cfg`` the sensor."""
+
+    def __init__(self, cfg: CameraConfig, model: CameraModel, threads: int = 1) -> None:
+        self.cfg = cfg
+        self.model = model
+        self.rays = PixelRays.of(model)
+        self.color = d455.color_model(model)
+        self.color_rays = PixelRays.of(self.color)
+        self.right = np.asarray(d455.offset_model(model, cfg.baseline).position, float)
+        self.fx = model.fx  # the focal length of the mode in use sets the noise
+        self.threads = threads
+        self.soil_rgb = np.array(SOIL_RGB)
+        self.light = np.array([0.3, 0.2, 0.93]) / np.linalg.norm([0.3, 0.2, 0.93])
+        self._robot: dict[str, tuple[FloatArray, NDArray[np.int32]] | None] = {}
+        self._faces: tuple[MeshScene, FaceTable] | None = None
+
+    def set_lighting(self, soil_rgb: Any | None, azimuth_deg: float, elevation_deg: float) -> None:
+        """Soil colour (RGB in [0, 1]; None keeps the current one) and the sun direction."""
+        if soil_rgb is not None:
+            self.soil_rgb = np.clip(np.asarray(soil_rgb, float), 0, 1)
+        az, el = math.radians(float(azimuth_deg)), math.radians(float(elevation_deg))
+        self.light = np.array(
+            [math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)]
+        )
+
+    def noise_sigma(self, z: FloatArray) -> FloatArray:
+        return d455.noise_sigma(z, self.fx, self.cfg.subpixel, self.cfg.baseline)
+
+    # ------------------------------------------------------------------ rendering
+    def render(
+        self,
+        rot: FloatArray,
+        pos: FloatArray,
+        scene: MeshScene,
+        rng: np.random.Generator | None,
+        rgb: bool = False,
+        labels: bool = False,
+        view: bool = True,
+        stereo: bool = True,
+    ) -> DepthFrame:
+        """One frame with the base at ``pos`` and orientation ``rot`` (body -> world);
+        ``view=False`` when the caller has already made the scene cover this camera's view;
+        ``stereo=False`` skips the stereo pair's invalid pixels (the geometry's own depth)."""
+        scene.caster.threads = self.threads
+        c = self.cfg
+        o, d = self.rays.world(rot, pos)
+        far = c.max_range + 0.05
+        if view:
+            scene.view(self._view_points(rot, pos, rgb))
+        hits = self._cast(scene, "depth", o, d, far / self.rays.forward)
+        t = hits.t
+        z = t * self.rays.forward
+        hit = np.isfinite(z)
+        h, w = self.model.height, self.model.width
+        bad = np.zeros(len(z), bool)
+        if stereo:
+            bad = d455.outside_right_imager(self.rays.column, z, self.fx, c.baseline)
+            zt = np.where(hit, z, np.inf).reshape(h, w)
+            cand = d455.shadow_candidates(zt, self.fx, c.baseline).ravel() & hit & ~bad
+        else:
+            cand = np.zeros(len(z), bool)
+        if cand.any():
+            seg = o + d[cand] * t[cand, None] - self.right_world(rot, pos)
+            length = np.linalg.norm(seg, axis=1)
+            tfar = 1.0 - (0.01 + 0.002 * length) / length  # stop short of the surface itself
+            bad[cand] = scene.occluded(self.right_world(rot, pos), seg, 0.0, tfar)
+        zn = z.copy()
+        if rng is not None and c.subpixel > 0:
+            noise = rng.standard_normal(z.shape)  # drawn for every pixel: same stream length
+            zn[hit] += self.noise_sigma(z[hit]) * noise[hit]
+        valid = hit & ~bad & (zn >= c.min_range) & (zn <= c.max_range)
+        frame = DepthFrame(np.where(valid, zn, 0.0).astype(np.float32).reshape(h, w))
+        if labels:
+            in_range = hit & (z <= c.max_range)
+            frame.label = np.where(in_range, hits.label, OTHER).astype(np.uint8).reshape(h, w)
+            frame.instance = np.where(in_range, hits.plant, -1).astype(np.int32).reshape(h, w)
+        if rgb:
+            oc, dc = self.color_rays.world(rot, pos)
+            rfar = RGB_FAR * c.max_range
+            ch = self._cast(scene, "color", oc, dc, rfar / self.color_rays.forward)
+            frame.rgb = shading.to_u8(self.shade(scene, oc, dc, ch, rot, rfar)).reshape(h, w, 3)
+            if labels:
+                frame.rgb_label = ch.label.reshape(h, w)
+                frame.rgb_instance = ch.plant.reshape(h, w)
+        return frame
+
+    def right_world(self, rot: FloatArray, pos: FloatArray) -> FloatArray:
+        out: FloatArray = pos + rot @ self.right
+        return out
+
+    def _view_points(self, rot: FloatArray, pos: FloatArray, rgb: bool) -> FloatArray:
+        pts = [pos + rot @ self.rays.mount, self.right_world(rot, pos)]
+        e = self.rays.edge
+        far = (self.cfg.max_range + 0.05) / self.rays.forward[e]
+        pts += list(pos + rot @ self.rays.mount + (self.rays.body[e] * far[:, None]) @ rot.T)
+        if rgb:
+            e = self.color_rays.edge
+            far = RGB_FAR * self.cfg.max_range / self.color_rays.forward[e]
+            oc = pos + rot @ self.color_rays.mount
+            pts += [oc, *list(oc + (self.color_rays.body[e] * far[:, None]) @ rot.T)]
+        return np.asarray(pts)[:, :2]
+
+    def _cast(
+        self, scene: MeshScene, which: str, o: FloatArray, d: FloatArray, tfar: Any
+    ) -> SceneHits:
+        hits = scene.cast(o, d, 0.0, tfar, refine=which == "depth")
+        robot = self._robot_hits(which)
+        if robot is not None:
+            rt, prim = robot
+            closer = rt < hits.t
+            hits.t[closer] = rt[closer]
+            hits.label[closer] = ROBOT
+            hits.plant[closer] = -1
+            hits.proto[closer] = -1
+            hits.prim[closer] = prim[closer]
+        return hits
+
+    def _robot_hits(self, which: str) -> tuple[FloatArray, NDArray[np.int32]] | None:
+        """The robot in its own camera: constant per pixel (rigid mount), cast once."""
+        if which not in self._robot:
+            rays = self.rays if which == "depth" else self.color_rays
+            sc = robot_scene()
+            h = Caster(device()).intersect(
+                sc, rays.mount.astype(np.float32), rays.body.astype(np.float32)
+            )
+            t = h.t.astype(np.float64)
+            self._robot[which] = (t, h.prim.copy()) if np.isfinite(t).any() else None
+        return self._robot[which]
+
+    # ------------------------------------------------------------------ colour
+    def shade(
+        self,
+        scene: MeshScene,
+        o: FloatArray,
+        d: FloatArray,
+        hits: SceneHits,
+        rot: FloatArray,
+        far: float,
+        robot: tuple[FloatArray, FloatArray] | None = None,
+    ) -> FloatArray:
+        """Linear RGB in [0, 1] for each ray; ``robot`` (rot, pos) places the robot's mesh."""
+        out = shading.sky(d)
+        t = hits.t
+        hit = np.isfinite(t)
+        ground_far = ~hit & (d[:, 2] < 0)  # beyond the loaded tiles: distant ground in haze
+        if ground_far.any():
+            base = self.soil_rgb * (shading.AMBIENT + 0.4)
+            out[ground_far] = shading.haze(base[None, :], np.array([far]), far)
+        oo = np.broadcast_to(o, d.shape)
+        soil = hits.label == SOIL
+        if soil.any():
+            p = oo[soil] + d[soil] * t[soil, None]
+            alb = shading.soil_albedo(p[:, 0], p[:, 1], self.soil_rgb, scene.seed)
+            _, hx, hy = bilinear(scene.terrain, p[:, 0], p[:, 1])
+            n = np.column_stack([-hx, -hy, np.ones_like(hx)])
+            out[soil] = shading.haze(shading.lambert(alb, n, d[soil], self.light), t[soil], far)
+        plant = hits.plant >= 0
+        if plant.any():
+            table = self._face_table(scene)
+            k, prim = hits.proto[plant], hits.prim[plant]
+            flat = table.offset[k] + prim
+            alb = table.rgb[flat].astype(np.float64) / 255.0
+            for j in table.textured:
+                sel = k == j
+                if sel.any():
+                    alb[sel] = _texel(
+                        table.protos[j], prim[sel], hits.u[plant][sel], hits.v[plant][sel]
+                    )
+            pl = scene.plants
+            assert pl is not None
+            ids = hits.plant[plant]
+            r = rotation_rpy(pl.roll[ids], pl.pitch[ids], pl.yaw[ids])
+            n = np.einsum("nij,nj->ni", r, table.normal[flat])
+            lit = shading.lambert(alb, n, d[plant], self.light)
+            out[plant] = shading.haze(lit, t[plant], far)
+        bot = hits.label == ROBOT
+        if bot.any():
+            pr = robot_prototype(False)
+            alb = pr.face_rgb[hits.prim[bot]].astype(np.float64) / 255.0
+            r = rot if robot is None else robot[0]
+            n = rotate(np.ascontiguousarray(pr.normals[hits.prim[bot]].T), r)
+            out[bot] = shading.lambert(alb, n, d[bot], self.light)
+        return out
+
+    def _face_table(self, scene: MeshScene) -> FaceTable:
+        if self._faces is None or self._faces[0] is not scene:
+            assert scene.plants is not None
+            self._faces = (scene, FaceTable.of(scene.plants.prototypes))
+        return self._faces[1]
+
+
+def rotate(columns: NDArray[np.float32], rot: FloatArray) -> Any:
+    """(n, 3) float32 vectors ``rot @ v`` from their components ``columns`` (3, n)."""
+    r = np.asarray(rot, np.float32)
+    c0, c1, c2 = columns
+    out = np.empty((columns.shape[1], 3), np.float32)
+    for i in range(3):
+        out[:, i] = c0 * r[i, 0] + c1 * r[i, 1] + c2 * r[i, 2]
+    return out
+
+
+@dataclass(frozen=True)
+class FaceTable:
+    """All prototypes' face colours and normals in one array (prototype k from offset[k])."""
+
+    protos: tuple[Prototype, ...]
+    offset: NDArray[np.int64]
+    rgb: NDArray[np.uint8]
+    normal: FloatArray
+    textured: tuple[int, ...]
+
+    @classmethod
+    def of(cls, protos: tuple[Prototype, ...]) -> FaceTable:
+        counts = [len(p.faces) for p in protos]
+        offset = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
+        return cls(
+            protos,
+            offset,
+            np.concatenate([p.face_rgb for p in protos]),
+            np.concatenate([p.normals for p in protos]).astype(np.float64),
+            tuple(k for k, p in enumerate(protos) if p.texture is not None),
+        )
+
+
+def _texel(p: Prototype, prim: NDArray[np.int64], u: Any, v: Any) -> FloatArray:
+    assert p.uv is not None and p.texture is not None
+    f = p.faces[prim].astype(np.int64)
+    w0 = (1.0 - u - v)[:, None]
+    uv = p.uv[f[:, 0]] * w0 + p.uv[f[:, 1]] * u[:, None] + p.uv[f[:, 2]] * v[:, None]
+    out: FloatArray = sample_texture(p.texture, uv[:, 0], uv[:, 1]).astype(np.float64) / 255.0
+    return out
+
+
+_ROBOT_SCENES: dict[int, Scene] = {}
+
+
+def robot_scene() -> Scene:
+    """The robot (without its camera housing) in base_link, one scene per process."""
+    dev = device()
+    sc = _ROBOT_SCENES.get(id(dev))
+    if sc is None:
+        pr = robot_prototype(False)
+        sc = Scene(dev, "high")
+        sc.attach_triangles(0, pr.vertices, pr.faces)
+        sc.commit()
+        _ROBOT_SCENES.clear()
+        _ROBOT_SCENES[id(dev)] = sc
+    return sc

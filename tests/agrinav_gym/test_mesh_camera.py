@@ -1,0 +1,181 @@
+"""The mesh camera: D455 depth over the plant meshes, labels, stereo invalidation, RGB."""
+
+import math
+import zipfile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import trimesh
+
+from agrinav_gym.config import EnvConfig
+from agrinav_gym.env import robot_interface
+from agrinav_gym.sensors import d455
+from agrinav_gym.sensors.mesh_camera import MeshCamera
+from agrinav_gym.sim.mesh_scene import MeshScene
+from agrinav_gym.sim.plant_meshes import CROP, SOIL, PlantMeshes, Prototype
+from agrinav_gym.sim.world import RobotGeometry
+from scenario_gen import Terrain, generate, preset
+
+from .helpers import TINY
+
+BASE = np.array([0.0, 0.0, 0.11])  # base_link on flat ground at z = 0
+
+
+def camera(robot: dict[str, Any] | None = None, cam: dict[str, Any] | None = None) -> MeshCamera:
+    cfg = EnvConfig.from_dict({"robot": robot or {}, "camera": cam or {}})
+    return MeshCamera(cfg.camera, robot_interface(cfg, RobotGeometry.from_urdf()).camera)
+
+
+def boxes(items: list[tuple[float, float, tuple[float, float, float]]]) -> PlantMeshes:
+    """Upright boxes (x, y, size) standing on z = 0, as plants with a prototype each."""
+    protos = []
+    for _, _, size in items:
+        box = trimesh.creation.box(extents=size)
+        box.apply_translation([0, 0, size[2] / 2])
+        protos.append(Prototype.from_trimesh(box, f"box{len(protos)}", CROP))
+    n = len(items)
+    zero = np.zeros(n)
+    return PlantMeshes(
+        tuple(protos),
+        np.arange(n, dtype=np.int16),
+        np.ones(n, np.float32),
+        np.array([x for x, _, _ in items]),
+        np.array([y for _, y, _ in items]),
+        zero,
+        zero,
+        zero,
+        zero,
+    )
+
+
+def flat() -> Terrain:
+    return Terrain(np.zeros((120, 120)), -7.0, -7.0, 0.12)
+
+
+def test_d455_intrinsics_and_colour_extrinsic() -> None:
+    assert d455.focal_848() == pytest.approx(424 / math.tan(math.radians(43.5)))
+    assert d455.focal_848() == pytest.approx(446.8, abs=0.05)
+    big, small = camera(cam={"width": 848, "height": 480}), camera()
+    assert big.fx == pytest.approx(446.8, abs=0.05)
+    assert small.fx == pytest.approx(d455.focal_848() * 64 / 848, rel=1e-9)  # FOV kept
+    # the colour camera: 59 mm to the right along the baseline, 90° wide
+    shift = np.asarray(big.color.position) - np.asarray(big.model.position)
+    right = big.model.rotation @ np.array([0.0, -1.0, 0.0])
+    assert shift == pytest.approx(d455.COLOR_OFFSET * right, abs=1e-12)
+    assert 2 * math.degrees(math.atan(424 / big.color.fx)) == pytest.approx(90.0)
+
+
+def test_depth_of_a_box_at_a_known_distance_follows_the_noise_law() -> None:
+    cam = camera({"camera_pitch_deg": 0.0}, {"width": 16, "height": 12})
+    x_cam = 0.25  # the camera sits 0.25 m ahead of base_link
+    scene = MeshScene(flat(), boxes([(x_cam + 3.05, 0.0, (0.1, 3.0, 2.0))]))
+    truth = cam.render(np.eye(3), BASE, scene, None)
+    z = float(truth.depth[6, 8])
+    assert z == pytest.approx(3.0, abs=1e-4)  # the box's near face, along the optical axis
+    rng = np.random.default_rng(0)
+    samples = np.array([cam.render(np.eye(3), BASE, scene, rng).depth[6, 8] for _ in range(2500)])
+    sigma = z**2 * 0.08 / (cam.fx * 0.095)  # σ_z = z²·s/(f·B), f of this 16-px mode
+    assert samples.mean() == pytest.approx(z, abs=4 * sigma / math.sqrt(len(samples)))
+    assert samples.std() == pytest.approx(sigma, rel=0.06)
+
+
+def test_noisy_frames_are_deterministic_per_seed() -> None:
+    scn = generate(preset("default", **TINY), 0)
+    scene = MeshScene.from_scenario(scn)
+    cam = camera()
+    pos = np.array([scn.route.xy[30][0], scn.route.xy[30][1], 0.0])
+    pos[2] = float(scn.terrain.height_at(pos[0], pos[1])) + 0.11
+    a = cam.render(np.eye(3), pos, scene, np.random.default_rng(3)).depth
+    b = cam.render(np.eye(3), pos, scene, np.random.default_rng(3)).depth
+    c = cam.render(np.eye(3), pos, scene, np.random.default_rng(4)).depth
+    assert np.array_equal(a, b) and not np.array_equal(a, c)
+
+
+def test_instance_ids_name_the_plant_each_ray_hits() -> None:
+    """Checked against an independent closest-point query on every nearby plant's mesh."""
+    scn = generate(preset("default", **TINY), 0)
+    scene = MeshScene.from_scenario(scn)
+    cam = camera(cam={"width": 128, "height": 96, "min_range": 0.0})
+    xy = scn.route.xy[40]
+    pos = np.array([xy[0], xy[1], float(scn.terrain.height_at(*xy)) + 0.11])
+    c, s = math.cos(scn.rows.angle), math.sin(scn.rows.angle)
+    rot = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
+    f = cam.render(rot, pos, scene, None, labels=True, stereo=False)
+    inst = f.instance.ravel()
+    on = np.flatnonzero(inst >= 0)
+    assert len(on) > 200 and (f.label.ravel()[on] == CROP).all()
+    o, d = cam.rays.world(rot, pos)
+    pick = on[:: max(1, len(on) // 150)]
+    hit = o + d[pick] * (f.depth.ravel()[pick] / cam.rays.forward[pick])[:, None]
+    pm = scene.plants
+    for p, i in zip(hit, inst[pick], strict=True):
+        near = np.flatnonzero(np.hypot(pm.x - p[0], pm.y - p[1]) < 1.5)
+        dist = {}
+        for j in near:
+            tri = pm.world_vertices(int(j))[pm.prototypes[int(pm.proto[j])].faces]
+            q = trimesh.triangles.closest_point(tri, np.repeat(p[None], len(tri), axis=0))
+            dist[int(j)] = float(np.linalg.norm(q - p, axis=1).min())
+        assert dist[int(i)] < 1e-3  # float32 rays over a few metres
+        assert dist[int(i)] == min(dist.values())
+
+
+def test_occlusion_shadow_is_left_of_a_foreground_post() -> None:
+    """A post 1 m ahead of a wall at 3 m hides a strip of wall from the right imager only: the
+    invalid strip is on the post's left in the image, fx·B·(1/1 − 1/3) pixels wide."""
+    cam = camera({"camera_pitch_deg": 0.0, "camera_height": 0.55}, {"width": 200, "height": 40})
+    x_cam = 0.25
+    both = MeshScene(
+        flat(),
+        boxes([(x_cam + 3.05, 0.0, (0.1, 6.0, 2.0)), (x_cam + 1.05, 0.0, (0.1, 0.12, 2.0))]),
+    )
+    geo = cam.render(np.eye(3), BASE, both, None, stereo=False).depth
+    img = cam.render(np.eye(3), BASE, both, None).depth
+    row = 20
+    cols = np.flatnonzero(np.abs(geo[row] - 1.0) < 0.01)  # the post
+    left, right = cols.min(), cols.max()
+    width = cam.fx * 0.095 * (1 / 1.0 - 1 / 3.0)
+    run = 0  # invalid wall pixels touching the post's left edge
+    while img[row, left - 1 - run] == 0 and geo[row, left - 1 - run] > 2.9:
+        run += 1
+    assert run == pytest.approx(width, abs=1.0)
+    # elsewhere on the wall only the image's left band, which the right imager cannot see
+    band = cam.fx * 0.095 / 3.0
+    assert ((img[row, : left - run] == 0).sum()) == pytest.approx(band, abs=1.0)
+    assert (img[row, right + 1 : right + 40] > 0).all()  # nothing missing on its right
+    assert (img[row, left : right + 1] > 0).all()  # the post itself is seen by both
+
+
+def test_a_user_zip_model_appears_in_depth_and_rgb(tmp_path: Path) -> None:
+    """A textured OBJ in a zip (mesh + .mtl + .png) becomes every crop; its texture is seen."""
+    mesh = trimesh.creation.box(extents=(0.3, 0.3, 1.0))
+    mesh.apply_translation([0, 0, 0.5])
+    tex = np.zeros((8, 8, 3), np.uint8)
+    tex[...] = (200, 30, 30)  # plain red: unlike any catalog plant or the soil
+    from PIL import Image
+
+    uv = np.column_stack([mesh.vertices[:, 0] + 0.5, mesh.vertices[:, 2]])
+    mesh.visual = trimesh.visual.TextureVisuals(uv=uv, image=Image.fromarray(tex))
+    obj, files = trimesh.exchange.obj.export_obj(mesh, return_texture=True, mtl_name="plant.mtl")
+    archive = tmp_path / "plant.zip"
+    with zipfile.ZipFile(archive, "w") as z:
+        z.writestr("plant.obj", obj)
+        for name, data in files.items():
+            z.writestr(name, data)
+    scn = generate(preset("default", **TINY, crop={"model": str(archive), "stage": 3}), 0)
+    scene = MeshScene.from_scenario(scn)
+    assert scene.plants.prototypes[0].texture is not None
+    cam = camera(cam={"width": 96, "height": 72})
+    xy = scn.route.xy[40]
+    pos = np.array([xy[0], xy[1], float(scn.terrain.height_at(*xy)) + 0.11])
+    c, s = math.cos(scn.rows.angle + 0.4), math.sin(scn.rows.angle + 0.4)
+    rot = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
+    f = cam.render(rot, pos, scene, None, rgb=True, labels=True)
+    crop = f.rgb_label == CROP
+    assert (f.label == CROP).mean() > 0.02 and crop.mean() > 0.02
+    assert (f.depth[f.label == CROP] > 0).sum() > 100  # in depth (nearer than 0.4 m: 0)
+    rgb = f.rgb[crop].astype(float)
+    assert (rgb[:, 0] > 2 * rgb[:, 1]).mean() > 0.95  # red: the texture, lit
+    soil = f.rgb[f.rgb_label == SOIL].astype(float)
+    assert (soil[:, 0] > 2 * soil[:, 1]).mean() < 0.05
