@@ -66,7 +66,9 @@ def reference() -> str:
         out += _table(f"`{name}`", doc, cls, f"config.reward.{name}.")
     out += _table(
         "DWB parameters",
-        "`policies/config/dwb_*.yaml`, Nav2's names; `make_policy('dwb', env, params=file)`.",
+        "`policies/config/dwb_nav2.yaml` (the reference) and `dwb_furrow.yaml` (its changes), "
+        "Nav2's names; `make_policy('dwb:nav2' | 'dwb:furrow' | 'dwb:FILE.yaml', env)` (a file "
+        "lists changes to `dwb_nav2.yaml`). null: the robot's own value.",
         DWBParams,
     )
     out += _table(

@@ -17,12 +17,17 @@ METRICS = ("rmse", "mae", "max", "in_furrow_rmse", "headland_rmse", "completion"
 
 
 def policy_labels(specs: Sequence[str]) -> list[str]:
-    """Row labels: the policy name, or ``ppo:FOLDER`` when several PPO checkpoints compete."""
+    """Row labels: the policy name, ``dwb:CONFIG`` (nav2, furrow or the YAML file's stem) for
+    DWB, or ``ppo:FOLDER`` when several PPO checkpoints compete."""
+    from policies.dwb import config_label
+
     names = [spec.split(":")[0] for spec in specs]
     labels = []
     for spec, name in zip(specs, names, strict=True):
         path = spec.partition(":")[2]
-        if names.count(name) > 1 and path:
+        if name == "dwb":
+            labels.append(f"dwb:{config_label(path or None)}")
+        elif names.count(name) > 1 and path:
             labels.append(f"{name}:{Path(path.rstrip('/')).name or path}")
         else:
             labels.append(name)

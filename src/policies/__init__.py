@@ -1,7 +1,8 @@
 """Controllers behind one interface: DWB, regulated pure pursuit, a depth furrow follower, PPO.
 
-``make_policy("dwb" | "rpp" | "depth" | "ppo:PATH", env)`` builds one from an env's spaces and
-its public configuration (speed limits, camera calibration); policies see observations only.
+``make_policy(spec, env)`` builds one from an env's spaces and its public configuration (speed
+limits, camera calibration); ``spec`` is ``dwb`` (= ``dwb:furrow``), ``dwb:nav2``,
+``dwb:PATH.yaml``, ``rpp``, ``depth`` or ``ppo:PATH``. Policies see observations only.
 """
 
 from __future__ import annotations
@@ -48,7 +49,8 @@ def shipped_model(env_id: str) -> Path:
 
 def make_policy(spec: str, env: Any, **params: Any) -> Policy:
     """A controller for ``env``: ``spec`` is a policy name, ``ppo:PATH`` for a trained
-    checkpoint, or ``ppo:shipped`` for the checkpoint shipped for the env's id. The policy gets
+    checkpoint, or ``ppo:shipped`` for the checkpoint shipped for the env's id; ``dwb:nav2``,
+    ``dwb:furrow`` (= ``dwb``) or ``dwb:PATH.yaml`` pick the DWB configuration. The policy gets
     the env's spaces and its public ``RobotInterface``, nothing else."""
     if not isinstance(spec, str):
         raise InputError("policy", spec, f"allowed: {', '.join(POLICIES)} or ppo:PATH")
@@ -65,6 +67,11 @@ def make_policy(spec: str, env: Any, **params: Any) -> Policy:
                 raise InputError("policy", spec, "ppo:shipped needs an env made with gym.make")
             path = str(shipped_model(u.spec.id))
         kwargs["path"] = path
+    elif name == "dwb":
+        # dwb = dwb:furrow (the furrow-tuned changes); dwb:nav2 = Nav2 Humble's defaults
+        if path and path not in ("nav2", "furrow") and not path.endswith((".yaml", ".yml")):
+            raise InputError("policy", spec, "allowed: dwb, dwb:nav2, dwb:furrow, dwb:PATH.yaml")
+        kwargs.setdefault("params", path or "furrow")
     elif path:
         raise InputError("policy", spec, f"{name} takes no ':' argument")
     return POLICIES[name](u.observation_space, u.action_space, u.interface, **kwargs)

@@ -153,14 +153,14 @@ def test_smoke_bench_writes_results_and_table(tmp_path: Path) -> None:
     for r in records:
         assert fields <= set(r), fields - set(r)
         assert r["suite"] == "smoke" and r["steps"] > 0
-    assert {r["policy"] for r in records} == {"dwb", "rpp", "depth"}
+    assert {r["policy"] for r in records} == {"dwb:furrow", "rpp", "depth"}
     assert len({r["seed"] for r in records}) == 2 and min(r["seed"] for r in records) >= 10**9
     md = (out / "benchmark.md").read_text()
-    assert "| tiny | dwb |" in md and " ± " in md
+    assert "| tiny | dwb:furrow |" in md and " ± " in md
     assert "agrinav bench --suite smoke" in md  # how to reproduce
     for m in METRICS:
         assert m in md
-    assert (out / "benchmark.png").is_file() and (out / "traj_tiny_dwb.png").is_file()
+    assert (out / "benchmark.png").is_file() and (out / "traj_tiny_dwb-furrow.png").is_file()
 
 
 def test_run_writes_metrics_plot_and_video(tmp_path: Path) -> None:
@@ -238,10 +238,15 @@ def test_bench_labels_tell_ppo_checkpoints_apart() -> None:
     from baselines.bench import policy_labels
     from scenario_gen import ScenarioError
 
-    assert policy_labels(["dwb", "ppo:shipped"]) == ["dwb", "ppo"]
+    assert policy_labels(["dwb", "ppo:shipped"]) == ["dwb:furrow", "ppo"]
+    assert policy_labels(["dwb:nav2", "dwb:furrow", "dwb:runs/my.yaml"]) == [
+        "dwb:nav2",
+        "dwb:furrow",
+        "dwb:my",
+    ]
     assert policy_labels(["ppo:shipped", "ppo:runs/depth_ppo/"]) == ["ppo:shipped", "ppo:depth_ppo"]
     with pytest.raises(ScenarioError, match="--policies"):
-        policy_labels(["dwb", "dwb"])
+        policy_labels(["dwb", "dwb:furrow"])
 
 
 @pytest.mark.parametrize(

@@ -14,7 +14,11 @@ def add(sub: Any) -> None:
         "run", help="run a policy for some episodes: metrics.json + trajectory plots"
     )
     ru.add_argument("--env", default="AgriNav/FieldRoute-v0")
-    ru.add_argument("--policy", required=True, help="dwb, rpp, depth or ppo:PATH")
+    ru.add_argument(
+        "--policy",
+        required=True,
+        help="dwb (= dwb:furrow), dwb:nav2, dwb:PATH.yaml, rpp, depth or ppo:PATH",
+    )
     ru.add_argument("--seed", type=seed_type, default=1_000_000_000)
     ru.add_argument("--episodes", type=int_at_least(1), default=1)
     ru.add_argument("--scenario", help="a scenario directory or preset (default: the env's)")
@@ -25,7 +29,9 @@ def add(sub: Any) -> None:
 
     be = sub.add_parser("bench", help="benchmark policies on a suite: results.json, benchmark.md")
     be.add_argument("--suite", required=True, help="smoke, paper, growth, density or terrain")
-    be.add_argument("--policies", required=True, help="comma list: dwb,rpp,depth,ppo:PATH")
+    be.add_argument(
+        "--policies", required=True, help="comma list, e.g. dwb:nav2,dwb:furrow,rpp,depth,ppo:PATH"
+    )
     be.add_argument("--seeds", type=int_at_least(1), default=3)
     be.add_argument("--out", required=True)
     _common(be)

@@ -1,0 +1,187 @@
+"""DWB as a controller: configs, the depth costmap on a real frame, no legal trajectory, driving."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import agrinav_gym  # noqa: F401
+from policies import make_policy
+from policies.dwb.costmap import LETHAL
+from policies.dwb.params import DWBParams, _shipped
+from scenario_gen.errors import InputError
+from scenario_gen.schema import to_mapping
+
+ALL = ["gps", "imu", "odom", "route", "depth"]
+
+
+def _flat(d: dict, prefix: str = "") -> dict:
+    out = {}
+    for k, v in d.items():
+        if isinstance(v, dict):
+            out.update(_flat(v, f"{prefix}{k}."))
+        else:
+            out[f"{prefix}{k}"] = v
+    return out
+
+
+def test_nav2_reference_is_humble_with_the_robot_s_values() -> None:
+    ref = _flat(_shipped("nav2"))
+    defaults = _flat(to_mapping(DWBParams()))
+    assert set(ref) == set(defaults)  # the reference lists every parameter
+    # only the depth source's ground rejection (a laser has none) differs from Humble's
+    differ = {k for k in ref if ref[k] != defaults[k]}
+    assert differ == {"local_costmap.voxel_layer.depth_camera.min_obstacle_height"}
+    robot = {k for k, v in ref.items() if v is None}
+    assert robot == {
+        "FollowPath.max_vel_x",
+        "FollowPath.max_vel_theta",
+        "FollowPath.max_speed_xy",
+        "FollowPath.acc_lim_x",
+        "FollowPath.decel_lim_x",
+        "FollowPath.acc_lim_theta",
+        "FollowPath.decel_lim_theta",
+        "local_costmap.footprint",
+    }
+
+
+def test_furrow_config_lists_only_real_changes() -> None:
+    ref = _flat(_shipped("nav2"))
+    changes = _flat(_shipped("furrow"))
+    assert changes  # the tuned config changes something
+    for k, v in changes.items():
+        assert k in ref, k
+        assert v != ref[k], f"{k} repeats the reference value"
+
+
+def test_bad_dwb_configs_are_refused(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("FollowPath: {sim_tme: 2.0}\n")
+    with pytest.raises(InputError, match="FollowPath.sim_tme"):
+        DWBParams.load(bad)
+    bad.write_text("FollowPath: {critics: [PathDist, Nope]}\n")
+    with pytest.raises(InputError, match="Nope"):
+        DWBParams.load(bad)
+    env = gym.make("AgriNav/FurrowFollow-v0", observations=ALL)
+    try:
+        with pytest.raises(InputError, match="dwb:nav2"):
+            make_policy("dwb:fast", env)
+        assert make_policy("dwb:nav2", env).config == "nav2"
+        assert make_policy("dwb", env).config == "furrow"
+        good = tmp_path / "mine.yaml"
+        good.write_text("FollowPath: {sim_time: 2.0}\n")
+        pi = make_policy(f"dwb:{good}", env)
+        assert pi.config == "mine" and pi.p.FollowPath.sim_time == 2.0
+    finally:
+        env.close()
+
+
+def _frame(overrides: dict | None, seed: int, steps: int) -> tuple:
+    env = gym.make(
+        "AgriNav/FurrowFollow-v0",
+        observations=["odom", "route", "depth"],
+        config={"camera": {"segmentation": True}},
+        scenario_overrides=overrides,
+    )
+    try:
+        pi = make_policy("dwb:nav2", env)
+        obs, info = env.reset(seed=seed)
+        for _ in range(steps):
+            obs, _, _, _, info = env.step(np.array([0.3, 0.0], np.float32))
+    finally:
+        env.close()
+    pi.reset()
+    depth = obs["depth"][0]
+    pi.update_costmap(depth)  # one frame into an empty costmap
+    pts = pi.to_world(pi.project.points(depth))
+    label = info["segmentation"].ravel()[depth.ravel() > 0]
+    return pi, pts, label
+
+
+def test_costmap_marks_the_crops() -> None:
+    pi, pts, label = _frame(None, 0, 10)  # the default field: 1.2 m maize in 1 m rows
+    mx, my, on = pi.grid.world_to_map(pts[:, 0], pts[:, 1])
+    src = pi.p.local_costmap.voxel_layer.depth_camera
+    cam = pi.to_world(pi.camera[None, :])[0]
+    near = np.linalg.norm(pts - cam, axis=1) < src.obstacle_max_range
+    band = (pts[:, 2] >= src.min_obstacle_height) & near & on
+    crop = label == 2
+    lethal = pi.layer.cost == LETHAL
+    crop_cells = np.zeros_like(lethal)
+    crop_cells[mx[crop & band], my[crop & band]] = True
+    assert lethal.sum() > 20
+    assert not (lethal & ~crop_cells).any()  # nothing but crops marks
+    assert lethal[mx[crop & band], my[crop & band]].all()  # and every crop point in the band
+    # the inflated costmap keeps the robot's inscribed radius clear of them
+    assert (pi.master[crop_cells] == LETHAL).all()
+
+
+def test_costmap_does_not_mark_the_furrow_ridges() -> None:
+    # a ridged field with almost every plant missing: the ridges are in plain view
+    pi, pts, label = _frame({"layout": {"gap_prob": 0.97}}, 3, 0)
+    mx, my, on = pi.grid.world_to_map(pts[:, 0], pts[:, 1])
+    soil = (label == 1) & on
+    # the ridges rise up to 10+ cm above the wheels: a bare "above the wheels" rule would mark
+    ridge = soil & (pts[:, 2] > 0.05)
+    assert ridge.sum() > 50 and pts[soil, 2].max() > 0.1
+    crop_cells = np.zeros(pi.layer.cost.shape, bool)
+    crop_cells[mx[(label == 2) & on], my[(label == 2) & on]] = True
+    lethal = pi.layer.cost == LETHAL
+    assert not (lethal & ~crop_cells).any()
+    assert not lethal[mx[ridge], my[ridge]].any()
+
+
+def test_no_legal_trajectory_stops_and_clears_the_costmap() -> None:
+    env = gym.make("AgriNav/FurrowFollow-v0", observations=["gps", "imu", "odom", "route"])
+    try:
+        pi = make_policy("dwb:nav2", env)
+        obs, _ = env.reset(seed=0)
+        pi.reset()
+        pi.layer.cost[:] = LETHAL  # the robot sits in an obstacle: every trajectory is illegal
+        a = pi.act(obs)
+        assert pi.last is not None and pi.last.best == -1
+        np.testing.assert_array_equal(a, [0.0, 0.0])
+        assert pi.failures == 1 and not pi.layer.cost.any()  # cleared, as the BT's recovery
+        a = pi.act(env.step(a)[0])
+        assert a[0] > 0.0  # with the costmap cleared it drives again
+    finally:
+        env.close()
+
+
+SHORT_LANE = {
+    "field": {"width": 5.0, "length": 8.0},
+    "layout": {"headland": 1.5},
+    "terrain": {"margin": 4.0},
+}
+
+
+@pytest.mark.parametrize(
+    "spec,crop",
+    [
+        # Nav2's defaults need the canopy clear of the footprint: early maize (docs/dwb.md)
+        ("dwb:nav2", {"stage": 1}),
+        ("dwb:furrow", {}),  # the default 1.2 m maize
+    ],
+)
+def test_dwb_drives_a_straight_lane_without_touching_crops(spec: str, crop: dict) -> None:
+    env = gym.make(
+        "AgriNav/FurrowFollow-v0",
+        scenario_overrides={**SHORT_LANE, "crop": crop} if crop else SHORT_LANE,
+        observations=ALL,
+    )
+    try:
+        pi = make_policy(spec, env)
+        obs, _ = env.reset(seed=1)
+        pi.reset()
+        while True:
+            obs, _, term, trunc, info = env.step(pi.act(obs))
+            if term or trunc:
+                break
+        m = info["metrics"]
+        assert info["is_success"], (info.get("termination"), m)
+        assert m["crops_hit"] == 0 and m["max"] < 0.15
+    finally:
+        env.close()
