@@ -163,12 +163,27 @@ class Terrain:
 
     def hillshade(self, azimuth_deg: float = 315.0, altitude_deg: float = 45.0) -> FloatArray:
         """Lambertian hillshade in [0, 1], rows from south to north like ``heights``."""
-        zy, zx = np.gradient(self.heights, self.spacing)
-        az, alt = np.radians(90.0 - azimuth_deg), np.radians(altitude_deg)
-        light = np.array([np.cos(alt) * np.cos(az), np.cos(alt) * np.sin(az), np.sin(alt)])
-        n = np.stack([-zx, -zy, np.ones_like(zx)], axis=-1)
-        n /= np.linalg.norm(n, axis=-1, keepdims=True)
-        return np.clip(n @ light, 0.0, 1.0)
+        return hillshade(self.heights, self.spacing, self.spacing, azimuth_deg, altitude_deg)
+
+
+def hillshade(
+    z: FloatArray,
+    dx: float,
+    dy: float,
+    azimuth_deg: float = 315.0,
+    altitude_deg: float = 45.0,
+) -> FloatArray:
+    """Lambertian hillshade in [0, 1] of a height grid whose row index grows by ``dy`` metres.
+
+    ``dy`` > 0 when row 0 is the southern edge (``Terrain.heights``), < 0 when it is the
+    northern one (an image); the light comes from ``azimuth_deg`` clockwise from north either way.
+    """
+    zy, zx = np.gradient(np.nan_to_num(np.asarray(z, np.float64)), dy, dx)
+    az, alt = np.radians(90.0 - azimuth_deg), np.radians(altitude_deg)
+    light = np.array([np.cos(alt) * np.cos(az), np.cos(alt) * np.sin(az), np.sin(alt)])
+    n = np.stack([-zx, -zy, np.ones_like(zx)], axis=-1)
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    return np.asarray(np.clip(n @ light, 0.0, 1.0))
 
 
 def grid_for_bounds(

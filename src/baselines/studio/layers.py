@@ -22,6 +22,7 @@ from scenario_gen.dem import Dem, load_embedded, load_geotiff
 from scenario_gen.geodesy import GeoFrame
 from scenario_gen.sources import DEFAULT_PLANE_DATUM, load_mesh_vertices
 from scenario_gen.spec import TerrainSpec
+from scenario_gen.terrain import hillshade
 
 FloatArray = NDArray[np.float64]
 EARTH_R = 6_378_137.0  # WGS84 semi-major axis: Web-Mercator's sphere
@@ -145,7 +146,6 @@ def render(
 ) -> Layer | None:
     """Hillshade and labelled contours of ``elev`` over a lon/lat box, as a transparent PNG."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.colors import LightSource
     from matplotlib.figure import Figure
 
     w0, s0, e0, n0 = elev.extent
@@ -173,7 +173,7 @@ def render(
     dx = EARTH_R * math.cos(mid) * math.radians(east - west) / max(w - 1, 1)
     dy = EARTH_R * math.radians(north - south) / max(h - 1, 1)
     zf = np.where(ok, z, zmin)
-    shade = LightSource(azdeg=315, altdeg=45).hillshade(zf, vert_exag=1.0, dx=dx, dy=dy)
+    shade = hillshade(zf, dx, -dy)  # row 0 north
     rgba = np.empty((h, w, 4))
     tint = (zf - zmin) / max(zmax - zmin, 1e-9)
     base = np.stack([0.55 + 0.25 * tint, 0.62 + 0.15 * tint, 0.45 + 0.05 * tint], axis=-1)

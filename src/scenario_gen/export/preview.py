@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from ..model import Scenario
+from ..terrain import hillshade
 
 #: Summit-XL footprint (nav config), m: drawn at the spawn pose.
 FOOTPRINT = (0.724, 0.616)
@@ -61,7 +62,6 @@ def render_export_preview(
     dpi: int = 110,
 ) -> None:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.colors import LightSource
     from matplotlib.figure import Figure
     from matplotlib.patches import Polygon as MplPolygon
     from matplotlib.patches import Rectangle
@@ -72,7 +72,7 @@ def render_export_preview(
     FigureCanvasAgg(fig)
     ax = fig.add_subplot()
     dx = (extent[1] - extent[0]) / z.shape[1]
-    shade = LightSource(azdeg=315, altdeg=45).hillshade(np.nan_to_num(z), dx=dx, dy=dx)
+    shade = hillshade(z, dx, dx)  # drawn with origin='lower': row 0 south
     ax.imshow(shade, cmap="gray", origin="lower", extent=extent, vmin=0, vmax=1, alpha=0.9)
     for poly in getattr(scn.field, "geoms", [scn.field]):
         ax.plot(*poly.exterior.xy, color="white", lw=1.5)
