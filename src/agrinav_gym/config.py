@@ -219,8 +219,8 @@ class TaskConfig:
     headland_corridor: float = _f(1.0, "max |cross-track error| on the headland, m", 0.05, 20)
     max_crops_hit: int = _f(10, "episode fails after this many distinct crops hit", 0, 10**6)
     max_tilt_deg: float = _f(60.0, "roll or pitch beyond this is a tip-over", 5, 90)
-    # A 0.62 m robot in 0.75 m maize rows has ≈5 cm to spare each side: a larger start offset
-    # would begin most episodes in the crop.
+    # A 0.62 m robot in 0.76 m rows (preset narrow-rows) has ≈7 cm to spare each side: a larger
+    # start offset would begin many episodes in the crop.
     start_lateral_std: float = _f(0.03, "start pose lateral perturbation std, m", 0, 5)
     start_heading_std_deg: float = _f(3.0, "start pose heading perturbation std", 0, 90)
     route_points: int = _f(10, "waypoints in the route observation", 1, 100)

@@ -39,7 +39,12 @@ def _write_json(path: Path, data: Any) -> None:
     tmp.replace(path)
 
 
-def _make_env(case_or_id: Case | str, scenario: str | None = None, render: bool = False) -> Any:
+def _make_env(
+    case_or_id: Case | str,
+    scenario: str | None = None,
+    render: bool = False,
+    max_steps: int | None = None,
+) -> Any:
     import gymnasium as gym
 
     import agrinav_gym
@@ -55,6 +60,8 @@ def _make_env(case_or_id: Case | str, scenario: str | None = None, render: bool 
         kw = {"observations": ["gps", "imu", "odom", "route", "depth"]}
         if scenario is not None:
             kw["scenario"] = scenario
+        if max_steps is not None:
+            kw["max_episode_steps"] = max_steps
     ids = sorted(i for i in gym.registry if i.startswith(f"{NAMESPACE}/"))
     if env_id not in gym.registry:
         raise InputError("--env", env_id, f"allowed: {', '.join(ids or agrinav_gym.ENV_IDS)}")
@@ -80,12 +87,14 @@ def run(
     video: bool = False,
     force: bool = False,
     trust_checkpoint: bool = False,
+    max_steps: int | None = None,
 ) -> list[dict[str, Any]]:
     """Episodes of one policy: metrics.json, a trajectory figure per episode, a video."""
     if episodes < 1:
         raise InputError("--episodes", episodes, "allowed: an integer >= 1")
     check_output_dir(out, force)
-    env = _make_env(env_id, scenario, render=video)  # everything is checked before --out exists
+    # everything is checked before --out exists
+    env = _make_env(env_id, scenario, render=video, max_steps=max_steps)
     records = []
     try:
         pi = _policy(policy, env, trust_checkpoint)

@@ -180,12 +180,15 @@ def test_run_writes_metrics_plot_and_video(tmp_path: Path) -> None:
                 "--video",
                 "--scenario",
                 "early-corn",
+                "--max-steps",
+                "40",  # every frame is ray-cast at 640x480: a whole episode is minutes
             ]
         )
         == 0
     )
     records = json.loads((out / "metrics.json").read_text())
     assert len(records) == 1 and records[0]["policy"] == "rpp"
+    assert records[0]["steps"] == 40 and records[0]["termination"] == "time_limit"
     assert (out / "trajectory_000.png").is_file()
     video = out / "episode_000.webm"
     assert video.read_bytes()[:4] == b"\x1a\x45\xdf\xa3"  # EBML: a Matroska/WebM file

@@ -24,6 +24,11 @@ def add(sub: Any) -> None:
     ru.add_argument("--scenario", help="a scenario directory or preset (default: the env's)")
     ru.add_argument("--out", required=True)
     ru.add_argument("--video", action="store_true", help="write a WebM video of the first episode")
+    ru.add_argument(
+        "--max-steps",
+        type=int_at_least(1),
+        help="end each episode (truncated) after this many control steps (default: the env's)",
+    )
     _common(ru)
     ru.set_defaults(func=run)
 
@@ -59,6 +64,7 @@ def run(args: argparse.Namespace) -> int:
         args.out,
         args.scenario,
         args.video,
+        max_steps=args.max_steps,
         force=args.force,
         trust_checkpoint=args.trust_checkpoint,
     )
