@@ -207,7 +207,7 @@ class MapGridCritic(Critic):
         else:
             pts = self.points(ro.poses)
             mx, my, on = c.grid.world_to_map(pts[..., 0], pts[..., 1])
-        legal: BoolArray = np.asarray(~(use & ~on).any(axis=1), bool)
+        legal = np.asarray(~(use & ~on).any(axis=1), bool)
         vals = self.values[np.where(on, mx, 0), np.where(on, my, 0)]
         reason = "Trajectory Goes Off Grid."
         if self.stop_on_failure:
