@@ -11,9 +11,10 @@ from .crops import CATALOG, crop_mesh, crop_model
 from .errors import InputError, ScenarioError
 from .generate import generate
 from .geodesy import GeoFrame, ground_sample_distance
-from .io import load, save
+from .io import save
 from .model import Plants, Scenario
 from .presets import preset, preset_names
+from .reading import load
 from .routes import Route
 from .spec import ScenarioSpec
 from .terrain import Terrain

@@ -2,9 +2,11 @@
 
 ``output_dir(out, overwrite)`` yields a hidden temporary sibling to write into; on success it
 takes the place of ``out`` in one atomic step, on any failure (exception, SIGTERM turned into
-``SystemExit`` by the CLI) it is removed. A ``kill -9`` leaves only the hidden temporary folder,
-which the next run on the same parent removes once its owner is dead. Two runs writing the same
-``out`` at once cannot both succeed: the second is refused while the first holds the lock.
+``SystemExit`` by the CLI) it is removed, with any parent folder it had to make. A ``kill -9``
+leaves only the hidden temporary folder (and the empty lock file), which the next run writing
+the same ``out`` removes. Two runs writing the same ``out`` at once cannot both succeed: the
+second is refused while the first holds the lock (``flock`` on ``.<out>.lock``). New folders
+get the mode ``mkdir`` would give them (0777 less the umask).
 
 Replacing an existing folder uses Linux's ``renameat2(RENAME_EXCHANGE)``: the old and new
 contents swap in one system call, so no kill can leave ``out`` missing. Where the call is
@@ -20,6 +22,7 @@ import ctypes.util
 import errno
 import fcntl
 import os
+import re
 import shutil
 import tempfile
 from collections.abc import Iterator
@@ -36,7 +39,7 @@ _AT_FDCWD = -100
 
 def check_output_dir(directory: str | Path, overwrite: bool, what: str = "out") -> Path:
     """Refuse an unusable output path before any work is done (and before anything is made)."""
-    out = Path(directory)
+    out = Path(os.path.abspath(directory))  # "." and ".." resolved: out.name is a real name
     if out.exists() and not out.is_dir():
         raise InputError(what, str(out), "exists and is not a directory")
     if out.exists() and not overwrite:
@@ -60,43 +63,33 @@ def _existing_parent(p: Path) -> Path:
     return q
 
 
-def _pid_alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
-
-
-def _owner(name: str, tag: str) -> int | None:
-    """The pid encoded in a ``.<out>.tmp-<pid>-<rand>`` or ``.<out>.old-<pid>`` name."""
-    rest = name.split(tag, 1)[1] if tag in name else ""
-    head = rest.split("-", 1)[0]
-    return int(head) if head.isdigit() else None
+def _stale_names(out: Path) -> tuple[re.Pattern[str], re.Pattern[str]]:
+    """Exact names of ``out``'s temporaries: ``.<name>.tmp-<pid>-<8 random>`` and
+    ``.<name>.old-<pid>`` (so another folder's temporaries never match, whatever its name)."""
+    name = re.escape(out.name)
+    return (
+        re.compile(rf"\.{name}{re.escape(TMP_TAG)}\d+-[a-z0-9_]{{8}}"),
+        re.compile(rf"\.{name}{re.escape(OLD_TAG)}\d+"),
+    )
 
 
 def clean_stale(out: Path) -> None:
-    """Remove temporaries of ``out`` left by killed runs; restore an old copy a kill orphaned."""
+    """Remove temporaries of ``out`` left by killed runs; restore an old copy a kill orphaned.
+
+    Called with ``out``'s lock held: every writer of ``out`` holds that lock for as long as its
+    temporaries exist, so any that are found now belong to a run that died."""
     parent = out.parent
     if not parent.is_dir():
         return
-    prefix = f".{out.name}"
-    for entry in parent.iterdir():
-        name = entry.name
-        if not name.startswith(prefix):
-            continue
-        for tag in (TMP_TAG, OLD_TAG):
-            if not name.startswith(prefix + tag):
-                continue
-            pid = _owner(name, tag)
-            if pid is not None and pid != os.getpid() and _pid_alive(pid):
-                continue
-            if tag == OLD_TAG and not out.exists():
+    tmp_re, old_re = _stale_names(out)
+    for entry in sorted(parent.iterdir()):
+        if old_re.fullmatch(entry.name):
+            if not out.exists():
                 entry.rename(out)  # a kill came between the two renames of a replace
             else:
                 shutil.rmtree(entry, ignore_errors=True)
+        elif tmp_re.fullmatch(entry.name):
+            shutil.rmtree(entry, ignore_errors=True)
 
 
 def _exchange(a: Path, b: Path) -> bool:
@@ -118,50 +111,101 @@ def _exchange(a: Path, b: Path) -> bool:
 
 
 @contextlib.contextmanager
-def _lock(out: Path) -> Iterator[None]:
+def _lock(out: Path, what: str) -> Iterator[None]:
+    """An exclusive, non-blocking lock on ``out`` (refused while another run holds it).
+
+    The lock file is removed by its holder while still locked; a run that opened the old file
+    just before finds, once it holds its lock, that the path no longer names that file, and
+    retries with the new one — so two runs can never both hold ``out``."""
     lock_path = out.parent / f".{out.name}{LOCK_TAG}"
-    fd = os.open(lock_path, os.O_RDWR | os.O_CREAT, 0o666)
-    try:
+    while True:
+        fd = os.open(lock_path, os.O_RDWR | os.O_CREAT, 0o666)
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
+            os.close(fd)
             raise InputError(
-                "out", str(out), "is being written by another run; wait for it or pick another"
+                what, str(out), "is being written by another run; wait for it or pick another"
             ) from None
+        try:
+            same = os.stat(lock_path).st_ino == os.fstat(fd).st_ino
+        except FileNotFoundError:
+            same = False
+        if same:
+            break
+        os.close(fd)
+    try:
         yield
     finally:
-        os.close(fd)
         with contextlib.suppress(OSError):
             lock_path.unlink()
+        os.close(fd)
+
+
+def _make_parents(out: Path) -> list[Path]:
+    """Create ``out``'s missing parent folders; the ones created, outermost first."""
+    made: list[Path] = []
+    q = out.absolute().parent
+    while not q.exists():
+        made.append(q)
+        q = q.parent
+    made.reverse()
+    for p in made:
+        p.mkdir(exist_ok=True)
+    return made
+
+
+def _remove_empty(folders: list[Path]) -> None:
+    for p in reversed(folders):
+        with contextlib.suppress(OSError):
+            p.rmdir()
 
 
 @contextlib.contextmanager
 def output_dir(directory: str | Path, overwrite: bool = False, what: str = "out") -> Iterator[Path]:
-    """Yield a temporary folder that becomes ``directory`` when the block succeeds."""
+    """Yield a temporary folder that becomes ``directory`` when the block succeeds.
+
+    On failure nothing is left: not the temporary folder, not a parent folder this call made.
+    """
     out = check_output_dir(directory, overwrite, what)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    with _lock(out):
-        clean_stale(out)
-        check_output_dir(out, overwrite, what)  # again, under the lock
-        tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}{TMP_TAG}{os.getpid()}-", dir=out.parent))
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o777 & ~umask)  # mkdtemp makes 0700; honour the umask like mkdir
-        try:
-            yield tmp
-            if out.exists():
-                if _exchange(tmp, out):
-                    shutil.rmtree(tmp)
-                else:
-                    old = out.with_name(f".{out.name}{OLD_TAG}{os.getpid()}")
-                    out.rename(old)
-                    tmp.rename(out)
-                    shutil.rmtree(old)
-            else:
-                tmp.rename(out)
-        except BaseException:
-            shutil.rmtree(tmp, ignore_errors=True)
-            raise
+    made: list[Path] = []
+    try:
+        made = _make_parents(out)
+        with _lock(out, what):
+            clean_stale(out)
+            check_output_dir(out, overwrite, what)  # again, under the lock
+            try:
+                tmp = Path(
+                    tempfile.mkdtemp(prefix=f".{out.name}{TMP_TAG}{os.getpid()}-", dir=out.parent)
+                )
+            except OSError as exc:
+                raise InputError(what, str(out), f"cannot be created ({exc.strerror})") from None
+            try:
+                umask = os.umask(0)
+                os.umask(umask)
+                os.chmod(tmp, 0o777 & ~umask)  # mkdtemp makes 0700; honour the umask like mkdir
+                yield tmp
+                _publish(tmp, out)
+            except BaseException:
+                shutil.rmtree(tmp, ignore_errors=True)
+                raise
+    except BaseException:
+        _remove_empty(made)
+        raise
+
+
+def _publish(tmp: Path, out: Path) -> None:
+    """Put the complete ``tmp`` in ``out``'s place in one step (swapping an old ``out`` out)."""
+    if out.exists():
+        if _exchange(tmp, out):
+            shutil.rmtree(tmp)
+        else:
+            old = out.with_name(f".{out.name}{OLD_TAG}{os.getpid()}")
+            out.rename(old)
+            tmp.rename(out)
+            shutil.rmtree(old)
+    else:
+        tmp.rename(out)
 
 
 def atomic_write_text(path: Path, text: str) -> None:

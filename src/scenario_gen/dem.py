@@ -4,6 +4,16 @@ A ``Dem`` is a north-up-or-not raster in any CRS with an affine transform and ex
 Small nodata holes are filled (GDAL's inverse-distance fill); pixels in larger holes stay marked
 so a field over them is refused rather than silently interpolated. Sampling is bicubic
 (spline, order 3), which is what a 30-90 m DEM needs before it is resampled to a 0.1 m grid.
+
+A GeoTIFF is checked before its pixels are read: its georeference must be plausible (a pixel
+between 1 cm and 10 km on the ground, geographic coordinates within lon/lat range — geographic
+degrees labelled with a projected CRS give sub-millimetre "pixels"), and at most
+``MAX_DEM_PIXELS`` are read: only the window around the field when the site is known (a
+GeoJSON field or ``terrain.site: latlon``), the whole raster only when a site is searched.
+Untagged nodata: when a file declares no nodata value, the common sentinels −32768, −9999 and
+values at or below −1e38 (float32's lowest, −3.4e38) are nodata. Elevations outside
+[−500, 9000] m are refused (the Dead Sea shore is −430 m, Everest 8849 m): a DEM in feet or
+with an untagged odd sentinel says so instead of becoming a cliff.
 """
 
 from __future__ import annotations
@@ -19,11 +29,19 @@ from numpy.typing import NDArray
 from pyproj import CRS, Geod, Transformer
 from scipy import ndimage
 
+from .bounds import MAX_DEM_PIXELS
 from .errors import InputError
 
 FloatArray = NDArray[np.float64]
 
 EMBEDDED_NAME = "jacksboro_fault_dem.npz"
+#: Bicubic spline prefiltering reaches across the whole array, decaying by 0.268 per pixel: a
+#: window padded by 16 pixels samples like the whole raster to 1e-9 of the relief.
+WINDOW_PAD = 16
+SENTINELS = (-32768.0, -9999.0)
+SENTINEL_FLOOR = -1e38
+ELEVATION_RANGE = (-500.0, 9000.0)
+PIXEL_RANGE_M = (0.01, 10_000.0)
 EMBEDDED_CREDIT = (
     "USGS 3 arc-second DEM around the Jacksboro fault, Tennessee (public domain), "
     "as shipped in matplotlib's sample data"
@@ -172,8 +190,11 @@ def _nearest_fill(a: FloatArray) -> FloatArray:
     return a[tuple(idx)]
 
 
-def fill_small_holes(elev: FloatArray, max_pixels: int) -> FloatArray:
-    """Fill nodata components of at most ``max_pixels`` pixels; larger ones stay NaN."""
+def fill_small_holes(elev: FloatArray, max_pixels: int, open_border: bool = False) -> FloatArray:
+    """Fill nodata components of at most ``max_pixels`` pixels; larger ones stay NaN.
+
+    With ``open_border`` (a window of a larger raster) a hole touching the window's edge may
+    continue outside it, so it is never counted as small."""
     holes = ~np.isfinite(elev)
     if not holes.any():
         return elev
@@ -182,6 +203,9 @@ def fill_small_holes(elev: FloatArray, max_pixels: int) -> FloatArray:
     labels, n = ndimage.label(holes)
     sizes = np.bincount(labels.ravel(), minlength=n + 1)
     small = (sizes <= max_pixels) & (np.arange(n + 1) > 0)
+    if open_border:
+        edge = np.unique(np.concatenate([labels[0], labels[-1], labels[:, 0], labels[:, -1]]))
+        small[edge] = False
     fill_mask = small[labels]
     if not fill_mask.any():
         return elev
@@ -218,9 +242,116 @@ def load_embedded() -> Dem:
     return Dem(elev, transform, CRS.from_epsg(4326), "embedded USGS Jacksboro DEM")
 
 
-def load_geotiff(path: str | Path, fill_max_pixels: int) -> Dem:
+def check_georeference(
+    transform: Affine, crs: CRS, shape: tuple[int, int], where: str
+) -> tuple[float, float]:
+    """Refuse an implausible georeference before reading pixels; the pixel size (dx, dy) in m."""
+    rows, cols = shape
+    grid = Dem(np.zeros((2, 2)), transform, crs, where)
+    cx, cy = grid.pixel_to_crs(
+        np.array([0.0, cols, 0.0, cols, cols / 2]), np.array([0.0, 0.0, rows, rows, rows / 2])
+    )
+    if not (np.isfinite(cx).all() and np.isfinite(cy).all()):
+        raise InputError("terrain.path", where, "has a non-finite geotransform")
+    if crs.is_geographic and not (
+        (np.abs(cy) <= 90.0).all() and (cx >= -180.0).all() and (cx <= 360.0).all()
+    ):
+        raise InputError(
+            "terrain.path",
+            where,
+            f"is labelled {crs.name} (degrees) but spans x {cx.min():.6g}..{cx.max():.6g}, "
+            f"y {cy.min():.6g}..{cy.max():.6g}: outside longitude/latitude; allowed: the CRS "
+            "its coordinates are in (projected metres labelled geographic?)",
+        )
+    try:
+        with np.errstate(all="ignore"):
+            px, py = grid.pixel_to_crs(
+                np.array([cols / 2, cols / 2 + 1, cols / 2]),
+                np.array([rows / 2, rows / 2, rows / 2 + 1]),
+            )
+            lon, lat = grid.to_lonlat().transform(px, py, errcheck=True)
+            geod = Geod(ellps="WGS84")
+            _, _, dx = geod.inv(lon[0], lat[0], lon[1], lat[1])
+            _, _, dy = geod.inv(lon[0], lat[0], lon[2], lat[2])
+    except Exception:  # pyproj raises ProjError (and others) for points outside the CRS
+        dx = dy = float("nan")
+    lo, hi = PIXEL_RANGE_M
+    for size in (dx, dy):
+        if not (math.isfinite(size) and lo <= size <= hi):
+            raise InputError(
+                "terrain.path",
+                where,
+                f"has pixels of {size:.3g} m on the ground in its CRS {crs.name}; allowed: "
+                f"{lo:g} m to {hi:g} m (is the CRS mislabelled, e.g. degrees in a projected CRS?)",
+            )
+    return float(dx), float(dy)
+
+
+def lonlat_window(
+    transform: Affine,
+    crs: CRS,
+    shape: tuple[int, int],
+    bbox: tuple[float, float, float, float],
+) -> tuple[int, int, int, int] | None:
+    """Pixel window (row0, row1, col0, col1) covering a lon/lat box, padded and clipped to the
+    raster; None when the box misses the raster."""
+    lon0, lat0, lon1, lat1 = bbox
+    f = np.linspace(0.0, 1.0, 21)
+    lon = np.concatenate(
+        [lon0 + (lon1 - lon0) * f, np.full(21, lon1), lon0 + (lon1 - lon0) * f, np.full(21, lon0)]
+    )
+    lat = np.concatenate(
+        [np.full(21, lat0), lat0 + (lat1 - lat0) * f, np.full(21, lat1), lat0 + (lat1 - lat0) * f]
+    )
+    x, y = Transformer.from_crs("EPSG:4326", crs, always_xy=True).transform(lon, lat)
+    col, row = Dem(np.zeros((2, 2)), transform, crs, "").crs_to_pixel(np.asarray(x), np.asarray(y))
+    if not (np.isfinite(col).all() and np.isfinite(row).all()):
+        return None
+    rows, cols = shape
+    r0 = max(0, math.floor(row.min()) - WINDOW_PAD)
+    r1 = min(rows, math.ceil(row.max()) + WINDOW_PAD + 1)
+    c0 = max(0, math.floor(col.min()) - WINDOW_PAD)
+    c1 = min(cols, math.ceil(col.max()) + WINDOW_PAD + 1)
+    if r1 - r0 < 2 or c1 - c0 < 2:
+        return None
+    return r0, r1, c0, c1
+
+
+def clean_elevation(
+    elev: FloatArray, tagged: bool, where: str, offset: tuple[int, int] = (0, 0)
+) -> FloatArray:
+    """Untagged sentinels to NaN, then refuse elevations no terrain on Earth has (``offset``:
+    the window's first row and column, so the pixel named is the raster's)."""
+    if not tagged:
+        sentinel = np.isin(elev, SENTINELS) | (elev <= SENTINEL_FLOOR)
+        elev = np.where(sentinel, np.nan, elev)
+    lo, hi = ELEVATION_RANGE
+    with np.errstate(invalid="ignore"):
+        bad = np.isfinite(elev) & ((elev < lo) | (elev > hi))
+    if bad.any():
+        r, c = np.unravel_index(int(np.argmax(bad)), elev.shape)
+        value = float(elev[r, c])
+        r, c = int(r) + offset[0], int(c) + offset[1]
+        raise InputError(
+            "terrain.path",
+            where,
+            f"holds elevation {value:.6g} at pixel (row {r}, col {c}); allowed: "
+            f"metres in [{lo:g}, {hi:g}] (nodata must be tagged, or one of the sentinels "
+            "-32768, -9999, <= -1e38)",
+        )
+    return elev
+
+
+def load_geotiff(
+    path: str | Path,
+    fill_max_pixels: int,
+    need: tuple[float, float, float, float] | None = None,
+    why_whole: str = "",
+) -> Dem:
+    """A GeoTIFF DEM: the window around the lon/lat box ``need``, or (None) the whole raster."""
     import rasterio
-    from rasterio.errors import RasterioIOError
+    from rasterio.errors import RasterioError
+    from rasterio.windows import Window
 
     p = Path(path)
     if not p.is_file():
@@ -237,11 +368,43 @@ def load_geotiff(path: str | Path, fill_max_pixels: int) -> Dem:
                     str(path),
                     "has no geotransform; allowed: a georeferenced GeoTIFF",
                 )
-            band = ds.read(1, masked=True)
-            elev = np.ma.filled(band.astype(np.float64), np.nan)
-            transform, crs = ds.transform, CRS.from_wkt(ds.crs.to_wkt())
-    except RasterioIOError as exc:
+            crs = CRS.from_wkt(ds.crs.to_wkt())
+            shape = (ds.height, ds.width)
+            check_georeference(ds.transform, crs, shape, str(path))
+            if need is None:
+                r0, r1, c0, c1 = 0, ds.height, 0, ds.width
+                what = f"the whole DEM ({why_whole})"
+                hint = (
+                    "; give a GeoJSON field or terrain.site=latlon to read only the window "
+                    "around the field"
+                )
+            else:
+                win = lonlat_window(ds.transform, crs, shape, need)
+                if win is None:
+                    raise InputError(
+                        "field",
+                        f"lon {need[0]:.5f}..{need[2]:.5f}, lat {need[1]:.5f}..{need[3]:.5f}",
+                        f"is off the DEM {p.name}",
+                    )
+                r0, r1, c0, c1 = win
+                what, hint = "the DEM window around the field", "; a smaller field or margin"
+            pixels = (r1 - r0) * (c1 - c0)
+            if pixels > MAX_DEM_PIXELS:
+                raise InputError(
+                    "terrain.path",
+                    str(path),
+                    f"{what} is {c1 - c0}x{r1 - r0} = {pixels:,} pixels; allowed: at most "
+                    f"{MAX_DEM_PIXELS:,} read{hint}",
+                )
+            window = Window(c0, r0, c1 - c0, r1 - r0)
+            band = ds.read(1, window=window, masked=True)
+            tagged = ds.nodata is not None
+            transform = ds.window_transform(window)
+    except RasterioError as exc:
         raise InputError("terrain.path", str(path), f"cannot be read as a raster ({exc})") from None
+    elev = np.ma.filled(band.astype(np.float64), np.nan)
     elev[~np.isfinite(elev)] = np.nan
-    elev = fill_small_holes(elev, fill_max_pixels)
+    elev = clean_elevation(elev, tagged, str(path), (r0, c0))
+    whole = (r0, c0) == (0, 0) and (r1, c1) == shape
+    elev = fill_small_holes(elev, fill_max_pixels, open_border=not whole)
     return Dem(elev, transform, crs, p.name)

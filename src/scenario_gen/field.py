@@ -18,6 +18,8 @@ from .geodesy import GeoFrame
 from .spec import FieldSpec
 
 MIN_FIELD_AREA = 4.0  # m²: below this not even one lane fits
+MAX_GEOJSON_BYTES = 64 * 2**20
+MAX_NESTING = 32  # FeatureCollection > Feature > GeometryCollection ... levels
 
 
 def rectangle(spec: FieldSpec, centre: tuple[float, float]) -> Polygon:
@@ -36,11 +38,22 @@ def read_geojson(path: str | Path) -> BaseGeometry:
     p = Path(path)
     if not p.is_file():
         raise InputError("field.geojson", str(path), "allowed: an existing GeoJSON file")
+    size = p.stat().st_size
+    if size > MAX_GEOJSON_BYTES:
+        raise InputError(
+            "field.geojson", str(path), f"is {size:,} bytes; allowed: at most {MAX_GEOJSON_BYTES:,}"
+        )
     try:
-        data = json.loads(p.read_text())
+        data = json.loads(p.read_bytes().decode("utf-8"))
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise InputError("field.geojson", str(path), f"is not valid JSON ({exc})") from None
-    geoms = [g for g in _geometries(data) if g.get("type") in ("Polygon", "MultiPolygon")]
+    except RecursionError:
+        raise InputError(
+            "field.geojson", str(path), f"is nested too deeply; allowed: {MAX_NESTING} levels"
+        ) from None
+    geoms = [
+        g for g in _geometries(data, str(path)) if g.get("type") in ("Polygon", "MultiPolygon")
+    ]
     if not geoms:
         raise InputError("field.geojson", str(path), "holds no Polygon or MultiPolygon geometry")
     try:
@@ -59,17 +72,30 @@ def read_geojson(path: str | Path) -> BaseGeometry:
     return shapely.union_all(polys) if len(polys) > 1 else polys[0]
 
 
-def _geometries(data: Any) -> list[dict[str, Any]]:
-    if not isinstance(data, dict):
-        return []
-    kind = data.get("type")
-    if kind == "FeatureCollection":
-        return [g for f in data.get("features") or [] for g in _geometries(f)]
-    if kind == "Feature":
-        return _geometries(data.get("geometry") or {})
-    if kind == "GeometryCollection":
-        return [g for sub in data.get("geometries") or [] for g in _geometries(sub)]
-    return [data]
+def _geometries(data: Any, where: str) -> list[dict[str, Any]]:
+    """Geometry objects of a GeoJSON document, walked without recursion, nesting bounded."""
+    out: list[dict[str, Any]] = []
+    stack: list[tuple[Any, int]] = [(data, 0)]
+    while stack:
+        node, depth = stack.pop()
+        if depth > MAX_NESTING:
+            raise InputError(
+                "field.geojson", where, f"nests collections over {MAX_NESTING} levels deep"
+            )
+        if not isinstance(node, dict):
+            continue
+        kind = node.get("type")
+        if kind == "FeatureCollection":
+            feats = node.get("features") or []
+            stack += [(f, depth + 1) for f in reversed(feats if isinstance(feats, list) else [])]
+        elif kind == "Feature":
+            stack.append((node.get("geometry") or {}, depth + 1))
+        elif kind == "GeometryCollection":
+            subs = node.get("geometries") or []
+            stack += [(g, depth + 1) for g in reversed(subs if isinstance(subs, list) else [])]
+        else:
+            out.append(node)
+    return out
 
 
 def _check_valid(poly: BaseGeometry, where: str) -> None:

@@ -6,16 +6,18 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
+import shapely
 from numpy.typing import NDArray
 from shapely.geometry import MultiPolygon, Polygon
 from shapely.geometry.base import BaseGeometry
 
 from . import crops
+from .bounds import MAX_PLANE_RADIUS_M, check_budget, check_lod
 from .errors import InputError
 from .field import (
-    centroid_latlon,
     check_field,
     long_axis_deg,
     lonlat_to_enu,
@@ -23,8 +25,10 @@ from .field import (
     rectangle,
 )
 from .furrows import add_relief
+from .geodesy import GeoFrame
 from .layout import Layout, layout
 from .model import Plants, Scenario
+from .models import inspect_model
 from .routes import zigzag
 from .sources import Site, build_terrain, open_site
 from .spec import CropSpec, ScenarioSpec, TerrainSpec
@@ -90,6 +94,48 @@ def check_spec(spec: ScenarioSpec) -> None:
             spec.crop.stage,
             f"allowed: 1..{sp.stages} for {sp.name} ({', '.join(sp.stage_names)})",
         )
+    t = spec.terrain
+    if t.datum is not None and t.source in ("embedded", "dem"):
+        raise InputError(
+            "terrain.datum",
+            list(t.datum),
+            f"is not used with terrain.source={t.source}: a DEM fixes the datum at the field "
+            "centre; allowed: null, or terrain.source mesh or plane",
+        )
+    lay = spec.layout
+    # Jitter is clipped at 3 std: within half a spacing, no plant can pass the midpoint to its
+    # neighbouring row (or position), so every plant's row stays what the layout says.
+    for name, std, spacing in (
+        ("jitter_lateral", lay.jitter_lateral, lay.row_spacing),
+        ("jitter_longitudinal", lay.jitter_longitudinal, lay.plant_spacing),
+    ):
+        if 3 * std > spacing / 2 + 1e-12:
+            which = "row_spacing" if name == "jitter_lateral" else "plant_spacing"
+            raise InputError(
+                f"layout.{name}",
+                std,
+                f"allowed: at most layout.{which}/6 = {spacing / 6:.4g} m (the 3-std clip must "
+                f"stay within half the {spacing:g} m spacing)",
+            )
+
+
+def resolve_paths(spec: ScenarioSpec) -> ScenarioSpec:
+    """The spec with its input files as absolute, resolved paths (so that scenario.json
+    regenerates the scenario from any working directory)."""
+    over: dict[str, str] = {}
+    for key, value in (
+        ("terrain.path", spec.terrain.path),
+        ("field.geojson", spec.field.geojson),
+        ("crop.model", spec.crop.model),
+    ):
+        if value is not None:
+            try:
+                resolved = str(Path(value).expanduser().resolve())
+            except (OSError, RuntimeError) as exc:  # a symlink loop, an unreadable parent
+                raise InputError(key, value, f"cannot be resolved ({exc})") from None
+            if resolved != value:
+                over[key] = resolved
+    return spec.replace(over) if over else spec
 
 
 def streams(seed: int) -> dict[str, np.random.Generator]:
@@ -111,7 +157,7 @@ class FieldPlan:
     bounds: tuple[float, float, float, float]
 
 
-SiteOpener = Callable[[TerrainSpec, "tuple[float, float] | None", float], Site]
+SiteOpener = Callable[[TerrainSpec, "BaseGeometry | None", float, float], Site]
 
 
 def plan_field(
@@ -132,18 +178,22 @@ def plan_field(
             "latlon",
             "a GeoJSON field fixes the site; leave terrain.site at its default",
         )
-    diag = math.hypot(spec.field.width, spec.field.length) + 2 * spec.terrain.margin
-    site = opener(spec.terrain, centroid_latlon(field_ll) if field_ll is not None else None, diag)
+    m = spec.terrain.margin
+    diag = math.hypot(spec.field.width, spec.field.length) + 2 * m
+    site = opener(spec.terrain, field_ll, diag, m)
     if field_ll is not None:
         poly = check_field(lonlat_to_enu(field_ll, site.geo), "field.geojson")
         default_angle = long_axis_deg(poly)
     else:
         poly = check_field(rectangle(spec.field, site.centre), "field")
         default_angle = spec.field.angle_deg
+    if spec.terrain.source == "plane":
+        check_on_plane(poly, spec.terrain, site.geo)
+    spacing = check_lod(spec, site.geo.lat)
+    check_budget(spec, poly, spacing)
     angle = math.radians(
         spec.layout.row_angle_deg if spec.layout.row_angle_deg is not None else default_angle
     )
-    m = spec.terrain.margin
     xmin, ymin, xmax, ymax = poly.bounds
     return FieldPlan(site, poly, angle, (xmin - m, ymin - m, xmax + m, ymax + m))
 
@@ -155,16 +205,16 @@ def growth_of(crop: CropSpec) -> float:
 
 
 def generate(spec: ScenarioSpec, seed: int) -> Scenario:
-    """Build the scenario ``spec`` describes; the same (spec, seed) gives the same bits."""
+    """Build the scenario ``spec`` describes; the same (spec, seed) gives the same bits.
+
+    Every input is checked, and every memory bound estimated, before the large arrays are made.
+    """
     rng = streams(seed)
     check_spec(spec)
+    spec = resolve_paths(spec)
     t_start = time.perf_counter()
-    sp = crops.species(spec.crop.species)
     growth = growth_of(spec.crop)
-    if spec.crop.model is not None:
-        from .models import load_model
-
-        load_model(spec.crop.model, float(sp.height(growth)))  # refuse a bad model up front
+    user_model = inspect_model(spec.crop.model) if spec.crop.model is not None else None
     field_ll = read_geojson(spec.field.geojson) if spec.field.geojson else None
     plan = plan_field(spec, field_ll)
     site, poly = plan.site, plan.poly
@@ -173,7 +223,7 @@ def generate(spec: ScenarioSpec, seed: int) -> Scenario:
     lay = layout(poly, spec.layout, plan.angle, rng["jitter"], rng["gaps"], rng["weeds"])
     terrain = add_relief(base, lay.rows, lay.planting_area, spec.furrows, rng["roughness"])
     plants = place_plants(lay, terrain, spec.crop, growth, rng["plants"])
-    route = zigzag(lay.rows, spec.route, terrain)
+    route = zigzag(lay.rows, spec.route, terrain, poly)
     info = {
         "credit": site.credit,
         **site.info,
@@ -181,4 +231,21 @@ def generate(spec: ScenarioSpec, seed: int) -> Scenario:
         "candidates": lay.candidates,
         "generate_seconds": time.perf_counter() - t_start,
     }
-    return Scenario(spec, int(seed), site.geo, terrain, poly, lay.rows, plants, route, info)
+    return Scenario(
+        spec, int(seed), site.geo, terrain, poly, lay.rows, plants, route, info, user_model
+    )
+
+
+def check_on_plane(poly: BaseGeometry, terrain: TerrainSpec, geo: GeoFrame) -> None:
+    """A plane is the tangent plane at its datum: the field must lie near it (bounds.py)."""
+    xy = shapely.get_coordinates(poly)
+    reach = float(np.hypot(xy[:, 0], xy[:, 1]).max()) + terrain.margin
+    if reach > MAX_PLANE_RADIUS_M:
+        raise InputError(
+            "terrain.datum",
+            [geo.lat, geo.lon, geo.alt],
+            f"the field and margin reach {reach / 1000:,.1f} km from the plane's datum; allowed: "
+            f"within {MAX_PLANE_RADIUS_M / 1000:g} km (the tangent plane rises d²/2R above the "
+            "ellipsoid: 2 m at 5 km); leave terrain.datum null to centre the plane on a GeoJSON "
+            "field",
+        )

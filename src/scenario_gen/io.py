@@ -1,37 +1,36 @@
-"""Scenario directories: written atomically, read back exactly enough to reuse.
+"""Scenario directories, written atomically (``reading.load`` reads them back, checked).
 
-Layout: ``scenario.json`` (format version, spec, seed, datum, CRS, LoD, counts, versions),
-``terrain.npz``, ``plants.csv``, ``route.csv``, ``field.geojson``, ``route.geojson`` and
-``plants.geojson`` (WGS84, one geometry type each) and ``preview.png``.
-Everything is first written to a hidden sibling folder which is renamed into place only once
-complete, so a failure never leaves a half-written scenario.
+Layout: ``scenario.json`` (format version, spec, seed, datum, CRS, LoD, counts, rows and their
+planted segments, the user plant model, versions), ``terrain.npz``, ``plants.csv`` (with each
+plant's ``row`` since format 2), ``route.csv``, ``field.geojson``, ``route.geojson`` and
+``plants.geojson`` (WGS84, one geometry type each), ``preview.png`` and, when the spec names a
+``crop.model``, ``models/<its file name>``: a byte-identical copy, checked against the
+recorded SHA-256. Everything is first written to a hidden sibling folder which is renamed
+into place only once complete, so a failure never leaves a half-written scenario.
 """
 
 from __future__ import annotations
 
 import csv
 import json
+import shutil
 from importlib import metadata
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from shapely import wkt
 
 from .atomic import output_dir
 from .errors import InputError
-from .geodesy import GeoFrame
 from .geojson import scenario_layers
-from .layout import RowFrame
-from .model import Plants, Scenario
+from .model import Scenario
+from .models import sha256_file
 from .preview import render_preview
-from .routes import Route
-from .spec import ScenarioSpec
-from .terrain import Terrain
 
 FORMAT = "agrinav-scenario"
-FORMAT_VERSION = 1
-PLANT_HEADER = [
+FORMAT_VERSION = 2
+READABLE_VERSIONS = (1, 2)  # version 1: no row column, no segments, no models
+PLANT_HEADER_V1 = [
     "id",
     "species",
     "stage",
@@ -46,6 +45,7 @@ PLANT_HEADER = [
     "lon",
     "alt",
 ]
+PLANT_HEADER = [*PLANT_HEADER_V1, "row"]
 ROUTE_HEADER = ["index", "x", "y", "z", "lat", "lon", "segment"]
 _VERSIONED = (
     "agrinav-gym",
@@ -102,8 +102,9 @@ def _write_all(scn: Scenario, d: Path, preview: bool) -> None:
                 f"{la:.10f}",
                 f"{lo:.10f}",
                 f"{al:.4f}",
+                row,
             )
-            for i, (sp, st, x, y, z, r, pi, ya, h, la, lo, al) in enumerate(
+            for i, (sp, st, x, y, z, r, pi, ya, h, la, lo, al, row) in enumerate(
                 zip(
                     p.species,
                     p.stage,
@@ -117,6 +118,7 @@ def _write_all(scn: Scenario, d: Path, preview: bool) -> None:
                     lat,
                     lon,
                     alt,
+                    p.row.tolist(),
                     strict=True,
                 )
             )
@@ -141,11 +143,31 @@ def _write_all(scn: Scenario, d: Path, preview: bool) -> None:
         spacing=t.spacing,
         lod=-1 if t.lod is None else t.lod,
     )
+    if scn.crop_model is not None:
+        _copy_model(scn, d)
     for name, layer in scenario_layers(scn, lat, lon, alt, rlat, rlon).items():
         (d / f"{name}.geojson").write_text(json.dumps(layer))
     (d / "scenario.json").write_text(json.dumps(metadata_dict(scn), indent=2) + "\n")
     if preview:
         render_preview(scn, d / "preview.png")
+
+
+def _copy_model(scn: Scenario, d: Path) -> None:
+    """models/<name>: the user's model file, byte for byte, as it was at generation."""
+    um = scn.crop_model
+    assert um is not None
+    target = d / um.file
+    target.parent.mkdir()
+    try:
+        shutil.copyfile(um.path, target)
+    except OSError as exc:
+        raise InputError("crop.model", str(um.path), f"cannot be copied ({exc})") from None
+    if sha256_file(target) != um.sha256:
+        raise InputError(
+            "crop.model",
+            str(um.path),
+            "changed since the scenario was generated (SHA-256 differs); generate it again",
+        )
 
 
 def metadata_dict(scn: Scenario) -> dict[str, Any]:
@@ -189,108 +211,12 @@ def metadata_dict(scn: Scenario) -> dict[str, Any]:
             "offsets": rows.offsets.tolist(),
             "starts": rows.starts.tolist(),
             "ends": rows.ends.tolist(),
+            "segments": [
+                [int(r), float(a), float(b)]
+                for r, (a, b) in zip(rows.seg_row, rows.seg_t, strict=True)  # type: ignore[arg-type]
+            ],
         },
+        "crop_model": None if scn.crop_model is None else scn.crop_model.to_dict(),
         "info": info,
         "versions": versions(),
     }
-
-
-def load(directory: str | Path) -> Scenario:
-    """Read a scenario directory written by ``Scenario.save``."""
-    d = Path(directory)
-    meta_path = d / "scenario.json"
-    if not meta_path.is_file():
-        raise InputError("scenario", str(d), "is not a scenario directory (no scenario.json)")
-    meta = json.loads(meta_path.read_text())
-    if meta.get("format") != FORMAT or meta.get("format_version") != FORMAT_VERSION:
-        raise InputError(
-            "scenario.json",
-            meta.get("format_version"),
-            f"allowed: format {FORMAT!r} version {FORMAT_VERSION}",
-        )
-    spec = ScenarioSpec.from_dict(meta["spec"])
-    geo = GeoFrame(**meta["datum"])
-    with np.load(d / "terrain.npz") as z:
-        lod = int(z["lod"])
-        terrain = Terrain(
-            z["heights"],
-            float(z["x0"]),
-            float(z["y0"]),
-            float(z["spacing"]),
-            None if lod < 0 else lod,
-        )
-    r = meta["rows"]
-    rows = RowFrame(
-        r["angle_rad"],
-        tuple(r["origin"]),
-        np.asarray(r["offsets"], float),
-        np.asarray(r["starts"], float),
-        np.asarray(r["ends"], float),
-        r["spacing"],
-    )
-    plants = _read_plants(d / "plants.csv", rows)
-    route = _read_route(d / "route.csv", rows)
-    return Scenario(
-        spec,
-        int(meta["seed"]),
-        geo,
-        terrain,
-        wkt.loads(meta["field_enu_wkt"]),
-        rows,
-        plants,
-        route,
-        dict(meta.get("info", {})),
-    )
-
-
-def _read_csv(path: Path, header: list[str]) -> dict[str, np.ndarray]:
-    with open(path, newline="") as f:
-        reader = csv.reader(f)
-        head = next(reader)
-        if head != header:
-            raise InputError(path.name, head, f"allowed header: {','.join(header)}")
-        cols = list(zip(*reader, strict=True)) or [() for _ in header]
-    return {h: np.asarray(c) for h, c in zip(header, cols, strict=True)}
-
-
-def _nearest(values: np.ndarray, grid: np.ndarray) -> np.ndarray:
-    if len(grid) == 0:
-        return np.full(len(values), -1, np.int64)
-    return np.abs(values[:, None] - grid[None, :]).argmin(axis=1).astype(np.int64)
-
-
-def _read_plants(path: Path, rows: RowFrame) -> Plants:
-    c = _read_csv(path, PLANT_HEADER)
-    f = {
-        k: c[k].astype(np.float64)
-        for k in ("x", "y", "z", "roll", "pitch", "yaw", "height", "stage")
-    }
-    species = c["species"].astype(str)
-    # Row indices are not in the CSV's fixed header; jitter is far below half a row spacing,
-    # so the nearest row line recovers them exactly.
-    row = np.where(species == "weed", -1, _nearest(rows.to_rows(f["x"], f["y"])[1], rows.offsets))
-    return Plants(
-        f["x"],
-        f["y"],
-        f["z"],
-        f["roll"],
-        f["pitch"],
-        f["yaw"],
-        f["height"],
-        species,
-        f["stage"],
-        row.astype(np.int64),
-    )
-
-
-def _read_route(path: Path, rows: RowFrame) -> Route:
-    c = _read_csv(path, ROUTE_HEADER)
-    xyz = (
-        np.column_stack([c[k].astype(np.float64) for k in ("x", "y", "z")])
-        if len(c["x"])
-        else np.empty((0, 3))
-    )
-    segment = c["segment"].astype(str)
-    lanes = 0.5 * (rows.offsets[:-1] + rows.offsets[1:])
-    lane = _nearest(rows.to_rows(xyz[:, 0], xyz[:, 1])[1], lanes)
-    return Route(xyz, segment, np.where(segment == "furrow", lane, -1).astype(np.int64))

@@ -17,6 +17,7 @@ from numpy.typing import NDArray
 from shapely import affinity
 from shapely.geometry.base import BaseGeometry
 
+from .bounds import MAX_CANDIDATES
 from .errors import InputError
 from .spec import LayoutSpec
 
@@ -26,7 +27,14 @@ IntArray = NDArray[np.int64]
 
 @dataclass(frozen=True)
 class RowFrame:
-    """Row geometry: ENU point ``origin``, along-row unit ``u`` and across-row unit ``n``."""
+    """Row geometry: ENU point ``origin``, along-row unit ``u`` and across-row unit ``n``.
+
+    A row is planted over one or more *segments*: runs of consecutive nominal planting
+    positions, split where a hole or a gap between the parts of a MultiPolygon field interrupts
+    it. ``seg_row[k]`` is the row of segment k and ``seg_t[k]`` its along-row extent; segments
+    are sorted by row, then along the row. A simple field has one segment per row, equal to
+    ``(starts, ends)``.
+    """
 
     angle: float  # rad, row direction counter-clockwise from east
     origin: tuple[float, float]
@@ -34,6 +42,20 @@ class RowFrame:
     starts: FloatArray  # along-row extent of each row's nominal planting positions
     ends: FloatArray
     spacing: float
+    seg_row: IntArray | None = None
+    seg_t: FloatArray | None = None  # (segments, 2): along-row start, end
+
+    def __post_init__(self) -> None:
+        if self.seg_row is None or self.seg_t is None:
+            object.__setattr__(self, "seg_row", np.arange(len(self.offsets), dtype=np.int64))
+            object.__setattr__(
+                self, "seg_t", np.column_stack([self.starts, self.ends]).reshape(-1, 2)
+            )
+
+    def segments(self, row: int) -> FloatArray:
+        """Planted (start, end) intervals of ``row`` along the row, ascending."""
+        assert self.seg_row is not None and self.seg_t is not None
+        return self.seg_t[self.seg_row == row]
 
     @property
     def u(self) -> FloatArray:
@@ -81,6 +103,28 @@ def _centred(lo: float, hi: float, step: float) -> FloatArray:
     return mid + step * np.arange(k0, k1 + 1, dtype=np.float64)
 
 
+#: Counted positions stay this far inside the planting area, so that the outermost ones of a
+#: rectangle are not lost to rounding on its boundary.
+_INSET = 1e-6
+
+
+def _counted(lo: float, hi: float, step: float, n: int, field: str, what: str) -> FloatArray:
+    """``n`` positions ``step`` apart centred on [lo, hi], or an error if they do not fit."""
+    need = (n - 1) * step
+    room = hi - lo - 2 * _INSET
+    if need > room:
+        fit = max(0, math.floor(room / step + 1e-9)) + 1 if room >= 0 else 0
+        raise InputError(
+            field,
+            n,
+            f"{n} {what} {step:g} m apart need {need:.2f} m; the planting area (field less "
+            f"layout.edge_margin and layout.headland) spans {hi - lo:.2f} m; allowed: at most "
+            f"{fit}, or a larger field",
+        )
+    mid = 0.5 * (lo + hi)
+    return mid + step * (np.arange(n, dtype=np.float64) - (n - 1) / 2)
+
+
 def layout(
     field: BaseGeometry,
     spec: LayoutSpec,
@@ -102,19 +146,32 @@ def layout(
         area.exterior.coords if area.geom_type == "Polygon" else shapely.get_coordinates(area)
     )
     t_b, s_b = frame0.to_rows(ex[:, 0], ex[:, 1])
-    s_rows = _centred(float(s_b.min()), float(s_b.max()), spec.row_spacing)
-    t_pos = _centred(float(t_b.min()), float(t_b.max()), spec.plant_spacing)
-    if len(s_rows) * len(t_pos) > 50_000_000:
+    s_lo, s_hi, t_lo, t_hi = float(s_b.min()), float(s_b.max()), float(t_b.min()), float(t_b.max())
+    s_rows = (
+        _centred(s_lo, s_hi, spec.row_spacing)
+        if spec.rows is None
+        else _counted(s_lo, s_hi, spec.row_spacing, spec.rows, "layout.rows", "rows")
+    )
+    t_pos = (
+        _centred(t_lo, t_hi, spec.plant_spacing)
+        if spec.plants_per_row is None
+        else _counted(
+            t_lo, t_hi, spec.plant_spacing, spec.plants_per_row, "layout.plants_per_row", "plants"
+        )
+    )
+    if len(s_rows) * len(t_pos) > MAX_CANDIDATES:
         raise InputError(
-            "layout.plant_spacing",
-            spec.plant_spacing,
-            "gives over 50 million candidate plants; allowed: a coarser spacing or a smaller field",
+            "layout.plant_spacing/row_spacing",
+            (spec.plant_spacing, spec.row_spacing),
+            f"gives {len(s_rows) * len(t_pos):,} candidate positions over the field's bounding "
+            f"box; allowed: at most {MAX_CANDIDATES:,} (coarser spacing or a smaller field)",
         )
     S, T = np.meshgrid(s_rows, t_pos, indexing="ij")  # rows contiguous, along-row ascending
     s_all, t_all = S.ravel(), T.ravel()
     x0, y0 = frame0.to_enu(t_all, s_all)
     keep = shapely.contains_xy(area, x0, y0)
     row_of = np.repeat(np.arange(len(s_rows)), len(t_pos))[keep]
+    pos_of = np.tile(np.arange(len(t_pos)), len(s_rows))[keep]
     s_k, t_k = s_all[keep], t_all[keep]
     if len(s_k) == 0:
         raise InputError(
@@ -123,12 +180,33 @@ def layout(
             "is too small for one plant at this row spacing, plant spacing and margins",
         )
     used, row_idx = np.unique(row_of, return_inverse=True)
+    if spec.rows is not None and len(used) < spec.rows:
+        missed = sorted(set(range(spec.rows)) - set(used.tolist()))
+        raise InputError(
+            "layout.rows",
+            spec.rows,
+            f"row {missed[0]} (of {spec.rows}, centred) misses the planting area of this "
+            "field shape; allowed: fewer rows",
+        )
     n_rows = len(used)
     starts = np.full(n_rows, np.inf)
     ends = np.full(n_rows, -np.inf)
     np.minimum.at(starts, row_idx, t_k)
     np.maximum.at(ends, row_idx, t_k)
-    rows = RowFrame(angle, frame0.origin, s_rows[used], starts, ends, spec.row_spacing)
+    # A segment breaks where the row changes or a nominal position is skipped (hole, gap).
+    brk = np.flatnonzero((np.diff(row_of) != 0) | (np.diff(pos_of) != 1)) + 1
+    first = np.concatenate([[0], brk])
+    last = np.concatenate([brk - 1, [len(t_k) - 1]])
+    rows = RowFrame(
+        angle,
+        frame0.origin,
+        s_rows[used],
+        starts,
+        ends,
+        spec.row_spacing,
+        row_idx[first].astype(np.int64),
+        np.column_stack([t_k[first], t_k[last]]),
+    )
 
     missing = _gaps(row_idx, spec, rng_gaps)
     n = len(s_k)

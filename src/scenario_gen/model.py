@@ -6,6 +6,7 @@ A ``Scenario`` is what ``generate`` makes and ``io.load`` reads back; ``io.save`
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -15,7 +16,8 @@ from shapely.geometry.base import BaseGeometry
 from .field import enu_to_lonlat
 from .geodesy import GeoFrame
 from .layout import RowFrame
-from .routes import Route, lane_lines
+from .models import UserModel
+from .routes import Route, lane_lines, lane_segments
 from .spec import ScenarioSpec
 from .terrain import Terrain
 
@@ -63,11 +65,27 @@ class Scenario:
     plants: Plants
     route: Route
     info: dict[str, Any] = field(default_factory=dict)
+    crop_model: UserModel | None = None  # the user's plant model (crop.model), if any
 
     @property
     def lanes(self) -> FloatArray:
-        """Lane centrelines (lanes, 2, 2) in ENU, from row start to row end."""
-        return lane_lines(self.rows)
+        """Planted lane stretches (n, 2, 2) in ENU, start -> end, ordered by centreline.
+
+        A simple field has one stretch per lane centreline (between rows k and k+1), from where
+        both rows start to where they end. A hole or a gap in the field splits a centreline into
+        several stretches: ``lane_centreline`` says which centreline each belongs to."""
+        return lane_lines(self.rows, self.field)
+
+    @property
+    def lane_centreline(self) -> NDArray[np.int64]:
+        """For each entry of ``lanes``: its centreline k (between rows k and k+1)."""
+        return lane_segments(self.rows, self.field)[0]
+
+    @property
+    def crop_model_path(self) -> Path | None:
+        """The user plant model file to load (``models.load_model``), or None: after ``load``
+        it is the copy inside the scenario folder."""
+        return None if self.crop_model is None else self.crop_model.path
 
     @property
     def field_lonlat(self) -> BaseGeometry:
@@ -89,4 +107,5 @@ class Scenario:
             "grid": f"{self.terrain.shape[1]}x{self.terrain.shape[0]} @ "
             f"{self.terrain.spacing:.3f} m (LoD {self.terrain.lod})",
             "route_m": round(self.route.length, 1),
+            **({"crop_model": self.crop_model.name} if self.crop_model else {}),
         }

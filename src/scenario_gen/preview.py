@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -10,6 +11,12 @@ from .model import Scenario
 
 
 def render_preview(scn: Scenario, path: str | Path, dpi: int = 110) -> None:
+    """Write preview.png."""
+    preview_figure(scn, dpi).savefig(path, metadata={"Software": None})
+
+
+def preview_figure(scn: Scenario, dpi: int = 110) -> Any:
+    """The preview as a matplotlib ``Figure`` (no pyplot, no global state)."""
     import matplotlib as mpl
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.colors import LightSource, Normalize
@@ -18,9 +25,17 @@ def render_preview(scn: Scenario, path: str | Path, dpi: int = 110) -> None:
     t = scn.terrain
     xmin, ymin, xmax, ymax = t.bounds
     aspect = (ymax - ymin) / max(xmax - xmin, 1e-9)
-    fig = Figure(figsize=(10.0, float(np.clip(7.5 * aspect, 4.5, 11.0))), dpi=dpi)
+    model = scn.crop_model is not None
+    fig = Figure(
+        figsize=(12.0 if model else 10.0, float(np.clip(7.5 * aspect, 4.5, 11.0))), dpi=dpi
+    )
     FigureCanvasAgg(fig)  # no pyplot: no global backend, no figure registry
-    ax = fig.add_subplot()
+    if model:  # a side panel for the user's plant model
+        grid = fig.add_gridspec(1, 2, width_ratios=(5.0, 1.0))
+        ax = fig.add_subplot(grid[0])
+        _model_panel(fig.add_subplot(grid[1]), scn)
+    else:
+        ax = fig.add_subplot()
     ls = LightSource(azdeg=315, altdeg=45)
     rgb = ls.shade(
         t.heights,
@@ -39,9 +54,22 @@ def render_preview(scn: Scenario, path: str | Path, dpi: int = 110) -> None:
     fig.colorbar(sm, ax=ax, shrink=0.7, label="elevation (m)")
 
     polys = getattr(scn.field, "geoms", [scn.field])
-    for i, poly in enumerate(polys):
+    first_hole = True
+    for i, poly in enumerate(polys):  # every part of a MultiPolygon, with its holes
         fx, fy = poly.exterior.xy
         ax.plot(fx, fy, color="white", lw=1.5, label="field" if i == 0 else None)
+        for ring in poly.interiors:
+            hx, hy = ring.xy
+            ax.fill(
+                hx,
+                hy,
+                facecolor="none",
+                edgecolor="white",
+                hatch="xx",
+                lw=1.0,
+                label="hole (unplanted)" if first_hole else None,
+            )
+            first_hole = False
     p = scn.plants
     crop = ~p.is_weed
     # Markers sized like the canopy on paper, so the rows read as rows at any field size.
@@ -121,4 +149,38 @@ def render_preview(scn: Scenario, path: str | Path, dpi: int = 110) -> None:
     ax.set_aspect("equal")
     ax.legend(loc="upper left", fontsize=7, framealpha=0.6)
     fig.tight_layout()
-    fig.savefig(path, metadata={"Software": None})
+    return fig
+
+
+def _model_panel(panel: Any, scn: Scenario) -> None:
+    """Side view of the user's plant model at the plants' median height, with its name and
+    native size."""
+    from matplotlib.collections import PolyCollection
+
+    from .models import load_model
+
+    um = scn.crop_model
+    assert um is not None
+    crop = ~scn.plants.is_weed
+    height = float(np.median(scn.plants.height[crop])) if crop.any() else 1.0
+    mesh = load_model(um.path, height)
+    faces = np.asarray(mesh.faces)
+    step = max(1, len(faces) // 20000)  # a preview needs the silhouette, not every face
+    v = np.asarray(mesh.vertices)
+    tri = v[faces[::step]][:, :, [0, 2]]  # x (east) against z (up)
+    panel.add_collection(
+        PolyCollection(tri, facecolors="forestgreen", edgecolors="darkgreen", linewidths=0.1)
+    )
+    lo, hi = mesh.bounds
+    half = max(hi[0] - lo[0], 0.5 * hi[2]) / 2 + 0.05 * height
+    panel.set_xlim(-half, half)
+    panel.set_ylim(0, hi[2] * 1.05)
+    panel.set_aspect("equal")
+    panel.set_xlabel("m", fontsize=7)
+    panel.set_ylabel("height (m)", fontsize=7)
+    panel.tick_params(labelsize=6)
+    sx, sy, sz = um.size
+    panel.set_title(
+        f"crop.model\n{um.name}\nnative {sx:.3g} x {sy:.3g} x {sz:.3g}\nshown at {height:.2f} m",
+        fontsize=7,
+    )

@@ -14,13 +14,16 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial import cKDTree
+from shapely.geometry.base import BaseGeometry
 
+from .bounds import MAX_TERRAIN_SAMPLES
 from .dem import EMBEDDED_CREDIT, Dem, load_embedded, load_geotiff
 from .errors import InputError
+from .field import centroid_latlon
 from .geodesy import GeoFrame
+from .meshsurface import TriangleSurface
 from .spec import TerrainSpec
-from .terrain import IDW_EPS, Terrain, grid_for_bounds
+from .terrain import Terrain, grid_for_bounds
 
 FloatArray = NDArray[np.float64]
 HeightFn = Callable[[FloatArray, FloatArray], FloatArray]
@@ -29,6 +32,7 @@ HeightFn = Callable[[FloatArray, FloatArray], FloatArray]
 #: the latitude DESIGN §3's LoD example uses. Any datum works; GPS needs one.
 DEFAULT_PLANE_DATUM = (42.6, -5.57, 830.0)
 MESH_SUFFIXES = (".glb", ".gltf", ".obj", ".ply", ".dae", ".stl")
+MAX_MESH_BYTES = 512 * 2**20  # a terrain mesh this large holds ~10 M triangles
 
 
 @dataclass
@@ -40,13 +44,26 @@ class Site:
     info: dict[str, Any] = field(default_factory=dict)
 
 
-def open_site(spec: TerrainSpec, field_lonlat: tuple[float, float] | None, extent_m: float) -> Site:
-    """Open the terrain source; ``field_lonlat`` is a GeoJSON field's centroid (lat, lon)."""
+def open_site(
+    spec: TerrainSpec, field_ll: BaseGeometry | None, extent_m: float, margin: float = 0.0
+) -> Site:
+    """Open the terrain source; ``field_ll`` is a GeoJSON field (lon/lat), ``extent_m`` the
+    size a rectangle field and its margin need, ``margin`` the terrain kept around the field."""
     if spec.source in ("embedded", "dem"):
-        return _dem_site(spec, field_lonlat, extent_m)
+        return _dem_site(spec, field_ll, extent_m, margin)
     if spec.source == "plane":
-        return _plane_site(spec)
+        return _plane_site(spec, None if field_ll is None else centroid_latlon(field_ll))
     return _mesh_site(spec)
+
+
+def _lonlat_box(
+    lon0: float, lat0: float, lon1: float, lat1: float, pad_m: float
+) -> tuple[float, float, float, float]:
+    """A lon/lat box grown by ``pad_m`` metres (10 % more: the metres-per-degree are local)."""
+    dlat = 1.1 * pad_m / 110_574.0 + 1e-9
+    coslat = max(math.cos(math.radians(max(abs(lat0), abs(lat1)))), 1e-6)
+    dlon = 1.1 * pad_m / (111_320.0 * coslat) + 1e-9
+    return lon0 - dlon, lat0 - dlat, lon1 + dlon, lat1 + dlat
 
 
 def terrain_grid(
@@ -55,12 +72,12 @@ def terrain_grid(
     """(x0, y0, nx, ny, spacing) of the LoD grid over ``bounds``, refused when too large."""
     spacing = site.geo.gsd(lod)
     x0, y0, nx, ny = grid_for_bounds(*bounds, spacing)
-    if nx * ny > 60_000_000:
+    if nx * ny > MAX_TERRAIN_SAMPLES:
         raise InputError(
             "terrain.lod",
             lod,
             f"gives a {nx}x{ny} grid over the field; "
-            "allowed: at most 60 million samples (lower the LoD or the margin)",
+            f"allowed: at most {MAX_TERRAIN_SAMPLES:,} samples (lower the LoD or the margin)",
         )
     return x0, y0, nx, ny, spacing
 
@@ -73,22 +90,18 @@ def build_terrain(site: Site, bounds: tuple[float, float, float, float], lod: in
 
 
 # ----------------------------------------------------------------------------- DEM
-def _dem_site(spec: TerrainSpec, field_lonlat: tuple[float, float] | None, extent_m: float) -> Site:
-    if spec.source == "embedded":
-        if spec.path is not None:
-            raise InputError(
-                "terrain.path", spec.path, "is only used with terrain.source dem or mesh"
-            )
-        dem = load_embedded()
-        credit = EMBEDDED_CREDIT
-    else:
-        if spec.path is None:
-            raise InputError("terrain.path", None, "terrain.source=dem needs a GeoTIFF path")
-        dem = load_geotiff(spec.path, spec.fill_max_pixels)
-        credit = f"DEM {Path(spec.path).name}"
-    if field_lonlat is not None:
-        lat, lon = field_lonlat
+def _dem_site(
+    spec: TerrainSpec, field_ll: BaseGeometry | None, extent_m: float, margin: float
+) -> Site:
+    if spec.source == "embedded" and spec.path is not None:
+        raise InputError("terrain.path", spec.path, "is only used with terrain.source dem or mesh")
+    if spec.source == "dem" and spec.path is None:
+        raise InputError("terrain.path", None, "terrain.source=dem needs a GeoTIFF path")
+    need: tuple[float, float, float, float] | None = None
+    if field_ll is not None:
+        lat, lon = centroid_latlon(field_ll)
         how = "field centroid"
+        need = _lonlat_box(*field_ll.bounds, margin)
     elif spec.site == "latlon":
         if spec.lat is None or spec.lon is None:
             raise InputError(
@@ -98,7 +111,17 @@ def _dem_site(spec: TerrainSpec, field_lonlat: tuple[float, float] | None, exten
             )
         lat, lon = spec.lat, spec.lon
         how = "given lat/lon"
+        need = _lonlat_box(lon, lat, lon, lat, extent_m / 2)
+    if spec.source == "embedded":
+        dem = load_embedded()
+        credit = EMBEDDED_CREDIT
     else:
+        assert spec.path is not None
+        dem = load_geotiff(
+            spec.path, spec.fill_max_pixels, need, f"terrain.site={spec.site} searches it"
+        )
+        credit = f"DEM {Path(spec.path).name}"
+    if need is None:
         lat, lon = dem.pick_site(spec.site, extent_m, spec.max_slope_deg)
         how = f"{spec.site} window of {extent_m:.0f} m"
     alt = float(dem.sample_lonlat(np.array([lon]), np.array([lat]), "terrain.site")[0])
@@ -123,8 +146,15 @@ def _dem_heights(dem: Dem, geo: GeoFrame) -> HeightFn:
 
 
 # ----------------------------------------------------------------------------- plane
-def _plane_site(spec: TerrainSpec) -> Site:
-    lat, lon, alt = spec.datum if spec.datum is not None else DEFAULT_PLANE_DATUM
+def _plane_site(spec: TerrainSpec, field_lonlat: tuple[float, float] | None) -> Site:
+    """A plane through the datum; under a GeoJSON field without a datum, through its centroid
+    at 0 m (the plane then lies where the field is, not at the default datum far away)."""
+    if spec.datum is not None:
+        lat, lon, alt = spec.datum
+    elif field_lonlat is not None:
+        lat, lon, alt = field_lonlat[0], field_lonlat[1], 0.0
+    else:
+        lat, lon, alt = DEFAULT_PLANE_DATUM
     geo = GeoFrame(lat, lon, alt)
     g = math.tan(math.radians(spec.slope_deg))
     a = math.radians(spec.aspect_deg)
@@ -155,6 +185,11 @@ def load_mesh_vertices(
         raise InputError(
             "terrain.path", str(path), f"allowed: a mesh file ({', '.join(MESH_SUFFIXES)})"
         )
+    size = p.stat().st_size
+    if size > MAX_MESH_BYTES:
+        raise InputError(
+            "terrain.path", str(path), f"is {size:,} bytes; allowed: at most {MAX_MESH_BYTES:,}"
+        )
     try:
         mesh: Any = trimesh.load(p, force="mesh", process=False)
     except Exception as exc:  # trimesh raises many types for malformed files
@@ -162,12 +197,17 @@ def load_mesh_vertices(
             "terrain.path", str(path), f"cannot be read as a mesh ({exc.__class__.__name__}: {exc})"
         ) from None
     v = np.asarray(getattr(mesh, "vertices", np.empty((0, 3))), dtype=np.float64)
-    if len(v) < 3 or not np.isfinite(v).all():
+    if len(v) < 3 or v.ndim != 2 or v.shape[1] != 3 or not np.isfinite(v).all():
         raise InputError("terrain.path", str(path), "holds no usable vertices")
+    faces = np.asarray(getattr(mesh, "faces", np.empty((0, 3))), dtype=np.int64)
+    if faces.ndim != 2 or faces.shape[1] != 3 or len(faces) == 0:
+        raise InputError("terrain.path", str(path), "holds no triangles (a point cloud?)")
+    if faces.min() < 0 or faces.max() >= len(v):
+        raise InputError("terrain.path", str(path), "has faces indexing missing vertices")
     up = up_axis if up_axis != "auto" else ("y" if p.suffix.lower() in (".glb", ".gltf") else "z")
     if up == "y":  # glTF: +Y up, +Z toward the viewer -> east = X, north = -Z, up = Y
         v = np.column_stack([v[:, 0], -v[:, 2], v[:, 1]])
-    return v, np.asarray(mesh.faces, dtype=np.int64)
+    return v, faces
 
 
 def _mesh_site(spec: TerrainSpec) -> Site:
@@ -177,27 +217,26 @@ def _mesh_site(spec: TerrainSpec) -> Site:
         raise InputError(
             "terrain.datum", None, "terrain.source=mesh needs the lat, lon, alt of the mesh origin"
         )
-    v, _ = load_mesh_vertices(spec.path, spec.up_axis)
+    v, faces = load_mesh_vertices(spec.path, spec.up_axis)
     geo = GeoFrame(*spec.datum)
-    tree = cKDTree(v[:, :2])
-    d2, _ = tree.query(v[: min(len(v), 20000), :2], k=2)
-    step = float(np.median(d2[:, 1])) if len(v) > 1 else 1.0
-    reach = 2.5 * step
-    z = v[:, 2]
+    surface = TriangleSurface(v, faces)
+    if surface.count == 0:
+        raise InputError(
+            "terrain.path", str(spec.path), "holds no triangle that is not vertical (no ground)"
+        )
+    name = Path(str(spec.path)).name
 
     def heights(x: FloatArray, y: FloatArray) -> FloatArray:
-        dist, idx = tree.query(np.column_stack([x, y]), k=min(3, len(v)), workers=-1)
-        if (dist[:, 0] > reach).any():
-            i = int(np.argmax(dist[:, 0] > reach))
+        z, covered = surface.heights(x, y)
+        if not covered.all():
+            i = int(np.argmin(covered))
             raise InputError(
                 "field",
                 f"ENU ({x[i]:.1f}, {y[i]:.1f}) m",
-                f"lies off the terrain mesh {Path(str(spec.path)).name} "
-                f"(nearest vertex {dist[i, 0]:.1f} m away; the field and "
+                f"lies off the terrain mesh {name}: no triangle under it (the field and "
                 "terrain.margin must lie on the mesh)",
             )
-        w = 1.0 / (dist * dist + IDW_EPS)
-        return (w * z[idx]).sum(axis=1) / w.sum(axis=1)
+        return z
 
     lo, hi = v[:, :2].min(axis=0), v[:, :2].max(axis=0)
     centre = (float((lo[0] + hi[0]) / 2), float((lo[1] + hi[1]) / 2))
@@ -205,8 +244,8 @@ def _mesh_site(spec: TerrainSpec) -> Site:
         geo,
         heights,
         centre=centre,
-        credit=f"mesh {Path(spec.path).name}",
-        info={"mesh_vertices": len(v), "mesh_vertex_spacing": step},
+        credit=f"mesh {name}",
+        info={"mesh_vertices": len(v), "mesh_triangles": surface.count},
     )
 
 

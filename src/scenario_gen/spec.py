@@ -20,7 +20,9 @@ from .schema import param as _f
 @dataclass(frozen=True)
 class TerrainSpec:
     source: str = _f("embedded", "terrain source", choices=("embedded", "dem", "mesh", "plane"))
-    path: str | None = _f(None, "GeoTIFF DEM (source=dem) or terrain mesh (source=mesh)")
+    path: str | None = _f(
+        None, "GeoTIFF DEM (source=dem) or terrain mesh (source=mesh); stored resolved"
+    )
     site: str = _f(
         "flattest",
         "how the field centre is chosen on a DEM",
@@ -32,9 +34,18 @@ class TerrainSpec:
         90.0, "site=steepest picks the steepest window at most this steep", 0, 90
     )
     datum: tuple[float, float, float] | None = _f(
-        None, "lat, lon, alt of the mesh origin (source=mesh) or of the plane (source=plane)"
+        None,
+        "lat, lon, alt of the mesh origin (source=mesh, required) or of the plane (source=plane; "
+        "null: the GeoJSON field's centroid at 0 m, else 42.6 N 5.57 W 830 m); a DEM fixes its "
+        "own datum, so embedded/dem refuse it",
     )
-    lod: int = _f(20, "level of detail: Web-Mercator zoom; sets the grid spacing", 0, 22)
+    lod: int = _f(
+        20,
+        "level of detail: Web-Mercator zoom; sets the grid spacing (at most row_spacing/4 with "
+        "furrows, roughness_length with roughness, 10 m always)",
+        0,
+        22,
+    )
     margin: float = _f(8.0, "terrain kept around the field, metres", 0, 1000)
     slope_deg: float = _f(0.0, "plane: slope, degrees", 0, 60)
     aspect_deg: float = _f(
@@ -48,7 +59,11 @@ class TerrainSpec:
 
 @dataclass(frozen=True)
 class FieldSpec:
-    geojson: str | None = _f(None, "GeoJSON file with a Polygon/MultiPolygon in lon/lat")
+    geojson: str | None = _f(
+        None,
+        "GeoJSON file with a Polygon/MultiPolygon in lon/lat (holes and parts are kept "
+        "unplanted; lanes end at them); stored resolved",
+    )
     width: float = _f(30.0, "rectangle size across the rows, metres", 0, 5000)
     length: float = _f(40.0, "rectangle size along the rows, metres", 0, 5000)
     angle_deg: float = _f(
@@ -60,6 +75,18 @@ class FieldSpec:
 class LayoutSpec:
     row_spacing: float = _f(0.75, "distance between crop rows, metres", 0.05, 50)
     plant_spacing: float = _f(0.18, "distance between plants in a row, metres", 0.02, 50)
+    rows: int | None = _f(
+        None,
+        "number of crop rows, centred across the planting area (null: as many as fit)",
+        1,
+        100_000,
+    )
+    plants_per_row: int | None = _f(
+        None,
+        "plant positions per row, centred along the planting area (null: as many as fit)",
+        1,
+        10_000_000,
+    )
     row_angle_deg: float | None = _f(
         None,
         "row direction, degrees counter-clockwise from east (null: along the field)",
@@ -68,8 +95,15 @@ class LayoutSpec:
     )
     # Planters place seed within ≈1 cm across the row; a 0.616 m robot in 0.75 m rows has
     # 5 cm of clearance per side, so more lateral scatter means crops hit even on the line.
-    jitter_lateral: float = _f(0.01, "std of plant offset across the row, metres", 0, 1)
-    jitter_longitudinal: float = _f(0.02, "std of plant offset along the row, metres", 0, 1)
+    jitter_lateral: float = _f(
+        0.01, "std of plant offset across the row, metres (clipped at 3 std <= row_spacing/2)", 0, 1
+    )
+    jitter_longitudinal: float = _f(
+        0.02,
+        "std of plant offset along the row, metres (clipped at 3 std <= plant_spacing/2)",
+        0,
+        1,
+    )
     gap_prob: float = _f(0.02, "probability that a single plant is missing", 0, 1)
     gap_run_prob: float = _f(0.0, "probability per plant that a run of missing plants starts", 0, 1)
     gap_run_mean: float = _f(4.0, "mean length of a run of missing plants, plants", 1, 10**4)
@@ -84,7 +118,11 @@ class CropSpec:
     stage: int = _f(3, "growth stage, 1 (early) .. the species' last stage", 1, 10)
     growth: float | None = _f(None, "continuous growth 0..1 (overrides stage)", 0, 1)
     height_std: float = _f(0.08, "relative std of plant height between plants", 0, 0.5)
-    model: str | None = _f(None, "user mesh file or .zip (mesh + textures) scaled to the height")
+    model: str | None = _f(
+        None,
+        "user mesh file or .zip (one mesh + its textures), scaled to each plant's height; "
+        "copied into the scenario folder (models/)",
+    )
 
 
 @dataclass(frozen=True)
@@ -103,7 +141,10 @@ class FurrowSpec:
 class RouteSpec:
     lanes: int = _f(2, "lanes (furrows between adjacent rows) the zigzag route drives", 1, 10**4)
     first_lane: int | None = _f(
-        None, "index of the first lane (null: centred in the field)", 0, 10**6
+        None,
+        "index of the first lane among those with crop on both sides (null: centred)",
+        0,
+        10**6,
     )
     spacing: float = _f(0.05, "waypoint spacing, metres (at most 0.1)", 0.005, 0.1)
     lead_in: float = _f(

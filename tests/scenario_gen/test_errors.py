@@ -174,3 +174,57 @@ def test_model_zip_loads_and_scales(tmp_path: Path) -> None:
     assert m.bounds[0, 2] == pytest.approx(0.0)
     with pytest.raises(ScenarioError, match="no mesh"):
         load_model(_zip(tmp_path / "empty.zip", {"readme.txt": b"hi"}), 1.0)
+
+
+# ----------------------------------------------------------------------------- issue 14
+@pytest.mark.parametrize(
+    "layout,field,bound",
+    [
+        ({"jitter_lateral": 0.2}, "layout.jitter_lateral", "row_spacing/6 = 0.1667"),
+        (
+            {"jitter_longitudinal": 0.04, "plant_spacing": 0.18},
+            "layout.jitter_longitudinal",
+            "plant_spacing/6 = 0.03",
+        ),
+    ],
+)
+def test_jitter_beyond_half_the_spacing_is_refused(layout: dict, field: str, bound: str) -> None:
+    with pytest.raises(ScenarioError) as info:
+        generate(small(layout=layout), seed=0)
+    assert info.value.field == field and bound in str(info.value), str(info.value)
+
+
+def test_rows_survive_save_and_load_at_the_jitter_bound(tmp_path: Path) -> None:
+    import numpy as np
+
+    from scenario_gen import load, save
+
+    spec = small(layout={"jitter_lateral": 1.0 / 6, "jitter_longitudinal": 0.03, "gap_prob": 0})
+    scn = generate(spec, seed=4)
+    _, s = scn.rows.to_rows(scn.plants.x, scn.plants.y)
+    lateral = s - scn.rows.offsets[scn.plants.row]
+    assert np.abs(lateral).max() <= 0.5 + 1e-9 and np.abs(lateral).max() > 0.3
+    back = load(save(scn, tmp_path / "s", preview=False))
+    np.testing.assert_array_equal(back.plants.row, scn.plants.row)
+
+
+def test_numpy_scalars_are_accepted_in_a_spec() -> None:
+    import numpy as np
+
+    spec = preset("default").replace(
+        {
+            "layout.row_spacing": np.float32(0.8),
+            "layout.rows": np.int64(10),
+            "terrain.lod": np.int32(20),
+            "furrows.enabled": np.bool_(False),
+            "crop.species": np.str_("tomato"),
+            "crop.stage": np.uint8(2),
+            "terrain.source": "plane",
+            "terrain.datum": [np.float64(42.0), np.float32(-5.5), np.int16(800)],
+        }
+    )
+    assert spec.layout.row_spacing == pytest.approx(0.8) and type(spec.layout.rows) is int
+    assert spec.furrows.enabled is False and spec.crop.species == "tomato"
+    assert spec.terrain.datum == (42.0, -5.5, 800.0)
+    assert type(spec.terrain.datum[0]) is float
+    generate(spec.replace({"field.width": 8.0, "field.length": 10.0}), seed=np.int64(3))

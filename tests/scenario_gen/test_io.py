@@ -43,7 +43,7 @@ def test_csv_headers_and_metadata(saved) -> None:
     with open(out / "route.csv") as f:
         assert next(csv.reader(f)) == ROUTE_HEADER
     meta = json.loads((out / "scenario.json").read_text())
-    assert meta["format_version"] == 1 and meta["seed"] == 11
+    assert meta["format_version"] == 2 and meta["seed"] == 11
     assert meta["counts"]["plants"] + meta["counts"]["weeds"] == len(scn.plants)
     assert meta["datum"]["lat"] == scn.geo.lat and meta["lod"] == 20
     assert {"numpy", "pyproj", "PROJ", "agrinav-gym"} <= set(meta["versions"])
@@ -120,3 +120,56 @@ def test_failed_save_leaves_nothing(saved, tmp_path: Path, monkeypatch) -> None:
 def test_load_refuses_non_scenarios(tmp_path: Path) -> None:
     with pytest.raises(ScenarioError, match="not a scenario directory"):
         load(tmp_path)
+
+
+# ----------------------------------------------------------------------------- issue 8 §2.8
+def test_scenario_json_stores_resolved_paths_and_regenerates_from_anywhere(
+    tmp_path: Path, monkeypatch
+) -> None:
+    import shutil
+
+    from scenario_gen import ScenarioSpec
+    from scenario_gen.geodesy import GeoFrame
+
+    work = tmp_path / "work"
+    (work / "inputs").mkdir(parents=True)
+    geo = GeoFrame(36.549167, -84.1425, 0.0)
+    ring = [geo.enu_to_geodetic(x, y) for x, y in [(-6, -8), (6, -8), (6, 8), (-6, 8), (-6, -8)]]
+    (work / "inputs" / "f.geojson").write_text(
+        json.dumps(
+            {"type": "Polygon", "coordinates": [[[float(lo), float(la)] for la, lo, _ in ring]]}
+        )
+    )
+    monkeypatch.chdir(work)
+    spec = small(field={"geojson": "inputs/f.geojson"})  # relative, as a user types it
+    scn = generate(spec, seed=1)
+    assert scn.spec.field.geojson == str((work / "inputs" / "f.geojson").resolve())
+    save(scn, "out")
+    meta = json.loads((work / "out" / "scenario.json").read_text())
+    assert meta["spec"]["field"]["geojson"] == str((work / "inputs" / "f.geojson").resolve())
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    again = generate(ScenarioSpec.from_dict(meta["spec"]), meta["seed"])
+    np.testing.assert_array_equal(again.plants.x, scn.plants.x)
+    shutil.rmtree(work / "out")
+
+
+def test_load_recovers_rows_of_a_version_1_folder(saved, tmp_path: Path) -> None:
+    # version 1 had no row column and no segments: rows come from the nearest row line
+    import shutil
+
+    scn, out = saved
+    old = tmp_path / "v1"
+    shutil.copytree(out, old)
+    meta = json.loads((old / "scenario.json").read_text())
+    meta["format_version"] = 1
+    del meta["rows"]["segments"], meta["crop_model"]
+    (old / "scenario.json").write_text(json.dumps(meta))
+    lines = (old / "plants.csv").read_text().splitlines()
+    (old / "plants.csv").write_text(
+        "\n".join(",".join(line.split(",")[:-1]) for line in lines) + "\n"
+    )
+    back = load(old)
+    np.testing.assert_array_equal(back.plants.row, scn.plants.row)
+    np.testing.assert_array_equal(back.lanes, scn.lanes)

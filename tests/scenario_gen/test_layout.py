@@ -141,3 +141,51 @@ def test_weed_density() -> None:
     n = int(scn.plants.is_weed.sum())
     assert abs(n - 3.0 * area) < 4 * math.sqrt(3.0 * area)
     assert (scn.plants.species[scn.plants.is_weed] == "weed").all()
+
+
+# ----------------------------------------------------------------------------- issue 8 §2.9
+@pytest.mark.parametrize("rows,per_row", [(20, 50), (7, 12), (2, 2)])
+def test_row_and_plant_counts_are_honoured_and_centred(rows: int, per_row: int) -> None:
+    # the source paper's maizes.world: 20 rows x 50 plants, 0.75 x 0.18 m
+    spec = plane(
+        field={"width": 20.0, "length": 14.0, "angle_deg": 25.0},
+        layout={
+            "rows": rows,
+            "plants_per_row": per_row,
+            "row_spacing": 0.75,
+            "plant_spacing": 0.18,
+            "gap_prob": 0.0,
+            "headland": 2.0,
+        },
+        route={"lanes": 1},
+    )
+    scn = generate(spec, seed=0)
+    assert len(scn.rows.offsets) == rows
+    assert np.bincount(scn.plants.row).tolist() == [per_row] * rows
+    # centred on the field: row offsets and along-row positions symmetric about its centre
+    c = scn.field.centroid
+    t_c, s_c = scn.rows.to_rows(np.array([c.x]), np.array([c.y]))
+    assert np.mean(scn.rows.offsets) == pytest.approx(s_c[0], abs=1e-9)
+    assert 0.5 * (scn.rows.starts + scn.rows.ends) == pytest.approx(t_c[0], abs=1e-9)
+    np.testing.assert_allclose(np.diff(scn.rows.offsets), 0.75, atol=1e-9)
+
+
+@pytest.mark.parametrize(
+    "layout,field,room",
+    [
+        ({"rows": 30}, "layout.rows", "at most 26"),
+        ({"plants_per_row": 80}, "layout.plants_per_row", "at most 53"),
+    ],
+)
+def test_counts_that_do_not_fit_say_how_many_do(layout: dict, field: str, room: str) -> None:
+    from scenario_gen import ScenarioError
+
+    # planting area 20 - 2 x 0.3 = 19.4 m across (26 rows at 0.75 m), 14 - 2 x 2 - 2 x 0.3 =
+    # 9.4 m along (53 positions at 0.18 m)
+    spec = plane(
+        field={"width": 20.0, "length": 14.0},
+        layout={"row_spacing": 0.75, "plant_spacing": 0.18, "headland": 2.0, **layout},
+    )
+    with pytest.raises(ScenarioError) as info:
+        generate(spec, seed=0)
+    assert info.value.field == field and room in str(info.value), str(info.value)

@@ -9,7 +9,7 @@ from typing import Any
 
 from scenario_gen.errors import InputError
 
-from .args import int_at_least, parse_set, seed_type
+from .args import MAX_SEED, int_at_least, parse_set, seed_type
 
 
 def add(sub: Any) -> None:
@@ -34,7 +34,10 @@ def add(sub: Any) -> None:
     sc.add_argument("--config", help="YAML file of spec overrides")
     sc.add_argument("--dem", help="GeoTIFF DEM (any CRS)")
     sc.add_argument("--mesh", help="terrain mesh (glTF/GLB, OBJ, PLY, DAE, STL)")
-    sc.add_argument("--datum", help="LAT,LON,ALT of the mesh or plane origin")
+    sc.add_argument(
+        "--datum",
+        help="LAT,LON,ALT of the mesh or plane origin (a DEM sets its own: refused with one)",
+    )
     sc.add_argument("--field", help="GeoJSON polygon of the field (WGS84 lon/lat)")
     sc.add_argument("--lod", type=int, help="level of detail (Web-Mercator zoom 0-22)")
     sc.add_argument(
@@ -61,6 +64,7 @@ def _parse_datum(text: str) -> list[float]:
 def spec_from_args(args: argparse.Namespace) -> Any:
     """preset < --config file < --dem/--mesh/--field/--lod flags < --set overrides."""
     from scenario_gen import preset
+    from scenario_gen.generate import check_spec, resolve_paths
     from scenario_gen.schema import load_yaml, merge
     from scenario_gen.spec import ScenarioSpec
 
@@ -82,7 +86,9 @@ def spec_from_args(args: argparse.Namespace) -> Any:
         flags["field.geojson"] = args.field
     if args.lod is not None:
         flags["terrain.lod"] = args.lod
-    return ScenarioSpec.from_dict(merge(merge(base, flags), parse_set(args.set)))
+    spec = ScenarioSpec.from_dict(merge(merge(base, flags), parse_set(args.set)))
+    check_spec(spec)
+    return resolve_paths(spec)  # absolute input paths in scenario.json and bank.yaml
 
 
 def run(args: argparse.Namespace) -> int:
@@ -93,6 +99,12 @@ def run(args: argparse.Namespace) -> int:
     from scenario_gen.atomic import check_output_dir, output_dir
 
     spec = spec_from_args(args)
+    if args.seed + args.count - 1 > MAX_SEED:
+        raise InputError(
+            "--seed/--count",
+            (args.seed, args.count),
+            f"allowed: seeds up to {MAX_SEED} (seed + count - 1)",
+        )
     out = Path(args.out)
     check_output_dir(out, args.force)
     if args.count == 1:
@@ -114,11 +126,13 @@ def run(args: argparse.Namespace) -> int:
     # bank.yaml lists its members, and only those are ever sampled.
     seeds = range(args.seed, args.seed + args.count)
     names = [f"seed-{seed:06d}" for seed in seeds]
+    first = generate(spec, seeds.start)  # bad input is reported before the bank folder exists
     with output_dir(out, args.force) as tmp:
         for seed, name in tqdm(
             zip(seeds, names, strict=True), total=len(names), desc="scenarios", unit="scn"
         ):
-            save(generate(spec, seed), tmp / name, preview=not args.no_preview)
+            scn = first if seed == seeds.start else generate(spec, seed)
+            save(scn, tmp / name, preview=not args.no_preview)
         (tmp / "bank.yaml").write_text(
             yaml.safe_dump(
                 {"spec": spec.to_dict(), "seeds": list(seeds), "scenarios": names},

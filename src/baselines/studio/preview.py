@@ -49,7 +49,7 @@ class FlatGround(Terrain):
 
 
 class SiteCache:
-    """Opened sites by (terrain spec, field centroid, window size): opening one picks a window
+    """Opened sites by (terrain spec, drawn field, window size, margin): opening one picks a window
     of the DEM (≈0.25 s for site=flattest) and builds transformers, which the preview must not
     repeat on every change."""
 
@@ -58,10 +58,13 @@ class SiteCache:
         self._sites: OrderedDict[tuple[object, ...], Site] = OrderedDict()
         self._checked: OrderedDict[tuple[object, ...], None] = OrderedDict()
 
-    def open(self, spec: TerrainSpec, latlon: tuple[float, float] | None, extent: float) -> Site:
-        key = (spec, latlon, extent if latlon is None else None)
+    def open(
+        self, spec: TerrainSpec, field_ll: BaseGeometry | None, extent: float, margin: float
+    ) -> Site:
+        drawn = None if field_ll is None else field_ll.wkb
+        key = (spec, drawn, extent if drawn is None else None, margin)
         if key not in self._sites:
-            self._sites[key] = open_site(spec, latlon, extent)
+            self._sites[key] = open_site(spec, field_ll, extent, margin)
             while len(self._sites) > self.size:
                 self._sites.popitem(last=False)
         self._sites.move_to_end(key)
@@ -139,7 +142,7 @@ def plan_layout(
     sites.check_extent(plan.site, extent)
     lay = layout(plan.poly, spec.layout, plan.angle, rng["jitter"], rng["gaps"], rng["weeds"])
     ground = FlatGround(np.zeros((2, 2)), x0, y0, step, spec.terrain.lod, extent=extent)
-    route = zigzag(lay.rows, spec.route, ground)
+    route = zigzag(lay.rows, spec.route, ground, plan.poly)
     return plan, lay, route
 
 
