@@ -329,9 +329,9 @@ def clean_elevation(
     with np.errstate(invalid="ignore"):
         bad = np.isfinite(elev) & ((elev < lo) | (elev > hi))
     if bad.any():
-        r, c = np.unravel_index(int(np.argmax(bad)), elev.shape)
-        value = float(elev[r, c])
-        r, c = int(r) + offset[0], int(c) + offset[1]
+        ri, ci = np.unravel_index(int(np.argmax(bad)), elev.shape)
+        value = float(elev[ri, ci])
+        r, c = int(ri) + offset[0], int(ci) + offset[1]
         raise InputError(
             "terrain.path",
             where,

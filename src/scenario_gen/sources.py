@@ -101,7 +101,8 @@ def _dem_site(
     if field_ll is not None:
         lat, lon = centroid_latlon(field_ll)
         how = "field centroid"
-        need = _lonlat_box(*field_ll.bounds, margin)
+        lon0, lat0, lon1, lat1 = field_ll.bounds
+        need = _lonlat_box(lon0, lat0, lon1, lat1, margin)
     elif spec.site == "latlon":
         if spec.lat is None or spec.lon is None:
             raise InputError(

@@ -53,7 +53,7 @@ def test_bad_inputs_write_nothing(scenario: Path, tmp_path: Path, capsys) -> Non
     plain.mkdir()
     cases = [
         (["export", str(tmp_path / "nope"), "--to", "gis"], "scenario: got"),
-        (["export", str(plain), "--to", "gis"], "no scenario.json"),
+        (["export", str(plain), "--to", "gis"], "scenario.json: got"),
         (["export", str(scenario), "--to", "unity"], "invalid choice: 'unity'"),
         (["export", str(scenario), "--to", "mesh", "--formats", "fbx"], "formats[0]: got 'fbx'"),
         (["export", str(scenario), "--to", "gis", "--formats", "obj"], "only with --to mesh"),
@@ -95,7 +95,7 @@ def test_broken_scenario_folders(scenario: Path, tmp_path: Path, capsys) -> None
     assert "crop.model" in err and "no longer exists" in err and not out.exists()
     (broken / "terrain.npz").unlink()
     err = _error(capsys, ["export", str(broken), "--to", "gis", "--out", str(out)])
-    assert "cannot be read as a scenario folder" in err and not out.exists()
+    assert "terrain.npz" in err and "is missing" in err and not out.exists()
     (broken / "scenario.json").write_text("{not json")
     assert "scenario" in _error(capsys, ["export", str(broken), "--to", "gis", "--out", str(out)])
     assert not out.exists()

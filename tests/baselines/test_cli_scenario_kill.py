@@ -98,8 +98,11 @@ def test_killed_run_leaves_nothing_partial(tmp_path: Path, moment: str, sig: int
 
 @pytest.mark.parametrize(
     "moment",
-    ["preview", pytest.param("temp-made", marks=pytest.mark.slow)]
-    + [pytest.param("bank-member", marks=pytest.mark.slow)],
+    [
+        "preview",
+        pytest.param("temp-made", marks=pytest.mark.slow),
+        pytest.param("bank-member", marks=pytest.mark.slow),
+    ],
 )
 def test_killed_force_replacement_keeps_the_old_folder_whole(tmp_path: Path, moment: str) -> None:
     out = tmp_path / "scn"

@@ -66,9 +66,10 @@ def test_absurd_sizes_are_refused_with_the_bound(overrides: dict, field: str, bo
 
 def test_candidate_grid_is_bounded_for_a_thin_diagonal_field(tmp_path: Path) -> None:
     # few plants, but a bounding box holding 7.6 M grid positions: refused before the meshgrid
+    from shapely.geometry import LineString
+
     from scenario_gen.layout import layout
     from scenario_gen.spec import LayoutSpec
-    from shapely.geometry import LineString
 
     field = LineString([(0, 0), (1000, 1000)]).buffer(1.0)
     rng = np.random.default_rng(0)

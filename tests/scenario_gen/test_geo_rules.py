@@ -81,7 +81,7 @@ def test_plane_under_a_geojson_field_lies_where_the_field_is(tmp_path: Path) -> 
     gj = _square(tmp_path, 42.03, -93.6)
     scn = generate(plane(field={"geojson": str(gj)}, layout={"row_angle_deg": 0.0}), seed=0)
     assert scn.geo.lat == pytest.approx(42.03, abs=1e-4) and scn.geo.lon == pytest.approx(-93.6)
-    lat, lon, alt = scn.geo.enu_to_geodetic(scn.plants.x, scn.plants.y, scn.plants.z)
+    _lat, _lon, alt = scn.geo.enu_to_geodetic(scn.plants.x, scn.plants.y, scn.plants.z)
     assert np.abs(alt).max() < 0.01  # on the plane at 0 m, not at 2,000 km
     with open(gj) as f:
         ring = np.array(json.load(f)["coordinates"][0])
@@ -105,6 +105,6 @@ def test_plane_datum_near_the_field_is_honoured(tmp_path: Path) -> None:
     assert (scn.geo.lat, scn.geo.lon, scn.geo.alt) == pytest.approx(tuple(datum))
     cy = scn.field.centroid.y
     assert cy == pytest.approx(-1000.0, abs=15.0)
-    lat, lon, alt = scn.geo.enu_to_geodetic(scn.plants.x, scn.plants.y, scn.plants.z)
+    _lat, _lon, alt = scn.geo.enu_to_geodetic(scn.plants.x, scn.plants.y, scn.plants.z)
     # the tangent plane at 1 km lies d²/2R = 8 cm above the ellipsoid
     assert np.abs(alt - 250.0 - 1000.0**2 / (2 * 6.371e6)).max() < 0.03

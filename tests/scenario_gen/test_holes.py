@@ -74,7 +74,7 @@ def test_furrow_waypoints_never_cross_a_hole(holed) -> None:
 def test_furrow_waypoints_have_crop_on_both_sides(holed) -> None:
     r, p = holed.route, holed.plants
     furrow = r.segment == "furrow"
-    t, s = holed.rows.to_rows(r.xy[furrow, 0], r.xy[furrow, 1])
+    t, _s = holed.rows.to_rows(r.xy[furrow, 0], r.xy[furrow, 1])
     tp, _ = holed.rows.to_rows(p.x, p.y)
     for k in np.unique(r.lane[furrow]):
         on = r.lane[furrow] == k
@@ -88,7 +88,7 @@ def test_lanes_end_at_the_hole_and_say_which_centreline(holed) -> None:
     lanes, which = holed.lanes, holed.lane_centreline
     assert len(lanes) == len(which)
     hole = _hole(holed)
-    for (a, b), k in zip(lanes, which, strict=True):
+    for (a, b), _k in zip(lanes, which, strict=True):
         line = LineString([a, b])
         assert holed.field.contains(line), (a, b)
         assert not line.intersects(hole)

@@ -15,8 +15,8 @@ from typing import Any
 
 from ..atomic import check_output_dir, output_dir
 from ..errors import InputError
-from ..io import load
 from ..model import Scenario
+from ..reading import load
 from .options import MESH_FORMATS, TARGETS, ExportOptions
 from .plantmodels import user_model_path
 

@@ -276,7 +276,10 @@ def test_user_model_keeps_its_texture(tmp_path, sdf_check) -> None:
     out = tmp_path / "gz"
     export(src, "gazebo", out, ExportOptions(plants="include"))
     (base,) = [m for m in assign(scn).models if m.species == "corn"]
-    assert base.name.startswith("agrinav_plant_corn") and base.source == str(model)
+    # the scenario folder carries its own byte-identical copy of the model (models/)
+    copy = Path(base.source)
+    assert base.name.startswith("agrinav_plant_corn") and copy.name == model.name
+    assert copy.read_bytes() == model.read_bytes()
     dae = out / "models" / base.name / "meshes" / "plant.dae"
     where = trimesh.resolvers.FilePathResolver(dae, allow_anywhere=True)
     mesh = trimesh.load(dae, force="mesh", resolver=where)
