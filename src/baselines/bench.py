@@ -9,6 +9,7 @@ from typing import Any
 
 from tqdm import tqdm
 
+from policies import check_policy_spec
 from scenario_gen.atomic import check_output_dir, output_dir
 from scenario_gen.errors import InputError
 
@@ -92,6 +93,7 @@ def run(
     """Episodes of one policy: metrics.json, a trajectory figure per episode, a video."""
     if episodes < 1:
         raise InputError("--episodes", episodes, "allowed: an integer >= 1")
+    check_policy_spec(policy)
     check_output_dir(out, force)
     # everything is checked before --out exists
     env = _make_env(env_id, scenario, render=video, max_steps=max_steps)
@@ -132,6 +134,8 @@ def bench(
         raise InputError("--policies", "", "allowed: a comma list such as dwb,rpp,ppo:shipped")
     cases = suite(suite_name)
     labels = policy_labels(policies)
+    for spec in policies:
+        check_policy_spec(spec)
     check_output_dir(out, force)
     for case in cases:  # every policy must fit every case before any episode runs
         env = _make_env(case)

@@ -47,21 +47,40 @@ def shipped_model(env_id: str) -> Path:
     return folder
 
 
-def make_policy(spec: str, env: Any, **params: Any) -> Policy:
-    """A controller for ``env``: ``spec`` is a policy name, ``ppo:PATH`` for a trained
-    checkpoint, or ``ppo:shipped`` for the checkpoint shipped for the env's id; ``dwb:nav2``,
-    ``dwb:furrow`` (= ``dwb``) or ``dwb:PATH.yaml`` pick the DWB configuration. The policy gets
-    the env's spaces and its public ``RobotInterface``, nothing else."""
+def check_policy_spec(spec: Any) -> tuple[str, str]:
+    """(name, argument) of a policy spec, checked without an env: the CLI calls this before it
+    builds anything, so a typo costs no simulator start-up and leaves nothing behind."""
     if not isinstance(spec, str):
         raise InputError("policy", spec, f"allowed: {', '.join(POLICIES)} or ppo:PATH")
     name, _, path = spec.partition(":")
     if name not in POLICIES:
         raise InputError("policy", spec, f"allowed: {', '.join(POLICIES)} (ppo:PATH, ppo:shipped)")
-    u = env.unwrapped
-    kwargs: dict[str, Any] = dict(params)
     if name == "ppo":
         if not path:
             raise InputError("policy", spec, "ppo needs a checkpoint: ppo:PATH or ppo:shipped")
+        if path != "shipped" and not Path(path).exists():
+            raise InputError(
+                "policy",
+                spec,
+                "allowed: a checkpoint folder holding checkpoint.json, or ppo:shipped",
+            )
+    elif name == "dwb":
+        if path and path not in ("nav2", "furrow") and not path.endswith((".yaml", ".yml")):
+            raise InputError("policy", spec, "allowed: dwb, dwb:nav2, dwb:furrow, dwb:PATH.yaml")
+    elif path:
+        raise InputError("policy", spec, f"{name} takes no ':' argument")
+    return name, path
+
+
+def make_policy(spec: str, env: Any, **params: Any) -> Policy:
+    """A controller for ``env``: ``spec`` is a policy name, ``ppo:PATH`` for a trained
+    checkpoint, or ``ppo:shipped`` for the checkpoint shipped for the env's id; ``dwb:nav2``,
+    ``dwb:furrow`` (= ``dwb``) or ``dwb:PATH.yaml`` pick the DWB configuration. The policy gets
+    the env's spaces and its public ``RobotInterface``, nothing else."""
+    name, path = check_policy_spec(spec)
+    u = env.unwrapped
+    kwargs: dict[str, Any] = dict(params)
+    if name == "ppo":
         if path == "shipped":
             if u.spec is None:
                 raise InputError("policy", spec, "ppo:shipped needs an env made with gym.make")
@@ -69,9 +88,5 @@ def make_policy(spec: str, env: Any, **params: Any) -> Policy:
         kwargs["path"] = path
     elif name == "dwb":
         # dwb = dwb:furrow (the furrow-tuned changes); dwb:nav2 = Nav2 Humble's defaults
-        if path and path not in ("nav2", "furrow") and not path.endswith((".yaml", ".yml")):
-            raise InputError("policy", spec, "allowed: dwb, dwb:nav2, dwb:furrow, dwb:PATH.yaml")
         kwargs.setdefault("params", path or "furrow")
-    elif path:
-        raise InputError("policy", spec, f"{name} takes no ':' argument")
     return POLICIES[name](u.observation_space, u.action_space, u.interface, **kwargs)

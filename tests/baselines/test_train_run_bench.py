@@ -327,3 +327,29 @@ def test_a_killed_run_leaves_nothing_stale(tmp_path: Path, sig: str) -> None:
         == 0
     )
     assert out.is_dir() and list(tmp_path.glob(".run.*")) == []
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["run", "--policy", "ppo:nope", "--out", "x"],
+        ["run", "--policy", "mpc", "--out", "x"],
+        ["bench", "--suite", "smoke", "--policies", "dwb,ppo:nope", "--out", "x"],
+    ],
+)
+def test_a_bad_policy_is_one_line_before_any_simulator_starts(
+    tmp_path: Path, args: list[str]
+) -> None:
+    # In a real process: pybullet prints a banner to stderr when it loads, so a policy typo
+    # checked after the env is built would not be one line.
+    args = [a if a != "x" else str(tmp_path / "x") for a in args]
+    r = subprocess.run(
+        [sys.executable, "-m", "baselines.cli", *args],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        cwd=tmp_path,
+    )
+    assert r.returncode == 2, r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1 and "policy: got" in r.stderr
+    assert list(tmp_path.iterdir()) == []
