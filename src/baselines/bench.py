@@ -20,17 +20,35 @@ from .suites import EVAL_SEED, Case, suite
 __all__ = ["METRICS", "bench", "command_line", "run"]
 
 
-def _record(ep: Episode, suite_name: str, scenario: str) -> dict[str, Any]:
+def _record(ep: Episode, suite_name: str, scenario: str, env: Any = None) -> dict[str, Any]:
     return {
         "policy": ep.policy,
         "suite": suite_name,
         "scenario": scenario,
         "seed": ep.seed,
         **{k: ep.metrics.get(k) for k in METRICS},
+        "poses": len(ep.poses),
         "steps": ep.steps,
         "termination": ep.termination,
         "seconds": round(ep.seconds, 3),
         **ep.conditions,
+        **({"geometry": geometry(env.unwrapped.scenario)} if env is not None else {}),
+    }
+
+
+def geometry(scn: Any) -> dict[str, Any]:
+    """What makes one field's route differ from another's: the held-out table's columns."""
+    s = scn.spec
+    return {
+        "scenario_seed": scn.seed,
+        "row_direction_deg": round(
+            s.layout.row_angle_deg if s.layout.row_angle_deg is not None else s.field.angle_deg, 1
+        ),
+        "row_length_m": round(s.field.length, 1),
+        "turn_offset_m": round(s.route.turn_offset, 2),
+        "max_slope_deg": round(s.terrain.max_slope_deg, 1),
+        "site": s.terrain.site,
+        "crop_stage": s.crop.stage,
     }
 
 
@@ -157,7 +175,7 @@ def bench(
                     pi = _policy(spec, env, trust_checkpoint)
                     for k in range(seeds):
                         ep = run_episode(env, pi, EVAL_SEED + k, name)
-                        records.append(_record(ep, suite_name, case.group))
+                        records.append(_record(ep, suite_name, case.group, env))
                         if k == 0:
                             trajectory_figure(
                                 ep,

@@ -49,7 +49,7 @@ def table(records: list[dict[str, Any]], suite_name: str, command: str) -> str:
     groups = list(dict.fromkeys(r["scenario"] for r in records))
     pols = list(dict.fromkeys(r["policy"] for r in records))
     seeds = len({r["seed"] for r in records})
-    head = ["scenario", "policy", *METRICS, "episodes"]
+    head = ["scenario", "policy", *METRICS, "poses", "episodes"]
     lines = [
         f"# Benchmark: `{suite_name}` suite",
         "",
@@ -65,8 +65,11 @@ def table(records: list[dict[str, Any]], suite_name: str, command: str) -> str:
             rows = [r for r in records if r["scenario"] == g and r["policy"] == p]
             if rows:
                 cells = [_mean_std([r[m] for r in rows]) for m in METRICS]
-                lines.append(f"| {g} | {p} | " + " | ".join(cells) + f" | {len(rows)} |")
+                counts = [int(r["poses"]) for r in rows if r.get("poses") is not None]
+                poses = f"{statistics.fmean(counts):.0f}" if counts else "—"
+                lines.append(f"| {g} | {p} | " + " | ".join(cells) + f" | {poses} | {len(rows)} |")
     lines += ["", *conditions(records, groups, pols)]
+    lines += held_out(records)
     lines += ["", *failures(records, groups, pols)]
     lines += [
         "",
@@ -84,6 +87,37 @@ def table(records: list[dict[str, Any]], suite_name: str, command: str) -> str:
 
 
 CONDITIONS = ("localisation", "camera", "speed_limit", "controller")
+GEOMETRY = (
+    "row_direction_deg",
+    "row_length_m",
+    "turn_offset_m",
+    "max_slope_deg",
+    "site",
+    "crop_stage",
+)
+
+
+def held_out(records: list[dict[str, Any]]) -> list[str]:
+    """The fields the episodes drove, one row per evaluation seed, when they differ."""
+    fields: dict[tuple[str, Any], dict[str, Any]] = {}
+    for r in records:
+        if "geometry" in r:
+            fields.setdefault((r["scenario"], r["seed"]), r["geometry"])
+    if len({tuple(g.get(k) for k in GEOMETRY) for g in fields.values()}) < 2:
+        return []
+    head = ["scenario", "reset seed", "scenario seed", *GEOMETRY]
+    lines = [
+        "",
+        "Fields driven (held out: drawn from the evaluation seeds, disjoint from every training "
+        "seed range; the same field for every policy at a seed):",
+        "",
+        "| " + " | ".join(head) + " |",
+        "|" + "---|" * len(head),
+    ]
+    for (group, seed), g in fields.items():
+        cells = [str(g.get(k, "—")) for k in GEOMETRY]
+        lines.append(f"| {group} | {seed} | {g.get('scenario_seed')} | " + " | ".join(cells) + " |")
+    return lines
 
 
 def conditions(records: list[dict[str, Any]], groups: list[str], pols: list[str]) -> list[str]:

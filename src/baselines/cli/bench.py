@@ -33,7 +33,11 @@ def add(sub: Any) -> None:
     ru.set_defaults(func=run)
 
     be = sub.add_parser("bench", help="benchmark policies on a suite: results.json, benchmark.md")
-    be.add_argument("--suite", required=True, help="smoke, paper, growth, density or terrain")
+    be.add_argument(
+        "--suite",
+        required=True,
+        help="smoke, paper, unseen, localisation, growth, density or terrain",
+    )
     be.add_argument(
         "--policies", required=True, help="comma list, e.g. dwb:nav2,dwb:furrow,rpp,depth,ppo:PATH"
     )

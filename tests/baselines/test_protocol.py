@@ -1,0 +1,60 @@
+"""The benchmark protocol: held-out seeds, and fields the PPO training split never drew."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import pytest
+
+import agrinav_gym  # noqa: F401
+from baselines.bench import geometry
+from baselines.hyperparams import load
+from baselines.suites import EVAL_SCENARIO_SEEDS, EVAL_SEED, SUITES, suite
+
+
+@pytest.mark.parametrize("name", SUITES)
+def test_every_suite_evaluates_on_held_out_seeds(name: str) -> None:
+    for case in suite(name):
+        kw = case.env_kwargs()
+        assert kw["scenario_seed"] >= EVAL_SEED
+        if case.randomize:
+            _, setup = load(case.env_id)
+            lo, hi = kw["scenario_seeds"]
+            tlo, thi = setup.train_seeds
+            assert (lo, hi) == tuple(setup.eval_seeds) == EVAL_SCENARIO_SEEDS
+            assert hi <= tlo or thi <= lo
+
+
+def test_unseen_suite_draws_the_training_ranges() -> None:
+    (case,) = suite("unseen")
+    _, setup = load(case.env_id)
+    train = setup.env_kwargs["randomize"]
+    assert case.randomize == {k: v for k, v in train.items() if "." in k}
+    geometry_keys = {"field.angle_deg", "field.length", "route.turn_offset"}
+    assert geometry_keys <= set(case.randomize)
+
+
+def _fields(kwargs: dict, seeds: range) -> list[tuple]:
+    env = gym.make("AgriNav/FieldRoute-v0", **kwargs)
+    try:
+        out = []
+        for s in seeds:
+            env.reset(seed=s)
+            g = geometry(env.unwrapped.scenario)
+            out.append((g["scenario_seed"], g["row_direction_deg"], g["row_length_m"]))
+        return out
+    finally:
+        env.close()
+
+
+def test_no_evaluation_field_is_a_training_field() -> None:
+    (case,) = suite("unseen")
+    _, setup = load(case.env_id)
+    kw = case.env_kwargs()
+    evaluated = _fields(kw, range(EVAL_SEED, EVAL_SEED + 3))
+    train_kw = {**kw, "scenario_seeds": list(setup.train_seeds)}
+    trained = _fields(train_kw, range(0, 4))  # the first episode of each of 4 training workers
+    assert len(set(evaluated)) == 3  # each seed its own field
+    lo, hi = setup.train_seeds
+    for seed, direction, length in evaluated:
+        assert not lo <= seed < hi
+        assert all(abs(direction - d) > 0.05 or abs(length - n) > 0.05 for _, d, n in trained)
