@@ -35,10 +35,12 @@ class EnvDef:
 
 # Step limits: a default-field lane (22 m) at the slowest shipped controller's 0.3 m/s is 73 s,
 # 1,470 steps at 20 Hz; the paper's zigzag (≈ 60 m with the U-turn) at 0.3 m/s is 4,000.
+#: v1: drivable default fields, tyre–soil physics, the EKF's pose in the route observation,
+#: canopy-driven GNSS fix modes, fitted plant proxies (docs/design.md "Version history").
 ENVS = (
-    EnvDef("FurrowFollow", 0, "agrinav_gym.envs.furrow_follow:FurrowFollowEnv", 1500),
-    EnvDef("FurrowFollowDepth", 0, "agrinav_gym.envs.furrow_follow:FurrowFollowDepthEnv", 1500),
-    EnvDef("FieldRoute", 0, "agrinav_gym.envs.field_route:FieldRouteEnv", 4000),
+    EnvDef("FurrowFollow", 1, "agrinav_gym.envs.furrow_follow:FurrowFollowEnv", 1500),
+    EnvDef("FurrowFollowDepth", 1, "agrinav_gym.envs.furrow_follow:FurrowFollowDepthEnv", 1500),
+    EnvDef("FieldRoute", 1, "agrinav_gym.envs.field_route:FieldRouteEnv", 4000),
 )
 ENV_IDS = tuple(d.id for d in ENVS)
 _BY_NAME = {d.name: d for d in ENVS}
@@ -79,13 +81,13 @@ def _user_id(name: Any, task: Any, kwargs: dict[str, Any]) -> tuple[str, EnvDef]
         raise InputError(
             "kwargs", sorted(kwargs), f"must be JSON-serialisable for EnvSpec.to_json ({exc})"
         ) from None
-    return f"{NAMESPACE}/{name}-v0", _BY_NAME[task]
+    return f"{NAMESPACE}/{name}-v{_BY_NAME[task].version}", _BY_NAME[task]
 
 
 def register_scenario(
     name: str, scenario: str | Path, task: str = "FurrowFollow", **kwargs: Any
 ) -> str:
-    """Register ``AgriNav/<name>-v0``: ``task`` on the scenario saved in ``scenario``."""
+    """Register ``AgriNav/<name>-v1``: ``task`` on the scenario saved in ``scenario``."""
     if isinstance(scenario, Scenario):
         raise InputError(
             "scenario",
@@ -103,7 +105,7 @@ def register_scenario(
 def register_scenario_bank(
     name: str, directory: str | Path, task: str = "FurrowFollow", **kwargs: Any
 ) -> str:
-    """Register ``AgriNav/<name>-v0`` sampling a scenario of the bank ``directory`` each reset."""
+    """Register ``AgriNav/<name>-v1`` sampling a scenario of the bank ``directory`` each reset."""
     from .scenarios import Bank
 
     Bank(directory)  # refuse an empty or missing bank now

@@ -54,14 +54,14 @@ def _unseen() -> list[Case]:
     """FieldRoute on geometries drawn like the PPO training split's, from the eval seeds."""
     from .hyperparams import load
 
-    _, setup = load("AgriNav/FieldRoute-v0")
+    _, setup = load("AgriNav/FieldRoute-v1")
     kw = setup.env_kwargs
     over = dict(kw.get("scenario_overrides", {}))
     rand = {k: v for k, v in kw.get("randomize", {}).items() if "." in k}
     return [
         Case(
             "unseen fields",
-            "AgriNav/FieldRoute-v0",
+            "AgriNav/FieldRoute-v1",
             str(kw.get("scenario", "paper-p1")),
             over,
             RTK_EKF,
@@ -81,7 +81,7 @@ def _localisation() -> list[Case]:
         ("canopy 2.5 m", 5, RTK_EKF),
     )
     return [
-        Case(g, "AgriNav/FieldRoute-v0", "paper-p1", {**PAPER_FIELD, "crop": {"stage": s}}, c)
+        Case(g, "AgriNav/FieldRoute-v1", "paper-p1", {**PAPER_FIELD, "crop": {"stage": s}}, c)
         for g, s, c in rows
     ]
 
@@ -97,7 +97,7 @@ def suite(name: str) -> list[Case]:
             "layout": {"headland": 1.5},
             "terrain": {"margin": 4.0},
         }
-        return [Case("tiny", "AgriNav/FurrowFollow-v0", "default", tiny, max_steps=800)]
+        return [Case("tiny", "AgriNav/FurrowFollow-v1", "default", tiny, max_steps=800)]
     if name == "paper":
         # The source paper's run: a zigzag over two lanes with a headland U-turn of the row
         # spacing's diameter, RTK GNSS through the EKF, depth camera, early and intermediate
@@ -106,7 +106,7 @@ def suite(name: str) -> list[Case]:
         return [
             Case(
                 f"corn-{label}",
-                "AgriNav/FieldRoute-v0",
+                "AgriNav/FieldRoute-v1",
                 "paper-p1",
                 {**PAPER_FIELD, "crop": {"stage": stage}},
                 RTK_EKF,
@@ -124,7 +124,7 @@ def suite(name: str) -> list[Case]:
         return [
             Case(
                 f"{h} m",
-                "AgriNav/FurrowFollow-v0",
+                "AgriNav/FurrowFollow-v1",
                 "default",
                 {"crop": {"stage": s}, "layout": {"row_spacing": 1.0}},
                 max_steps=1500,
@@ -135,7 +135,7 @@ def suite(name: str) -> list[Case]:
         return [
             Case(
                 p.upper(),
-                "AgriNav/FurrowFollow-v0",
+                "AgriNav/FurrowFollow-v1",
                 f"paper-{p}",
                 {"field": {"width": 20.0, "length": 30.0}},
             )
@@ -143,8 +143,8 @@ def suite(name: str) -> list[Case]:
         ]
     if name == "terrain":
         return [
-            Case("flat", "AgriNav/FurrowFollow-v0", "default"),
-            Case("hillside", "AgriNav/FurrowFollow-v0", "hillside"),
+            Case("flat", "AgriNav/FurrowFollow-v1", "default"),
+            Case("hillside", "AgriNav/FurrowFollow-v1", "hillside"),
         ]
     raise ScenarioError("--suite", name, f"allowed: one of {', '.join(SUITES)}")
 

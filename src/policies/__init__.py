@@ -29,9 +29,9 @@ POLICIES: dict[str, type[Policy]] = {
 
 #: Checkpoints shipped in the package, by the env id they were trained on.
 SHIPPED = {
-    "AgriNav/FurrowFollow-v0": "furrow_follow_ppo",
-    "AgriNav/FieldRoute-v0": "field_route_ppo",
-    "AgriNav/FurrowFollowDepth-v0": "furrow_follow_depth_ppo",
+    "AgriNav/FurrowFollow-v1": "furrow_follow_ppo",
+    "AgriNav/FieldRoute-v1": "field_route_ppo",
+    "AgriNav/FurrowFollowDepth-v1": "furrow_follow_depth_ppo",
 }
 
 

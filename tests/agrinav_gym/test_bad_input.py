@@ -10,7 +10,7 @@ from agrinav_gym import InputError
 
 from .helpers import TINY
 
-ID = "AgriNav/FurrowFollow-v0"
+ID = "AgriNav/FurrowFollow-v1"
 
 
 @pytest.mark.parametrize(

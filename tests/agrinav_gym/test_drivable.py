@@ -27,7 +27,7 @@ def test_default_scenario_starts_clear_of_the_crop(env_id: str) -> None:
         env.close()
 
 
-@pytest.mark.parametrize("env_id", ["AgriNav/FurrowFollow-v0", "AgriNav/FieldRoute-v0"])
+@pytest.mark.parametrize("env_id", ["AgriNav/FurrowFollow-v1", "AgriNav/FieldRoute-v1"])
 def test_pure_pursuit_drives_the_default_scenario_without_touching_a_crop(env_id: str) -> None:
     from policies import make_policy
 

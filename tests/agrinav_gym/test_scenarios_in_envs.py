@@ -39,12 +39,12 @@ def test_register_scenario_refuses_objects_bad_tasks_and_built_in_names(tmp_path
     with pytest.raises(ScenarioError) as info:
         agrinav_gym.register_scenario("Tiny", tmp_path / "s", task="route")
     assert info.value.field == "task" and "FieldRoute" in str(info.value)
-    before = gym.spec("AgriNav/FurrowFollow-v0")
+    before = gym.spec("AgriNav/FurrowFollow-v1")
     for name in ("FurrowFollow", "FieldRoute", "FurrowFollowDepth"):
         with pytest.raises(ScenarioError, match="built-in"):
             agrinav_gym.register_scenario(name, tmp_path / "s")
-    assert gym.spec("AgriNav/FurrowFollow-v0") is before
-    assert gym.spec("AgriNav/FurrowFollow-v0").kwargs == {}
+    assert gym.spec("AgriNav/FurrowFollow-v1") is before
+    assert gym.spec("AgriNav/FurrowFollow-v1").kwargs == {}
 
 
 @pytest.mark.parametrize("env_id", list(agrinav_gym.ENV_IDS))

@@ -34,7 +34,7 @@ def test_unseen_suite_draws_the_training_ranges() -> None:
 
 
 def _fields(kwargs: dict, seeds: range) -> list[tuple]:
-    env = gym.make("AgriNav/FieldRoute-v0", **kwargs)
+    env = gym.make("AgriNav/FieldRoute-v1", **kwargs)
     try:
         out = []
         for s in seeds:

@@ -65,7 +65,7 @@ def test_bad_dwb_configs_are_refused(tmp_path: Path) -> None:
     bad.write_text("FollowPath: {critics: [PathDist, Nope]}\n")
     with pytest.raises(InputError, match="Nope"):
         DWBParams.load(bad)
-    env = gym.make("AgriNav/FurrowFollow-v0", observations=ALL)
+    env = gym.make("AgriNav/FurrowFollow-v1", observations=ALL)
     try:
         with pytest.raises(InputError, match="dwb:nav2"):
             make_policy("dwb:fast", env)
@@ -81,7 +81,7 @@ def test_bad_dwb_configs_are_refused(tmp_path: Path) -> None:
 
 def _frame(overrides: dict | None, seed: int, steps: int) -> tuple:
     env = gym.make(
-        "AgriNav/FurrowFollow-v0",
+        "AgriNav/FurrowFollow-v1",
         observations=["odom", "route", "depth"],
         config={"camera": {"segmentation": True}},
         scenario_overrides=overrides,
@@ -135,7 +135,7 @@ def test_costmap_does_not_mark_the_furrow_ridges() -> None:
 
 
 def test_no_legal_trajectory_stops_and_clears_the_costmap() -> None:
-    env = gym.make("AgriNav/FurrowFollow-v0", observations=["gps", "imu", "odom", "route"])
+    env = gym.make("AgriNav/FurrowFollow-v1", observations=["gps", "imu", "odom", "route"])
     try:
         pi = make_policy("dwb:nav2", env)
         obs, _ = env.reset(seed=0)
@@ -168,7 +168,7 @@ SHORT_LANE = {
 )
 def test_dwb_drives_a_straight_lane_without_touching_crops(spec: str, crop: dict) -> None:
     env = gym.make(
-        "AgriNav/FurrowFollow-v0",
+        "AgriNav/FurrowFollow-v1",
         scenario_overrides={**SHORT_LANE, "crop": crop} if crop else SHORT_LANE,
         observations=ALL,
     )

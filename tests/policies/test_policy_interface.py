@@ -16,7 +16,7 @@ ALL = ["gps", "imu", "odom", "route", "depth"]
 
 @pytest.mark.parametrize("name", [n for n in POLICIES if n != "ppo"])
 def test_every_policy_acts_in_the_action_space(name: str) -> None:
-    env = gym.make("AgriNav/FurrowFollow-v0", scenario_overrides=TINY, observations=ALL)
+    env = gym.make("AgriNav/FurrowFollow-v1", scenario_overrides=TINY, observations=ALL)
     try:
         pi = make_policy(name, env)
         obs, _ = env.reset(seed=0)
@@ -30,7 +30,7 @@ def test_every_policy_acts_in_the_action_space(name: str) -> None:
 
 
 def test_missing_observation_and_unknown_policy_are_clear_errors() -> None:
-    env = gym.make("AgriNav/FurrowFollowDepth-v0", scenario_overrides=TINY)
+    env = gym.make("AgriNav/FurrowFollowDepth-v1", scenario_overrides=TINY)
     try:
         with pytest.raises(ValueError, match="needs observations"):
             make_policy("rpp", env)
@@ -55,10 +55,10 @@ FLAT_1M = {
     "env_id,rmse,max_cte",
     [
         # a straight lane: within the RTK GNSS + IMU heading noise of the estimated pose
-        ("AgriNav/FurrowFollow-v0", 0.03, 0.05),
+        ("AgriNav/FurrowFollow-v1", 0.03, 0.05),
         # the zigzag's headland U-turn (0.5 m radius) is the hard part for a path follower:
         # pure pursuit cuts it by up to half its 0.9 m maximum lookahead
-        ("AgriNav/FieldRoute-v0", 0.08, 0.45),
+        ("AgriNav/FieldRoute-v1", 0.08, 0.45),
     ],
 )
 def test_classical_controllers_follow_straight_and_curved_paths(
@@ -82,7 +82,7 @@ def test_classical_controllers_follow_straight_and_curved_paths(
 
 def test_depth_follower_finds_the_lane() -> None:
     env = gym.make(
-        "AgriNav/FurrowFollowDepth-v0", scenario_overrides={**FLAT_1M, "crop": {"stage": 2}}
+        "AgriNav/FurrowFollowDepth-v1", scenario_overrides={**FLAT_1M, "crop": {"stage": 2}}
     )
     try:
         pi = make_policy("depth", env)

@@ -14,18 +14,18 @@ class FieldRouteEnv(AgriNavEnv):
     U-turns, with lead-in and lead-out — as in the source paper's Summit-XL / Nav2 experiment.
 
     ## Action Space
-    As ``AgriNav/FurrowFollow-v0``: normalized (v, ω) in [-1, 1]², clipped; NaN raises.
+    As ``AgriNav/FurrowFollow-v1``: normalized (v, ω) in [-1, 1]², clipped; NaN raises.
 
     ## Observation Space
     Default ``gps`` (5,), ``imu`` (10,), ``odom`` (2,), ``route`` (30,), ``depth`` (1, 48, 64);
-    see ``AgriNav/FurrowFollow-v0``. Route points carry a furrow (1) / headland (0) flag.
+    see ``AgriNav/FurrowFollow-v1``. Route points carry a furrow (1) / headland (0) flag.
 
     ## Rewards
-    As ``AgriNav/FurrowFollow-v0``; the corridor is half the row spacing in furrows and
+    As ``AgriNav/FurrowFollow-v1``; the corridor is half the row spacing in furrows and
     ``config.task.headland_corridor`` (1 m) on the headland.
 
     ## Starting State
-    At rest 0.3 m along the lead-in, perturbed as in ``AgriNav/FurrowFollow-v0``.
+    At rest 0.3 m along the lead-in, perturbed as in ``AgriNav/FurrowFollow-v1``.
 
     ## Episode End
     Success at the route's end; failure on leaving the corridor, tipping over or hitting more
@@ -33,9 +33,14 @@ class FieldRouteEnv(AgriNavEnv):
     paper's running metrics (in-furrow and headland RMSE separately).
 
     ## Arguments
-    As ``AgriNav/FurrowFollow-v0``.
+    As ``AgriNav/FurrowFollow-v1``.
 
     ## Version History
+    * v1: default fields drivable (1 m rows, stalk-vs-footprint contact), tyre–soil drive
+      physics (yaw rate follows the command, slope traction limit), the route observation from a
+      robot_localization-style EKF with GNSS latency and canopy-driven fix modes (was an ideal
+      1 cm fix), depth from proxies fitted to the crop meshes (``camera.model="mesh"`` for the
+      meshes themselves). Same seed, same rollout within v1; v0 rollouts are not reproduced.
     * v0: initial version.
     """
 

@@ -64,6 +64,11 @@ class FurrowFollowEnv(AgriNavEnv):
     ``reset(options={"scenario": ..., "lane": i})`` switches scenario or lane.
 
     ## Version History
+    * v1: default fields drivable (1 m rows, stalk-vs-footprint contact), tyre–soil drive
+      physics (yaw rate follows the command, slope traction limit), the route observation from a
+      robot_localization-style EKF with GNSS latency and canopy-driven fix modes (was an ideal
+      1 cm fix), depth from proxies fitted to the crop meshes (``camera.model="mesh"`` for the
+      meshes themselves). Same seed, same rollout within v1; v0 rollouts are not reproduced.
     * v0: initial version.
     """
 
@@ -77,24 +82,29 @@ class FurrowFollowDepthEnv(FurrowFollowEnv):
     image; no GNSS and no route observation.
 
     ## Action Space
-    As ``AgriNav/FurrowFollow-v0``.
+    As ``AgriNav/FurrowFollow-v1``.
 
     ## Observation Space
     Default ``depth`` (1, 48, 64) metres, ``imu`` (10,), ``odom`` (2,).
 
     ## Rewards
-    As ``AgriNav/FurrowFollow-v0`` (computed from the true pose).
+    As ``AgriNav/FurrowFollow-v1`` (computed from the true pose).
 
     ## Starting State
-    As ``AgriNav/FurrowFollow-v0``.
+    As ``AgriNav/FurrowFollow-v1``.
 
     ## Episode End
-    As ``AgriNav/FurrowFollow-v0``.
+    As ``AgriNav/FurrowFollow-v1``.
 
     ## Arguments
-    As ``AgriNav/FurrowFollow-v0``.
+    As ``AgriNav/FurrowFollow-v1``.
 
     ## Version History
+    * v1: default fields drivable (1 m rows, stalk-vs-footprint contact), tyre–soil drive
+      physics (yaw rate follows the command, slope traction limit), the route observation from a
+      robot_localization-style EKF with GNSS latency and canopy-driven fix modes (was an ideal
+      1 cm fix), depth from proxies fitted to the crop meshes (``camera.model="mesh"`` for the
+      meshes themselves). Same seed, same rollout within v1; v0 rollouts are not reproduced.
     * v0: initial version.
     """
 

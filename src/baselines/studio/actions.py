@@ -23,7 +23,7 @@ from .session import Session, field_file
 
 #: Policies the page offers: names ``policies.make_policy`` takes.
 POLICIES = ("dwb", "rpp", "ppo:shipped")
-RUN_ENV = "AgriNav/FieldRoute-v0"
+RUN_ENV = "AgriNav/FieldRoute-v1"
 
 
 def generate_and_save(session: Session, out: str, overwrite: bool = False) -> dict[str, Any]:
