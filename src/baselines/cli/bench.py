@@ -36,7 +36,8 @@ def add(sub: Any) -> None:
     be.add_argument(
         "--suite",
         required=True,
-        help="smoke, paper, unseen, localisation, growth, density or terrain",
+        help="smoke, paper, unseen, localisation, growth (mesh camera), growth-proxy, density or "
+        "terrain",
     )
     be.add_argument(
         "--policies", required=True, help="comma list, e.g. dwb:nav2,dwb:furrow,rpp,depth,ppo:PATH"
