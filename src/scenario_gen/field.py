@@ -51,9 +51,7 @@ def read_geojson(path: str | Path) -> BaseGeometry:
         raise InputError(
             "field.geojson", str(path), f"is nested too deeply; allowed: {MAX_NESTING} levels"
         ) from None
-    geoms = [
-        g for g in _geometries(data, str(path)) if g.get("type") in ("Polygon", "MultiPolygon")
-    ]
+    geoms = [g for g in geometries(data, str(path)) if g.get("type") in ("Polygon", "MultiPolygon")]
     if not geoms:
         raise InputError("field.geojson", str(path), "holds no Polygon or MultiPolygon geometry")
     try:
@@ -72,7 +70,7 @@ def read_geojson(path: str | Path) -> BaseGeometry:
     return shapely.union_all(polys) if len(polys) > 1 else polys[0]
 
 
-def _geometries(data: Any, where: str) -> list[dict[str, Any]]:
+def geometries(data: Any, where: str) -> list[dict[str, Any]]:
     """Geometry objects of a GeoJSON document, walked without recursion, nesting bounded."""
     out: list[dict[str, Any]] = []
     stack: list[tuple[Any, int]] = [(data, 0)]

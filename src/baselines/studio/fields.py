@@ -18,6 +18,7 @@ from shapely.geometry.base import BaseGeometry
 from shapely.validation import explain_validity
 
 from scenario_gen.errors import InputError
+from scenario_gen.field import geometries
 
 DIGITS = 9  # 1e-9° ≈ 0.1 mm: far below any plant or row spacing
 MAX_VERTICES = 100_000
@@ -26,7 +27,7 @@ MAX_VERTICES = 100_000
 def polygons_of(data: Any) -> list[Polygon]:
     """Every polygon in a GeoJSON object (FeatureCollection, Feature, geometry), checked."""
     out: list[Polygon] = []
-    for g in _geometries(data):
+    for g in geometries(data, "field"):
         kind = g.get("type")
         if kind not in ("Polygon", "MultiPolygon"):
             continue
@@ -55,19 +56,6 @@ def polygons_of(data: Any) -> list[Polygon]:
                 "allowed: WGS84 longitude, latitude (RFC 7946); these look projected",
             )
     return out
-
-
-def _geometries(data: Any) -> list[dict[str, Any]]:
-    if not isinstance(data, dict):
-        return []
-    kind = data.get("type")
-    if kind == "FeatureCollection":
-        return [g for f in data.get("features") or [] for g in _geometries(f)]
-    if kind == "Feature":
-        return _geometries(data.get("geometry") or {})
-    if kind == "GeometryCollection":
-        return [g for sub in data.get("geometries") or [] for g in _geometries(sub)]
-    return [data]
 
 
 def combine(polys: list[Polygon]) -> BaseGeometry | None:
@@ -100,7 +88,9 @@ def from_text(text: str) -> BaseGeometry:
     polys = polygons_of(data)
     if not polys:
         raise InputError("field", text[:40], "holds no Polygon or MultiPolygon geometry")
-    geoms = [shape(g) for g in _geometries(data) if g.get("type") in ("Polygon", "MultiPolygon")]
+    geoms = [
+        shape(g) for g in geometries(data, "field") if g.get("type") in ("Polygon", "MultiPolygon")
+    ]
     return shapely.union_all(geoms) if len(geoms) > 1 else geoms[0]
 
 
