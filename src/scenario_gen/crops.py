@@ -11,6 +11,7 @@ model and the models' stalks use it.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any
@@ -105,6 +106,24 @@ CATALOG: dict[str, Species] = {
         Species("weed", ("small", "large"), (0.05, 0.3), (0.08, 0.35), (0.0, 0.0), (150, 160, 60)),
     )
 }
+
+
+def scaled_by_height(
+    species_of: NDArray[Any],
+    stage: NDArray[Any],
+    height: NDArray[Any],
+    quantity: Callable[[Species, NDArray[np.float64]], NDArray[np.float64]],
+) -> NDArray[np.float64]:
+    """``quantity(species, growth)`` for every plant, scaled as the plant's height is to its
+    species' height at that growth (a tall plant of a stage is proportionally wider)."""
+    out = np.zeros(len(height))
+    for name in np.unique(species_of):
+        sp = CATALOG[str(name)]
+        m = species_of == name
+        growth = np.asarray(sp.growth_of_stage(stage[m]), np.float64)
+        scale = height[m] / np.maximum(sp.height(growth), 1e-6)
+        out[m] = quantity(sp, growth) * scale
+    return out
 
 
 def species(name: str) -> Species:

@@ -28,7 +28,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from scenario_gen import CATALOG, Scenario
+from scenario_gen import Scenario
+from scenario_gen.crops import scaled_by_height
 
 from ..config import GnssFixConfig
 
@@ -47,13 +48,9 @@ class Canopy:
 
     def __init__(self, scn: Scenario) -> None:
         p = scn.plants
-        radius = np.zeros(len(p))
-        for name in np.unique(p.species):
-            sp = CATALOG[str(name)]
-            m = p.species == name
-            growth = sp.growth_of_stage(p.stage[m])
-            scale = p.height[m] / np.maximum(sp.height(growth), 1e-6)
-            radius[m] = 0.5 * sp.canopy_width(growth) * scale
+        radius = scaled_by_height(
+            p.species, p.stage, p.height, lambda sp, g: 0.5 * sp.canopy_width(g)
+        )
         self.xy = np.column_stack([p.x, p.y]).astype(np.float64)
         self.radius = radius
         self.bottom = np.asarray(p.z + LEAF_BASE * p.height, np.float64)

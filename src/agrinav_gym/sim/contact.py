@@ -16,7 +16,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from scenario_gen import CATALOG, Scenario
+from scenario_gen import Scenario
+from scenario_gen.crops import scaled_by_height
 
 from .world import RobotGeometry
 
@@ -37,13 +38,7 @@ class CropContact:
     @classmethod
     def from_scenario(cls, scn: Scenario, robot: RobotGeometry) -> CropContact:
         p = scn.plants
-        radius = np.zeros(len(p))
-        for name in np.unique(p.species):
-            sp = CATALOG[str(name)]
-            m = p.species == name
-            growth = sp.growth_of_stage(p.stage[m])
-            scale = p.height[m] / np.maximum(sp.height(growth), 1e-6)
-            radius[m] = sp.stem_radius(growth) * scale
+        radius = scaled_by_height(p.species, p.stage, p.height, lambda sp, g: sp.stem_radius(g))
         radius[p.is_weed] = 0.0
         index = np.flatnonzero(~p.is_weed)
         xy = np.column_stack([p.x, p.y])
