@@ -17,9 +17,9 @@ from typing import NoReturn
 
 from scenario_gen.errors import InputError
 
-from . import bench, demo, export, scenario, studio, train
+from . import bench, dataset, demo, export, scenario, studio, train
 
-COMMANDS = (scenario, export, train, bench, demo, studio)
+COMMANDS = (scenario, export, train, bench, demo, studio, dataset)
 
 
 class Parser(argparse.ArgumentParser):

@@ -1,0 +1,115 @@
+"""The dataset card: README.md (spec, seeds, counts, label statistics) and a mosaic of frames
+with their labels drawn (rows, stems, the lane offset)."""
+
+from __future__ import annotations
+
+import json
+import statistics
+import tarfile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .loader import PerceptionDataset
+from .run import MANIFEST
+
+
+def mosaic(ds: PerceptionDataset, path: Path, n: int = 6) -> None:
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    picks = np.linspace(0, len(ds) - 1, min(n, len(ds))).round().astype(int)
+    cols = 3
+    rows = -(-len(picks) // cols)
+    fig = Figure(figsize=(4.2 * cols, 2.6 * rows * 2), dpi=90)
+    FigureCanvasAgg(fig)
+    for k, i in enumerate(picks):
+        s = ds[int(i)]
+        lab = s["labels"]
+        ax = fig.add_subplot(rows * 2, cols, (k // cols) * 2 * cols + k % cols + 1)
+        ax.imshow(s["rgb"])
+        for row in lab["rows"]:
+            pts = np.array([p for p in row["points_2d_rgb"] if p is not None])
+            if len(pts):
+                ax.plot(pts[:, 0], pts[:, 1], "-", color="yellow", lw=1)
+        for p in lab["plants"]:
+            if p["base_2d_rgb"] is not None and p["visible_pixels"] > 0:
+                colour = "magenta" if p["weed"] else "cyan"
+                ax.plot(*p["base_2d_rgb"], "+", color=colour, ms=5)
+        lane = lab["lane"]
+        off = lane["lateral_offset"]
+        ax.set_title(
+            f"{lab['scenario']['species']} st.{lab['scenario']['stage']}  "
+            + (f"lateral {off:+.2f} m" if off is not None else "no lane"),
+            fontsize=8,
+        )
+        ax.axis("off")
+        ax2 = fig.add_subplot(rows * 2, cols, (k // cols) * 2 * cols + cols + k % cols + 1)
+        ax2.imshow(s["depth"], cmap="viridis", vmin=0, vmax=6)
+        ax2.contour(s["instance"] >= 0, levels=[0.5], colors="white", linewidths=0.4)
+        ax2.axis("off")
+    fig.suptitle(
+        "RGB with crop rows (yellow) and stems (cyan; weeds magenta) · depth with plant outlines"
+    )
+    fig.tight_layout()
+    fig.savefig(path)
+
+
+def write_card(out: Path) -> None:
+    """README.md and mosaic.png for the dataset in ``out``."""
+    man = json.loads((out / MANIFEST).read_text())
+    ds = PerceptionDataset(out)
+    lateral: list[float] = []
+    heading: list[float] = []
+    plants: list[int] = []
+    visible: list[int] = []
+    species: dict[str, int] = {}
+    for i in range(len(ds)):
+        lab = ds.index[i]
+        with tarfile.open(lab[0]) as tar:
+            f = tar.extractfile(lab[2]["json"])
+            assert f is not None
+            j = json.loads(f.read())
+        if j["lane"]["lateral_offset"] is not None:
+            lateral.append(j["lane"]["lateral_offset"])
+            heading.append(j["lane"]["heading_offset"])
+        plants.append(len(j["plants"]))
+        visible.append(sum(p["visible_pixels"] > 0 for p in j["plants"]))
+        sp = j["scenario"]["species"]
+        species[sp] = species.get(sp, 0) + 1
+    if len(ds):
+        mosaic(ds, out / "mosaic.png")
+
+    def stat(v: list[Any]) -> str:
+        return f"{statistics.fmean(v):.3f} ± {statistics.pstdev(v):.3f}" if v else "—"
+
+    spec = man["spec"]
+    lines = [
+        "# AgriNav perception dataset",
+        "",
+        f"Schema version {man['schema']} (docs/datasets.md), seed {man['seed']}, spec digest "
+        f"`{man['digest']}`: {len(ds)} frames in {man['shards']} shards of "
+        f"{man['frames_per_shard']}, {spec['width']}×{spec['height']} from `{spec['env']}` "
+        f"driven by `{spec['policy']}` with a {spec['steer_noise']} rad/s steering perturbation.",
+        "",
+        "![frames](mosaic.png)",
+        "",
+        "| label | value |",
+        "|---|---|",
+        f"| frames per species | {', '.join(f'{k}: {v}' for k, v in sorted(species.items()))} |",
+        f"| lateral offset to the lane centre, m | {stat(lateral)} |",
+        f"| heading offset to the rows, rad | {stat(heading)} |",
+        f"| plants labelled per frame | {stat(plants)} |",
+        f"| plants visible per frame | {stat(visible)} |",
+        "",
+        "Spec:",
+        "",
+        "```json",
+        json.dumps(spec, indent=1, default=list),
+        "```",
+        "",
+        "Load it: `from baselines.dataset import PerceptionDataset; ds = PerceptionDataset(DIR)`.",
+        "",
+    ]
+    (out / "README.md").write_text("\n".join(lines))

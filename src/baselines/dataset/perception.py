@@ -1,0 +1,233 @@
+"""``agrinav dataset perception``: labelled RGB-D frames from randomized fields, in tar shards.
+
+Shard ``i`` depends only on (spec, seed, i): its own ``SeedSequence([seed, i])`` draws the
+camera mount, the episodes' reset seeds and the steering perturbation, and the fields come from
+scenario seeds of a range no training or evaluation split uses. A shard is written to a hidden
+temporary file and renamed into place, so a killed run leaves whole shards only; a rerun skips
+the shards that exist (a finished dataset is a no-op) and the same spec and seed give
+byte-identical shards.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+import os
+import tarfile
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from scenario_gen.errors import InputError
+
+from .labels import camera_dict, lane_offset, plants, row_lines
+from .spec import SCHEMA_VERSION, PerceptionSpec
+
+#: Scenario seeds of dataset fields: disjoint from every train [0, 1e6) and eval [1e9, +1e6) range.
+DATASET_SCENARIO_SEEDS = (2_000_000_000, 3_000_000_000)
+OBSERVATIONS = ["gps", "imu", "odom", "route", "depth"]
+
+
+@dataclass
+class Frame:
+    key: str
+    rgb: NDArray[np.uint8]
+    depth: NDArray[np.float32]
+    semantic: NDArray[np.uint8]
+    instance: NDArray[np.int32]
+    labels: dict[str, Any]
+
+
+def make_env(spec: PerceptionSpec, camera_height: float, pitch_deg: float) -> Any:
+    """The env a shard's frames come from: mesh camera with RGB and segmentation at the spec's
+    size, rendering only on frame steps."""
+    import gymnasium as gym
+
+    import agrinav_gym  # noqa: F401
+
+    control_hz = 20
+    config = {
+        "camera": {
+            "model": "mesh",
+            "width": spec.width,
+            "height": spec.height,
+            "rgb": True,
+            "segmentation": True,
+            "rate_hz": control_hz // spec.frame_every if control_hz % spec.frame_every == 0 else 20,
+        },
+        "robot": {"camera_height": camera_height, "camera_pitch_deg": pitch_deg},
+    }
+    return gym.make(
+        spec.env,
+        scenario=spec.preset,
+        scenario_overrides={"field": {"length": spec.field_length}},
+        randomize=spec.randomize,
+        scenario_seeds=list(DATASET_SCENARIO_SEEDS),
+        config=config,
+        observations=OBSERVATIONS,
+    )
+
+
+def check(spec: PerceptionSpec) -> None:
+    """Build (and close) one env with the spec's randomization: every range is checked by the
+    env's own ``Randomization`` before a file is written."""
+    from policies import check_policy_spec
+
+    check_policy_spec(spec.policy)
+    if 20 % spec.frame_every:
+        raise InputError(
+            "spec.frame_every", spec.frame_every, "allowed: a divisor of the 20 Hz control rate"
+        )
+    env = make_env(spec, spec.camera_height[0], spec.camera_pitch_deg[0])
+    env.close()
+
+
+def shard_frames(spec: PerceptionSpec, seed: int, index: int) -> Iterator[Frame]:
+    """The frames of shard ``index``: a policy drives, perturbed, and every ``frame_every``-th
+    step is a frame."""
+    from agrinav_gym.sensors.d455 import color_model
+    from policies import make_policy
+
+    rng = np.random.default_rng(np.random.SeedSequence([int(seed), int(index)]))
+    cam_h = float(rng.uniform(*spec.camera_height))
+    pitch = float(rng.uniform(*spec.camera_pitch_deg))
+    env = make_env(spec, cam_h, pitch)
+    try:
+        u = env.unwrapped
+        depth_cam = u.interface.camera
+        cams = {"depth": depth_cam, "rgb": color_model(depth_cam)}
+        pi = make_policy(spec.policy, env)
+        dt, w_max = u.dt, u.interface.w_max
+        a = math.exp(-dt / spec.steer_noise_tau)
+        made, episode = 0, 0
+        while made < spec.frames_per_shard:
+            reset_seed = int(rng.integers(2**31))
+            obs, info = env.reset(seed=reset_seed)
+            pi.reset()
+            noise, step = 0.0, 0
+            while made < spec.frames_per_shard:
+                act = np.asarray(pi.act(obs), np.float32).copy()
+                noise = a * noise + spec.steer_noise * math.sqrt(1 - a * a) * rng.normal()
+                act[1] = np.clip(act[1] + noise / w_max, -1.0, 1.0)
+                obs, _, term, trunc, info = env.step(act)
+                step += 1
+                if step % spec.frame_every == 0:
+                    key = f"{index:06d}_{made:05d}"
+                    yield _frame(key, u, obs, info, cams, spec, episode, reset_seed, step)
+                    made += 1
+                if term or trunc:
+                    break
+            episode += 1
+    finally:
+        env.close()
+
+
+def _frame(
+    key: str,
+    u: Any,
+    obs: dict[str, Any],
+    info: dict[str, Any],
+    cams: dict[str, Any],
+    spec: PerceptionSpec,
+    episode: int,
+    reset_seed: int,
+    step: int,
+) -> Frame:
+    scn, st = u.scenario, u.state
+    pos, rot = np.asarray(st.pos, np.float64), np.asarray(st.rot, np.float64)
+    yaw = float(st.rpy[2])
+    lat, lon, alt = scn.geo.enu_to_geodetic(pos[0], pos[1], pos[2])
+    instance = np.asarray(info["instance"], np.int32)
+    labels = {
+        "schema": SCHEMA_VERSION,
+        "key": key,
+        "scenario": {
+            "seed": scn.seed,
+            "species": scn.spec.crop.species,
+            "stage": scn.spec.crop.stage,
+            "row_spacing": scn.spec.layout.row_spacing,
+            "row_angle_rad": round(float(scn.rows.angle), 6),
+            "site": scn.spec.terrain.site,
+        },
+        "episode": episode,
+        "reset_seed": reset_seed,
+        "step": step,
+        "pose": {
+            "enu": np.round(pos, 4).tolist(),
+            "rpy": np.round(np.asarray(st.rpy, np.float64), 5).tolist(),
+            "lat": round(float(np.asarray(lat)), 9),
+            "lon": round(float(np.asarray(lon)), 9),
+            "alt": round(float(np.asarray(alt)), 4),
+        },
+        "gnss": np.round(np.asarray(obs["gps"], np.float64), 5).tolist(),
+        "imu": np.round(np.asarray(obs["imu"], np.float64), 5).tolist(),
+        "odom": np.round(np.asarray(obs["odom"], np.float64), 5).tolist(),
+        "cameras": {name: camera_dict(c) for name, c in cams.items()},
+        "lane": lane_offset(scn, pos[:2], yaw),
+        "route_cte": round(float(info["cte"]), 4),  # the env's own cross-track error, m
+        "rows": row_lines(scn, pos, rot, cams, spec.label_range),
+        "plants": plants(scn, pos, rot, cams, instance, spec.label_range),
+    }
+    depth = np.asarray(obs["depth"], np.float32).reshape(spec.height, spec.width)
+    return Frame(
+        key,
+        np.asarray(info["rgb"], np.uint8),
+        depth,
+        np.asarray(info["segmentation"], np.uint8),
+        instance,
+        labels,
+    )
+
+
+# ------------------------------------------------------------------------------- storage
+def _png(img: NDArray[Any]) -> bytes:
+    import cv2
+
+    ok, buf = cv2.imencode(".png", img[..., ::-1] if img.ndim == 3 else img)
+    if not ok:  # pragma: no cover
+        raise OSError("PNG encoding failed")
+    return bytes(buf)
+
+
+def _npy(arr: NDArray[Any]) -> bytes:
+    b = io.BytesIO()
+    np.save(b, arr, allow_pickle=False)
+    return b.getvalue()
+
+
+def _add(tar: tarfile.TarFile, name: str, data: bytes) -> None:
+    ti = tarfile.TarInfo(name)
+    ti.size, ti.mtime, ti.mode, ti.uid, ti.gid = len(data), 0, 0o644, 0, 0
+    ti.uname = ti.gname = ""
+    tar.addfile(ti, io.BytesIO(data))
+
+
+def write_shard(frames: Iterator[Frame], path: Path) -> int:
+    """WebDataset layout: ``<key>.rgb.png``, ``.depth.npy`` (float32 m, 0 invalid),
+    ``.semantic.png``, ``.instance.npy`` (int32 plant id, -1 none), ``.json``; written to a
+    temporary file and renamed, so the shard exists whole or not at all."""
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    n = 0
+    try:
+        with tarfile.open(tmp, "w", format=tarfile.USTAR_FORMAT) as tar:
+            for f in frames:
+                _add(tar, f"{f.key}.rgb.png", _png(f.rgb))
+                _add(tar, f"{f.key}.depth.npy", _npy(f.depth))
+                _add(tar, f"{f.key}.semantic.png", _png(f.semantic))
+                _add(tar, f"{f.key}.instance.npy", _npy(f.instance))
+                text = json.dumps(f.labels, sort_keys=True, allow_nan=False, default=_nan)
+                _add(tar, f"{f.key}.json", text.encode())
+                n += 1
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+    return n
+
+
+def _nan(obj: Any) -> Any:  # pragma: no cover  (labels are plain)
+    raise TypeError(f"not JSON: {type(obj).__name__}")

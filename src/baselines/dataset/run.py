@@ -1,0 +1,117 @@
+"""Running a perception dataset: shards in parallel workers, resumable, with a progress bar."""
+
+from __future__ import annotations
+
+import json
+import multiprocessing as mp
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from tqdm import tqdm
+
+from scenario_gen.errors import InputError
+from scenario_gen.schema import to_mapping
+
+from .perception import check, shard_frames, write_shard
+from .spec import SCHEMA_VERSION, PerceptionSpec
+
+MANIFEST = "dataset.json"
+
+
+def shard_name(i: int) -> str:
+    return f"shard-{i:06d}.tar"
+
+
+def _manifest(spec: PerceptionSpec, seed: int, shards: int) -> dict[str, Any]:
+    return {
+        "format": "agrinav-perception",
+        "schema": SCHEMA_VERSION,
+        "digest": spec.digest(),
+        "seed": seed,
+        "shards": shards,
+        "frames_per_shard": spec.frames_per_shard,
+        "spec": to_mapping(spec),
+    }
+
+
+def prepare(spec: PerceptionSpec, out: Path, seed: int, frames: int) -> tuple[int, list[int]]:
+    """Check everything, claim ``out`` (new, or this spec's unfinished dataset) and return the
+    shard count and the shards still to write."""
+    if frames < 1:
+        raise InputError("--frames", frames, "allowed: an integer >= 1")
+    shards = -(-frames // spec.frames_per_shard)
+    if out.exists() and not out.is_dir():
+        raise InputError("--out", str(out), "exists and is not a directory")
+    man = out / MANIFEST
+    if out.is_dir() and any(out.iterdir()):
+        if not man.is_file():
+            raise InputError(
+                "--out",
+                str(out),
+                "holds files that are not a dataset; allowed: a new or empty folder",
+            )
+        try:
+            have = json.loads(man.read_text())
+        except (OSError, ValueError) as exc:
+            raise InputError("--out", str(out), f"has an unreadable {MANIFEST} ({exc})") from None
+        mine = _manifest(spec, seed, shards)
+        for k in ("format", "schema", "digest", "seed", "shards"):
+            if have.get(k) != mine[k]:
+                raise InputError(
+                    "--out",
+                    str(out),
+                    f"holds another dataset ({k} {have.get(k)!r}, this run {mine[k]!r}); "
+                    "allowed: the same spec, seed and --frames, or a new folder",
+                )
+    check(spec)
+    out.mkdir(parents=True, exist_ok=True)
+    if not man.is_file():
+        tmp = out / f".{MANIFEST}.tmp"
+        tmp.write_text(json.dumps(_manifest(spec, seed, shards), indent=1, default=list))
+        tmp.replace(man)
+    for stale in out.glob(".shard-*.tmp-*"):  # a killed run's partial shard
+        stale.unlink(missing_ok=True)
+    todo = [i for i in range(shards) if not (out / shard_name(i)).is_file()]
+    return shards, todo
+
+
+def _work(args: tuple[PerceptionSpec, int, int, str]) -> tuple[int, int, float]:
+    spec, seed, i, out = args
+    t0 = time.perf_counter()
+    n = write_shard(shard_frames(spec, seed, i), Path(out) / shard_name(i))
+    return i, n, time.perf_counter() - t0
+
+
+def generate(
+    spec: PerceptionSpec,
+    out: str | Path,
+    seed: int,
+    frames: int,
+    workers: int = 1,
+    card: Callable[[Path], None] | None = None,
+) -> int:
+    """Write the dataset's missing shards (``workers`` processes); returns the frames written
+    by this call. A finished dataset is a no-op."""
+    if workers < 1:
+        raise InputError("--workers", workers, "allowed: an integer >= 1")
+    out = Path(out)
+    _, todo = prepare(spec, out, seed, frames)
+    jobs = [(spec, seed, i, str(out)) for i in todo]
+    written = 0
+    with tqdm(total=len(todo) * spec.frames_per_shard, unit="frame", desc="dataset") as bar:
+        if workers == 1 or len(jobs) <= 1:
+            results = map(_work, jobs)
+            for _, n, _ in results:
+                written += n
+                bar.update(n)
+        else:
+            ctx = mp.get_context("spawn")  # pybullet and Embree state must not be forked
+            with ctx.Pool(min(workers, len(jobs))) as pool:
+                for _, n, _ in pool.imap_unordered(_work, jobs):
+                    written += n
+                    bar.update(n)
+    if card is not None:
+        card(out)
+    return written
