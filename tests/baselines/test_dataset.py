@@ -98,3 +98,24 @@ def test_bad_specs_exit_2_and_write_nothing(
     err = capsys.readouterr().err
     assert needle in err and len(err.strip().splitlines()) == 1
     assert not out.exists()
+
+
+def test_trajectories_are_a_minari_dataset_that_recovers_its_env(tmp_path: Path) -> None:
+    pytest.importorskip("jax", reason="Minari's recorder needs the dataset extra (jax)")
+    minari = pytest.importorskip("minari", reason="the dataset extra is not installed")
+    from baselines.dataset.trajectories import INFO_KEYS, _datasets_root, record
+
+    path = record("AgriNav/FurrowFollow-v1", "rpp", 2, tmp_path / "m", seed=3)
+    with _datasets_root(tmp_path / "m"):
+        data = minari.load_dataset("agrinav/furrow_follow-v0")
+        assert data.total_episodes == 2
+        ep = next(iter(data.iterate_episodes()))
+        assert set(ep.observations) == {"gps", "imu", "odom", "route"}
+        assert set(INFO_KEYS) <= set(ep.infos) and "rewards" in ep.infos
+        env = data.recover_environment()
+        try:
+            assert env.spec is not None and env.spec.id == "AgriNav/FurrowFollow-v1"
+            env.reset(seed=0)
+        finally:
+            env.close()
+    assert path.is_dir()

@@ -10,7 +10,7 @@ from .args import int_at_least, parse_set, seed_type
 
 def add(sub: Any) -> None:
     ds = sub.add_parser("dataset", help="generate a domain-randomized dataset")
-    kinds = ds.add_subparsers(dest="kind", required=True, metavar="{perception}")
+    kinds = ds.add_subparsers(dest="kind", required=True, metavar="{perception,trajectories}")
     pe = kinds.add_parser("perception", help="RGB-D frames with segmentation and labels")
     pe.add_argument("--spec", help="YAML file of spec fields (docs/datasets.md); default: defaults")
     pe.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="spec field")
@@ -19,6 +19,15 @@ def add(sub: Any) -> None:
     pe.add_argument("--workers", type=int_at_least(1), default=1)
     pe.add_argument("--seed", type=seed_type, default=0)
     pe.set_defaults(func=perception)
+    tr = kinds.add_parser("trajectories", help="policy rollouts as a Minari dataset")
+    tr.add_argument("--env", default="AgriNav/FurrowFollow-v1")
+    tr.add_argument("--policy", required=True, help="dwb, rpp, depth or ppo:PATH")
+    tr.add_argument("--episodes", type=int_at_least(1), default=10)
+    tr.add_argument("--seed", type=seed_type, default=0)
+    tr.add_argument("--dataset-id", default="agrinav/furrow_follow-v0")
+    tr.add_argument("--out", required=True)
+    tr.add_argument("--force", action="store_true", help="replace an existing --out folder")
+    tr.set_defaults(func=trajectories)
 
 
 def perception(args: argparse.Namespace) -> int:
@@ -29,4 +38,14 @@ def perception(args: argparse.Namespace) -> int:
     spec = load_spec(args.spec, parse_set(args.set))
     n = generate(spec, Path(args.out), args.seed, args.frames, args.workers, card=write_card)
     print(f"{n} frames written to {args.out} (README.md, mosaic.png)")
+    return 0
+
+
+def trajectories(args: argparse.Namespace) -> int:
+    from baselines.dataset.trajectories import record
+
+    path = record(
+        args.env, args.policy, args.episodes, args.out, args.seed, args.dataset_id, args.force
+    )
+    print(f"Minari dataset {args.dataset_id} written to {path}")
     return 0

@@ -1,0 +1,122 @@
+"""``agrinav dataset trajectories``: policy rollouts as a Minari dataset (offline RL, imitation).
+
+Minari is an optional extra (``pip install agrinav-gym[dataset]``: minari + h5py). Infos are
+reduced to a fixed schema (Minari needs the same keys at every step): the true cross-track
+error, crops hit, whether the episode succeeded, the GNSS fix position and every named reward
+part. The env spec travels with the dataset, so ``dataset.recover_environment()`` rebuilds it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import re
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from scenario_gen.atomic import check_output_dir, output_dir
+from scenario_gen.errors import InputError
+
+INFO_KEYS = ("cte", "crops_hit", "is_success", "lat", "lon")
+DATASET_ID = re.compile(r"^[a-z0-9_]+/[a-z0-9_]+-v\d+$")
+
+
+def _minari() -> Any:
+    try:
+        import jax  # noqa: F401  (Minari's DataCollector buffers episodes with it)
+        import minari
+    except ImportError:
+        raise InputError(
+            "dataset trajectories",
+            "minari",
+            "needs the dataset extra: pip install 'agrinav-gym[dataset]' (minari[create], h5py)",
+        ) from None
+    return minari
+
+
+def fixed_info(info: dict[str, Any], parts: tuple[str, ...]) -> dict[str, Any]:
+    """The info of a step with the same keys and types every step."""
+    out: dict[str, Any] = {k: np.float64(info.get(k, 0.0)) for k in ("cte", "lat", "lon")}
+    out["crops_hit"] = np.int64(info.get("crops_hit", 0))
+    out["is_success"] = np.bool_(info.get("is_success", False))
+    rewards = info.get("rewards", {})
+    out["rewards"] = {k: np.float64(rewards.get(k, 0.0)) for k in parts}
+    return out
+
+
+@contextlib.contextmanager
+def _datasets_root(root: Path) -> Iterator[None]:
+    # Minari reads its root from the environment when it writes; restored afterwards.
+    old = os.environ.get("MINARI_DATASETS_PATH")
+    os.environ["MINARI_DATASETS_PATH"] = str(root)
+    try:
+        yield
+    finally:
+        if old is None:
+            os.environ.pop("MINARI_DATASETS_PATH", None)
+        else:
+            os.environ["MINARI_DATASETS_PATH"] = old
+
+
+def record(
+    env_id: str,
+    policy: str,
+    episodes: int,
+    out: str | Path,
+    seed: int = 0,
+    dataset_id: str = "agrinav/furrow_follow-v0",
+    force: bool = False,
+) -> Path:
+    """Roll ``policy`` out for ``episodes`` episodes (reset seeds ``seed``, ``seed + 1``, ...)
+    and write the Minari dataset ``dataset_id`` under ``out``; returns its folder."""
+    import gymnasium as gym
+
+    import agrinav_gym
+    from agrinav_gym.rewards import REWARD_TERMS
+    from policies import check_policy_spec, make_policy
+
+    minari = _minari()
+    from minari.data_collector.callbacks import StepDataCallback
+
+    if episodes < 1:
+        raise InputError("--episodes", episodes, "allowed: an integer >= 1")
+    if not DATASET_ID.match(dataset_id):
+        raise InputError("--dataset-id", dataset_id, "allowed: namespace/name-vN, lower case")
+    check_policy_spec(policy)
+    check_output_dir(out, force)
+    if env_id not in gym.registry:
+        raise InputError("--env", env_id, f"allowed: {', '.join(agrinav_gym.ENV_IDS)}")
+    env = gym.make(env_id)
+    parts = tuple(sorted(REWARD_TERMS))
+
+    class FixedInfo(StepDataCallback):  # type: ignore[misc,unused-ignore]
+        def __call__(self, env: Any, obs: Any, info: Any, **kw: Any) -> Any:
+            data = super().__call__(env, obs, info, **kw)
+            data["info"] = fixed_info(info, parts)
+            return data
+
+    with output_dir(out, force) as tmp:
+        collector = minari.DataCollector(env, step_data_callback=FixedInfo, record_infos=True)
+        try:
+            pi = make_policy(policy, collector)
+            for k in range(episodes):
+                obs, _ = collector.reset(seed=seed + k)
+                pi.reset()
+                while True:
+                    obs, _, term, trunc, _ = collector.step(pi.act(obs))
+                    if term or trunc:
+                        break
+            with _datasets_root(tmp):
+                collector.create_dataset(
+                    dataset_id,
+                    eval_env=env.spec,
+                    algorithm_name=f"agrinav {policy}",
+                    description=f"{policy} on {env_id}, reset seeds {seed}..{seed + episodes - 1}",
+                    author="AgriNav Gym",
+                )
+        finally:
+            collector.close()
+    return Path(out) / dataset_id
