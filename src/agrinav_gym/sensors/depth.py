@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -30,6 +29,7 @@ from ..sim.mesh_scene import MeshScene
 from ..sim.plants import PlantField
 from ..sim.world import SOIL_RGB
 from .embree import Scene
+from .shading import Lighting
 
 FloatArray = NDArray[np.float64]
 OTHER, SOIL, CROP, WEED = 0, 1, 2, 3
@@ -49,7 +49,7 @@ class DepthFrame:
     rgb_instance: NDArray[np.int32] | None = None
 
 
-class DepthCamera:
+class DepthCamera(Lighting):
     """``model`` gives intrinsics and mount (the public ``RobotInterface.camera``); ``cfg`` the
     sensor's noise, range and outputs."""
 
@@ -66,17 +66,7 @@ class DepthCamera:
         self._scene: tuple[Terrain, MeshScene] | None = None
         self._cylinders: tuple[PlantField, int] | None = None
         self.f_native = 0.5 * cfg.native_width / math.tan(math.radians(cfg.hfov_deg) / 2)
-        self.soil_rgb = np.array(SOIL_RGB)
-        self.light = np.array([0.3, 0.2, 0.93]) / np.linalg.norm([0.3, 0.2, 0.93])
-
-    def set_lighting(self, soil_rgb: Any | None, azimuth_deg: float, elevation_deg: float) -> None:
-        """Soil colour (RGB in [0, 1]; None keeps the current one) and the sun direction."""
-        if soil_rgb is not None:
-            self.soil_rgb = np.clip(np.asarray(soil_rgb, float), 0, 1)
-        az, el = math.radians(float(azimuth_deg)), math.radians(float(elevation_deg))
-        self.light = np.array(
-            [math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)]
-        )
+        self._init_lighting(SOIL_RGB)
 
     def noise_sigma(self, z: FloatArray) -> FloatArray:
         return z * z * self.cfg.subpixel / (self.f_native * self.cfg.baseline)

@@ -16,7 +16,6 @@ mast nothing of the robot is in view).
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -32,6 +31,7 @@ from ..sim.world import SOIL_RGB
 from . import d455, shading
 from .depth import DepthFrame, corner_pixels
 from .embree import Caster, Scene, device
+from .shading import Lighting
 
 FloatArray = NDArray[np.float64]
 RGB_FAR = 2.0  # × max_range: how far the colour camera sees geometry before the haze
@@ -64,7 +64,7 @@ class PixelRays:
         return pos + rot @ self.mount, rotate(self.columns, rot)
 
 
-class MeshCamera:
+class MeshCamera(Lighting):
     """``model`` gives intrinsics and mount (``RobotInterface.camera``); ``cfg`` the sensor."""
 
     def __init__(self, cfg: CameraConfig, model: CameraModel, threads: int = 1) -> None:
@@ -76,19 +76,9 @@ class MeshCamera:
         self.right = np.asarray(d455.offset_model(model, cfg.baseline).position, float)
         self.fx = model.fx  # the focal length of the mode in use sets the noise
         self.threads = threads
-        self.soil_rgb = np.array(SOIL_RGB)
-        self.light = np.array([0.3, 0.2, 0.93]) / np.linalg.norm([0.3, 0.2, 0.93])
+        self._init_lighting(SOIL_RGB)
         self._robot: dict[str, tuple[FloatArray, NDArray[np.int32]] | None] = {}
         self._faces: tuple[MeshScene, FaceTable] | None = None
-
-    def set_lighting(self, soil_rgb: Any | None, azimuth_deg: float, elevation_deg: float) -> None:
-        """Soil colour (RGB in [0, 1]; None keeps the current one) and the sun direction."""
-        if soil_rgb is not None:
-            self.soil_rgb = np.clip(np.asarray(soil_rgb, float), 0, 1)
-        az, el = math.radians(float(azimuth_deg)), math.radians(float(elevation_deg))
-        self.light = np.array(
-            [math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)]
-        )
 
     def noise_sigma(self, z: FloatArray) -> FloatArray:
         return d455.noise_sigma(z, self.fx, self.cfg.subpixel, self.cfg.baseline)

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from functools import lru_cache
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -24,6 +25,30 @@ SKY_HORIZON = np.array([0.80, 0.86, 0.93])
 SKY_ZENITH = np.array([0.42, 0.62, 0.88])
 TEXEL = 0.01  # m
 TEX_SIZE = 512
+
+
+#: The sun before an episode sets its own (azimuth 33.7° from east, elevation 68.8°).
+DEFAULT_LIGHT = np.array([0.3, 0.2, 0.93]) / np.linalg.norm([0.3, 0.2, 0.93])
+
+
+class Lighting:
+    """The soil colour and the sun direction a camera shades with (both cameras share it)."""
+
+    soil_rgb: FloatArray
+    light: FloatArray
+
+    def _init_lighting(self, soil_rgb: Any) -> None:
+        self.soil_rgb = np.array(soil_rgb, np.float64)
+        self.light = DEFAULT_LIGHT.copy()
+
+    def set_lighting(self, soil_rgb: Any | None, azimuth_deg: float, elevation_deg: float) -> None:
+        """Soil colour (RGB in [0, 1]; None keeps the current one) and the sun direction."""
+        if soil_rgb is not None:
+            self.soil_rgb = np.clip(np.asarray(soil_rgb, float), 0, 1)
+        az, el = math.radians(float(azimuth_deg)), math.radians(float(elevation_deg))
+        self.light = np.array(
+            [math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)]
+        )
 
 
 @lru_cache(maxsize=4)
