@@ -19,6 +19,8 @@ from .suites import EVAL_SEED, Case, suite
 
 __all__ = ["METRICS", "bench", "command_line", "run"]
 
+CASE_SEEDS = 10_000  # reset seeds per case: case i evaluates EVAL_SEED + 10⁴·i + k
+
 
 def _record(ep: Episode, suite_name: str, scenario: str, env: Any = None) -> dict[str, Any]:
     return {
@@ -146,8 +148,8 @@ def bench(
     trust_checkpoint: bool = False,
 ) -> list[dict[str, Any]]:
     """Every policy on every case of a suite, the same held-out seeds for all."""
-    if seeds < 1:
-        raise InputError("--seeds", seeds, "allowed: an integer >= 1")
+    if not 1 <= seeds <= CASE_SEEDS:
+        raise InputError("--seeds", seeds, f"allowed: an integer in [1, {CASE_SEEDS}]")
     if not policies:
         raise InputError("--policies", "", "allowed: a comma list such as dwb,rpp,ppo:shipped")
     cases = suite(suite_name)
@@ -168,13 +170,15 @@ def bench(
         output_dir(out, force) as tmp,
         tqdm(total=total, desc=f"bench {suite_name}", unit="ep") as bar,
     ):
-        for case in cases:
+        for ci, case in enumerate(cases):
             env = _make_env(case)
             try:
                 for spec, name in zip(policies, labels, strict=True):
                     pi = _policy(spec, env, trust_checkpoint)
                     for k in range(seeds):
-                        ep = run_episode(env, pi, EVAL_SEED + k, name)
+                        # each case its own sensor-noise draws: groups that differ only in
+                        # what a policy cannot see are still independent samples
+                        ep = run_episode(env, pi, EVAL_SEED + CASE_SEEDS * ci + k, name)
                         records.append(_record(ep, suite_name, case.group, env))
                         if k == 0:
                             trajectory_figure(
