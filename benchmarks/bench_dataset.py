@@ -68,7 +68,9 @@ def main() -> None:
     rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     print(f"machine: {platform.machine()}, {os.cpu_count()} cores, {platform.python_version()}")
     print(f"mesh camera 848x480 RGB-D + segmentation: {1 / raw:.2f} frames/s ({raw * 1e3:.0f} ms)")
-    print(f"dataset, 1 worker, {a.frames}-frame shards: {one:.2f} frames/s = {one * raw:.0%} of raw")
+    print(
+        f"dataset, 1 worker, {a.frames}-frame shards: {one:.2f} frames/s = {one * raw:.0%} of raw"
+    )
     print(f"dataset, 2 workers: {two:.2f} frames/s = {two / one:.2f}x one worker")
     print(f"peak RSS of this process: {rss:.0f} MB")
 

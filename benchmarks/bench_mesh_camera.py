@@ -285,7 +285,8 @@ def main() -> None:
 
     print("\n3-5. fields of growing size (each in a fresh process)")
     small = child("paper-p1", {})
-    dense = child("paper-p1", {"layout": {"plant_spacing": 0.05}})
+    # jitter within a sixth of the spacing (generate.check_spec)
+    dense = child("paper-p1", {"layout": {"plant_spacing": 0.05, "jitter_longitudinal": 0.008}})
     big = child("default", {"field": {"width": 110.0, "length": 131.0}})
     for label, r in (("paper-p1", small), ("paper-p1 at 0.05 m", dense), ("100k field", big)):
         print(
