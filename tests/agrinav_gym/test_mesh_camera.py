@@ -179,3 +179,31 @@ def test_a_user_zip_model_appears_in_depth_and_rgb(tmp_path: Path) -> None:
     assert (rgb[:, 0] > 2 * rgb[:, 1]).mean() > 0.95  # red: the texture, lit
     soil = f.rgb[f.rgb_label == SOIL].astype(float)
     assert (soil[:, 0] > 2 * soil[:, 1]).mean() < 0.05
+
+
+def test_a_saved_user_model_is_found_after_the_folder_moves(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The sensors read the scenario's own copy: original gone, folder moved, cwd elsewhere."""
+    import shutil
+
+    from scenario_gen import load, save
+
+    src = tmp_path / "src"
+    src.mkdir()
+    mesh = trimesh.creation.box(extents=(0.3, 0.3, 1.0))
+    mesh.apply_translation([0, 0, 0.5])
+    archive = src / "plant.zip"
+    with zipfile.ZipFile(archive, "w") as z:
+        z.writestr("plant.obj", trimesh.exchange.obj.export_obj(mesh))
+    scn = generate(preset("default", **TINY, crop={"model": str(archive), "stage": 3}), 0)
+    out = save(scn, tmp_path / "a" / "scn")
+    shutil.rmtree(src)
+    moved = Path(shutil.move(str(out), str(tmp_path / "b")))
+    elsewhere = tmp_path / "c"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    back = load(Path("..") / moved.name)
+    scene = MeshScene.from_scenario(back)
+    user = [p for p in scene.plants.prototypes if p.name == "plant.zip"]
+    assert len(user) == 1 and float(np.ptp(user[0].vertices[:, 2])) > 0.1
