@@ -16,7 +16,7 @@ def test_register_scenario_from_a_directory(tmp_path: Path) -> None:
     sg.save(scn, tmp_path / "s")
     a = agrinav_gym.register_scenario("TinyDir", tmp_path / "s")
     b = agrinav_gym.register_scenario("TinyRoute", tmp_path / "s", task="FieldRoute")
-    assert (a, b) == ("AgriNav/TinyDir-v0", "AgriNav/TinyRoute-v0")
+    assert (a, b) == ("AgriNav/TinyDir-v1", "AgriNav/TinyRoute-v1")  # the task's version
     assert gym.spec(b).entry_point.endswith("FieldRouteEnv")
     for env_id in (a, b):
         gym.spec(env_id).to_json()  # serialisable: Minari and zoo tools rely on it
