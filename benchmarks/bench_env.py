@@ -28,21 +28,9 @@ import numpy as np
 import pybullet as p
 
 import agrinav_gym  # noqa: F401  (registers the envs)
+from common import drive
 
 STEPS = 1000
-
-
-def _drive(env: gym.Env, n: int) -> float:
-    """Seconds for n steps of a fixed gentle S-curve (resets on episode end, not timed)."""
-    total = 0.0
-    for i in range(n):
-        a = np.array([0.6, 0.15 * np.sin(i / 15.0)], np.float32)
-        t0 = time.perf_counter()
-        _, _, term, trunc, _ = env.step(a)
-        total += time.perf_counter() - t0
-        if term or trunc:
-            env.reset()
-    return total
 
 
 def steps_per_second(observations: tuple[str, ...], repeat: int) -> tuple[float, float]:
@@ -53,8 +41,8 @@ def steps_per_second(observations: tuple[str, ...], repeat: int) -> tuple[float,
         config={"task": {"max_crops_hit": 10**6, "corridor": 2.0}},
     )
     env.reset(seed=0)
-    _drive(env, 100)
-    rates = [STEPS / _drive(env, STEPS) for _ in range(repeat)]
+    drive(env, 100)
+    rates = [STEPS / drive(env, STEPS) for _ in range(repeat)]
     env.close()
     return statistics.median(rates), min(rates)
 
@@ -71,7 +59,7 @@ def step_cost_ratio(repeat: int) -> tuple[float, float, float]:
     env_t, raw_t = [], []
     for r in range(repeat):
         env.reset(seed=r)
-        env_t.append(_drive(env, 400) / 400)
+        env_t.append(drive(env, 400) / 400)
         env.reset(seed=r)  # the same moves again, physics only: drive + substeps
         t = 0.0
         for i in range(400):

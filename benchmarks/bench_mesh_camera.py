@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import platform
 import statistics
@@ -32,21 +31,10 @@ import numpy as np
 
 import agrinav_gym  # noqa: F401  (registers the envs)
 import scenario_gen as sg
+from common import drive, lane_centre_pose
 
 STATE = ("gps", "imu", "odom", "route")
 BLOCK = 150
-
-
-def _drive(env: gym.Env, n: int, start: int) -> float:
-    total = 0.0
-    for i in range(start, start + n):
-        a = np.array([0.6, 0.15 * np.sin(i / 15.0)], np.float32)
-        t0 = time.perf_counter()
-        _, _, term, trunc, _ = env.step(a)
-        total += time.perf_counter() - t0
-        if term or trunc:
-            env.reset()
-    return total / n
 
 
 def step_costs(blocks: int) -> dict[str, float]:
@@ -72,25 +60,14 @@ def step_costs(blocks: int) -> dict[str, float]:
     times: dict[str, list[float]] = {k: [] for k in envs}
     for env in envs.values():
         env.reset(seed=0)
-        _drive(env, 50, 0)  # warm: tiles, prototypes, caches
+        drive(env, 50)  # warm: tiles, prototypes, caches
     for b in range(blocks):
         for k, env in envs.items():
             env.reset(seed=b)
-            times[k].append(_drive(env, BLOCK, 0))
+            times[k].append(drive(env, BLOCK) / BLOCK)
     for env in envs.values():
         env.close()
     return {k: statistics.median(v) for k, v in times.items()}
-
-
-def _pose(scn: sg.Scenario) -> tuple[np.ndarray, np.ndarray]:
-    rows = scn.rows
-    mid = len(rows.offsets) // 2
-    lane = 0.5 * (rows.offsets[mid - 1] + rows.offsets[mid])
-    t = 0.5 * (rows.starts.min() + rows.ends.max())
-    x, y = rows.to_enu(np.array([t]), np.array([lane]))
-    c, s = math.cos(rows.angle), math.sin(rows.angle)
-    rot = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
-    return rot, np.array([x[0], y[0], float(scn.terrain.height_at(x[0], y[0])) + 0.11])
 
 
 def load_pybullet(scn: sg.Scenario, scene: Any) -> tuple[int, int]:
@@ -162,7 +139,7 @@ def dataset_frames(name: str, over: dict[str, Any], repeat: int, threads: int) -
     cfg = EnvConfig.from_dict({"camera": {"width": 848, "height": 480}})
     model = robot_interface(cfg, RobotGeometry.from_urdf()).camera
     cam = MeshCamera(cfg.camera, model, threads=threads)
-    rot, pos = _pose(scn)
+    rot, pos = lane_centre_pose(scn)
     o = pos + rot @ np.asarray(model.position)
     axis = rot @ model.rotation
     view = p.computeViewMatrix(

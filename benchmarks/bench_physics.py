@@ -38,6 +38,7 @@ import scenario_gen as sg
 from agrinav_gym.config import GnssFixConfig, RobotConfig, SoilConfig
 from agrinav_gym.sensors.fixmode import LEVELS, Canopy, FixModeChain, SkyModel
 from agrinav_gym.sim.world import World
+from common import drive
 from scenario_gen import Terrain
 
 IMG = Path(__file__).resolve().parents[1] / "docs" / "img"
@@ -215,18 +216,6 @@ def accelerometer() -> None:
         )
 
 
-def _drive_timed(env: gym.Env, n: int) -> float:
-    total = 0.0
-    for i in range(n):
-        a = np.array([0.6, 0.15 * np.sin(i / 15.0)], np.float32)
-        t0 = time.perf_counter()
-        _, _, term, trunc, _ = env.step(a)
-        total += time.perf_counter() - t0
-        if term or trunc:
-            env.reset()
-    return total / n
-
-
 def step_cost(repeat: int) -> None:
     print(f"\n5. env step cost, FurrowFollow on paper-p1 (median of {repeat}, interleaved)")
     setups = (
@@ -256,7 +245,7 @@ def step_cost(repeat: int) -> None:
         for i, env in enumerate(envs):
             u = env.unwrapped
             env.reset(seed=r)
-            env_t[i].append(_drive_timed(env, 300))
+            env_t[i].append(drive(env, 300) / 300)
             env.reset(seed=r)
             t = 0.0
             for k in range(300):

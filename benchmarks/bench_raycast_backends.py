@@ -19,7 +19,6 @@ the geometry each holds are printed. Run: ``python benchmarks/bench_raycast_back
 from __future__ import annotations
 
 import importlib.util
-import math
 import platform
 import statistics
 import time
@@ -33,6 +32,7 @@ from agrinav_gym.env import robot_interface
 from agrinav_gym.sensors.mesh_camera import MeshCamera
 from agrinav_gym.sim.mesh_scene import MeshScene
 from agrinav_gym.sim.world import RobotGeometry
+from common import lane_centre_pose
 
 SCENES = {
     "paper-p1": ("paper-p1", {}),
@@ -69,17 +69,6 @@ def flat_geometry(scene: MeshScene) -> tuple[np.ndarray, np.ndarray]:
     return np.vstack(verts).astype(np.float32), np.vstack(faces).astype(np.int32)
 
 
-def pose(scn: sg.Scenario) -> tuple[np.ndarray, np.ndarray]:
-    rows = scn.rows
-    mid = len(rows.offsets) // 2
-    lane = 0.5 * (rows.offsets[mid - 1] + rows.offsets[mid])
-    t = 0.5 * (rows.starts.min() + rows.ends.max())
-    x, y = rows.to_enu(np.array([t]), np.array([lane]))
-    c, s = math.cos(rows.angle), math.sin(rows.angle)
-    rot = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
-    return rot, np.array([x[0], y[0], float(scn.terrain.height_at(x[0], y[0])) + 0.11])
-
-
 def main() -> None:
     print(
         f"machine: {platform.processor() or platform.machine()}, Python {platform.python_version()}"
@@ -92,7 +81,7 @@ def main() -> None:
 
 
 def run_case(label: str, scn: sg.Scenario, w: int, h: int, have: dict[str, bool]) -> None:
-    rot, pos = pose(scn)
+    rot, pos = lane_centre_pose(scn)
     cfg = EnvConfig.from_dict({"camera": {"width": w, "height": h}})
     model = robot_interface(cfg, RobotGeometry.from_urdf()).camera
     cam = MeshCamera(cfg.camera, model)

@@ -1,0 +1,37 @@
+"""What several benchmark scripts share (scripts run from this folder, so they import it)."""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import Any
+
+import numpy as np
+
+import scenario_gen as sg
+
+
+def drive(env: Any, n: int, start: int = 0) -> float:
+    """Seconds spent in ``env.step`` over ``n`` steps of a fixed gentle S-curve (phase from
+    ``start``); an episode's end resets, untimed."""
+    total = 0.0
+    for i in range(start, start + n):
+        a = np.array([0.6, 0.15 * np.sin(i / 15.0)], np.float32)
+        t0 = time.perf_counter()
+        _, _, term, trunc, _ = env.step(a)
+        total += time.perf_counter() - t0
+        if term or trunc:
+            env.reset()
+    return total
+
+
+def lane_centre_pose(scn: sg.Scenario) -> tuple[np.ndarray, np.ndarray]:
+    """(rotation, base_link position) facing along the rows at the middle lane's centre."""
+    rows = scn.rows
+    mid = len(rows.offsets) // 2
+    lane = 0.5 * (rows.offsets[mid - 1] + rows.offsets[mid])
+    t = 0.5 * (rows.starts.min() + rows.ends.max())
+    x, y = rows.to_enu(np.array([t]), np.array([lane]))
+    c, s = math.cos(rows.angle), math.sin(rows.angle)
+    rot = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
+    return rot, np.array([x[0], y[0], float(scn.terrain.height_at(x[0], y[0])) + 0.11])
