@@ -119,3 +119,13 @@ def test_trajectories_are_a_minari_dataset_that_recovers_its_env(tmp_path: Path)
         finally:
             env.close()
     assert path.is_dir()
+
+
+@pytest.mark.slow
+def test_a_lane_offset_regressor_beats_the_mean_on_held_out_fields(tmp_path: Path) -> None:
+    from baselines.dataset.validate import validate
+
+    spec = load_spec(None, {"width": 64, "height": 48, "frames_per_shard": 48, "frame_every": 4})
+    generate(spec, tmp_path / "ds", seed=1, frames=8 * 48, workers=2)
+    v = validate(tmp_path / "ds")
+    assert v.test_frames >= 48 and v.model_mae < v.mean_mae, str(v)

@@ -1,0 +1,79 @@
+"""Is the data useful? A tiny lane-offset regressor trained on some fields, tested on others.
+
+Ridge regression from the depth image (block-averaged, invalid pixels as 0) to the robot's
+lateral offset from the lane centre: the simplest learner that could use the rows' geometry.
+Shards hold different fields, so holding out whole shards holds out fields. It must beat
+predicting the training mean on the held-out fields, or the labels and images do not agree.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from scenario_gen.errors import InputError
+
+from .loader import PerceptionDataset
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Validation:
+    train_frames: int
+    test_frames: int
+    model_mae: float  # m, held-out fields
+    mean_mae: float  # m, predicting the training mean
+
+    def __str__(self) -> str:
+        return (
+            f"lane offset on {self.test_frames} held-out frames (trained on "
+            f"{self.train_frames}): ridge on depth {self.model_mae * 100:.1f} cm MAE, "
+            f"training mean {self.mean_mae * 100:.1f} cm"
+        )
+
+
+def features(depth: NDArray[np.float32], block: int = 4) -> FloatArray:
+    """Block means of the depth image (metres, invalid pixels 0), flattened, plus a bias."""
+    h, w = depth.shape
+    d = np.asarray(depth[: h - h % block, : w - w % block], np.float64)
+    f = d.reshape(h // block, block, w // block, block).mean(axis=(1, 3)).ravel()
+    return np.concatenate([f, [1.0]])
+
+
+def validate(root: str | Path, held_out: float = 0.25, ridge: float = 1.0) -> Validation:
+    """Train on the first shards, test on the last ``held_out`` of them (other fields)."""
+    ds = PerceptionDataset(root)
+    shards = sorted({s for s, _, _ in ds.index})
+    if len(shards) < 2:
+        raise InputError("dataset", str(root), "allowed: at least 2 shards (train and test fields)")
+    n_test = max(1, round(held_out * len(shards)))
+    test_shards = set(shards[-n_test:])
+    xs: dict[bool, list[FloatArray]] = {True: [], False: []}
+    ys: dict[bool, list[float]] = {True: [], False: []}
+    for i, (shard, _, _) in enumerate(ds.index):
+        s = ds[i]
+        off = s["labels"]["lane"]["lateral_offset"]
+        if off is None:
+            continue
+        is_test = shard in test_shards
+        xs[is_test].append(features(s["depth"]))
+        ys[is_test].append(float(off))
+    if not ys[False] or not ys[True]:
+        raise InputError("dataset", str(root), "has no lane labels in the train or test fields")
+    x, y = np.array(xs[False]), np.array(ys[False])
+    mu, sd = x.mean(axis=0), x.std(axis=0) + 1e-6
+    sd[-1], mu[-1] = 1.0, 0.0  # keep the bias column
+    z = (x - mu) / sd
+    w = np.linalg.solve(z.T @ z + ridge * len(y) * np.eye(z.shape[1]), z.T @ (y - 0.0))
+    xt, yt = (np.array(xs[True]) - mu) / sd, np.array(ys[True])
+    pred = xt @ w
+    return Validation(
+        len(y),
+        len(yt),
+        float(np.mean(np.abs(pred - yt))),
+        float(np.mean(np.abs(y.mean() - yt))),
+    )
