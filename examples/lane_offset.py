@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 
 from baselines.dataset import generate, load_spec
-from baselines.dataset.validate import validate
+from baselines.dataset.validate import depth_follower_check, validate
 
 
 def main() -> None:
@@ -22,6 +22,7 @@ def main() -> None:
     spec = load_spec(None, {"width": 64, "height": 48, "frames_per_shard": 64, "frame_every": 4})
     generate(spec, a.out, seed=0, frames=a.frames, workers=a.workers)
     print(validate(a.out))
+    print(depth_follower_check(a.out))
 
 
 if __name__ == "__main__":

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -77,3 +78,76 @@ def validate(root: str | Path, held_out: float = 0.25, ridge: float = 1.0) -> Va
         float(np.mean(np.abs(pred - yt))),
         float(np.mean(np.abs(y.mean() - yt))),
     )
+
+
+@dataclass(frozen=True)
+class FollowerCheck:
+    frames: int
+    estimated: int  # frames where both rows gave the lane centre
+    mae: float  # m, |estimated offset − labelled offset|
+
+    def __str__(self) -> str:
+        return (
+            f"depth follower's lane offset: estimated on {self.estimated} of {self.frames} "
+            f"frames, {self.mae * 100:.1f} cm MAE against the labels"
+        )
+
+
+def _camera(c: dict[str, object]) -> object:
+    """The depth camera of a frame's labels as a ``CameraModel``."""
+    import math
+
+    from agrinav_gym.interface import CameraModel
+
+    t = np.asarray(c["T_base_optical"], np.float64)
+    body_from_optical = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
+    r = t[:3, :3] @ body_from_optical.T  # R_y(pitch)
+    pitch = math.atan2(r[0, 2], r[0, 0])
+    f = {k: float(c[k]) for k in ("fx", "fy", "cx", "cy", "min_range", "max_range")}  # type: ignore[arg-type]
+    return CameraModel(
+        int(c["width"]),  # type: ignore[call-overload]
+        int(c["height"]),  # type: ignore[call-overload]
+        f["fx"],
+        f["fy"],
+        f["cx"],
+        f["cy"],
+        (float(t[0, 3]), float(t[1, 3]), float(t[2, 3])),
+        pitch,
+        f["min_range"],
+        f["max_range"],
+    )
+
+
+def depth_follower_check(root: str | Path) -> FollowerCheck:
+    """The depth follower's lane estimate on every frame against the lane label: it reports the
+    lane centre's offset in the robot frame, the label the robot's offset from the centre
+    (left positive along the direction of travel), so a perfect estimate is minus the label."""
+    import dataclasses
+
+    import gymnasium as gym
+
+    import agrinav_gym  # noqa: F401
+    from policies.depth_follower import DepthFurrowFollower
+
+    env: Any = gym.make("AgriNav/FurrowFollowDepth-v1")
+    try:
+        base = env.unwrapped.interface
+        obs_space, act_space = env.observation_space, env.action_space
+    finally:
+        env.close()
+    ds = PerceptionDataset(root)
+    errs: list[float] = []
+    for i in range(len(ds)):
+        s = ds[i]
+        lab = s["labels"]
+        off = lab["lane"]["lateral_offset"]
+        if off is None:
+            continue
+        robot = dataclasses.replace(base, camera=_camera(lab["cameras"]["depth"]))
+        follower = DepthFurrowFollower(
+            obs_space, act_space, robot
+        )  # fresh: no half-width carried over
+        est = follower.lane(s["depth"])
+        if est is not None and est[0] is not None:
+            errs.append(abs(est[0] + off))
+    return FollowerCheck(len(ds), len(errs), float(np.mean(errs)) if errs else float("nan"))
