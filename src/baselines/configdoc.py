@@ -38,6 +38,7 @@ def reference() -> str:
     from agrinav_gym.config import EnvConfig
     from agrinav_gym.rewards import REWARD_TERMS, RewardTerm
     from baselines.hyperparams import EnvSetup, PPOHyperparams
+    from baselines.imitation import WarmStart
     from policies.dwb import DWBParams
     from scenario_gen.spec import ScenarioSpec
 
@@ -81,6 +82,12 @@ def reference() -> str:
         "Training env setup",
         "`src/baselines/hyperparams/envs.yml`: what zoo takes on its command line.",
         EnvSetup,
+    )
+    out += _table(
+        "PPO warm start",
+        "`warm_start:` of an env in `envs.yml`: behaviour cloning of a controller before PPO "
+        "(`agrinav train --no-warm-start` skips it).",
+        WarmStart,
     )
     return "\n".join(out)
 

@@ -27,6 +27,7 @@ import yaml
 
 from policies import checkpoint
 from scenario_gen.errors import InputError
+from scenario_gen.schema import to_mapping
 
 from . import hyperparams as hpmod
 from .evaluate import evaluate
@@ -49,6 +50,7 @@ class TrainRun:
     scenario: str | None = None
     checkpoint_every: int | None = None
     resume: Path | None = None
+    warm_start: bool = True  # the env's envs.yml warm_start, if it has one
 
 
 def _scenario_kwargs(env_kwargs: dict[str, Any], scenario: str | None) -> dict[str, Any]:
@@ -151,6 +153,24 @@ def train(run: TrainRun, argv: list[str] | None = None) -> Path:
         history.append(res)
         (out / "evaluations.json").write_text(json.dumps(history, indent=1))
         return res
+
+    ws = setup.warm(run.env_id) if run.warm_start else None
+    if ws is not None and run.resume is None:
+        from .imitation import clone, demonstrate
+
+        train_kwargs = {**kwargs, "scenario_seeds": list(setup.train_seeds)}
+        demo = demonstrate(run.env_id, train_kwargs, ws, hp.gamma, run.seed)
+        fit = clone(model, norm, demo, ws, run.seed)
+        report = {
+            **to_mapping(ws),
+            "steps": len(demo),
+            "episodes": demo.episodes,
+            "successes": demo.successes,
+            **fit,
+            "minutes": (time.perf_counter() - t_start) / 60,
+        }
+        (out / "warm_start.json").write_text(json.dumps(report, indent=1))
+        evaluation(model)  # the clone itself, at 0 PPO steps
 
     callback = _callback(hp.n_timesteps, run, evaluation, lambda m: saver.periodic(m, norm))
     try:
@@ -279,6 +299,10 @@ class _Saver:
             "train_seeds": list(self.setup.train_seeds),
             "eval_seeds": list(self.setup.eval_seeds),
             "resumed_from": str(self.run.resume) if self.run.resume else None,
+            # behaviour cloning before PPO (warm_start.json: its fit); a resumed run inherits it
+            "warm_start": (
+                self.setup.warm_start if self.run.warm_start and not self.run.resume else None
+            ),
             "minutes": history[-1]["minutes"] if history else None,
             "versions": {
                 n: metadata.version(n) for n in ("stable-baselines3", "torch", "agrinav-gym")

@@ -84,6 +84,16 @@ def place_plants(
     )
 
 
+#: The fields ``check_spec`` relates to one another (keep in step with it): a randomization is
+#: checked over the extremes of each group's fields together, every other field alone.
+COUPLED_FIELDS: tuple[frozenset[str], ...] = (
+    frozenset({"crop.species", "crop.stage"}),
+    frozenset({"terrain.datum", "terrain.source"}),
+    frozenset({"layout.jitter_lateral", "layout.row_spacing"}),
+    frozenset({"layout.jitter_longitudinal", "layout.plant_spacing"}),
+)
+
+
 def check_spec(spec: ScenarioSpec) -> None:
     """Cross-field checks that need no terrain or files (each field alone was checked when the
     spec was built): an env validates randomization ranges with this before any reset."""

@@ -143,3 +143,45 @@ def test_bad_env_arguments(kwargs: dict, field: str) -> None:
         warnings.filterwarnings("ignore", message=".*render_mode='ascii'")
         make(**kwargs)
     assert info.value.field == field
+
+
+@pytest.mark.parametrize(
+    ("ranges", "field"),
+    [
+        # stage 5 exists for corn but not for cabbage: only the pair is invalid
+        ({"crop.species": {"choices": ["corn", "cabbage"]}, "crop.stage": [1, 5]}, "crop."),
+        # 3 × 0.17 m of jitter passes half of 1.2 m rows, not half of 0.9 m ones
+        ({"layout.jitter_lateral": [0.0, 0.17], "layout.row_spacing": [0.9, 1.2]}, "layout."),
+    ],
+)
+def test_randomization_is_checked_where_two_ranges_meet(ranges: dict, field: str) -> None:
+    from agrinav_gym.scenarios import Randomization
+    from scenario_gen.errors import InputError
+
+    base = sg.ScenarioSpec().replace({"layout.row_spacing": 1.2, "crop.species": "corn"})
+    extra = {"layout.weed_density": [0.0, 2.0], "terrain.max_slope_deg": [1.0, 8.0]}
+    with pytest.raises(InputError) as exc:
+        Randomization({**ranges, **extra}, base)
+    assert exc.value.field.startswith(f"randomize.{field}")
+    # each range alone is fine
+    for key, value in ranges.items():
+        Randomization({key: value, **extra}, base)
+
+
+def test_coupled_fields_cover_every_cross_field_check() -> None:
+    # check_spec's verdicts depend only on the fields COUPLED_FIELDS groups: an invalid spec
+    # for each of its checks names a field of one group
+    from scenario_gen.errors import InputError
+    from scenario_gen.generate import COUPLED_FIELDS, check_spec
+
+    grouped = set().union(*COUPLED_FIELDS)
+    bad = [
+        {"crop.species": "cabbage", "crop.stage": 5},
+        {"terrain.source": "embedded", "terrain.datum": [47.0, 8.0, 400.0]},
+        {"layout.row_spacing": 0.6, "layout.jitter_lateral": 0.2},
+        {"layout.plant_spacing": 0.1, "layout.jitter_longitudinal": 0.05},
+    ]
+    for over in bad:
+        with pytest.raises(InputError) as exc:
+            check_spec(sg.ScenarioSpec().replace(over))
+        assert exc.value.field in grouped and set(over) <= grouped

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import logging
 import shutil
 from pathlib import Path
 
@@ -129,3 +130,108 @@ def test_a_lane_offset_regressor_beats_the_mean_on_held_out_fields(tmp_path: Pat
     generate(spec, tmp_path / "ds", seed=1, frames=8 * 48, workers=2)
     v = validate(tmp_path / "ds")
     assert v.test_frames >= 48 and v.model_mae < v.mean_mae, str(v)
+
+
+def _tmpfs_shell() -> list[str] | None:
+    """A shell in its own mount namespace that may mount a tmpfs (root, or unprivileged user
+    namespaces); None where the machine allows neither."""
+    import shutil
+    import subprocess
+
+    if shutil.which("unshare") is None:
+        return None
+    for cmd in (["unshare", "-m", "sh", "-c"], ["unshare", "-rm", "sh", "-c"]):
+        ok = subprocess.run([*cmd, "mount -t tmpfs -o size=4k none /mnt"], capture_output=True)
+        if ok.returncode == 0:
+            return cmd
+    return None
+
+
+@pytest.mark.parametrize(
+    ("size_kb", "kept"),
+    [(24, 0), (260, 1)],
+    ids=["first-shard", "after-one-shard"],
+)
+def test_a_full_disk_is_one_error_and_leaves_no_partial_file(
+    tmp_path: Path, size_kb: int, kept: int
+) -> None:
+    import os
+    import subprocess
+    import sys
+
+    shell = _tmpfs_shell()
+    if shell is None:
+        if os.environ.get("CI"):
+            pytest.fail("CI must be able to mount a small tmpfs (unshare -m / -rm)")
+        pytest.skip("cannot mount a tmpfs here (no root, no user namespaces)")
+    disk = tmp_path / "disk"
+    disk.mkdir()
+    # 48x32 frames: a 2-frame shard is 150-190 KB (labels, mostly); the manifest ≈ 1.4 KB
+    sets = " ".join(f"--set {k}={v}" for k, v in TINY.items())
+    script = (
+        f"mount -t tmpfs -o size={size_kb}k none {disk} && "
+        f"{sys.executable} -m baselines.cli dataset perception --out {disk}/ds --frames 40 "
+        f"{sets} 2>{tmp_path}/err; echo rc=$?; cd {disk} && find . -mindepth 1 | sort"
+    )
+    r = subprocess.run([*shell, script], capture_output=True, text=True, timeout=300)
+    lines = r.stdout.split()
+    assert "rc=1" in lines, r.stdout + (tmp_path / "err").read_text()
+    left = [x for x in lines if x.startswith("./")]
+    err = (tmp_path / "err").read_text()
+    assert "Traceback" not in err
+    last = err.strip().splitlines()[-1]
+    assert last.startswith("agrinav dataset: error: ") and "No space left" in last, last
+    # whole shards only: no hidden temporary shard or card file
+    assert not [x for x in left if Path(x).name.startswith(".")], left
+    shards = [x for x in left if x.endswith(".tar")]
+    assert len(shards) == kept, left
+    if kept:
+        assert f"{kept} of 20 shards are complete" in last and "./ds/dataset.json" in left
+    else:
+        assert left == [] and "nothing was kept" in last
+
+
+def test_ray_tasks_write_the_same_shards_as_local_workers(dataset: Path, tmp_path: Path) -> None:
+    ray = pytest.importorskip("ray", reason="the ray extra is not installed")
+    out = tmp_path / "ray"
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, logging_level=logging.ERROR)
+    try:  # generate uses the cluster this process is connected to
+        assert generate(load_spec(None, TINY), out, seed=7, frames=4, ray="auto") == 4
+        for i in range(2):
+            assert (out / shard_name(i)).read_bytes() == (dataset / shard_name(i)).read_bytes()
+        # resumable and a no-op when finished, as for local runs
+        (out / shard_name(1)).unlink()
+        assert generate(load_spec(None, TINY), out, seed=7, frames=4, ray="auto") == 2
+        assert generate(load_spec(None, TINY), out, seed=7, frames=4, ray="auto") == 0
+    finally:
+        ray.shutdown()
+
+
+@pytest.mark.parametrize(
+    ("args", "needle"),
+    [
+        (["--ray", "not an address"], "--ray: got 'not an address'"),
+        (["--ray", "local", "--workers", "2"], "--workers: got 2"),
+    ],
+)
+def test_bad_ray_arguments_exit_2_and_write_nothing(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], args: list[str], needle: str
+) -> None:
+    out = tmp_path / "out"
+    assert main(["dataset", "perception", "--out", str(out), "--frames", "2", *args]) == 2
+    err = capsys.readouterr().err
+    assert needle in err and len(err.strip().splitlines()) == 1
+    assert not out.exists()
+
+
+def test_driving_check_scores_a_policy_by_the_labels_of_its_frames(tmp_path: Path) -> None:
+    from baselines.dataset.validate import driving_check
+
+    r = driving_check("rpp", tmp_path / "d", frames=8, overrides={"frames_per_shard": 4})
+    lab = [s["labels"]["lane"] for s in PerceptionDataset(tmp_path / "d")]
+    off = np.abs([x["lateral_offset"] for x in lab])
+    assert r.frames == r.labelled == 8 and r.mae == pytest.approx(off.mean())
+    assert r.p95 <= off.max() + 1e-12 and r.rmse >= r.mae
+    # RPP on an RTK fix keeps to the lane: 0.62 m across the wheels clears rows 0.9 m apart
+    # (the narrowest the spec draws) only within ±0.14 m of the centre
+    assert r.mae < 0.14

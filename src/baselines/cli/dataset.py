@@ -18,6 +18,11 @@ def add(sub: Any) -> None:
     pe.add_argument("--frames", type=int_at_least(1), default=256)
     pe.add_argument("--workers", type=int_at_least(1), default=1)
     pe.add_argument("--seed", type=seed_type, default=0)
+    pe.add_argument(
+        "--ray",
+        metavar="ADDRESS",
+        help="make the shards as Ray tasks (the ray extra): local, auto or host:port",
+    )
     pe.set_defaults(func=perception)
     tr = kinds.add_parser("trajectories", help="policy rollouts as a Minari dataset")
     tr.add_argument("--env", default="AgriNav/FurrowFollow-v1")
@@ -36,7 +41,9 @@ def perception(args: argparse.Namespace) -> int:
     from baselines.dataset import generate, load_spec, write_card
 
     spec = load_spec(args.spec, parse_set(args.set))
-    n = generate(spec, Path(args.out), args.seed, args.frames, args.workers, card=write_card)
+    n = generate(
+        spec, Path(args.out), args.seed, args.frames, args.workers, card=write_card, ray=args.ray
+    )
     print(f"{n} frames written to {args.out} (README.md, mosaic.png)")
     return 0
 

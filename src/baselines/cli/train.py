@@ -42,6 +42,11 @@ def add(sub: Any) -> None:
     )
     tr.add_argument("--resume", help="continue from a checkpoint folder of an earlier run")
     tr.add_argument(
+        "--no-warm-start",
+        action="store_true",
+        help="skip the env's behaviour-cloning warm start (envs.yml warm_start)",
+    )
+    tr.add_argument(
         "--torch-threads",
         type=int_at_least(1, 256),
         default=1,
@@ -70,6 +75,7 @@ def run(args: argparse.Namespace) -> int:
             scenario=args.scenario,
             checkpoint_every=args.checkpoint_every,
             resume=Path(args.resume) if args.resume else None,
+            warm_start=not args.no_warm_start,
         ),
         argv=args.argv,
     )

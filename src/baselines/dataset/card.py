@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import json
 import statistics
-import tarfile
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -53,7 +53,7 @@ def mosaic(ds: PerceptionDataset, path: Path, n: int = 6) -> None:
         "RGB with crop rows (yellow) and stems (cyan; weeds magenta) · depth with plant outlines"
     )
     fig.tight_layout()
-    fig.savefig(path)
+    fig.savefig(path, format="png")
 
 
 def write_card(out: Path) -> None:
@@ -66,11 +66,7 @@ def write_card(out: Path) -> None:
     visible: list[int] = []
     species: dict[str, int] = {}
     for i in range(len(ds)):
-        lab = ds.index[i]
-        with tarfile.open(lab[0]) as tar:
-            f = tar.extractfile(lab[2]["json"])
-            assert f is not None
-            j = json.loads(f.read())
+        j = ds.labels(i)
         if j["lane"]["lateral_offset"] is not None:
             lateral.append(j["lane"]["lateral_offset"])
             heading.append(j["lane"]["heading_offset"])
@@ -79,7 +75,7 @@ def write_card(out: Path) -> None:
         sp = j["scenario"]["species"]
         species[sp] = species.get(sp, 0) + 1
     if len(ds):
-        mosaic(ds, out / "mosaic.png")
+        _atomic(out / "mosaic.png", lambda tmp: mosaic(ds, tmp))
 
     def stat(v: list[Any]) -> str:
         return f"{statistics.fmean(v):.3f} ± {statistics.pstdev(v):.3f}" if v else "—"
@@ -112,4 +108,16 @@ def write_card(out: Path) -> None:
         "Load it: `from baselines.dataset import PerceptionDataset; ds = PerceptionDataset(DIR)`.",
         "",
     ]
-    (out / "README.md").write_text("\n".join(lines))
+    text = "\n".join(lines)
+    _atomic(out / "README.md", lambda tmp: tmp.write_text(text))
+
+
+def _atomic(path: Path, write: Callable[[Path], Any]) -> None:
+    """``write`` to a hidden file beside ``path``, then rename: a full disk leaves no half file
+    (``run._clean_up`` removes the hidden one)."""
+    tmp = path.with_name(f".{path.name}.card-tmp")
+    try:
+        write(tmp)
+        tmp.replace(path)
+    finally:
+        tmp.unlink(missing_ok=True)

@@ -70,3 +70,12 @@ class PerceptionDataset(_Base):
                 value = _decode(m.name, f.read())
                 out["labels" if part == "json" else part.split(".")[0]] = value
         return out
+
+    def labels(self, i: int) -> dict[str, Any]:
+        """Frame ``i``'s labels alone, without decoding its images."""
+        shard, _, parts = self.index[i]
+        with tarfile.open(shard) as tar:
+            f = tar.extractfile(parts["json"])
+            assert f is not None
+            out: dict[str, Any] = json.loads(f.read())
+        return out

@@ -18,7 +18,7 @@ import tarfile
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 import numpy as np
 from numpy.typing import NDArray
@@ -207,26 +207,50 @@ def _add(tar: tarfile.TarFile, name: str, data: bytes) -> None:
     tar.addfile(ti, io.BytesIO(data))
 
 
-def write_shard(frames: Iterator[Frame], path: Path) -> int:
+def write_tar(frames: Iterator[Frame], fileobj: BinaryIO) -> int:
     """WebDataset layout: ``<key>.rgb.png``, ``.depth.npy`` (float32 m, 0 invalid),
-    ``.semantic.png``, ``.instance.npy`` (int32 plant id, -1 none), ``.json``; written to a
-    temporary file and renamed, so the shard exists whole or not at all."""
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    ``.semantic.png``, ``.instance.npy`` (int32 plant id, -1 none), ``.json``."""
     n = 0
+    with tarfile.open(fileobj=fileobj, mode="w", format=tarfile.USTAR_FORMAT) as tar:
+        for f in frames:
+            _add(tar, f"{f.key}.rgb.png", _png(f.rgb))
+            _add(tar, f"{f.key}.depth.npy", _npy(f.depth))
+            _add(tar, f"{f.key}.semantic.png", _png(f.semantic))
+            _add(tar, f"{f.key}.instance.npy", _npy(f.instance))
+            text = json.dumps(f.labels, sort_keys=True, allow_nan=False, default=_nan)
+            _add(tar, f"{f.key}.json", text.encode())
+            n += 1
+    return n
+
+
+def write_shard(frames: Iterator[Frame], path: Path) -> int:
+    """The frames as a tar shard at ``path``, written to a temporary file and renamed, so the
+    shard exists whole or not at all."""
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
     try:
-        with tarfile.open(tmp, "w", format=tarfile.USTAR_FORMAT) as tar:
-            for f in frames:
-                _add(tar, f"{f.key}.rgb.png", _png(f.rgb))
-                _add(tar, f"{f.key}.depth.npy", _npy(f.depth))
-                _add(tar, f"{f.key}.semantic.png", _png(f.semantic))
-                _add(tar, f"{f.key}.instance.npy", _npy(f.instance))
-                text = json.dumps(f.labels, sort_keys=True, allow_nan=False, default=_nan)
-                _add(tar, f"{f.key}.json", text.encode())
-                n += 1
+        with open(tmp, "wb") as fh:
+            n = write_tar(frames, fh)
         os.replace(tmp, path)
     finally:
         tmp.unlink(missing_ok=True)
     return n
+
+
+def shard_bytes(spec: PerceptionSpec, seed: int, index: int) -> tuple[int, int, bytes]:
+    """Shard ``index`` in memory: (index, frames, tar bytes) — what a Ray task returns."""
+    buf = io.BytesIO()
+    n = write_tar(shard_frames(spec, seed, index), buf)
+    return index, n, buf.getvalue()
+
+
+def save_shard(data: bytes, path: Path) -> None:
+    """Tar bytes made elsewhere, written and renamed like ``write_shard``."""
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    try:
+        tmp.write_bytes(data)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
 
 
 def _nan(obj: Any) -> Any:  # pragma: no cover  (labels are plain)

@@ -14,7 +14,7 @@ from tqdm import tqdm
 from scenario_gen.errors import InputError
 from scenario_gen.schema import to_mapping
 
-from .perception import check, shard_frames, write_shard
+from .perception import check, save_shard, shard_frames, write_shard
 from .spec import SCHEMA_VERSION, PerceptionSpec
 
 MANIFEST = "dataset.json"
@@ -91,27 +91,74 @@ def generate(
     frames: int,
     workers: int = 1,
     card: Callable[[Path], None] | None = None,
+    ray: str | None = None,
 ) -> int:
-    """Write the dataset's missing shards (``workers`` processes); returns the frames written
-    by this call. A finished dataset is a no-op."""
+    """Write the dataset's missing shards (``workers`` processes, or Ray tasks on the cluster
+    at ``ray``: ``local``, ``auto`` or an address); returns the frames written by this call.
+    A finished dataset is a no-op."""
     if workers < 1:
         raise InputError("--workers", workers, "allowed: an integer >= 1")
+    if ray is not None and workers != 1:
+        raise InputError(
+            "--workers", workers, "allowed: 1 with --ray (the cluster's CPUs set the parallelism)"
+        )
+    if ray is not None:
+        from .cluster import check_address
+
+        check_address(ray)
     out = Path(out)
-    _, todo = prepare(spec, out, seed, frames)
+    fresh = not out.exists()
+    shards, todo = prepare(spec, out, seed, frames)
     jobs = [(spec, seed, i, str(out)) for i in todo]
     written = 0
-    with tqdm(total=len(todo) * spec.frames_per_shard, unit="frame", desc="dataset") as bar:
-        if workers == 1 or len(jobs) <= 1:
-            results = map(_work, jobs)
-            for _, n, _ in results:
-                written += n
-                bar.update(n)
-        else:
-            ctx = mp.get_context("spawn")  # pybullet and Embree state must not be forked
-            with ctx.Pool(min(workers, len(jobs))) as pool:
-                for _, n, _ in pool.imap_unordered(_work, jobs):
+    try:
+        with tqdm(total=len(todo) * spec.frames_per_shard, unit="frame", desc="dataset") as bar:
+            if ray is not None and jobs:
+                from .cluster import ray_shards
+
+                for i, n, data in ray_shards(spec, seed, todo, ray):
+                    save_shard(data, out / shard_name(i))
                     written += n
                     bar.update(n)
-    if card is not None:
-        card(out)
+            elif workers == 1 or len(jobs) <= 1:
+                results = map(_work, jobs)
+                for _, n, _ in results:
+                    written += n
+                    bar.update(n)
+            else:
+                ctx = mp.get_context("spawn")  # pybullet and Embree state must not be forked
+                with ctx.Pool(min(workers, len(jobs))) as pool:
+                    for _, n, _ in pool.imap_unordered(_work, jobs):
+                        written += n
+                        bar.update(n)
+        if card is not None:
+            card(out)
+    except BaseException as exc:  # a full disk, a lost cluster, Ctrl-C: leave no partial file
+        done = _clean_up(out, fresh)
+        if not isinstance(exc, OSError):
+            raise
+        raise OSError(
+            exc.errno,
+            f"writing the dataset in {out} failed ({exc.strerror or exc}); "
+            + (
+                f"{done} of {shards} shards are complete and kept: free the space and rerun "
+                "the same command to resume"
+                if done
+                else "nothing was kept"
+            ),
+        ) from None
     return written
+
+
+def _clean_up(out: Path, fresh: bool) -> int:
+    """After a failed run: remove the partial shards and card files (the pool's workers were
+    stopped mid-write) and, when no shard is whole and the run made the folder, the folder.
+    Returns the number of whole shards kept."""
+    for part in (*out.glob(".shard-*.tmp-*"), *out.glob(".*.card-tmp")):
+        part.unlink(missing_ok=True)
+    done = len(list(out.glob("shard-*.tar")))
+    if done == 0 and fresh:
+        for f in out.iterdir():
+            f.unlink(missing_ok=True)
+        out.rmdir()
+    return done

@@ -151,3 +151,86 @@ def depth_follower_check(root: str | Path) -> FollowerCheck:
         if est is not None and est[0] is not None:
             errs.append(abs(est[0] + off))
     return FollowerCheck(len(ds), len(errs), float(np.mean(errs)) if errs else float("nan"))
+
+
+@dataclass(frozen=True)
+class DrivingCheck:
+    """How far off the lane centre a policy drives, measured by the labels of the frames taken
+    while it drove (no injected perturbation)."""
+
+    policy: str
+    frames: int
+    labelled: int  # frames with a lane label (a field with at least two rows)
+    episodes: int  # episodes the frames span (an episode ends early when the robot leaves)
+    mae: float  # m, mean |lateral offset|
+    rmse: float  # m
+    p95: float  # m, 95th percentile of |lateral offset|
+    heading_mae_deg: float
+
+    def __str__(self) -> str:
+        return (
+            f"{self.policy} driving: |lateral offset| {self.mae * 100:.1f} cm mean, "
+            f"{self.rmse * 100:.1f} cm RMS, {self.p95 * 100:.1f} cm p95, heading "
+            f"{self.heading_mae_deg:.1f}° mean on {self.labelled}/{self.frames} frames "
+            f"({self.episodes} episodes)"
+        )
+
+
+#: A set for judging controllers: the RL camera (64×48 at the default mount, where the
+#: learned depth policy was trained) and the policy driving on its own.
+DRIVING_SPEC = {
+    "width": 64,
+    "height": 48,
+    "frames_per_shard": 64,
+    "frame_every": 4,
+    "steer_noise": 0.0,
+    "camera_height": [0.55, 0.55],
+    "camera_pitch_deg": [25.0, 25.0],
+}
+
+
+def driving_check(
+    policy: str,
+    out: str | Path,
+    frames: int,
+    seed: int = 0,
+    workers: int = 1,
+    overrides: dict[str, Any] | None = None,
+) -> DrivingCheck:
+    """Generate frames with ``policy`` driving (``DRIVING_SPEC`` plus ``overrides``) into
+    ``out`` and score its lateral and heading offsets from the labels."""
+    from .run import generate
+    from .spec import load_spec
+
+    spec = load_spec(None, {**DRIVING_SPEC, "policy": policy, **(overrides or {})})
+    generate(spec, out, seed=seed, frames=frames, workers=workers)
+    return score_driving(policy, out)
+
+
+def score_driving(policy: str, root: str | Path) -> DrivingCheck:
+    """The labels' lateral and heading offsets over a generated set's frames."""
+    ds = PerceptionDataset(root)
+    off: list[float] = []
+    head: list[float] = []
+    episodes: set[tuple[Path, int]] = set()
+    for i, (shard, _, _) in enumerate(ds.index):
+        lab = ds.labels(i)
+        episodes.add((shard, int(lab["episode"])))
+        lane = lab["lane"]
+        if lane["lateral_offset"] is None:
+            continue
+        off.append(abs(float(lane["lateral_offset"])))
+        head.append(abs(float(lane["heading_offset"])))
+    if not off:
+        raise InputError("dataset", str(root), "has no frame inside a lane to score")
+    a = np.asarray(off)
+    return DrivingCheck(
+        policy,
+        len(ds),
+        len(a),
+        len(episodes),
+        float(a.mean()),
+        float(np.sqrt((a**2).mean())),
+        float(np.percentile(a, 95)),
+        float(np.degrees(np.mean(head))),
+    )

@@ -89,6 +89,21 @@ class EnvSetup:
     eval_seeds: tuple[int, int] = param(
         (1_000_000_000, 1_001_000_000), "[low, high) held-out scenario seeds", 0, 2**62
     )
+    warm_start: dict[str, Any] | None = param(
+        None, "behaviour-cloning warm start before PPO (baselines/imitation.py; null: none)"
+    )
+
+    def warm(self, env_id: str) -> Any:
+        """The checked ``WarmStart``, or None."""
+        if self.warm_start is None:
+            return None
+        from policies import check_policy_spec
+
+        from ..imitation import WarmStart
+
+        ws: WarmStart = from_mapping(WarmStart, self.warm_start, f"envs.yml {env_id}.warm_start.")
+        check_policy_spec(ws.policy)
+        return ws
 
 
 def _table(name: str) -> dict[str, Any]:
@@ -125,6 +140,7 @@ def load(env_id: str, overrides: dict[str, Any] | None = None) -> tuple[PPOHyper
             [elo, ehi],
             f"allowed: a [low, high) range disjoint from train_seeds {[lo, hi]}",
         )
+    setup.warm(env_id)
     return hp, setup
 
 
