@@ -48,12 +48,14 @@ def _mean_std(values: list[Any]) -> str:
 def table(records: list[dict[str, Any]], suite_name: str, command: str) -> str:
     groups = list(dict.fromkeys(r["scenario"] for r in records))
     pols = list(dict.fromkeys(r["policy"] for r in records))
-    seeds = len({r["seed"] for r in records})
+    # each case draws its own reset seeds: count episodes per (case, policy), not seeds overall
+    per = {(r["scenario"], r["policy"]) for r in records}
+    seeds = max(sum(1 for r in records if (r["scenario"], r["policy"]) == k) for k in per)
     head = ["scenario", "policy", *METRICS, "poses", "episodes"]
     lines = [
         f"# Benchmark: `{suite_name}` suite",
         "",
-        f"Mean ± std over {seeds} held-out seed(s) per policy and scenario group; "
+        f"Mean ± std over {seeds} held-out episode(s) per policy and scenario group; "
         "cross-track errors in metres (true pose to nearest reference segment), "
         "completion in % of the route, crops hit per episode.",
         "",

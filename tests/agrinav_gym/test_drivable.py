@@ -46,6 +46,31 @@ def test_pure_pursuit_drives_the_default_scenario_without_touching_a_crop(env_id
         env.close()
 
 
+def test_shipped_field_route_ppo_drives_a_held_out_field_through_its_u_turn() -> None:
+    """The shipped FieldRoute PPO (cloned from RPP, then PPO) on a field geometry from the
+    evaluation seeds, as `agrinav train` set up its training: it finishes the route, U-turn
+    included, without touching a crop (the from-scratch v1 model stalled in the headland)."""
+    from baselines import hyperparams
+    from policies import make_policy
+
+    _, setup = hyperparams.load("AgriNav/FieldRoute-v1")
+    env = gym.make(
+        "AgriNav/FieldRoute-v1", **setup.env_kwargs, scenario_seeds=list(setup.eval_seeds)
+    )
+    try:
+        pi = make_policy("ppo:shipped", env)
+        obs, _ = env.reset(seed=setup.eval_seeds[0] + 5)  # a field no part of training drove
+        pi.reset()
+        while True:
+            obs, _, term, trunc, info = env.step(pi.act(obs))
+            if term or trunc:
+                break
+        assert info.get("termination") == "success", info.get("termination")
+        assert info["metrics"]["crops_hit"] == 0
+    finally:
+        env.close()
+
+
 def _contact_with_one_stalk(x: float, y: float, species: str = "corn", stage: int = 3):
     scn = sg.generate(
         sg.preset(

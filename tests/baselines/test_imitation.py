@@ -54,7 +54,7 @@ def test_the_clone_fits_the_demonstrated_actions_and_returns() -> None:
 def test_a_bad_warm_start_section_is_refused() -> None:
     import dataclasses
 
-    hp, setup = hpmod.load("AgriNav/FieldRoute-v1")
+    _, setup = hpmod.load("AgriNav/FieldRoute-v1")
     assert setup.warm("AgriNav/FieldRoute-v1").policy == "rpp"
     bad = dataclasses.replace(setup, warm_start={"policy": "rpp", "episdoes": 3})
     with pytest.raises(InputError, match="episdoes"):
