@@ -89,6 +89,8 @@ def test_a_folder_of_another_dataset_is_refused(dataset: Path, tmp_path: Path) -
         (["--set", "frame_every=7"], "spec.frame_every"),
         (["--set", "policy=mpc"], "policy: got 'mpc'"),
         (["--set", "randomize={crop.stage: [1, 60]}"], "crop.stage"),
+        (["--ray", "not an address"], "--ray: got 'not an address'"),
+        (["--ray", "local", "--workers", "2"], "--workers: got 2"),
     ],
 )
 def test_bad_specs_exit_2_and_write_nothing(
@@ -205,23 +207,6 @@ def test_ray_tasks_write_the_same_shards_as_local_workers(dataset: Path, tmp_pat
         assert generate(load_spec(None, TINY), out, seed=7, frames=4, ray="auto") == 0
     finally:
         ray.shutdown()
-
-
-@pytest.mark.parametrize(
-    ("args", "needle"),
-    [
-        (["--ray", "not an address"], "--ray: got 'not an address'"),
-        (["--ray", "local", "--workers", "2"], "--workers: got 2"),
-    ],
-)
-def test_bad_ray_arguments_exit_2_and_write_nothing(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str], args: list[str], needle: str
-) -> None:
-    out = tmp_path / "out"
-    assert main(["dataset", "perception", "--out", str(out), "--frames", "2", *args]) == 2
-    err = capsys.readouterr().err
-    assert needle in err and len(err.strip().splitlines()) == 1
-    assert not out.exists()
 
 
 def test_driving_check_scores_a_policy_by_the_labels_of_its_frames(tmp_path: Path) -> None:
