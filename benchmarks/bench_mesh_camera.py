@@ -31,7 +31,7 @@ import numpy as np
 
 import agrinav_gym  # noqa: F401  (registers the envs)
 import scenario_gen as sg
-from common import drive, lane_centre_pose
+from common import drive, lane_centre_pose, pybullet_camera
 
 STATE = ("gps", "imu", "odom", "route")
 BLOCK = 150
@@ -140,14 +140,7 @@ def dataset_frames(name: str, over: dict[str, Any], repeat: int, threads: int) -
     model = robot_interface(cfg, RobotGeometry.from_urdf()).camera
     cam = MeshCamera(cfg.camera, model, threads=threads)
     rot, pos = lane_centre_pose(scn)
-    o = pos + rot @ np.asarray(model.position)
-    axis = rot @ model.rotation
-    view = p.computeViewMatrix(
-        o.tolist(), (o + axis[:, 0]).tolist(), axis[:, 2].tolist(), physicsClientId=cid
-    )
-    proj = p.computeProjectionMatrixFOV(
-        cfg.camera.vfov_deg, 848 / 480, 0.1, 2 * cfg.camera.max_range, physicsClientId=cid
-    )
+    view, proj = pybullet_camera(cid, model, rot, pos, cfg.camera.vfov_deg, cfg.camera.max_range)
     rng = np.random.default_rng(0)
     cam.render(rot, pos, scene, rng, rgb=True, labels=True)  # first frame: tiles, prototypes
     ours, tiny = [], []

@@ -35,3 +35,20 @@ def lane_centre_pose(scn: sg.Scenario) -> tuple[np.ndarray, np.ndarray]:
     c, s = math.cos(rows.angle), math.sin(rows.angle)
     rot = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
     return rot, np.array([x[0], y[0], float(scn.terrain.height_at(x[0], y[0])) + 0.11])
+
+
+def pybullet_camera(
+    cid: int, model: Any, rot: np.ndarray, pos: np.ndarray, vfov_deg: float, max_range: float
+) -> tuple[Any, Any]:
+    """pybullet view and projection matrices of camera ``model`` on a base at ``pos``/``rot``
+    (the same pose and vertical FOV as the mesh camera; far plane at twice its range)."""
+    import pybullet as p
+
+    o = pos + rot @ np.asarray(model.position)
+    axis = rot @ model.rotation
+    view = p.computeViewMatrix(
+        o.tolist(), (o + axis[:, 0]).tolist(), axis[:, 2].tolist(), physicsClientId=cid
+    )
+    aspect = model.width / model.height
+    proj = p.computeProjectionMatrixFOV(vfov_deg, aspect, 0.1, 2 * max_range, physicsClientId=cid)
+    return view, proj

@@ -30,7 +30,7 @@ from agrinav_gym.env import robot_interface
 from agrinav_gym.sim.mesh_scene import MeshScene
 from agrinav_gym.sim.world import RobotGeometry
 from bench_mesh_camera import load_pybullet
-from common import lane_centre_pose
+from common import lane_centre_pose, pybullet_camera
 
 W, H = 848, 480
 VERTEX = """
@@ -70,14 +70,9 @@ def main() -> None:
     cfg = EnvConfig.from_dict({"camera": {"width": W, "height": H}})
     model = robot_interface(cfg, RobotGeometry.from_urdf()).camera
     rot, pos = lane_centre_pose(scn)
+    view, proj = pybullet_camera(cid, model, rot, pos, cfg.camera.vfov_deg, cfg.camera.max_range)
     o = pos + rot @ np.asarray(model.position)
     axis = rot @ model.rotation
-    view = p.computeViewMatrix(
-        o.tolist(), (o + axis[:, 0]).tolist(), axis[:, 2].tolist(), physicsClientId=cid
-    )
-    proj = p.computeProjectionMatrixFOV(
-        cfg.camera.vfov_deg, W / H, 0.1, 2 * cfg.camera.max_range, physicsClientId=cid
-    )
     ctx = moderngl.create_standalone_context(backend="egl")
     gl_name = ctx.info["GL_RENDERER"]
     print(f"machine: {platform.machine()}, {platform.python_version()}; GL: {gl_name}")
