@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 import shlex
 import statistics
+from collections import Counter
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -49,13 +50,12 @@ def table(records: list[dict[str, Any]], suite_name: str, command: str) -> str:
     groups = list(dict.fromkeys(r["scenario"] for r in records))
     pols = list(dict.fromkeys(r["policy"] for r in records))
     # each case draws its own reset seeds: count episodes per (case, policy), not seeds overall
-    per = {(r["scenario"], r["policy"]) for r in records}
-    seeds = max(sum(1 for r in records if (r["scenario"], r["policy"]) == k) for k in per)
+    episodes = max(Counter((r["scenario"], r["policy"]) for r in records).values())
     head = ["scenario", "policy", *METRICS, "poses", "episodes"]
     lines = [
         f"# Benchmark: `{suite_name}` suite",
         "",
-        f"Mean ± std over {seeds} held-out episode(s) per policy and scenario group; "
+        f"Mean ± std over {episodes} held-out episode(s) per policy and scenario group; "
         "cross-track errors in metres (true pose to nearest reference segment), "
         "completion in % of the route, crops hit per episode.",
         "",

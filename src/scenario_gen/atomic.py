@@ -25,8 +25,9 @@ import os
 import re
 import shutil
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import TypeVar
 
 from .errors import InputError
 
@@ -208,13 +209,23 @@ def _publish(tmp: Path, out: Path) -> None:
         tmp.rename(out)
 
 
-def atomic_write_text(path: Path, text: str) -> None:
-    """Write a file next to its final name, then rename it into place."""
+T = TypeVar("T")
+
+
+def atomic_write(path: Path, write: Callable[[Path], T]) -> T:
+    """``write`` a hidden file next to ``path`` (``.NAME.tmp-PID``), then rename it into place:
+    the file is whole or absent; returns what ``write`` returned."""
     tmp = path.with_name(f".{path.name}{TMP_TAG}{os.getpid()}")
     try:
-        tmp.write_text(text)
+        out = write(tmp)
         tmp.replace(path)
     except BaseException:
         with contextlib.suppress(OSError):
             tmp.unlink()
         raise
+    return out
+
+
+def atomic_write_text(path: Path, text: str) -> None:
+    """Write a file next to its final name, then rename it into place."""
+    atomic_write(path, lambda tmp: tmp.write_text(text))

@@ -5,11 +5,12 @@ from __future__ import annotations
 
 import json
 import statistics
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from scenario_gen.atomic import atomic_write
 
 from .loader import PerceptionDataset
 from .run import MANIFEST
@@ -75,7 +76,7 @@ def write_card(out: Path) -> None:
         sp = j["scenario"]["species"]
         species[sp] = species.get(sp, 0) + 1
     if len(ds):
-        _atomic(out / "mosaic.png", lambda tmp: mosaic(ds, tmp))
+        atomic_write(out / "mosaic.png", lambda tmp: mosaic(ds, tmp))
 
     def stat(v: list[Any]) -> str:
         return f"{statistics.fmean(v):.3f} ± {statistics.pstdev(v):.3f}" if v else "—"
@@ -109,15 +110,4 @@ def write_card(out: Path) -> None:
         "",
     ]
     text = "\n".join(lines)
-    _atomic(out / "README.md", lambda tmp: tmp.write_text(text))
-
-
-def _atomic(path: Path, write: Callable[[Path], Any]) -> None:
-    """``write`` to a hidden file beside ``path``, then rename: a full disk leaves no half file
-    (``run._clean_up`` removes the hidden one)."""
-    tmp = path.with_name(f".{path.name}.card-tmp")
-    try:
-        write(tmp)
-        tmp.replace(path)
-    finally:
-        tmp.unlink(missing_ok=True)
+    atomic_write(out / "README.md", lambda tmp: tmp.write_text(text))

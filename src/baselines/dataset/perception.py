@@ -13,7 +13,6 @@ from __future__ import annotations
 import io
 import json
 import math
-import os
 import tarfile
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -23,6 +22,7 @@ from typing import Any, BinaryIO
 import numpy as np
 from numpy.typing import NDArray
 
+from scenario_gen.atomic import atomic_write
 from scenario_gen.errors import InputError
 
 from .labels import camera_dict, lane_offset, plants, row_lines
@@ -226,14 +226,12 @@ def write_tar(frames: Iterator[Frame], fileobj: BinaryIO) -> int:
 def write_shard(frames: Iterator[Frame], path: Path) -> int:
     """The frames as a tar shard at ``path``, written to a temporary file and renamed, so the
     shard exists whole or not at all."""
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    try:
+
+    def write(tmp: Path) -> int:
         with open(tmp, "wb") as fh:
-            n = write_tar(frames, fh)
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
-    return n
+            return write_tar(frames, fh)
+
+    return atomic_write(path, write)
 
 
 def shard_bytes(spec: PerceptionSpec, seed: int, index: int) -> tuple[int, int, bytes]:
@@ -245,12 +243,7 @@ def shard_bytes(spec: PerceptionSpec, seed: int, index: int) -> tuple[int, int, 
 
 def save_shard(data: bytes, path: Path) -> None:
     """Tar bytes made elsewhere, written and renamed like ``write_shard``."""
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    try:
-        tmp.write_bytes(data)
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
+    atomic_write(path, lambda tmp: tmp.write_bytes(data))
 
 
 def _nan(obj: Any) -> Any:  # pragma: no cover  (labels are plain)

@@ -154,7 +154,7 @@ def _clean_up(out: Path, fresh: bool) -> int:
     """After a failed run: remove the partial shards and card files (the pool's workers were
     stopped mid-write) and, when no shard is whole and the run made the folder, the folder.
     Returns the number of whole shards kept."""
-    for part in (*out.glob(".shard-*.tmp-*"), *out.glob(".*.card-tmp")):
+    for part in out.glob(".*.tmp-*"):  # shards and card files (``atomic_write``)
         part.unlink(missing_ok=True)
     done = len(list(out.glob("shard-*.tar")))
     if done == 0 and fresh:
