@@ -257,7 +257,10 @@ def main() -> None:
     small = child("paper-p1", {})
     # jitter within a sixth of the spacing (generate.check_spec)
     dense = child("paper-p1", {"layout": {"plant_spacing": 0.05, "jitter_longitudinal": 0.008}})
-    big = child("default", {"field": {"width": 110.0, "length": 131.0}})
+    # the default crop at its spacing: 130 m x 155 m holds just over 100,000 plants
+    big = child("default", {"field": {"width": 130.0, "length": 155.0}})
+    if big["plants"] < 100_000:
+        sys.exit(f"the '100k field' has {big['plants']} plants: enlarge it (target is 100,000)")
     for label, r in (("paper-p1", small), ("paper-p1 at 0.05 m", dense), ("100k field", big)):
         print(
             f"   {label}: {r['plants']} plants, {r['attached_plants']} loaded; generate "

@@ -1,0 +1,173 @@
+"""Probe (issue 9, not shipped): what would the proxy's step cost with its exact parts approximated?
+
+The proxy depth camera is exact in two places that cost time: terrain hits are moved by
+Newton onto the bilinear surface the tyres and plants stand on (``refine_ground``), and plants
+are true cylinders (Embree cone curves). This swaps each for its tessellation —
+
+* ``triangles``: terrain hits left on the grid's triangles (error: the cells' twist);
+* ``prisms``: each cylinder as a 32-gon prism whose faces lie within ±0.24 % of the radius
+  (vertices at 2r / (1 + cos(π/32))), all in one flat triangle mesh;
+
+— and times the env step against the state-only step on the benchmark drive
+(``bench_mesh_camera``: paper-P1, S-curve, blocks interleaved), with the depth error each
+approximation makes on the same frames. Nothing here changes the env: it answers whether the
+≤ 2× target is within reach of cheaper geometry. Run: ``python
+benchmarks/probe_proxy_approximations.py`` (about two minutes).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import platform
+import statistics
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+import agrinav_gym  # noqa: F401  (registers the envs)
+from agrinav_gym.sensors.depth import CROP, WEED, DepthCamera
+from agrinav_gym.sensors.embree import Scene
+from agrinav_gym.sim.mesh_scene import MeshScene
+from agrinav_gym.sim.plants import PlantField
+from common import drive
+
+STATE = ("gps", "imu", "odom", "route")
+BLOCK = 150
+SIDES = 32
+PRISM_TRIS = 4 * SIDES - 4  # sides 2N, two caps of N - 2 each
+
+
+def prism_mesh(bottom: np.ndarray, top: np.ndarray, radius: np.ndarray) -> tuple[Any, Any]:
+    """Vertical ``SIDES``-gon prisms with faces within ±(1 − cos(π/N)) / (1 + cos(π/N)) of r."""
+    k = 2.0 / (1.0 + math.cos(math.pi / SIDES))
+    a = 2 * np.pi * np.arange(SIDES) / SIDES
+    x = bottom[:, :1] + (k * radius)[:, None] * np.cos(a)
+    y = bottom[:, 1:2] + (k * radius)[:, None] * np.sin(a)
+    zb = np.repeat(bottom[:, 2:3], SIDES, 1)
+    zt = np.repeat(top[:, 2:3], SIDES, 1)
+    v = np.concatenate([np.stack([x, y, zb], -1), np.stack([x, y, zt], -1)], 1).reshape(-1, 3)
+    i = np.arange(SIDES)
+    j = (i + 1) % SIDES
+    fan = np.arange(1, SIDES - 1)
+    one = np.concatenate(
+        [
+            np.stack([i, j, SIDES + j], 1),
+            np.stack([i, SIDES + j, SIDES + i], 1),
+            np.stack([0 * fan, fan + 1, fan], 1),
+            np.stack([SIDES + 0 * fan, SIDES + fan, SIDES + fan + 1], 1),
+        ]
+    )
+    f = (one[None] + (2 * SIDES * np.arange(len(radius)))[:, None, None]).reshape(-1, 3)
+    return v.astype(np.float32), f.astype(np.uint32)
+
+
+class ApproxCamera(DepthCamera):
+    """The proxy camera with its terrain refinement and/or its cylinders approximated."""
+
+    def __init__(self, base: DepthCamera, triangles: bool, prisms: bool) -> None:
+        self.__dict__.update(base.__dict__)
+        self._scene = self._cylinders = None
+        self.triangles, self.prisms = triangles, prisms
+
+    def cast(self, o: Any, rays: Any, terrain: Any, plants: PlantField, t_lim: Any) -> Any:
+        if self._scene is None or self._scene[0] is not terrain:
+            self._scene = (terrain, MeshScene(terrain))
+            self._cylinders = None
+        scene = self._scene[1]
+        if self._cylinders is None or self._cylinders[0] is not plants:
+            if self._cylinders is not None:
+                scene.remove_static(self._cylinders[1])
+            mesh = Scene(scene.dev, "medium")
+            bottom = np.column_stack([plants.xy, plants.z]) - scene.origin
+            top = np.column_stack([plants.xy, plants.top]) - scene.origin
+            if self.prisms:
+                mesh.attach_triangles(0, *prism_mesh(bottom, top, plants.radius))
+            else:
+                mesh.attach_cylinders(0, bottom, top, plants.radius.astype(np.float32))
+            self._cylinders = (plants, scene.add_static(mesh))
+        gid = self._cylinders[1]
+        e = self.edge
+        scene.view(np.vstack([o[None, :2], (o + rays[e] * t_lim[e, None])[:, :2]]))
+        h = scene.cast(o, rays, 0.0, t_lim, refine=not self.triangles)
+        on = h.inst == gid
+        prim = np.where(on, h.prim // PRISM_TRIS if self.prisms else h.prim, 0)
+        lab = np.where(on, np.where(plants.is_weed[prim], WEED, CROP), h.label).astype(np.uint8)
+        return h.t, lab
+
+
+VARIANTS = {
+    "exact (shipped)": (False, False),
+    "terrain as triangles": (True, False),
+    "cylinders as prisms": (False, True),
+    "both": (True, True),
+}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--blocks", type=int, default=5, help="interleaved blocks of env steps")
+    args = ap.parse_args()
+    print(f"machine: {platform.platform()}, Python {platform.python_version()}")
+    base = {"task": {"max_crops_hit": 10**6, "corridor": 2.0}}
+    envs: dict[str, Any] = {
+        "state": gym.make(
+            "AgriNav/FurrowFollow-v1", scenario="paper-p1", observations=STATE, config=base
+        )
+    }
+    for name, (tri, pri) in VARIANTS.items():
+        env = gym.make(
+            "AgriNav/FurrowFollow-v1",
+            scenario="paper-p1",
+            observations=(*STATE, "depth"),
+            config=base,
+        )
+        model = env.unwrapped.obs_models["depth"]
+        model.camera = ApproxCamera(model.camera, tri, pri)
+        envs[name] = env
+    times: dict[str, list[float]] = {k: [] for k in envs}
+    for env in envs.values():
+        env.reset(seed=0)
+        drive(env, 50)
+    for b in range(args.blocks):
+        for k, env in envs.items():
+            env.reset(seed=b)
+            times[k].append(drive(env, BLOCK) / BLOCK)
+    state = statistics.median(times["state"])
+    print(f"\nenv step, paper-p1 S-curve, median of {args.blocks} blocks of {BLOCK} steps")
+    print(f"   state only: {state * 1e3:.3f} ms")
+    for k in VARIANTS:
+        t = statistics.median(times[k])
+        print(f"   + 64x48 proxy depth, {k}: {t * 1e3:.3f} ms, ratio {t / state:.2f} (target <= 2)")
+
+    # the depth error each approximation makes, on the frames of one drive (noise off)
+    exact = envs["exact (shipped)"]
+    env = exact.unwrapped
+    cams = {k: envs[k].unwrapped.obs_models["depth"].camera for k in VARIANTS}
+    exact.reset(seed=0)
+    diffs: dict[str, list[np.ndarray]] = {k: [] for k in VARIANTS if k != "exact (shipped)"}
+    for i in range(300):
+        a = np.array([0.6, 0.15 * np.sin(i / 15.0)], np.float32)
+        exact.step(a)
+        s = env.state
+        ref = cams["exact (shipped)"].render(s.rot, s.pos, env.scenario.terrain, env.plants, None)
+        for k in diffs:
+            z = cams[k].render(s.rot, s.pos, env.scenario.terrain, env.plants, None).depth
+            both = (z > 0) & (ref.depth > 0)
+            diffs[k].append(np.abs(z - ref.depth)[both])
+    print("\n|depth − exact| over 300 frames (valid in both)")
+    for k, d in diffs.items():
+        x = np.concatenate(d)
+        print(
+            f"   {k}: median {np.median(x) * 1e3:.3f} mm, 99.9th pct "
+            f"{np.percentile(x, 99.9) * 1e3:.2f} mm, max {x.max() * 1e3:.0f} mm; pixels off "
+            f"by > 1 cm: {np.mean(x > 0.01):.3%} (silhouettes: a grazing ray meets one and "
+            "misses the other)"
+        )
+    for e in envs.values():
+        e.close()
+
+
+if __name__ == "__main__":
+    main()
