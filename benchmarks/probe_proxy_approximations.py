@@ -27,10 +27,8 @@ import gymnasium as gym
 import numpy as np
 
 import agrinav_gym  # noqa: F401  (registers the envs)
-from agrinav_gym.sensors.depth import CROP, WEED, DepthCamera
 from agrinav_gym.sensors.embree import Scene
 from agrinav_gym.sim.mesh_scene import MeshScene
-from agrinav_gym.sim.plants import PlantField
 from common import drive
 
 STATE = ("gps", "imu", "odom", "route")
@@ -63,38 +61,29 @@ def prism_mesh(bottom: np.ndarray, top: np.ndarray, radius: np.ndarray) -> tuple
     return v.astype(np.float32), f.astype(np.uint32)
 
 
-class ApproxCamera(DepthCamera):
-    """The proxy camera with its terrain refinement and/or its cylinders approximated."""
+class ProbeScene(MeshScene):
+    """The proxy camera's scene with terrain hits left on the triangles and/or its cylinders
+    (``DepthCamera`` adds them with ``add_static``) rebuilt as prisms."""
 
-    def __init__(self, base: DepthCamera, triangles: bool, prisms: bool) -> None:
-        self.__dict__.update(base.__dict__)
-        self._scene = self._cylinders = None
+    def __init__(self, terrain: Any, triangles: bool, prisms: bool) -> None:
+        super().__init__(terrain)
         self.triangles, self.prisms = triangles, prisms
 
-    def cast(self, o: Any, rays: Any, terrain: Any, plants: PlantField, t_lim: Any) -> Any:
-        if self._scene is None or self._scene[0] is not terrain:
-            self._scene = (terrain, MeshScene(terrain))
-            self._cylinders = None
-        scene = self._scene[1]
-        if self._cylinders is None or self._cylinders[0] is not plants:
-            if self._cylinders is not None:
-                scene.remove_static(self._cylinders[1])
-            mesh = Scene(scene.dev, "medium")
-            bottom = np.column_stack([plants.xy, plants.z]) - scene.origin
-            top = np.column_stack([plants.xy, plants.top]) - scene.origin
-            if self.prisms:
-                mesh.attach_triangles(0, *prism_mesh(bottom, top, plants.radius))
-            else:
-                mesh.attach_cylinders(0, bottom, top, plants.radius.astype(np.float32))
-            self._cylinders = (plants, scene.add_static(mesh))
-        gid = self._cylinders[1]
-        e = self.edge
-        scene.view(np.vstack([o[None, :2], (o + rays[e] * t_lim[e, None])[:, :2]]))
-        h = scene.cast(o, rays, 0.0, t_lim, refine=not self.triangles)
-        on = h.inst == gid
-        prim = np.where(on, h.prim // PRISM_TRIS if self.prisms else h.prim, 0)
-        lab = np.where(on, np.where(plants.is_weed[prim], WEED, CROP), h.label).astype(np.uint8)
-        return h.t, lab
+    def add_static(self, child: Scene) -> int:
+        if self.prisms:
+            v = child._keep[0][0]  # the cone curves' vertices: bottom, top pairs with radius
+            mesh = Scene(self.dev, "medium")
+            mesh.attach_triangles(0, *prism_mesh(v[0:-1:2, :3], v[1:-1:2, :3], v[0:-1:2, 3]))
+            child = mesh
+        return super().add_static(child)
+
+    def cast(
+        self, o: Any, d: Any, tnear: Any = 0.0, tfar: Any = np.inf, refine: bool = True
+    ) -> Any:
+        h = super().cast(o, d, tnear, tfar, refine=refine and not self.triangles)
+        if self.prisms:  # a prism's triangle -> its cylinder
+            h.prim = np.where(h.inst >= self._n_ground, h.prim // PRISM_TRIS, h.prim)
+        return h
 
 
 VARIANTS = {
@@ -123,8 +112,10 @@ def main() -> None:
             observations=(*STATE, "depth"),
             config=base,
         )
-        model = env.unwrapped.obs_models["depth"]
-        model.camera = ApproxCamera(model.camera, tri, pri)
+        env.reset(seed=0)
+        cam = env.unwrapped.obs_models["depth"].camera
+        terrain = env.unwrapped.scenario.terrain  # one field: the scene is never rebuilt
+        cam._scene, cam._cylinders = (terrain, ProbeScene(terrain, tri, pri)), None
         envs[name] = env
     times: dict[str, list[float]] = {k: [] for k in envs}
     for env in envs.values():
@@ -153,7 +144,8 @@ def main() -> None:
         s = env.state
         ref = cams["exact (shipped)"].render(s.rot, s.pos, env.scenario.terrain, env.plants, None)
         for k in diffs:
-            z = cams[k].render(s.rot, s.pos, env.scenario.terrain, env.plants, None).depth
+            own = envs[k].unwrapped  # the same field, generated in that env: its own scene
+            z = cams[k].render(s.rot, s.pos, own.scenario.terrain, own.plants, None).depth
             both = (z > 0) & (ref.depth > 0)
             diffs[k].append(np.abs(z - ref.depth)[both])
     print("\n|depth − exact| over 300 frames (valid in both)")
