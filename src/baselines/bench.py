@@ -10,7 +10,7 @@ from typing import Any
 from tqdm import tqdm
 
 from policies import check_policy_spec
-from scenario_gen.atomic import check_output_dir, output_dir
+from scenario_gen.atomic import atomic_write_text, check_output_dir, output_dir
 from scenario_gen.errors import InputError
 
 from .episodes import Episode, VideoWriter, run_episode, trajectory_figure
@@ -52,12 +52,6 @@ def geometry(scn: Any) -> dict[str, Any]:
         "site": s.terrain.site,
         "crop_stage": s.crop.stage,
     }
-
-
-def _write_json(path: Path, data: Any) -> None:
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    tmp.write_text(json.dumps(data, indent=1))
-    tmp.replace(path)
 
 
 def _make_env(
@@ -132,7 +126,7 @@ def run(
                 trajectory_figure(
                     ep, tmp / f"trajectory_{k:03d}.png", f"{policy} · {env_id} · seed {seed + k}"
                 )
-            _write_json(tmp / "metrics.json", records)
+            atomic_write_text(tmp / "metrics.json", json.dumps(records, indent=1))
     finally:
         env.close()
     return records
@@ -190,7 +184,7 @@ def bench(
                         bar.set_postfix(case=case.group, policy=name)
             finally:
                 env.close()
-            _write_json(tmp / "results.json", records)
+            atomic_write_text(tmp / "results.json", json.dumps(records, indent=1))
         (tmp / "benchmark.md").write_text(table(records, suite_name, command))
         bar_chart(records, tmp / "benchmark.png", suite_name)
     return records

@@ -10,13 +10,12 @@ from __future__ import annotations
 import dataclasses
 import importlib
 import json
-import os
 import shutil
 import tempfile
 from pathlib import Path
 from typing import Any
 
-from scenario_gen.atomic import check_output_dir
+from scenario_gen.atomic import atomic_write_text, check_output_dir
 from scenario_gen.errors import InputError
 
 from .session import Session, field_file
@@ -54,7 +53,8 @@ def generate_and_save(session: Session, out: str, overwrite: bool = False) -> di
     previous = path.read_text() if path is not None and path.exists() else None
     if path is not None:
         assert session.field_text is not None
-        _write_atomic(path, session.field_text)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        atomic_write_text(path, session.field_text)
     try:
         save(scn, out, overwrite=overwrite)
     except BaseException:
@@ -62,16 +62,9 @@ def generate_and_save(session: Session, out: str, overwrite: bool = False) -> di
             if previous is None:
                 path.unlink(missing_ok=True)
             else:
-                _write_atomic(path, previous)
+                atomic_write_text(path, previous)
         raise
     return {**scn.summary(), "out": out, "field_file": str(path) if path else None}
-
-
-def _write_atomic(path: Path, text: str) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    tmp.write_text(text)
-    tmp.replace(path)
 
 
 def run_policy(
