@@ -28,7 +28,7 @@ import numpy as np
 import pybullet as p
 
 import agrinav_gym  # noqa: F401  (registers the envs)
-from common import drive
+from common import drive, s_curve
 
 STEPS = 1000
 
@@ -63,7 +63,7 @@ def step_cost_ratio(repeat: int) -> tuple[float, float, float]:
         env.reset(seed=r)  # the same moves again, physics only: drive + substeps
         t = 0.0
         for i in range(400):
-            v, w = 0.6 * u.cfg.robot.v_max, 0.15 * np.sin(i / 15.0) * u.cfg.robot.w_max
+            v, w = (s_curve(i) * (u.cfg.robot.v_max, u.cfg.robot.w_max)).tolist()
             t0 = time.perf_counter()
             u.world.drive(v, w)
             u.world.step(u.substeps)

@@ -38,7 +38,7 @@ import scenario_gen as sg
 from agrinav_gym.config import GnssFixConfig, RobotConfig, SoilConfig
 from agrinav_gym.sensors.fixmode import LEVELS, Canopy, FixModeChain, SkyModel
 from agrinav_gym.sim.world import World
-from common import drive
+from common import drive, s_curve
 from scenario_gen import Terrain
 
 IMG = Path(__file__).resolve().parents[1] / "docs" / "img"
@@ -250,7 +250,7 @@ def step_cost(repeat: int) -> None:
             t = 0.0
             for k in range(300):
                 t0 = time.perf_counter()
-                u.world.drive(0.6 * u.cfg.robot.v_max, 0.15 * np.sin(k / 15.0) * u.cfg.robot.w_max)
+                u.world.drive(*(s_curve(k) * (u.cfg.robot.v_max, u.cfg.robot.w_max)).tolist())
                 u.world.step(u.substeps)
                 t += time.perf_counter() - t0
             raw_t[i].append(t / 300)

@@ -11,12 +11,17 @@ import numpy as np
 import scenario_gen as sg
 
 
+def s_curve(i: int) -> np.ndarray:
+    """Step ``i`` of the benchmarks' gentle S-curve: normalised (speed, yaw rate) in [-1, 1]."""
+    return np.array([0.6, 0.15 * np.sin(i / 15.0)], np.float32)
+
+
 def drive(env: Any, n: int, start: int = 0) -> float:
-    """Seconds spent in ``env.step`` over ``n`` steps of a fixed gentle S-curve (phase from
-    ``start``); an episode's end resets, untimed."""
+    """Seconds spent in ``env.step`` over ``n`` steps of ``s_curve`` (phase from ``start``);
+    an episode's end resets, untimed."""
     total = 0.0
     for i in range(start, start + n):
-        a = np.array([0.6, 0.15 * np.sin(i / 15.0)], np.float32)
+        a = s_curve(i)
         t0 = time.perf_counter()
         _, _, term, trunc, _ = env.step(a)
         total += time.perf_counter() - t0

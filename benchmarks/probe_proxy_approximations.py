@@ -29,7 +29,7 @@ import numpy as np
 import agrinav_gym  # noqa: F401  (registers the envs)
 from agrinav_gym.sensors.embree import Scene
 from agrinav_gym.sim.mesh_scene import MeshScene
-from common import drive
+from common import drive, s_curve
 
 STATE = ("gps", "imu", "odom", "route")
 BLOCK = 150
@@ -139,8 +139,7 @@ def main() -> None:
     exact.reset(seed=0)
     diffs: dict[str, list[np.ndarray]] = {k: [] for k in VARIANTS if k != "exact (shipped)"}
     for i in range(300):
-        a = np.array([0.6, 0.15 * np.sin(i / 15.0)], np.float32)
-        exact.step(a)
+        exact.step(s_curve(i))
         s = env.state
         ref = cams["exact (shipped)"].render(s.rot, s.pos, env.scenario.terrain, env.plants, None)
         for k in diffs:
