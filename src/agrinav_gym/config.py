@@ -89,6 +89,13 @@ class CameraConfig:
         "mesh: and plant ids, rows of plants.csv, -1 elsewhere (info['instance'])",
     )
     threads: int = _f(1, "mesh: threads casting rays (1 for RL, where envs run in parallel)", 1, 64)
+    renderer: str = _f(
+        "auto",
+        "mesh: 'raster' draws the views with the compiled rasteriser, 'raycast' casts one ray "
+        "per pixel with Embree (the same images); 'auto' rasterises frames of at least "
+        "100,000 pixels where the compiled kernels are built",
+        choices=("auto", "raster", "raycast"),
+    )
 
 
 @dataclass(frozen=True)

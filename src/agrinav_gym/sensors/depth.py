@@ -2,11 +2,14 @@
 
 Rendering a pybullet image costs 6-42 ms here (DESIGN §8); this casts one ray per pixel
 against the terrain's bilinear height surface and against the plants as vertical capped
-cylinders (``PlantField``). Both go through Embree in one query (``MeshScene``): the terrain's
-triangles bracket each crossing and Newton puts it on the bilinear surface; the cylinders are
-Embree's capped cones of equal radii, intersected analytically. ``ground_hits`` (a march with
-secant refinement) and ``plant_hits`` (cylinders paired with rays through their azimuth
-intervals) are the same geometry in numpy: the references the fast path is tested against.
+cylinders (``PlantField``). Where the compiled kernels are built (sensors/native.py) one call
+per frame intersects both exactly in double precision (csrc/proxycast.c: the bilinear surface
+cell by cell as a quadratic in t, the cylinders through a grid of cells); elsewhere both go
+through Embree in one query (``MeshScene``): the terrain's triangles bracket each crossing and
+Newton puts it on the bilinear surface, the cylinders are Embree's capped cones of equal
+radii. ``ground_hits`` (a march with secant refinement) and ``plant_hits`` (cylinders paired
+with rays through their azimuth intervals) are the same geometry in numpy: the references both
+fast paths are tested against.
 
 Depth is z-depth along the optical axis, as the D455 reports it. Noise follows the stereo
 error law σ_z = z²·s / (f·B) with the native sensor's focal length; pixels outside
@@ -28,6 +31,7 @@ from ..interface import CameraModel
 from ..sim.mesh_scene import MeshScene
 from ..sim.plants import PlantField
 from ..sim.world import SOIL_RGB
+from . import native
 from .embree import Scene
 from .shading import Lighting
 
@@ -65,6 +69,8 @@ class DepthCamera(Lighting):
         self._ground: tuple[Terrain, MeshScene] | None = None
         self._scene: tuple[Terrain, MeshScene] | None = None
         self._cylinders: tuple[PlantField, int] | None = None
+        self._proxy: ProxyGeometry | None = None
+        self._no_bad = np.zeros(0, np.uint8)  # the proxy has no stereo pair: nothing invalid
         self.f_native = 0.5 * cfg.native_width / math.tan(math.radians(cfg.hfov_deg) / 2)
         self._init_lighting(SOIL_RGB)
 
@@ -86,6 +92,8 @@ class DepthCamera(Lighting):
         labels: bool = False,
     ) -> DepthFrame:
         o, rays = self.pose(rot, pos)
+        if native.available():
+            return self._render_native(o, rays, terrain, plants, rng, rgb, labels)
         t, lab = self.cast(o, rays, terrain, plants, self.t_lim)
         z = t * self.forward
         hit = np.isfinite(z)
@@ -103,6 +111,49 @@ class DepthCamera(Lighting):
                 frame.rgb = self._shade(o, rays, t, lab, terrain).reshape(*shape, 3)
         return frame
 
+    def _render_native(
+        self,
+        o: FloatArray,
+        rays: FloatArray,
+        terrain: Terrain,
+        plants: PlantField,
+        rng: np.random.Generator | None,
+        rgb: bool,
+        labels: bool,
+    ) -> DepthFrame:
+        """``render`` through the compiled kernels: the cast, then noise and validity in one
+        call (csrc/frame.c ``finish_depth``, the same law as the numpy lines of ``render``)."""
+        cfg = self.cfg
+        g = self._proxy_geometry(terrain, plants)
+        t, what = g.cast_raw(o, rays, self.t_lim)
+        n = len(t)
+        noise = None
+        if rng is not None and cfg.subpixel > 0:
+            noise = rng.standard_normal(n)  # drawn for every pixel: same stream length
+        depth = np.empty(n, np.float32)
+        if len(self._no_bad) != n:
+            self._no_bad = np.zeros(n, np.uint8)
+        native.require("the proxy camera").finish_depth(
+            0, n, t.ctypes.data, self.forward.ctypes.data, native.ptr(noise),
+            cfg.subpixel / (self.f_native * cfg.baseline), cfg.min_range, cfg.max_range,
+            self._no_bad.ctypes.data, depth.ctypes.data, None, None,
+        )
+        shape = (cfg.height, cfg.width)
+        frame = DepthFrame(depth.reshape(shape))
+        if labels or rgb:
+            lab = g.labels(what)
+            lab = np.where(t * self.forward <= cfg.max_range, lab, OTHER).astype(np.uint8)
+            if labels:
+                frame.label = lab.reshape(shape)
+            if rgb:
+                frame.rgb = self._shade(o, rays, t, lab, terrain).reshape(*shape, 3)
+        return frame
+
+    def _proxy_geometry(self, terrain: Terrain, plants: PlantField) -> ProxyGeometry:
+        if self._proxy is None or not self._proxy.serves(terrain, plants):
+            self._proxy = ProxyGeometry(terrain, plants)
+        return self._proxy
+
     def cast(
         self,
         o: FloatArray,
@@ -112,6 +163,10 @@ class DepthCamera(Lighting):
         t_lim: FloatArray,
     ) -> tuple[FloatArray, NDArray[np.uint8]]:
         """First hit per ray within ``t_lim`` (inf where none) and its class."""
+        if native.available():
+            g = self._proxy_geometry(terrain, plants)
+            t, what = g.cast_raw(o, rays, t_lim)
+            return t, g.labels(what)
         if self._scene is None or self._scene[0] is not terrain:
             self._scene = (terrain, MeshScene(terrain))
             self._cylinders = None
@@ -167,6 +222,96 @@ class DepthCamera(Lighting):
         plant = (lab == CROP) | (lab == WEED)
         out[plant] *= (0.8 + 0.2 * np.clip(-rays[plant, 2], 0, 1))[:, None]
         return (np.clip(out, 0, 1) * 255).astype(np.uint8)
+
+
+class ProxyGeometry:
+    """The terrain and a ``PlantField`` as csrc/proxycast.c reads them: the height grid with the
+    highest vertex of each block of ``BLOCK`` × ``BLOCK`` cells (rays skip blocks they pass
+    above), and the cylinders listed per square cell of a grid over the field (CSR: cell c holds
+    ``items[start[c]:start[c+1]]``), each in every cell its disc's bounding square touches."""
+
+    BLOCK = 8
+    CELL = 1.0  # m: measured against 0.25-0.75 m on paper-P1 (cells cost more than cylinders)
+
+    def __init__(self, terrain: Terrain, plants: PlantField) -> None:
+        self.terrain, self.plants = terrain, plants
+        h = np.ascontiguousarray(terrain.heights, np.float64)
+        self.h = h
+        ny, nx = h.shape
+        b = self.BLOCK
+        bny, bnx = -(-(ny - 1) // b), -(-(nx - 1) // b)
+        # each block's cells span vertices [b i, b i + b] (shared edges belong to both blocks)
+        pad = np.full((bny * b + 1, bnx * b + 1), -np.inf)
+        pad[:ny, :nx] = h
+        rows = np.maximum.reduceat(pad[:-1], np.arange(0, bny * b, b), axis=0)
+        rows = np.maximum(rows, pad[b :: b][:bny])
+        blocks = np.maximum.reduceat(rows[:, :-1], np.arange(0, bnx * b, b), axis=1)
+        self.bmax = np.ascontiguousarray(np.maximum(blocks, rows[:, b :: b][:, :bnx]))
+        self.bnx, self.bny = bnx, bny
+        n = len(plants.radius)
+        # one record per cylinder: x, y, bottom, top, radius
+        self.cyl = np.zeros((max(n, 1), 5))
+        if n:
+            self.cyl[:] = np.column_stack([plants.xy, plants.z, plants.top, plants.radius])
+        self.weed = plants.is_weed
+        g = self.CELL
+        if n:
+            x, y, r = plants.xy[:, 0], plants.xy[:, 1], plants.radius
+            self.gx, self.gy = float((x - r).min()) - g, float((y - r).min()) - g
+            self.gnx = int((float((x + r).max()) - self.gx) // g) + 2
+            self.gny = int((float((y + r).max()) - self.gy) // g) + 2
+            j0, j1 = ((x - r - self.gx) // g).astype(np.int64), ((x + r - self.gx) // g).astype(np.int64)
+            i0, i1 = ((y - r - self.gy) // g).astype(np.int64), ((y + r - self.gy) // g).astype(np.int64)
+            nj, ni = j1 - j0 + 1, i1 - i0 + 1
+            cnt = nj * ni
+            item = np.repeat(np.arange(n), cnt)
+            k = np.arange(int(cnt.sum())) - np.repeat(np.cumsum(cnt) - cnt, cnt)
+            cell = (np.repeat(i0, cnt) + k // np.repeat(nj, cnt)) * self.gnx + (
+                np.repeat(j0, cnt) + k % np.repeat(nj, cnt)
+            )
+            order = np.argsort(cell, kind="stable")  # cylinders by index within a cell
+            self.items = np.ascontiguousarray(item[order], np.int32)
+            counts = np.bincount(cell, minlength=self.gnx * self.gny)
+            self.start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int32)
+        else:
+            self.gx = self.gy = 0.0
+            self.gnx = self.gny = 0
+            self.items = np.zeros(1, np.int32)
+            self.start = np.zeros(2, np.int32)
+
+    def serves(self, terrain: Terrain, plants: PlantField) -> bool:
+        return self.terrain is terrain and self.plants is plants
+
+    def cast_raw(
+        self, o: FloatArray, rays: FloatArray, t_lim: FloatArray
+    ) -> tuple[FloatArray, NDArray[np.int32]]:
+        """First hit per ray (``o`` one origin, ``rays`` unit directions) within ``t_lim``:
+        length (inf where none) and what it hit (-1 terrain, -2 nothing, else the cylinder)."""
+        n = len(rays)
+        o = np.ascontiguousarray(o, np.float64)
+        d = np.ascontiguousarray(rays, np.float64)
+        lim = np.ascontiguousarray(t_lim, np.float64)
+        if lim.shape != (n,):
+            lim = np.ascontiguousarray(np.broadcast_to(lim, (n,)))
+        t = np.empty(n)
+        what = np.empty(n, np.int32)
+        te = self.terrain
+        ny, nx = self.h.shape
+        native.require("the proxy camera").proxy_cast(
+            n, o.ctypes.data, d.ctypes.data, lim.ctypes.data, self.h.ctypes.data, nx, ny,
+            te.x0, te.y0, te.spacing, self.bmax.ctypes.data, self.BLOCK, self.bnx, self.bny,
+            self.gnx, self.gny, self.gx, self.gy, self.CELL, self.start.ctypes.data,
+            self.items.ctypes.data, self.cyl.ctypes.data, t.ctypes.data, what.ctypes.data,
+        )
+        return t, what
+
+    def labels(self, what: NDArray[np.int32]) -> NDArray[np.uint8]:
+        lab = np.full(len(what), OTHER, np.uint8)
+        lab[what == -1] = SOIL
+        on = what >= 0
+        if on.any():
+            lab[on] = np.where(self.weed[what[on]], WEED, CROP)
+        return lab
 
 
 def corner_pixels(width: int, height: int) -> NDArray[np.int64]:

@@ -28,13 +28,16 @@ from ..sim.mesh_scene import MeshScene, SceneHits, bilinear
 from ..sim.plant_meshes import OTHER, ROBOT, SOIL, Prototype, rotation_rpy, sample_texture
 from ..sim.robot_mesh import robot_prototype
 from ..sim.world import SOIL_RGB
-from . import d455, shading
+from . import d455, native, raster_view, shading
 from .depth import DepthFrame, corner_pixels
 from .embree import Caster, Scene, device
 from .shading import Lighting
 
 FloatArray = NDArray[np.float64]
 RGB_FAR = 2.0  # × max_range: how far the colour camera sees geometry before the haze
+#: ``renderer="auto"`` rasterises frames this large: below it a frame's few rays cost less
+#: than drawing every triangle in view (benchmarks/bench_mesh_camera.py, docs/camera.md)
+RASTER_MIN_PIXELS = 100_000
 
 
 @dataclass(frozen=True)
@@ -79,6 +82,22 @@ class MeshCamera(Lighting):
         self._init_lighting(SOIL_RGB)
         self._robot: dict[str, tuple[FloatArray, NDArray[np.int32]] | None] = {}
         self._faces: tuple[MeshScene, FaceTable] | None = None
+        self._geometry: tuple[MeshScene, raster_view.SceneGeometry] | None = None
+        self._bands = raster_view.Bands(model.height, threads)
+        self._work: raster_view.FrameBuffers | None = None
+        self.stereo_counts = np.zeros(2, np.int64)  # last raster frame: candidates, occluded
+        if cfg.renderer == "raster":
+            native.require("camera.renderer='raster'")
+
+    @property
+    def rasterises(self) -> bool:
+        """Whether frames are drawn by the rasteriser (``cfg.renderer``, image size, build)."""
+        r = self.cfg.renderer
+        if r == "raster":
+            return True
+        if r == "raycast":
+            return False
+        return native.available() and self.model.width * self.model.height >= RASTER_MIN_PIXELS
 
     def noise_sigma(self, z: FloatArray) -> FloatArray:
         return d455.noise_sigma(z, self.fx, self.cfg.subpixel, self.cfg.baseline)
@@ -98,6 +117,8 @@ class MeshCamera(Lighting):
         """One frame with the base at ``pos`` and orientation ``rot`` (body -> world);
         ``view=False`` when the caller has already made the scene cover this camera's view;
         ``stereo=False`` skips the stereo pair's invalid pixels (the geometry's own depth)."""
+        if self.rasterises:
+            return self._render_raster(rot, pos, scene, rng, rgb, labels, stereo)
         scene.caster.threads = self.threads
         c = self.cfg
         o, d = self.rays.world(rot, pos)
@@ -139,6 +160,113 @@ class MeshCamera(Lighting):
             if labels:
                 frame.rgb_label = ch.label.reshape(h, w)
                 frame.rgb_instance = ch.plant.reshape(h, w)
+        return frame
+
+    def _render_raster(
+        self,
+        rot: FloatArray,
+        pos: FloatArray,
+        scene: MeshScene,
+        rng: np.random.Generator | None,
+        rgb: bool,
+        labels: bool,
+        stereo: bool,
+    ) -> DepthFrame:
+        """``render`` by rasterising the views (raster_view): the same frame. Four stages,
+        each over two bands of rows with ``threads`` > 1: draw the depth, right and colour
+        views; resolve them (and prepare the stereo test); decide the stereo pair and shade the
+        colour (the top band draws the noise first, in one call, as the ray-cast path draws
+        it); finish the depth and the labels."""
+        c, m = self.cfg, self.model
+        h, w = m.height, m.width
+        n = h * w
+        if self._geometry is None or self._geometry[0] is not scene:
+            self._geometry = (scene, raster_view.SceneGeometry(scene))
+            self._bands = raster_view.Bands(h, self.threads)
+        geo = self._geometry[1]
+        geo.near(self._view_points(rot, pos, rgb))
+        far = c.max_range + 0.05
+        rfar = RGB_FAR * c.max_range
+        o = scene.origin
+        cam = raster_view.camera_params(m, rot, pos, o, far)
+        cam_r = raster_view.camera_params(m, rot, pos, o, far, c.baseline)
+        cam_c = raster_view.camera_params(self.color, rot, pos, o, rfar)
+        fwd, fwd_c = self.rays.forward, self.color_rays.forward
+        if self._work is None:  # kept: fresh 40 MB a frame would be page faults every frame
+            self._work = raster_view.FrameBuffers(n)
+        vl, vr, vc, left, col, bad = self._work.parts()
+        noise: list[FloatArray | None] = [None]
+
+        def draw(r0: int, r1: int) -> None:
+            geo.draw(cam, vl, w, h, r0, r1)
+            if stereo:
+                geo.draw(cam_r, vr, w, h, r0, r1)
+            if rgb:
+                geo.draw(cam_c, vc, w, h, r0, r1)
+
+        def resolve(r0: int, r1: int) -> None:
+            geo.resolve(cam, fwd, vl, left, w, h, True, self._robot_hits("depth"), r0, r1)
+            if stereo:
+                geo.stereo_prepare(w, h, self.fx, c.baseline, left, self.rays.forward, r0, r1)
+            if rgb:
+                geo.resolve(cam_c, fwd_c, vc, col, w, h, False, self._robot_hits("color"), r0, r1)
+
+        if not stereo:
+            bad[:] = 0
+        depth = np.empty(n, np.float32)
+        pixels = np.empty((n, 3), np.uint8)
+        k_sigma = c.subpixel / (self.fx * c.baseline)
+        robot = None
+        if rgb and self._robot_hits("color") is not None:
+            pr = robot_prototype(False)
+            robot = (np.ascontiguousarray(rot, np.float64), pr.face_rgb, pr.normals)
+        par = geo.shading_params(self.soil_rgb, self.light, rfar)
+
+        def decide(r0: int, r1: int) -> FloatArray | None:
+            if r0 == 0 and rng is not None and c.subpixel > 0:
+                noise[0] = rng.standard_normal(n)  # every pixel: the ray-cast path's stream
+            counts = None
+            if stereo:
+                counts = geo.stereo(
+                    cam, fwd, w, h, c.baseline, d455.NEAREST_OCCLUDER, left, vl, vr, bad, r0, r1
+                )
+            if rgb:
+                geo.shade(cam_c, fwd_c, w, h, col, vc, par, robot, pixels, r0, r1)
+            return counts
+
+        def finish(r0: int, r1: int) -> None:
+            raster_view.finish_depth(
+                left, self.rays.forward, noise[0], k_sigma, c.min_range, c.max_range, bad,
+                labels, depth, r0 * w, r1 * w,
+            )
+            if labels:
+                label[r0 * w : r1 * w] = left.label[r0 * w : r1 * w]
+                instance[r0 * w : r1 * w] = left.plant[r0 * w : r1 * w]
+                if rgb:
+                    rgb_label[r0 * w : r1 * w] = col.label[r0 * w : r1 * w]
+                    rgb_instance[r0 * w : r1 * w] = col.plant[r0 * w : r1 * w]
+
+        # the outputs, fresh each frame (the working buffers serve the next one)
+        label = np.empty(n if labels else 0, np.uint8)
+        instance = np.empty(n if labels else 0, np.int32)
+        rgb_label = np.empty(n if labels and rgb else 0, np.uint8)
+        rgb_instance = np.empty(n if labels and rgb else 0, np.int32)
+        bands = self._bands
+        bands.run("draw", draw)
+        bands.run("resolve", resolve)
+        counts = [k for k in bands.run("decide", decide) if k is not None]
+        bands.run("finish", finish)
+        if counts:
+            self.stereo_counts = np.sum(counts, axis=0)
+        frame = DepthFrame(depth.reshape(h, w))
+        if labels:
+            frame.label = label.reshape(h, w)
+            frame.instance = instance.reshape(h, w)
+        if rgb:
+            frame.rgb = pixels.reshape(h, w, 3)
+            if labels:
+                frame.rgb_label = rgb_label.reshape(h, w)
+                frame.rgb_instance = rgb_instance.reshape(h, w)
         return frame
 
     def right_world(self, rot: FloatArray, pos: FloatArray) -> FloatArray:

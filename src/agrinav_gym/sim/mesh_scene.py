@@ -50,9 +50,10 @@ class SceneHits:
 
 @dataclass
 class _Tile:
-    terrain: Scene | None
+    terrain: Scene | None  # built when the tile is first attached to Embree's scene
     plants: list[int]  # plant indices
     xfm: F32  # (n, 3, 4) their transforms
+    terrain_built: bool = False
 
 
 class MeshScene:
@@ -101,6 +102,7 @@ class MeshScene:
         self._n_ground = self._n_plants + self.nx * self.ny
         self._statics = 0
         self._last_view: tuple[FloatArray, FloatArray] | None = None  # hull edge normals, offsets
+        self._near: tuple[frozenset[int], NDArray[np.int32], F32] | None = None
         self.tiles_built = 0
 
     @classmethod
@@ -149,7 +151,6 @@ class MeshScene:
         return sc
 
     def _build(self, key: int) -> _Tile:
-        terrain = self._terrain_scene(key)
         lo, hi = self._starts.get(key, (0, 0))
         ids = self._order[lo:hi].astype(np.int64)
         if hi > lo:
@@ -158,7 +159,7 @@ class MeshScene:
         else:
             xfm = np.zeros((0, 3, 4), np.float32)
         self.tiles_built += 1
-        return _Tile(terrain, ids.tolist(), xfm)
+        return _Tile(None, ids.tolist(), xfm)
 
     def _tile(self, key: int) -> _Tile:
         tile = self._cache.get(key)
@@ -189,6 +190,8 @@ class MeshScene:
                 top.detach(i)
         for key in sorted(want - self._attached):
             tile = self._tile(key)
+            if not tile.terrain_built:
+                tile.terrain, tile.terrain_built = self._terrain_scene(key), True
             if tile.terrain is not None:
                 top.attach_instance(self._n_plants + key, tile.terrain, _IDENTITY)
             if tile.plants:
@@ -204,6 +207,30 @@ class MeshScene:
                 continue
             del self._cache[old]
         top.commit()
+
+    def instances_near(self, xy: FloatArray) -> tuple[NDArray[np.int32], F32]:
+        """Plant ids and transforms (n, 12) of the tiles a view spanning the world points ``xy``
+        can reach (those ``view`` would attach), for the rasteriser: no Embree scene is built.
+        The arrays are reused while the set of tiles stays the same."""
+        hull = convex_hull(np.asarray(xy, np.float64).reshape(-1, 2))
+        want = frozenset(self._tiles_near(hull, self.reach + MARGIN))
+        if self._near is not None and self._near[0] == want:
+            return self._near[1], self._near[2]
+        tiles = [self._tile(k) for k in sorted(want)]
+        while len(self._cache) > max(self.cache_tiles, len(self._attached) + len(want)):
+            old = next(iter(self._cache))
+            if old in self._attached or old in want:
+                self._cache.move_to_end(old)
+                continue
+            del self._cache[old]
+        ids = np.array([i for t in tiles for i in t.plants], np.int32)
+        xfm = (
+            np.ascontiguousarray(np.concatenate([t.xfm for t in tiles]).reshape(-1, 12))
+            if len(ids)
+            else np.zeros((0, 12), np.float32)
+        )
+        self._near = (want, ids, xfm)
+        return ids, xfm
 
     def add_static(self, child: Scene) -> int:
         """Put ``child`` (world coordinates relative to ``origin``) in every view; its top-level

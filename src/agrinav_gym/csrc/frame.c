@@ -1,0 +1,470 @@
+/* Per-pixel work on rasterised views (raster.c): what the hits are, the D455's stereo pair,
+ * the depth image and the colour image. Each function is the compiled twin of numpy code that
+ * stays the reference (sim/mesh_scene.py, sensors/mesh_camera.py, sensors/d455.py,
+ * sensors/shading.py); tests compare the two.
+ */
+#include <stdlib.h>
+
+#include "native.h"
+
+/* the column and row terms of cam_ray: a[u] = -(u - cx)/fx, b[v] = -(v - cy)/fy (one block) */
+static double *ray_terms(const cam_t *c) {
+    double *a = (double *)malloc(sizeof(double) * (size_t)(c->w + c->h));
+    if (!a) return NULL;
+    for (int u = 0; u < c->w; u++) a[u] = -(u - c->cx) / c->fx;
+    for (int v = 0; v < c->h; v++) a[c->w + v] = -(v - c->cy) / c->fy;
+    return a;
+}
+
+/* Ray parameter moved from a terrain triangle onto the bilinear surface: refine_ground's
+ * Newton iteration, step for step (mesh_scene.refine_ground). */
+static double refine_loop(const geom_t *g, const double *o, const double *d, double t0) {
+    double t = t0;
+    for (int k = 0; k < 4; k++) {
+        double p[3] = {o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]};
+        double hx, hy, h = bilinear(g, p[0], p[1], &hx, &hy);
+        double f = p[2] - h;
+        if (fabs(f) < 1e-6) return t;
+        double df = d[2] - hx * d[0] - hy * d[1];
+        double step = fabs(df) > 1e-9 ? f / df : 0.0;
+        if (step > 0.05) step = 0.05;
+        if (step < -0.05) step = -0.05;
+        t -= step;
+        if (k == 0) { /* a step that stays in its cell has converged */
+            double qx = p[0] - step * d[0], qy = p[1] - step * d[1];
+            if (ifloor((p[0] - g->gx0) * g->inv_s) == ifloor((qx - g->gx0) * g->inv_s) &&
+                ifloor((p[1] - g->gy0) * g->inv_s) == ifloor((qy - g->gy0) * g->inv_s))
+                return t;
+        }
+    }
+    double p[3] = {o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]};
+    if (fabs(p[2] - bilinear(g, p[0], p[1], NULL, NULL)) >= 1e-5) return t0;
+    return t;
+}
+
+/* The same; its first step inline for hits inside the grid, where "the step stays in its
+ * cell" is "the cell-local coordinates stay in [0, 1)" (no floors) */
+static inline double refine(const geom_t *g, const double *o, const double *d, double t) {
+    double px = o[0] + t * d[0], py = o[1] + t * d[1], pz = o[2] + t * d[2];
+    double u = (px - g->gx0) * g->inv_s, v = (py - g->gy0) * g->inv_s;
+    if (!(u >= 0.0 && v >= 0.0 && u < g->nx - 1.0 && v < g->ny - 1.0))
+        return refine_loop(g, o, d, t);
+    int j = (int)u, i = (int)v;
+    double fu = u - j, fv = v - i;
+    const double *hp = g->heights + (size_t)i * g->nx + j;
+    double h00 = hp[0], h01 = hp[1], h10 = hp[g->nx], h11 = hp[g->nx + 1];
+    double a = h01 - h00, b = h11 - h10;
+    double z0 = h00 + a * fu, z1 = h10 + b * fu, dz = z1 - z0;
+    double f = pz - (z0 + dz * fv);
+    if (fabs(f) < 1e-6) return t;
+    double df = d[2] - ((a + (b - a) * fv) * d[0] + dz * d[1]) * g->inv_s;
+    if (!(fabs(df) > 1e-9)) return refine_loop(g, o, d, t);
+    double step = f / df;
+    if (step > 0.05 || step < -0.05) return refine_loop(g, o, d, t);
+    double fu1 = fu - step * d[0] * g->inv_s, fv1 = fv - step * d[1] * g->inv_s;
+    if (fu1 >= 0.0 && fu1 < 1.0 && fv1 >= 0.0 && fv1 < 1.0) return t - step;
+    return refine_loop(g, o, d, t);
+}
+
+/* Per pixel of a visibility buffer: ray length t (inf: none), class, plant id (-1), prototype
+ * (-1) and triangle. ``refine`` moves terrain hits onto the bilinear surface; the robot's own
+ * constant hits (robot_t, robot_prim; NULL: none in view) win where nearer. */
+EXPORT void resolve_view(const double *cam, int w, int h, const int64_t *gptr,
+                         const double *gval, const double *fwd, const float *iz,
+                         const int32_t *inst, const int32_t *vprim, const int32_t *slot_plant,
+                         const uint8_t *proto_label, int refine_terrain, const double *robot_t,
+                         const int32_t *robot_prim, double *t_out, uint8_t *label,
+                         int32_t *plant, int32_t *proto, int32_t *prim, int row0, int row1) {
+    cam_t c;
+    cam_from(&c, cam, w, h);
+    geom_t g;
+    geom_from(&g, gptr, gval);
+    double *ab = ray_terms(&c);
+    if (!ab) {
+        t_out[(size_t)row0 * w] = NAN;
+        return;
+    }
+    for (int v = row0; v < row1; v++)
+        for (int u = 0; u < w; u++) {
+            size_t k = (size_t)v * w + u;
+            double t = INFINITY;
+            int32_t s = inst[k];
+            uint8_t lab = CLS_OTHER;
+            int32_t pl = -1, pr = -1, tri = vprim[k];
+            if (s != VB_NONE) {
+                double d[3];
+                cam_ray_f(&c, ab[u], ab[w + v], fwd[k], d);
+                t = 1.0 / ((double)iz[k] * fwd[k]);
+                if (s == VB_TERRAIN) {
+                    lab = CLS_SOIL;
+                    if (refine_terrain) t = refine(&g, c.o, d, t);
+                } else {
+                    pr = g.slot_proto[s];
+                    pl = slot_plant[s];
+                    lab = proto_label[pr];
+                }
+            } else {
+                tri = -1;
+            }
+            if (robot_t && robot_t[k] < t) {
+                t = robot_t[k], lab = CLS_ROBOT, pl = -1, pr = -1, tri = robot_prim[k];
+            }
+            t_out[k] = t, label[k] = lab, plant[k] = pl, proto[k] = pr, prim[k] = tri;
+        }
+    free(ab);
+}
+
+/* A segment (from the right imager R along seg, to t = tfar) tested against triangles once
+ * each, the point's own triangle skipped */
+#define SEEN 24
+typedef struct {
+    int32_t i[SEEN], p[SEEN];
+    int n;
+    int32_t own_i, own_p;
+    const geom_t *g;
+    const double *R, *seg;
+    double tfar;
+} seg_test_t;
+
+static int seg_test(seg_test_t *s, int32_t si, int32_t sp) {
+    if (si == s->own_i && sp == s->own_p) return 0;
+    for (int e = 0; e < s->n; e++)
+        if (s->i[e] == si && s->p[e] == sp) return 0;
+    if (s->n == SEEN) return 0;
+    s->i[s->n] = si, s->p[s->n] = sp, s->n++;
+    double tri[9];
+    geom_triangle(s->g, si, sp, tri);
+    double th = ray_triangle(s->R, s->seg, tri, NULL, NULL);
+    return th > 0.0 && th <= s->tfar;
+}
+
+/* Which pixels the stereo pair cannot match (sensors/d455.py): left of the right imager's
+ * image, or in its occlusion shadow. Candidates for the shadow come from the epipolar test on
+ * the depth image (d455.shadow_candidates, the same expression; ``stereo_prepare`` first, on
+ * every row, since a row reads the rows beside it); each is then decided by
+ * intersecting the segment from the right imager to the point (stopping 1 cm + 0.2 % short of
+ * it, as the ray-cast path does) with the triangles that the right imager's own rasterised view
+ * shows at the four pixels of its row around the point's image there. The segment passes
+ * through the right imager's centre, so an occluder covers that image point: one wider than a
+ * pixel there is seen at one of the four unless a nearer surface hides it at all of them.
+ * Candidates whose two right-view pixels around that image point both show the point's own
+ * triangle or nothing nearer than the point are seen (the ray lies between those two rays).
+ * Where one of those surfaces is nearer than the point, the triangles sharing an edge with
+ * its triangle are tested as well: a mesh's quads split along a diagonal leave slivers of
+ * their second triangle, narrower than a pixel, between the pixel centres of a row. The
+ * triangles the left view shows where the epipolar test found its nearest sample (on the
+ * point's row and the rows beside it) are tested too: there the segment passes behind the
+ * surface the left imager sees. What can still slip through is a whole occluder narrower than
+ * a pixel in both views. ``scratch`` holds 3 w h doubles; ``counts`` returns
+ * [candidates, occluded]. */
+EXPORT void stereo_prepare(int w, double fx, double baseline, const double *t,
+                           const double *fwd, double *scratch, int n, int row0, int row1) {
+    const double ifb = 1.0 / (fx * baseline);
+    double *inv = scratch, *after = scratch + n;
+    int32_t *arg = (int32_t *)(scratch + 2 * (size_t)n); /* the column of ``after``'s maximum */
+    for (size_t k = (size_t)row0 * w; k < (size_t)row1 * w; k++) {
+        double z = t[k] * fwd[k];
+        inv[k] = (z < INFINITY && z > 0) ? 1.0 / z : 0.0;
+    }
+    for (int v = row0; v < row1; v++) { /* max over u' > u of 1/z(u') - u'/fB */
+        double m = -INFINITY;
+        int32_t am = -1;
+        const double *iv = inv + (size_t)v * w;
+        double *af = after + (size_t)v * w;
+        int32_t *ag = arg + (size_t)v * w;
+        for (int u = w - 1; u >= 0; u--) {
+            af[u] = m, ag[u] = am;
+            double gk = iv[u] - u * ifb;
+            if (gk > m) m = gk, am = u;
+        }
+    }
+}
+
+EXPORT void stereo_invalid(const double *cam, int w, int h, double baseline, double nearest,
+                           const double *t, const double *fwd, const int32_t *linst,
+                           const int32_t *lprim, const float *riz, const int32_t *rinst, const int32_t *rprim,
+                           const int64_t *gptr, const double *gval, const double *scratch,
+                           uint8_t *bad, int64_t *counts, int row0, int row1) {
+    cam_t c;
+    cam_from(&c, cam, w, h);
+    geom_t g;
+    geom_from(&g, gptr, gval);
+    const double fb = c.fx * baseline, ifb = 1.0 / fb, inear = 1.0 / nearest;
+    const size_t n = (size_t)w * h;
+    const double *inv = scratch, *after = scratch + n;
+    const int32_t *arg = (const int32_t *)(scratch + 2 * n);
+    counts[0] = counts[1] = 0;
+    double *ab = ray_terms(&c);
+    if (!ab) {
+        counts[0] = -1;
+        return;
+    }
+    /* the right imager's centre: B to the right of the depth origin (-y in the camera) */
+    double R[3] = {c.o[0] - baseline * c.r[3], c.o[1] - baseline * c.r[4],
+                   c.o[2] - baseline * c.r[5]};
+    for (int v = row0; v < row1; v++)
+        for (int u = 0; u < w; u++) {
+            size_t k = (size_t)v * w + u;
+            bad[k] = 0;
+            double iv = inv[k];
+            if (iv <= 0) continue;
+            if (u - fb * iv < -0.5) { /* d455.outside_right_imager */
+                bad[k] = 1;
+                continue;
+            }
+            double near = after[k];
+            if (v > 0 && after[k - w] > near) near = after[k - w];
+            if (v < h - 1 && after[k + w] > near) near = after[k + w];
+            int occluder = near >= iv - (u + 0.5) * ifb;
+            int leaves = iv + (w - 1 - u) * ifb < inear;
+            if (!occluder && !leaves) continue;
+            counts[0]++;
+            double d[3];
+            cam_ray_f(&c, ab[u], ab[w + v], fwd[k], d);
+            double P[3] = {c.o[0] + t[k] * d[0], c.o[1] + t[k] * d[1], c.o[2] + t[k] * d[2]};
+            double seg[3] = {P[0] - R[0], P[1] - R[1], P[2] - R[2]};
+            double len = sqrt(seg[0] * seg[0] + seg[1] * seg[1] + seg[2] * seg[2]);
+            double tfar = 1.0 - (0.01 + 0.002 * len) / len;
+            int k0 = (int)ifloor(u - fb * iv);
+            /* Seen: the rays of the two right-view pixels around the point's image both meet
+             * the point's own triangle first, or nothing nearer than the point; the ray to the
+             * point lies between them in their epipolar plane, so only something narrower than
+             * a pixel could block it. */
+            int clear = 1;
+            for (int kk = k0; kk <= k0 + 1 && clear; kk++) {
+                if (kk < 0 || kk >= w) continue;
+                size_t q = (size_t)v * w + kk;
+                int own = rinst[q] == linst[k] && rprim[q] == lprim[k];
+                clear = own || (double)riz[q] <= iv;
+            }
+            if (clear) continue;
+            /* (row, column, view) of the triangles to test: the right view around the point's
+             * image, then the left view where its depth came nearest to the segment */
+            int cand_v[7], cand_u[7], cand_r[7], nc = 0;
+            const int order[4] = {k0, k0 + 1, k0 - 1, k0 + 2};
+            for (int m = 0; m < 4; m++) cand_v[nc] = v, cand_u[nc] = order[m], cand_r[nc++] = 1;
+            for (int dv = -1; dv <= 1; dv++) {
+                if (v + dv < 0 || v + dv >= h) continue;
+                cand_v[nc] = v + dv, cand_u[nc] = arg[k + dv * w], cand_r[nc++] = 0;
+            }
+            seg_test_t st = {.n = 0, .own_i = linst[k], .own_p = lprim[k], .g = &g,
+                             .R = R, .seg = seg, .tfar = tfar};
+            int hit = 0;
+            for (int m = 0; m < nc && !hit; m++) {
+                int kk = cand_u[m];
+                if (kk < 0 || kk >= w) continue;
+                size_t q = (size_t)cand_v[m] * w + kk;
+                int32_t si = cand_r[m] ? rinst[q] : linst[q], sp = cand_r[m] ? rprim[q] : lprim[q];
+                if (si == VB_NONE) continue;
+                hit = seg_test(&st, si, sp);
+                if (!hit && cand_r[m] && (double)riz[q] > iv) { /* nearer than the point */
+                    int32_t adj[3];
+                    int na = geom_adjacent(&g, si, sp, adj);
+                    for (int e = 0; e < na && !hit; e++) hit = seg_test(&st, si, adj[e]);
+                }
+            }
+            if (hit) {
+                bad[k] = 1;
+                counts[1]++;
+            }
+        }
+    free(ab);
+}
+
+/* The depth image: noise (sigma = z^2 s / (f B), ``noise`` the standard normal draws, NULL:
+ * none) on every hit, then 0 where invalid; and the labels cut at the far limit. */
+EXPORT void finish_depth(int i0, int i1, const double *t, const double *fwd,
+                         const double *noise, double k_sigma, double min_range, double max_range,
+                         const uint8_t *bad, float *depth, uint8_t *label, int32_t *plant) {
+    for (int i = i0; i < i1; i++) {
+        double z = t[i] * fwd[i];
+        int hit = isfinite(z);
+        double zn = z;
+        if (hit && noise) zn += k_sigma * z * z * noise[i];
+        int valid = hit && !bad[i] && zn >= min_range && zn <= max_range;
+        depth[i] = valid ? (float)zn : 0.0f;
+        if (label && !(hit && z <= max_range)) {
+            label[i] = CLS_OTHER;
+            plant[i] = -1;
+        }
+    }
+}
+
+/* the bilinear surface's x, y derivatives (``bilinear``'s), without its clamps inside the grid */
+static inline void slope(const geom_t *g, double x, double y, double *hx, double *hy) {
+    double u = (x - g->gx0) * g->inv_s, v = (y - g->gy0) * g->inv_s;
+    if (!(u >= 0.0 && v >= 0.0 && u < g->nx - 1.0 && v < g->ny - 1.0)) {
+        bilinear(g, x, y, hx, hy);
+        return;
+    }
+    int j = (int)u, i = (int)v;
+    double fu = u - j, fv = v - i;
+    const double *hp = g->heights + (size_t)i * g->nx + j;
+    double h00 = hp[0], h01 = hp[1], h10 = hp[g->nx], h11 = hp[g->nx + 1];
+    double a = h01 - h00, b = h11 - h10;
+    *hx = (a + (b - a) * fv) * g->inv_s;
+    *hy = (h10 + b * fu - (h00 + a * fu)) * g->inv_s;
+}
+
+/* shading parameters (sensors/shading.py), in this order */
+enum {
+    SH_SOIL = 0,          /* soil colour rgb */
+    SH_LIGHT = 3,         /* sun direction */
+    SH_HORIZON = 6,       /* sky at the horizon */
+    SH_ZENITH = 9,        /* sky at the zenith */
+    SH_AMBIENT = 12,      /* ambient share of Lambert */
+    SH_FAR = 13,          /* haze distance scale */
+    SH_ORIGIN = 14,       /* scene origin x, y (the soil texture is in world coordinates) */
+    SH_TEXEL = 16,        /* soil texel size */
+    SH_N = 17
+};
+
+static inline void lambert(const double *alb, double nx, double ny, double nz, const double *d,
+                           const double *light, double ambient, double *out) {
+    /* the unit normal turned towards the viewer: only its sign and the sun's cosine matter */
+    float len = sqrtf((float)(nx * nx + ny * ny + nz * nz)); /* shading: float is plenty */
+    double il = 1.0f / (len < 1e-12f ? 1e-12f : len);
+    double side = -(nx * d[0] + ny * d[1] + nz * d[2]);
+    double flip = side < 0 ? -il : il;
+    double cs = flip * (nx * light[0] + ny * light[1] + nz * light[2]);
+    if (cs < 0) cs = 0;
+    if (cs > 1) cs = 1;
+    double lit = ambient + (1.0 - ambient) * cs;
+    for (int i = 0; i < 3; i++) out[i] = alb[i] * lit;
+}
+
+static inline void haze(double *rgb, double dist, double inv3far, const double *horizon) {
+    double a = dist * inv3far;
+    if (a < 0) a = 0;
+    if (a > 0.6) a = 0.6;
+    for (int i = 0; i < 3; i++) rgb[i] = rgb[i] * (1 - a) + horizon[i] * a;
+}
+
+/* floor(x) mod n, n a power of two (the soil texture's 512) */
+static inline int64_t wrap(double x, int64_t n) { return ifloor(x) & (n - 1); }
+
+/* texel (row j, column i) of a texture stored in 8 x 8 tiles (raster_view.tiled_texture): a
+ * pixel's neighbours land in the same few cache lines whichever way the view runs */
+static inline size_t tiled(int64_t j, int64_t i, int64_t n) {
+    return (size_t)((((j >> 3) * (n >> 3) + (i >> 3)) << 6) + ((j & 7) << 3) + (i & 7));
+}
+
+#define SKY_STEPS 4096
+
+static inline uint8_t to_u8(double x) {
+    if (!(x > 0)) x = 0;
+    if (x > 1) x = 1;
+    return (uint8_t)(x * 255.0 + 0.5);
+}
+
+/* Linear RGB of every pixel of a resolved colour view, as MeshCamera.shade: sky, distant
+ * ground in haze, textured soil lit through the bilinear normal, plants by face colour or
+ * texture (the texel at the hit's barycentrics) lit through their rotated face normal, the
+ * robot by its face colours. Prototype k's faces start at face_offset[k] in the face tables;
+ * tex[2k], tex[2k+1] are the addresses of its texture (h, w, 3 uint8) and UVs (0: untextured)
+ * and tex_hw[2k], tex_hw[2k+1] the texture's size. */
+EXPORT void shade_view(const double *cam, int w, int h, const int64_t *gptr, const double *gval,
+                       const double *fwd, const double *t, const uint8_t *label, const int32_t *vinst,
+                       const int32_t *proto, const int32_t *prim, const int64_t *face_offset,
+                       const uint8_t *face_rgb, const float *face_normal, const int64_t *tex,
+                       const int32_t *tex_hw, const float *soil, int soil_n,
+                       const double *par, const double *robot_rot, const uint8_t *robot_rgb,
+                       const float *robot_normal, uint8_t *rgb, int row0, int row1) {
+    cam_t c;
+    cam_from(&c, cam, w, h);
+    geom_t g;
+    geom_from(&g, gptr, gval);
+    const double *light = par + SH_LIGHT, *horizon = par + SH_HORIZON, *zenith = par + SH_ZENITH;
+    const double ambient = par[SH_AMBIENT], far = par[SH_FAR], texel = par[SH_TEXEL];
+    const double ca = cos(0.65), sa = sin(0.65), i3f = 1.0 / (3.0 * far), itx = 1.0 / texel;
+    const double itx7 = 1.0 / (7.3 * texel);
+    /* a power of two, at least one tile (shading.TEX_SIZE) */
+    if (soil_n < 8 || (soil_n & (soil_n - 1))) return;
+    double ground[3]; /* beyond the loaded world: the soil colour in haze */
+    for (int i = 0; i < 3; i++) ground[i] = par[SH_SOIL + i] * (ambient + 0.4);
+    haze(ground, far, i3f, horizon);
+    /* the sky's blend a = d_z^0.6, tabulated (linear interpolation: |error| < 3e-7) */
+    double sky_a[SKY_STEPS + 2];
+    for (int i = 0; i <= SKY_STEPS; i++) sky_a[i] = pow((double)i / SKY_STEPS, 0.6);
+    sky_a[SKY_STEPS + 1] = 1.0;
+    double *ab = ray_terms(&c);
+    if (!ab) return;
+    for (int v = row0; v < row1; v++) {
+        for (int u = 0; u < w; u++) {
+            size_t k = (size_t)v * w + u;
+            double d[3], out[3];
+            cam_ray_f(&c, ab[u], ab[w + v], fwd[k], d);
+            double tk = t[k];
+            uint8_t lab = label[k];
+            if (!isfinite(tk)) {
+                if (d[2] < 0) {
+                    out[0] = ground[0], out[1] = ground[1], out[2] = ground[2];
+                } else {
+                    double x = (d[2] > 1 ? 1.0 : d[2]) * SKY_STEPS;
+                    int i0 = (int)x;
+                    double a = sky_a[i0] + (x - i0) * (sky_a[i0 + 1] - sky_a[i0]);
+                    if (a < 0.02) a = pow(d[2], 0.6); /* steep near the horizon: exact */
+                    for (int i = 0; i < 3; i++) out[i] = horizon[i] * (1 - a) + zenith[i] * a;
+                }
+            } else if (lab == CLS_SOIL) {
+                double p[3] = {c.o[0] + tk * d[0], c.o[1] + tk * d[1], c.o[2] + tk * d[2]};
+                double x = p[0] + par[SH_ORIGIN], y = p[1] + par[SH_ORIGIN + 1];
+                int64_t i1 = wrap(x * itx, soil_n), j1 = wrap(y * itx, soil_n);
+                double xr = ca * x - sa * y, yr = sa * x + ca * y;
+                int64_t i2 = wrap(xr * itx7, soil_n), j2 = wrap(yr * itx7, soil_n);
+                float m = soil[tiled(j1, i1, soil_n)] * soil[tiled(j2, i2, soil_n)];
+                double alb[3] = {par[SH_SOIL] * m, par[SH_SOIL + 1] * m, par[SH_SOIL + 2] * m};
+                double hx, hy;
+                slope(&g, p[0], p[1], &hx, &hy);
+                lambert(alb, -hx, -hy, 1.0, d, light, ambient, out);
+                haze(out, tk, i3f, horizon);
+            } else if (lab == CLS_ROBOT) {
+                const uint8_t *col = robot_rgb + 3 * (size_t)prim[k];
+                const float *nr = robot_normal + 3 * (size_t)prim[k];
+                double alb[3] = {col[0] / 255.0, col[1] / 255.0, col[2] / 255.0};
+                const double *r = robot_rot;
+                lambert(alb, r[0] * nr[0] + r[1] * nr[1] + r[2] * nr[2],
+                        r[3] * nr[0] + r[4] * nr[1] + r[5] * nr[2],
+                        r[6] * nr[0] + r[7] * nr[1] + r[8] * nr[2], d, light, ambient, out);
+            } else if (proto[k] >= 0) {
+                int32_t pk = proto[k], f = prim[k], s = vinst[k];
+                size_t flat = (size_t)face_offset[pk] + f;
+                double alb[3];
+                const uint8_t *tx = (const uint8_t *)(intptr_t)tex[2 * pk];
+                if (tx) {
+                    double tri[9], bu = 0, bv = 0;
+                    geom_triangle(&g, s, f, tri);
+                    ray_triangle(c.o, d, tri, &bu, &bv);
+                    const float *uv = (const float *)(intptr_t)tex[2 * pk + 1];
+                    const uint32_t *fc = (const uint32_t *)(intptr_t)g.proto_faces[pk] + 3 * (size_t)f;
+                    double w0 = 1.0 - bu - bv;
+                    double tu = uv[2 * fc[0]] * w0 + uv[2 * fc[1]] * bu + uv[2 * fc[2]] * bv;
+                    double tv = uv[2 * fc[0] + 1] * w0 + uv[2 * fc[1] + 1] * bu + uv[2 * fc[2] + 1] * bv;
+                    int th = tex_hw[2 * pk], tw = tex_hw[2 * pk + 1];
+                    double mu = tu - (double)ifloor(tu), mv = tv - (double)ifloor(tv);
+                    int64_t xi = ifloor(mu * tw), yi = ifloor((1.0 - mv) * th);
+                    if (xi < 0) xi = 0;
+                    if (xi > tw - 1) xi = tw - 1;
+                    if (yi < 0) yi = 0;
+                    if (yi > th - 1) yi = th - 1;
+                    const uint8_t *px = tx + 3 * ((size_t)yi * tw + xi);
+                    alb[0] = px[0] / 255.0, alb[1] = px[1] / 255.0, alb[2] = px[2] / 255.0;
+                } else {
+                    const uint8_t *col = face_rgb + 3 * flat;
+                    alb[0] = col[0] / 255.0, alb[1] = col[1] / 255.0, alb[2] = col[2] / 255.0;
+                }
+                const float *nf = face_normal + 3 * flat;
+                const float *x = g.xfm + 12 * (size_t)s;
+                lambert(alb, (double)x[0] * nf[0] + (double)x[1] * nf[1] + (double)x[2] * nf[2],
+                        (double)x[4] * nf[0] + (double)x[5] * nf[1] + (double)x[6] * nf[2],
+                        (double)x[8] * nf[0] + (double)x[9] * nf[1] + (double)x[10] * nf[2], d,
+                        light, ambient, out);
+                haze(out, tk, i3f, horizon);
+            } else {
+                out[0] = out[1] = out[2] = 0.0;
+            }
+            for (int i = 0; i < 3; i++) rgb[3 * k + i] = to_u8(out[i]);
+        }
+    }
+    free(ab);
+}

@@ -1,0 +1,92 @@
+"""The compiled sensor kernels (``src/agrinav_gym/csrc``) through ctypes.
+
+The kernels are plain C functions in the optional extension ``agrinav_gym._native`` (built by
+``pip install``/``make`` where a C compiler exists). ctypes releases the GIL during each call,
+so two threads can render two views at once. Where the extension is missing, or the
+environment sets ``AGRINAV_NATIVE=0``, ``lib()`` returns None and the sensors use their numpy
+and Embree paths, which give the same images more slowly (tests compare the two).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import importlib.util
+import os
+from typing import Any
+
+import numpy as np
+
+_vp, _i, _d = ctypes.c_void_p, ctypes.c_int, ctypes.c_double
+_SIGNATURES: dict[str, tuple[Any, list[Any]]] = {
+    "proxy_cast": (
+        None,
+        [_i, _vp, _vp, _vp, _vp, _i, _i, _d, _d, _d, _vp, _i, _i, _i, _i, _i, _d, _d, _d]
+        + [_vp] * 5,
+    ),
+    "raster_view": (ctypes.c_int64, [_vp, _i, _i, _vp, _vp, _i, _vp, _vp, _vp, _i, _i]),
+    "resolve_view": (
+        None,
+        [_vp, _i, _i, _vp, _vp, _vp, _vp, _vp, _vp, _vp, _vp, _i] + [_vp] * 7 + [_i, _i],
+    ),
+    "stereo_prepare": (None, [_i, _d, _d, _vp, _vp, _vp, _i, _i, _i]),
+    "stereo_invalid": (None, [_vp, _i, _i, _d, _d] + [_vp] * 12 + [_i, _i]),
+    "finish_depth": (None, [_i, _i, _vp, _vp, _vp, _d, _d, _d, _vp, _vp, _vp, _vp]),
+    "shade_view": (None, [_vp, _i, _i] + [_vp] * 14 + [_i] + [_vp] * 5 + [_i, _i]),
+}
+
+_LIB: Any = None
+_TRIED = False
+
+
+class NativeUnavailable(RuntimeError):
+    """The compiled kernels were asked for but are not built (or disabled)."""
+
+
+def disabled() -> bool:
+    return os.environ.get("AGRINAV_NATIVE", "1").strip().lower() in ("0", "false", "no", "off")
+
+
+def lib() -> Any:
+    """The loaded kernels, or None where the extension is not built or is disabled."""
+    global _LIB, _TRIED
+    if disabled():
+        return None
+    if not _TRIED:
+        _TRIED = True
+        spec = importlib.util.find_spec("agrinav_gym._native")
+        if spec is not None and spec.origin is not None:
+            try:
+                handle = ctypes.CDLL(spec.origin)
+            except OSError:
+                handle = None
+            if handle is not None:
+                for name, (res, args) in _SIGNATURES.items():
+                    f = getattr(handle, name)
+                    f.restype, f.argtypes = res, args
+                _LIB = handle
+    return _LIB
+
+
+def available() -> bool:
+    return lib() is not None
+
+
+def require(what: str) -> Any:
+    """The kernels, or an error saying how to get them."""
+    handle = lib()
+    if handle is None:
+        why = (
+            "disabled by AGRINAV_NATIVE=0"
+            if disabled()
+            else "not built (reinstall with a C compiler: pip install -e . or make test)"
+        )
+        raise NativeUnavailable(f"{what} needs the compiled kernels agrinav_gym._native: {why}")
+    return handle
+
+
+def ptr(a: np.ndarray | None) -> int | None:
+    """The address of a C-contiguous array (None stays None: a NULL pointer)."""
+    if a is None:
+        return None
+    assert a.flags.c_contiguous, "kernels take C-contiguous arrays"
+    return int(a.ctypes.data)

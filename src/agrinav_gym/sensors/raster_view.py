@@ -1,0 +1,393 @@
+"""The mesh camera's views by rasterisation: the compiled twin of its Embree ray casts.
+
+For a pinhole camera the first hit of the ray through each pixel centre is what a z-buffer
+rasteriser computes, so for the large frames of datasets (848 × 480) the mesh camera draws its
+views (csrc/raster.c) instead of casting 407k rays: the plants of the tiles around the view,
+culled by bounding sphere, and the terrain grid, culled in blocks, into a visibility buffer
+(1/z, instance slot, triangle). The per-pixel work then runs compiled as well (csrc/frame.c):
+terrain hits refined onto the bilinear surface as ``refine_ground`` does, labels, the D455's
+stereo invalidation, noise, and the colour camera's shading. The geometry, the images and the
+noise stream are those of the ray-cast path; tests compare the two pixel by pixel.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from functools import lru_cache
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..interface import CameraModel
+from ..sim.mesh_scene import MeshScene
+from ..sim.plant_meshes import Prototype
+from . import native, shading
+
+FloatArray = NDArray[np.float64]
+ZNEAR = 1e-3  # m: the ray casts start at the camera; nothing of the scene comes this close
+
+
+@dataclass
+class VisBuffer:
+    """A rasterised view: per pixel 1/z (0: nothing), instance slot (-1 none, -2 terrain) and
+    triangle; ``triangles`` is how many were scan-converted."""
+
+    iz: NDArray[np.float32]
+    inst: NDArray[np.int32]
+    prim: NDArray[np.int32]
+    triangles: int
+
+
+@dataclass
+class Resolved:
+    """Per pixel of a view: ray length (inf: none), class, plant id, prototype and triangle."""
+
+    t: FloatArray
+    label: NDArray[np.uint8]
+    plant: NDArray[np.int32]
+    proto: NDArray[np.int32]
+    prim: NDArray[np.int32]
+
+
+def camera_params(model: CameraModel, rot: FloatArray, pos: FloatArray, origin: FloatArray,
+                  zfar: float, lateral: float = 0.0) -> NDArray[np.float64]:
+    """The kernels' camera block for ``model`` on a base at ``pos``/``rot``, in scene
+    coordinates (world minus ``origin``); ``lateral`` moves it that far to its right."""
+    r_wc = rot @ model.rotation  # camera body -> world
+    o = pos + rot @ np.asarray(model.position, np.float64) - origin - lateral * r_wc[:, 1]
+    out = np.empty(18)
+    out[0:3] = o
+    out[3:12] = r_wc.T.ravel()
+    out[12:18] = (model.fx, model.fy, model.cx, model.cy, ZNEAR, zfar)
+    return out
+
+
+class SceneGeometry:
+    """A ``MeshScene``'s prototypes, terrain and shading tables as the kernels read them, and
+    the plant instances near the current view. Built once per scene; keeps the arrays alive."""
+
+    def __init__(self, scene: MeshScene) -> None:
+        self.scene = scene
+        protos: tuple[Prototype, ...] = scene.plants.prototypes if scene.plants else ()
+        self.protos = protos
+        self._v = [np.ascontiguousarray(p.vertices, np.float32) for p in protos]
+        self._f = [np.ascontiguousarray(p.faces, np.uint32) for p in protos]
+        self.vaddr = np.array([a.ctypes.data for a in self._v], np.int64)
+        self.faddr = np.array([a.ctypes.data for a in self._f], np.int64)
+        self._adj = [face_adjacency(v, f) for v, f in zip(self._v, self._f, strict=True)]
+        self.adjaddr = np.array([a.ctypes.data for a in self._adj], np.int64)
+        self.nv = np.array([len(a) for a in self._v], np.int32)
+        self.nf = np.array([len(a) for a in self._f], np.int32)
+        self.sphere = np.zeros((max(len(protos), 1), 4), np.float32)
+        for k, v in enumerate(self._v):
+            if len(v):
+                c = 0.5 * (v.min(axis=0) + v.max(axis=0))
+                self.sphere[k, :3] = c
+                self.sphere[k, 3] = float(np.linalg.norm(v - c, axis=1).max())
+        self.labels = np.array([p.label for p in protos] or [0], np.uint8)
+        t = scene.terrain
+        self.heights = np.ascontiguousarray(t.heights, np.float64)
+        o = scene.origin
+        self._terrain_vals = (t.shape[1], t.shape[0], t.x0 - o[0], t.y0 - o[1], t.spacing)
+        # shading: all prototypes' faces in one table, textures by address
+        counts = [len(f) for f in self._f]
+        self.face_offset = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
+        self.face_rgb = np.ascontiguousarray(
+            np.concatenate([p.face_rgb for p in protos]) if protos else np.zeros((1, 3)), np.uint8
+        )
+        self.face_normal = np.ascontiguousarray(
+            np.concatenate([p.normals for p in protos]) if protos else np.zeros((1, 3)),
+            np.float32,
+        )
+        self._tex: list[Any] = []
+        self.tex = np.zeros(2 * max(len(protos), 1), np.int64)
+        self.tex_hw = np.zeros(2 * max(len(protos), 1), np.int32)
+        for k, p in enumerate(protos):
+            if p.texture is not None and p.uv is not None:
+                img = np.ascontiguousarray(p.texture, np.uint8)
+                uv = np.ascontiguousarray(p.uv, np.float32)
+                self._tex += [img, uv]
+                self.tex[2 * k : 2 * k + 2] = (img.ctypes.data, uv.ctypes.data)
+                self.tex_hw[2 * k : 2 * k + 2] = img.shape[:2]
+        self._scratch = np.empty(0)
+        self.use(np.zeros(0, np.int32), np.zeros((0, 12), np.float32))
+
+    def use(self, plant_ids: NDArray[np.int32], xfm: NDArray[np.float32]) -> None:
+        """Make these plants (ids, row-major 3×4 transforms) the instance slots."""
+        pm = self.scene.plants
+        self.slot_plant = np.ascontiguousarray(plant_ids, np.int32)
+        self.xfm = np.ascontiguousarray(xfm, np.float32)
+        proto = pm.proto[plant_ids] if pm is not None and len(plant_ids) else np.zeros(0)
+        self.slot_proto = np.ascontiguousarray(proto, np.int32)
+        if not len(self.slot_plant):  # the kernels read one slot's worth of pointers
+            self.slot_proto = np.zeros(1, np.int32)
+            self.xfm = np.zeros((1, 12), np.float32)
+        self.gptr = np.array(
+            [
+                self.slot_proto.ctypes.data,
+                self.xfm.ctypes.data,
+                self.vaddr.ctypes.data if len(self.vaddr) else 0,
+                self.faddr.ctypes.data if len(self.faddr) else 0,
+                self.nv.ctypes.data if len(self.nv) else 0,
+                self.nf.ctypes.data if len(self.nf) else 0,
+                self.sphere.ctypes.data,
+                self.heights.ctypes.data,
+                self.adjaddr.ctypes.data if len(self.adjaddr) else 0,
+            ],
+            np.int64,
+        )
+        nx, ny, gx0, gy0, s = self._terrain_vals
+        self.gval = np.array([len(plant_ids), len(self.protos), nx, ny, gx0, gy0, s], np.float64)
+
+    def near(self, xy: FloatArray) -> None:
+        """Slots for the plants of every tile a view spanning world points ``xy`` can reach."""
+        ids, xfm = self.scene.instances_near(xy)
+        if ids is not getattr(self, "_near_ids", None):
+            self.use(ids, xfm)
+            self._near_ids = ids
+
+    # ------------------------------------------------------------------ kernels
+    # Each takes a band of rows [r0, r1): two threads work on one view's two bands at once.
+    def draw(self, cam: FloatArray, vb: VisBuffer, w: int, h: int, r0: int, r1: int) -> None:
+        lib = native.require("the rasteriser")
+        tris = lib.raster_view(
+            cam.ctypes.data, w, h, self.gptr.ctypes.data, self.gval.ctypes.data, 1,
+            vb.iz.ctypes.data, vb.inst.ctypes.data, vb.prim.ctypes.data, r0, r1,
+        )
+        if tris < 0:
+            raise MemoryError("rasteriser: out of memory")
+        vb.triangles += int(tris)
+
+    def resolve(
+        self,
+        cam: FloatArray,
+        forward: FloatArray,
+        vb: VisBuffer,
+        out: Resolved,
+        w: int,
+        h: int,
+        refine: bool,
+        robot: tuple[FloatArray, NDArray[np.int32]] | None,
+        r0: int,
+        r1: int,
+    ) -> None:
+        lib = native.require("the rasteriser")
+        lib.resolve_view(
+            cam.ctypes.data, w, h, self.gptr.ctypes.data, self.gval.ctypes.data,
+            forward.ctypes.data, vb.iz.ctypes.data, vb.inst.ctypes.data, vb.prim.ctypes.data,
+            self.slot_plant.ctypes.data if len(self.slot_plant) else None,
+            self.labels.ctypes.data, int(refine),
+            native.ptr(robot[0]) if robot else None, native.ptr(robot[1]) if robot else None,
+            out.t.ctypes.data, out.label.ctypes.data, out.plant.ctypes.data,
+            out.proto.ctypes.data, out.prim.ctypes.data, r0, r1,
+        )
+        if r1 > r0 and np.isnan(out.t[r0 * w]):
+            raise MemoryError("resolve: out of memory")
+
+    def stereo_prepare(
+        self, w: int, h: int, fx: float, baseline: float, left: Resolved, forward: FloatArray,
+        r0: int, r1: int,
+    ) -> None:
+        if self._scratch.size < 3 * w * h:
+            self._scratch = np.empty(3 * w * h)
+        native.require("the rasteriser").stereo_prepare(
+            w, fx, baseline, left.t.ctypes.data, forward.ctypes.data, self._scratch.ctypes.data,
+            w * h, r0, r1,
+        )
+
+    def stereo(
+        self,
+        cam: FloatArray,
+        forward: FloatArray,
+        w: int,
+        h: int,
+        baseline: float,
+        nearest: float,
+        left: Resolved,
+        left_vb: VisBuffer,
+        right: VisBuffer,
+        bad: NDArray[np.uint8],
+        r0: int,
+        r1: int,
+    ) -> NDArray[np.int64]:
+        """Rows r0..r1 of ``bad``: 1 where the stereo pair cannot match, else 0 (csrc/frame.c
+        ``stereo_invalid``, after ``stereo_prepare`` on every row); [candidates, occluded]."""
+        counts = np.zeros(2, np.int64)
+        native.require("the rasteriser").stereo_invalid(
+            cam.ctypes.data, w, h, baseline, nearest, left.t.ctypes.data, forward.ctypes.data,
+            left_vb.inst.ctypes.data, left_vb.prim.ctypes.data, right.iz.ctypes.data,
+            right.inst.ctypes.data, right.prim.ctypes.data, self.gptr.ctypes.data,
+            self.gval.ctypes.data, self._scratch.ctypes.data, bad.ctypes.data,
+            counts.ctypes.data, r0, r1,
+        )
+        if counts[0] < 0:
+            raise MemoryError("stereo: out of memory")
+        return counts
+
+    def shade(
+        self,
+        cam: FloatArray,
+        forward: FloatArray,
+        w: int,
+        h: int,
+        res: Resolved,
+        vb: VisBuffer,
+        par: FloatArray,
+        robot: tuple[FloatArray, NDArray[np.uint8], NDArray[np.float32]] | None,
+        rgb: NDArray[np.uint8],
+        r0: int,
+        r1: int,
+    ) -> None:
+        """Rows r0..r1 of the 8-bit RGB (h·w, 3) of a resolved colour view (``MeshCamera.shade``'s
+        rules); ``par`` from ``shading_params``."""
+        tex = tiled_texture(self.scene.seed)
+        native.require("the rasteriser").shade_view(
+            cam.ctypes.data, w, h, self.gptr.ctypes.data, self.gval.ctypes.data,
+            forward.ctypes.data, res.t.ctypes.data, res.label.ctypes.data, vb.inst.ctypes.data,
+            res.proto.ctypes.data, res.prim.ctypes.data, self.face_offset.ctypes.data,
+            self.face_rgb.ctypes.data, self.face_normal.ctypes.data, self.tex.ctypes.data,
+            self.tex_hw.ctypes.data, tex.ctypes.data, tex.shape[0], par.ctypes.data,
+            *(native.ptr(a) for a in (robot or (None, None, None))), rgb.ctypes.data, r0, r1,
+        )
+
+    def shading_params(self, soil_rgb: FloatArray, light: FloatArray, far: float) -> FloatArray:
+        o = self.scene.origin
+        return np.concatenate(
+            [soil_rgb, light, shading.SKY_HORIZON, shading.SKY_ZENITH,
+             [shading.AMBIENT, far, o[0], o[1], shading.TEXEL]]
+        ).astype(np.float64)
+
+
+@lru_cache(maxsize=4)
+def tiled_texture(seed: int) -> NDArray[np.float32]:
+    """The soil texture (``shading.soil_texture``) stored in 8 × 8 tiles, as frame.c reads it."""
+    tex = shading.soil_texture(seed)
+    n = tex.shape[0]
+    out = tex.reshape(n // 8, 8, n // 8, 8).transpose(0, 2, 1, 3)
+    return np.ascontiguousarray(out).reshape(n, n)
+
+
+def face_adjacency(vertices: NDArray[np.float32], faces: NDArray[np.uint32]) -> NDArray[np.int32]:
+    """(F, 3): the face across edge (v0, v1), (v1, v2), (v2, v0) of each face, -1 where none.
+    Vertices at the same position count as one (meshes repeat them along texture seams)."""
+    f = np.asarray(faces, np.int64)
+    out = np.full((len(f), 3), -1, np.int32)
+    if len(f) == 0:
+        return out
+    _, canon = np.unique(np.asarray(vertices), axis=0, return_inverse=True)
+    c = canon.reshape(-1)[f]
+    a = np.stack([c, np.roll(c, -1, axis=1)], axis=-1).reshape(-1, 2)  # edge e of face i at 3i+e
+    a.sort(axis=1)
+    key = a[:, 0] * (int(c.max()) + 1) + a[:, 1]
+    order = np.argsort(key, kind="stable")
+    ks = key[order]
+    same = np.flatnonzero(ks[1:] == ks[:-1])  # consecutive slots sharing an edge
+    for x, y in ((order[same], order[same + 1]), (order[same + 1], order[same])):
+        out.reshape(-1)[x] = (y // 3).astype(np.int32)
+    return out
+
+
+def finish_depth(
+    res: Resolved,
+    forward: FloatArray,
+    noise: FloatArray | None,
+    k_sigma: float,
+    min_range: float,
+    max_range: float,
+    bad: NDArray[np.uint8],
+    labels: bool,
+    depth: NDArray[np.float32],
+    i0: int,
+    i1: int,
+) -> None:
+    """Pixels i0..i1 of ``depth``: with noise, 0 where invalid; with ``labels`` cuts
+    ``res``'s labels at the far limit in place."""
+    native.require("the rasteriser").finish_depth(
+        i0, i1, res.t.ctypes.data, forward.ctypes.data, native.ptr(noise), k_sigma, min_range,
+        max_range, bad.ctypes.data, depth.ctypes.data,
+        res.label.ctypes.data if labels else None, res.plant.ctypes.data if labels else None,
+    )
+
+
+def new_vis(n: int) -> VisBuffer:
+    return VisBuffer(np.empty(n, np.float32), np.empty(n, np.int32), np.empty(n, np.int32), 0)
+
+
+def new_resolved(n: int) -> Resolved:
+    return Resolved(
+        np.empty(n), np.empty(n, np.uint8), np.empty(n, np.int32), np.empty(n, np.int32),
+        np.empty(n, np.int32),
+    )
+
+
+@dataclass
+class FrameBuffers:
+    """A camera's per-frame working arrays, kept between frames (outputs are not among them)."""
+
+    n: int
+
+    def __post_init__(self) -> None:
+        self.views = [new_vis(self.n) for _ in range(3)]
+        self.resolved = [new_resolved(self.n) for _ in range(2)]
+        self.bad = np.zeros(self.n, np.uint8)
+
+    def parts(self) -> tuple[VisBuffer, VisBuffer, VisBuffer, Resolved, Resolved, Any]:
+        for v in self.views:
+            v.triangles = 0
+        return (*self.views, *self.resolved, self.bad)  # type: ignore[return-value]
+
+
+class Bands:
+    """Runs a stage of a frame as two bands of rows, the top one here and the bottom one in the
+    worker thread, moving the split towards equal times frame by frame (each stage keeps its
+    own). The bands are disjoint and every pixel depends only on the frame's inputs, so the
+    images do not depend on where the split falls."""
+
+    def __init__(self, h: int, threads: int) -> None:
+        self.h = h
+        self.threaded = threads > 1 and h >= 8
+        self.split: dict[str, float] = {}
+
+    def run(self, stage: str, fn: Any) -> list[Any]:
+        """``fn(r0, r1)`` over all rows; returns the bands' results (top first)."""
+        h = self.h
+        if not self.threaded:
+            return [fn(0, h)]
+        frac = self.split.get(stage, 0.5)
+        m = min(max(int(round(frac * h)), 1), h - 1)
+
+        def timed(r0: int, r1: int) -> tuple[float, Any]:
+            t0 = time.perf_counter()
+            out = fn(r0, r1)
+            return time.perf_counter() - t0, out
+
+        fut = pool().submit(timed, m, h)
+        t_top, top = timed(0, m)
+        t_bot, bot = fut.result()
+        # per-row rates of the two bands; the split that would have balanced them, damped
+        a, b = t_top / m, t_bot / (h - m)
+        if a > 0 and b > 0:
+            self.split[stage] = min(max(0.5 * frac + 0.5 * b / (a + b), 0.02), 0.98)
+        return [top, bot]
+
+
+_POOLS: dict[int, ThreadPoolExecutor] = {}
+_POOL_LOCK = threading.Lock()
+
+
+def pool() -> ThreadPoolExecutor:
+    """One worker thread per process for the second view of a frame (a forked child gets its
+    own: executors do not survive ``fork``)."""
+    pid = os.getpid()
+    with _POOL_LOCK:
+        ex = _POOLS.get(pid)
+        if ex is None:
+            _POOLS.clear()
+            ex = ThreadPoolExecutor(max_workers=1, thread_name_prefix="agrinav-raster")
+            _POOLS[pid] = ex
+    return ex
