@@ -238,6 +238,10 @@ EXPORT void proxy_cast(int n, const double *o, const double *d, const double *tl
             for (int j = j0; j <= j1; j++) hmax_all = MAX2(hmax_all, bmax[i * bnx + j]);
     }
     const double igs = 1.0 / gs;
+    /* the tallest cylinder: a rising ray above it meets no plant any more */
+    double ztop = -INFINITY;
+    for (int32_t m = 0; m < start[gnx > 0 && gny > 0 ? gnx * gny : 0]; m++)
+        ztop = MAX2(ztop, cyl[5 * (size_t)items[m] + 3]);
     for (int k = 0; k < n; k++) {
         const double *dk = d + 3 * (size_t)k;
         double idx = dk[0] != 0 ? 1.0 / dk[0] : INFINITY, idy = dk[1] != 0 ? 1.0 / dk[1] : INFINITY;
@@ -248,6 +252,7 @@ EXPORT void proxy_cast(int n, const double *o, const double *d, const double *tl
                                   bnx, bny, hmax_all);
         int32_t id = isfinite(best) ? HIT_TERRAIN : HIT_NONE;
         double lo = 0.0, hi = isfinite(best) ? best : tmax;
+        if (dk[2] > 0 && (ztop - o[2]) / dk[2] < hi) hi = (ztop - o[2]) / dk[2];
         if (gnx > 0 && gny > 0 &&
             clip_rect(o[0], o[1], dk[0], dk[1], gx, gy, gx + gnx * gs, gy + gny * gs, &lo, &hi)) {
             walk_t w;
