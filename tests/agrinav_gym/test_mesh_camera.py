@@ -23,9 +23,14 @@ from .helpers import TINY
 BASE = np.array([0.0, 0.0, 0.11])  # base_link on flat ground at z = 0
 
 
-def camera(robot: dict[str, Any] | None = None, cam: dict[str, Any] | None = None) -> MeshCamera:
-    cfg = EnvConfig.from_dict({"robot": robot or {}, "camera": cam or {}})
-    return MeshCamera(cfg.camera, robot_interface(cfg, RobotGeometry.from_urdf()).camera)
+def camera(
+    robot: dict[str, Any] | None = None,
+    cam: dict[str, Any] | None = None,
+    renderer: str = "auto",
+    threads: int = 1,
+) -> MeshCamera:
+    cfg = EnvConfig.from_dict({"robot": robot or {}, "camera": {**(cam or {}), "renderer": renderer}})
+    return MeshCamera(cfg.camera, robot_interface(cfg, RobotGeometry.from_urdf()).camera, threads)
 
 
 def boxes(items: list[tuple[float, float, tuple[float, float, float]]]) -> PlantMeshes:
@@ -67,8 +72,8 @@ def test_d455_intrinsics_and_colour_extrinsic() -> None:
     assert 2 * math.degrees(math.atan(424 / big.color.fx)) == pytest.approx(90.0)
 
 
-def test_depth_of_a_box_at_a_known_distance_follows_the_noise_law() -> None:
-    cam = camera({"camera_pitch_deg": 0.0}, {"width": 16, "height": 12})
+def test_depth_of_a_box_at_a_known_distance_follows_the_noise_law(renderer: str) -> None:
+    cam = camera({"camera_pitch_deg": 0.0}, {"width": 16, "height": 12}, renderer)
     x_cam = 0.25  # the camera sits 0.25 m ahead of base_link
     scene = MeshScene(flat(), boxes([(x_cam + 3.05, 0.0, (0.1, 3.0, 2.0))]))
     truth = cam.render(np.eye(3), BASE, scene, None)
@@ -81,10 +86,10 @@ def test_depth_of_a_box_at_a_known_distance_follows_the_noise_law() -> None:
     assert samples.std() == pytest.approx(sigma, rel=0.06)
 
 
-def test_noisy_frames_are_deterministic_per_seed() -> None:
+def test_noisy_frames_are_deterministic_per_seed(renderer: str) -> None:
     scn = generate(preset("default", **TINY), 0)
     scene = MeshScene.from_scenario(scn)
-    cam = camera()
+    cam = camera(renderer=renderer)
     pos = np.array([scn.route.xy[30][0], scn.route.xy[30][1], 0.0])
     pos[2] = float(scn.terrain.height_at(pos[0], pos[1])) + 0.11
     a = cam.render(np.eye(3), pos, scene, np.random.default_rng(3)).depth
@@ -93,11 +98,11 @@ def test_noisy_frames_are_deterministic_per_seed() -> None:
     assert np.array_equal(a, b) and not np.array_equal(a, c)
 
 
-def test_instance_ids_name_the_plant_each_ray_hits() -> None:
+def test_instance_ids_name_the_plant_each_ray_hits(renderer: str) -> None:
     """Checked against an independent closest-point query on every nearby plant's mesh."""
     scn = generate(preset("default", **TINY), 0)
     scene = MeshScene.from_scenario(scn)
-    cam = camera(cam={"width": 128, "height": 96, "min_range": 0.0})
+    cam = camera(cam={"width": 128, "height": 96, "min_range": 0.0}, renderer=renderer)
     xy = scn.route.xy[40]
     pos = np.array([xy[0], xy[1], float(scn.terrain.height_at(*xy)) + 0.11])
     c, s = math.cos(scn.rows.angle), math.sin(scn.rows.angle)
@@ -121,10 +126,12 @@ def test_instance_ids_name_the_plant_each_ray_hits() -> None:
         assert dist[int(i)] == min(dist.values())
 
 
-def test_occlusion_shadow_is_left_of_a_foreground_post() -> None:
+def test_occlusion_shadow_is_left_of_a_foreground_post(renderer: str) -> None:
     """A post 1 m ahead of a wall at 3 m hides a strip of wall from the right imager only: the
     invalid strip is on the post's left in the image, fx·B·(1/1 − 1/3) pixels wide."""
-    cam = camera({"camera_pitch_deg": 0.0, "camera_height": 0.55}, {"width": 200, "height": 40})
+    cam = camera(
+        {"camera_pitch_deg": 0.0, "camera_height": 0.55}, {"width": 200, "height": 40}, renderer
+    )
     x_cam = 0.25
     both = MeshScene(
         flat(),
@@ -147,7 +154,7 @@ def test_occlusion_shadow_is_left_of_a_foreground_post() -> None:
     assert (img[row, left : right + 1] > 0).all()  # the post itself is seen by both
 
 
-def test_a_user_zip_model_appears_in_depth_and_rgb(tmp_path: Path) -> None:
+def test_a_user_zip_model_appears_in_depth_and_rgb(tmp_path: Path, renderer: str) -> None:
     """A textured OBJ in a zip (mesh + .mtl + .png) becomes every crop; its texture is seen."""
     mesh = trimesh.creation.box(extents=(0.3, 0.3, 1.0))
     mesh.apply_translation([0, 0, 0.5])
@@ -166,7 +173,7 @@ def test_a_user_zip_model_appears_in_depth_and_rgb(tmp_path: Path) -> None:
     scn = generate(preset("default", **TINY, crop={"model": str(archive), "stage": 3}), 0)
     scene = MeshScene.from_scenario(scn)
     assert scene.plants.prototypes[0].texture is not None
-    cam = camera(cam={"width": 96, "height": 72})
+    cam = camera(cam={"width": 96, "height": 72}, renderer=renderer)
     xy = scn.route.xy[40]
     pos = np.array([xy[0], xy[1], float(scn.terrain.height_at(*xy)) + 0.11])
     c, s = math.cos(scn.rows.angle + 0.4), math.sin(scn.rows.angle + 0.4)

@@ -86,7 +86,7 @@ def _flat(z: float = 0.0) -> Terrain:
     return Terrain(np.full((200, 200), z), -12.0, -12.0, 0.12)
 
 
-def test_depth_pixel_reads_the_true_distance_to_the_ground() -> None:
+def test_depth_pixel_reads_the_true_distance_to_the_ground(kernels: str) -> None:
     cam = make_camera(
         {"camera_pitch_deg": 30.0, "camera_height": 0.55, "camera_x": 0.25},
         {"width": 64, "height": 48},
@@ -103,7 +103,7 @@ def test_depth_pixel_reads_the_true_distance_to_the_ground() -> None:
     assert (frame.depth[30:] > 0).all()
 
 
-def test_depth_noise_follows_the_stereo_error_law() -> None:
+def test_depth_noise_follows_the_stereo_error_law(kernels: str) -> None:
     cam = make_camera({"camera_pitch_deg": 5.0}, {"width": 32, "height": 24})
     plants = _wall_plant(distance=4.0, radius=0.5, height=3.0)
     pos = np.array([0.0, 0.0, 0.11])
@@ -133,7 +133,7 @@ def _wall_plant(distance: float, radius: float, height: float) -> PlantField:
     )
 
 
-def test_depth_sees_a_plant_at_its_distance_and_labels_it() -> None:
+def test_depth_sees_a_plant_at_its_distance_and_labels_it(kernels: str) -> None:
     cam = make_camera({"camera_pitch_deg": 0.0}, {"width": 33, "height": 25, "segmentation": True})
     plants = _wall_plant(distance=3.0, radius=0.2, height=2.0)
     frame = cam.render(np.eye(3), np.array([0.0, 0.0, 0.11]), _flat(), plants, None, labels=True)
@@ -144,13 +144,13 @@ def test_depth_sees_a_plant_at_its_distance_and_labels_it() -> None:
     assert frame.label[0, 0] == 0  # nothing within range above the horizon
 
 
-def test_depth_out_of_range_is_zero() -> None:
+def test_depth_out_of_range_is_zero(kernels: str) -> None:
     cam = make_camera(None, {"width": 16, "height": 12, "max_range": 2.0})
     frame = cam.render(np.eye(3), np.array([0.0, 0.0, 0.11]), _flat(), _empty_plants(), None)
     assert (frame.depth == 0).any() and frame.depth.max() <= 2.0
 
 
-def test_a_plant_seen_from_below_its_leaf_band() -> None:
+def test_a_plant_seen_from_below_its_leaf_band(kernels: str) -> None:
     # a leaf band from 1.0 to 2.0 m, 2 m ahead: a ray 10° up from 0.66 m meets its underside
     cam = make_camera(
         {"camera_pitch_deg": -10.0, "camera_height": 0.55, "camera_x": 0.0},
@@ -176,6 +176,39 @@ def test_a_plant_seen_from_below_its_leaf_band() -> None:
     x = o[0] + t * rays[i, 0]
     assert 1.5 <= x <= 2.5  # under the band
     assert frame.depth[12, 16] == pytest.approx(t * cam.forward[i], abs=1e-6)
+
+
+@pytest.mark.parametrize(
+    ("band", "pitch_deg", "expect"),
+    [
+        # the camera (0.66 m up, 0.25 m ahead of base_link) inside a band of radius 0.5 m whose
+        # axis is 0.2 m ahead: the optical axis leaves through the wall 0.7 m away
+        ((0.2, 2.0), 0.0, 0.7),
+        # under a band from 1.0 m: looking 30° up it meets the underside after 0.34 / sin 30°,
+        # 0.59 m ahead (within the disc); above one topping out at 0.4 m, looking 30° down, the
+        # top after 0.26 / sin 30°
+        ((1.0, 2.0), -30.0, (1.0 - 0.66) / math.sin(math.radians(30.0))),
+        ((0.0, 0.4), 30.0, (0.66 - 0.4) / math.sin(math.radians(30.0))),
+    ],
+)
+def test_a_band_over_the_camera_is_seen_from_where_the_camera_is(
+    kernels: str, band: tuple[float, float], pitch_deg: float, expect: float
+) -> None:
+    """Leaf bands reach over the lane: a camera among leaves sees them close by."""
+    cam = make_camera(
+        {"camera_pitch_deg": pitch_deg, "camera_height": 0.55, "camera_x": 0.25},
+        {"width": 33, "height": 25},
+    )
+    pos = np.array([0.0, 0.0, 0.11])
+    o, rays = cam.pose(np.eye(3), pos)
+    xy = np.array([[o[0] + 0.2, 0.0]])
+    plants = PlantField(
+        xy, np.array([band[0]]), np.array([band[1]]), np.array([0.5]), np.zeros(1, bool),
+        cKDTree(xy), 0.5, 1,
+    )
+    t, lab = cam.cast(o, rays, _flat(), plants, cam.t_lim)
+    i = 12 * 33 + 16  # the optical axis
+    assert t[i] == pytest.approx(expect, abs=1e-5) and lab[i] == 2
 
 
 @pytest.mark.parametrize("stage", [1, 3, 5])

@@ -115,6 +115,7 @@ static double first_root(double q0, double q1, double q2, double len) {
 }
 
 #define MAX2(a, b) ((a) > (b) ? (a) : (b))
+#define MIN2(a, b) ((a) < (b) ? (a) : (b))
 
 /* The ray's first crossing of the bilinear surface within [lo, hi], or INFINITY. ``hmax`` is
  * the highest vertex the ray can reach: a descending ray starts where it drops below it. */
@@ -171,7 +172,9 @@ static double terrain_hit(const double *o, const double *d, double idx, double i
 }
 
 /* Nearest hit in (0, tmax] of a vertical capped cylinder (axis at cx, cy; z in [z0, z1];
- * radius r), or INFINITY. A ray starting inside meets nothing (as the plant reference). ``ia``
+ * radius r), or INFINITY. A ray starting inside the cylinder meets the wall or cap it leaves
+ * through (a camera among leaves sees them close by; Embree's capped cones do the same), one
+ * starting in the disc below or above it meets a cap. ``ia``
  * and ``isa`` are 1/a and 1/sqrt(a) of the ray's ground track, a = dx^2 + dy^2. */
 static inline double cylinder_hit(const double *o, const double *d, double ia, double isa,
                                   double cx, double cy, double z0, double z1, double r,
@@ -189,9 +192,19 @@ static inline double cylinder_hit(const double *o, const double *d, double ia, d
     double za = o[2] + (tca - half) * d[2], zb = o[2] + (tca + half) * d[2];
     if ((za < zb ? zb : za) < z0 || (za < zb ? za : zb) > z1) return INFINITY;
     double c = ox * ox + oy * oy - r * r;
-    if (c <= 0) return INFINITY;
+    if (c <= 0 && o[2] >= z0 && o[2] <= z1) { /* inside: the wall or cap it leaves through */
+        double out = INFINITY;
+        if (a > 0) {
+            double sq = sqrt(b * b - a * c);
+            out = b >= 0 ? -c / (b + sq) : (sq - b) * ia; /* the larger root, stable */
+        }
+        if (d[2] > 0) out = MIN2(out, (z1 - o[2]) / d[2]);
+        if (d[2] < 0) out = MIN2(out, (z0 - o[2]) / d[2]);
+        return out > 0 && out <= tmax ? out : INFINITY;
+    }
+    /* from within the disc below or above the cylinder only a cap is seen (tested last) */
     double best = INFINITY;
-    if (a > 0) {
+    if (a > 0 && c > 0) {
         double disc = b * b - a * c;
         if (disc >= 0 && b < 0) {
             double t = c / (-b + sqrt(disc)); /* the entry root, free of cancellation */

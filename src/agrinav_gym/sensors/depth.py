@@ -397,6 +397,27 @@ def plant_hits(
     rel = plants.xy[cand] - o[:2]
     dist = np.hypot(rel[:, 0], rel[:, 1])
     rad = plants.radius[cand]
+    # a cylinder whose disc holds the camera, seen by rays of any azimuth: from below or above
+    # it, its cap; from inside it, the wall or cap the ray leaves through (as Embree's cones)
+    for k in cand[dist <= rad]:
+        z0, z1, r2 = plants.z[k], plants.top[k], plants.radius[k] ** 2
+        cx, cy = o[0] - plants.xy[k, 0], o[1] - plants.xy[k, 1]
+        dz = rays[:, 2]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            if z0 <= o[2] <= z1:
+                a = rays[:, 0] ** 2 + rays[:, 1] ** 2
+                b = cx * rays[:, 0] + cy * rays[:, 1]
+                side = (-b + np.sqrt(b * b - a * (cx * cx + cy * cy - r2))) / a
+                cap = np.where(dz > 0, (z1 - o[2]) / dz, np.where(dz < 0, (z0 - o[2]) / dz, np.inf))
+                tc = np.fmin(np.where(a > 0, side, np.inf), cap)
+                ok = tc > 0
+            else:
+                tc = ((z0 if o[2] < z0 else z1) - o[2]) / dz
+                px, py = cx + tc * rays[:, 0], cy + tc * rays[:, 1]
+                ok = (tc > 0) & (px * px + py * py <= r2)
+        ok &= tc < t_best
+        t_best[ok] = tc[ok]
+        weed[ok] = plants.is_weed[k]
     heading = math.atan2(float(rays[:, 1].mean()), float(rays[:, 0].mean()))
     az_p = np.angle(np.exp(1j * (np.arctan2(rel[:, 1], rel[:, 0]) - heading)))
     keep = (dist > rad) & (np.abs(az_p) < math.radians(100))

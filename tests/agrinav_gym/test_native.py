@@ -1,0 +1,240 @@
+"""The compiled sensor kernels against their references: the rasterised mesh-camera frame
+against Embree's ray casts, the proxy kernel against the numpy marches, and the build itself."""
+
+import math
+import os
+
+import numpy as np
+import pytest
+import trimesh
+
+from agrinav_gym.config import EnvConfig
+from agrinav_gym.env import robot_interface
+from agrinav_gym.sensors import native, raster_view
+from agrinav_gym.sensors.depth import ground_hits, plant_hits
+from agrinav_gym.sensors.mesh_camera import MeshCamera
+from agrinav_gym.sim.mesh_scene import MeshScene
+from agrinav_gym.sim.plants import PlantField
+from agrinav_gym.sim.world import RobotGeometry
+from scenario_gen import generate, preset
+
+from .helpers import TINY
+
+needs_kernels = pytest.mark.skipif(not native.available(), reason="compiled kernels not built")
+
+
+def camera(width: int, height: int, renderer: str, threads: int = 1) -> MeshCamera:
+    cfg = EnvConfig.from_dict({"camera": {"width": width, "height": height, "renderer": renderer}})
+    return MeshCamera(cfg.camera, robot_interface(cfg, RobotGeometry.from_urdf()).camera, threads)
+
+
+def lane_pose(scn, k: int = 40, turn: float = 0.0) -> tuple[np.ndarray, np.ndarray]:  # type: ignore[no-untyped-def]
+    xy = scn.route.xy[k]
+    pos = np.array([xy[0], xy[1], float(scn.terrain.height_at(*xy)) + 0.11])
+    c, s = math.cos(scn.rows.angle + turn), math.sin(scn.rows.angle + turn)
+    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]]), pos
+
+
+@pytest.fixture(scope="module")
+def maize() -> MeshScene:
+    """Tall maize (2.5 m) in 1 m rows: leaves hang into the lane and hide each other."""
+    over = {**TINY, "crop": {"stage": 5}, "layout": {"row_spacing": 1.0, "headland": 2.0}}
+    return MeshScene.from_scenario(generate(preset("default", **over), 0))
+
+
+def test_compiled_kernels_are_built_in_ci() -> None:
+    """CI installs a compiler: there the fast paths must be the ones under test."""
+    if os.environ.get("CI", "").lower() in ("", "0", "false"):
+        pytest.skip("outside CI the extension is optional")
+    assert native.available(), "agrinav_gym._native did not build (see pip's build log)"
+
+
+def test_raster_without_kernels_is_a_clear_error(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("AGRINAV_NATIVE", "0")
+    with pytest.raises(native.NativeUnavailable, match=r"camera.renderer='raster'.*AGRINAV_NATIVE"):
+        camera(64, 48, "raster")
+    assert not camera(848, 480, "auto").rasterises  # auto falls back to the rays
+
+
+@needs_kernels
+def test_auto_rasterises_only_large_frames() -> None:
+    assert camera(848, 480, "auto").rasterises
+    assert not camera(64, 48, "auto").rasterises
+    assert not camera(848, 480, "raycast").rasterises
+
+
+@needs_kernels
+def test_raster_frame_is_the_ray_cast_frame(maize: MeshScene) -> None:
+    """The same geometry: depth to Embree's float32 precision (its hits are exact to ~1e-6
+    relative, a few µm at 6 m), the same plant in every pixel but ties at shared edges, the
+    same colours but rounding."""
+    rot, pos = lane_pose(maize_scenario(maize))
+    r = camera(848, 480, "raster").render(rot, pos, maize, None, rgb=True, labels=True, stereo=False)
+    e = camera(848, 480, "raycast").render(rot, pos, maize, None, rgb=True, labels=True, stereo=False)
+    valid = (r.depth > 0) & (e.depth > 0)
+    assert valid.mean() > 0.5
+    assert np.array_equal(r.depth > 0, e.depth > 0) or np.mean((r.depth > 0) != (e.depth > 0)) < 1e-4
+    assert np.abs(r.depth[valid] - e.depth[valid]).max() < 5e-5
+    n = r.depth.size
+    assert (r.instance != e.instance).sum() <= 1e-4 * n and (r.label != e.label).sum() <= 1e-4 * n
+    assert (r.instance >= 0).mean() > 0.3  # a canopy, not an empty lane
+    assert (r.rgb_instance != e.rgb_instance).sum() <= 1e-4 * n
+    diff = np.abs(r.rgb.astype(int) - e.rgb.astype(int)).max(axis=2)
+    assert (diff > 2).mean() < 1e-4  # 8-bit rounding of float32 against float64 shading
+
+
+def maize_scenario(scene: MeshScene):  # type: ignore[no-untyped-def]
+    return generate(
+        preset(
+            "default",
+            **{**TINY, "crop": {"stage": 5}, "layout": {"row_spacing": 1.0, "headland": 2.0}},
+        ),
+        0,
+    )
+
+
+@needs_kernels
+def test_stereo_shadow_misses_only_what_the_right_view_cannot_show(maize: MeshScene) -> None:
+    """The rasterised stereo test decides each candidate on the triangles the right imager's
+    own view shows around the point's image (and those sharing an edge with them). So it may
+    keep a pixel the exact ray finds hidden only when that ray's occluder is none of them — an
+    occluder narrower than a pixel there; and it never hides a pixel the exact ray sees."""
+    scn = maize_scenario(maize)
+    rot, pos = lane_pose(scn)
+    cam = camera(848, 480, "raster")
+    r = cam.render(rot, pos, maize, None, labels=True)
+    e = camera(848, 480, "raycast").render(rot, pos, maize, None, labels=True)
+    geo = cam.render(rot, pos, maize, None, labels=True, stereo=False)
+    occluded = (geo.depth > 0) & (e.depth == 0)
+    assert occluded.mean() > 0.05  # a frame with a real shadow
+    assert ((r.depth == 0) & (e.depth > 0)).sum() <= 2  # float32 grazing rays, at most
+    missed = np.flatnonzero(((r.depth > 0) & (e.depth == 0)).ravel())
+    assert len(missed) <= 0.01 * occluded.sum()
+    # what the exact rays hit for the missed pixels
+    o, d = cam.rays.world(rot, pos)
+    rw = cam.right_world(rot, pos)
+    z = geo.depth.ravel()[missed].astype(float)
+    seg = o + d[missed] * (z / cam.rays.forward[missed])[:, None] - rw
+    maize.view(cam._view_points(rot, pos, False))
+    hit = maize.caster.intersect(
+        maize.top, (rw - maize.origin).astype(np.float32), seg.astype(np.float32), 0.0, 1.0
+    )
+    geo_r = cam._geometry[1]
+    right = raster_view.new_vis(848 * 480)
+    cr = raster_view.camera_params(cam.model, rot, pos, maize.origin, 6.05, cam.cfg.baseline)
+    geo_r.draw(cr, right, 848, 480, 0, 480)
+    adj = {k: raster_view.face_adjacency(p.vertices, p.faces) for k, p in enumerate(maize.plants.prototypes)}
+    for m, k in enumerate(missed):
+        plant = int(hit.inst[m])
+        if not (0 <= plant < len(maize.plants)):
+            continue  # the terrain: its cells are tested through the grid's adjacency
+        v, u = divmod(int(k), 848)
+        ur = u - cam.fx * cam.cfg.baseline / z[m]
+        cols = [c for c in range(math.floor(ur) - 1, math.floor(ur) + 3) if 0 <= c < 848]
+        slots = right.inst[v * 848 + np.array(cols)]
+        prims = right.prim[v * 848 + np.array(cols)]
+        shown = set()
+        for s, p in zip(slots, prims, strict=True):
+            if s >= 0 and int(geo_r.slot_plant[s]) == plant:
+                proto = int(maize.plants.proto[plant])
+                shown |= {int(p), *(int(a) for a in adj[proto][p] if a >= 0)}
+        assert int(hit.prim[m]) not in shown
+
+
+@needs_kernels
+def test_two_threads_draw_the_same_frame(maize: MeshScene) -> None:
+    """The bands of rows are disjoint and each pixel depends only on the frame: the split
+    between threads (which moves from frame to frame) changes nothing, noise included."""
+    rot, pos = lane_pose(maize_scenario(maize), turn=0.3)
+    one, two = camera(424, 240, "raster", 1), camera(424, 240, "raster", 2)
+    for k in range(3):  # the split adapts between frames
+        a = one.render(rot, pos, maize, np.random.default_rng(k), rgb=True, labels=True)
+        b = two.render(rot, pos, maize, np.random.default_rng(k), rgb=True, labels=True)
+        for f in ("depth", "label", "instance", "rgb", "rgb_label", "rgb_instance"):
+            assert np.array_equal(getattr(a, f), getattr(b, f)), f
+
+
+@needs_kernels
+def test_raster_noise_is_the_ray_cast_noise(maize: MeshScene) -> None:
+    """Both paths draw one standard normal per pixel from the same generator, in one call."""
+    rot, pos = lane_pose(maize_scenario(maize))
+    r = camera(424, 240, "raster").render(rot, pos, maize, np.random.default_rng(7), stereo=False)
+    e = camera(424, 240, "raycast").render(rot, pos, maize, np.random.default_rng(7), stereo=False)
+    both = (r.depth > 0) & (e.depth > 0)
+    assert both.mean() > 0.5
+    assert np.abs(r.depth[both] - e.depth[both]).max() < 1e-4
+
+
+def test_face_adjacency_joins_faces_across_shared_edges() -> None:
+    """A quad split in two, its diagonal's vertices repeated (a texture seam), and a third
+    triangle on one outer edge: faces meet across edges by position, not by vertex index."""
+    v = np.array(
+        [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, 0], [1, 1, 0], [2, 0, 0]], np.float32
+    )
+    f = np.array([[0, 1, 2], [4, 5, 3], [1, 6, 2]], np.uint32)
+    adj = raster_view.face_adjacency(v, f)
+    assert adj.tolist() == [[-1, 2, 1], [0, -1, -1], [-1, -1, 0]]
+
+
+def test_face_adjacency_of_a_closed_mesh_is_complete() -> None:
+    box = trimesh.creation.box()
+    adj = raster_view.face_adjacency(np.asarray(box.vertices, np.float32), box.faces)
+    assert (adj >= 0).all()
+    for i, row in enumerate(adj):  # symmetric
+        for j in row:
+            assert i in adj[j]
+
+
+@needs_kernels
+@pytest.mark.parametrize("turn", [0.0, 0.6, -1.2])
+def test_proxy_kernel_hits_the_first_surface_exactly(
+    turn: float, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """On a furrowed field of maize proxies, looking along and across the rows: every hit of
+    the compiled proxy lies on the bilinear terrain or on its cylinder (to rounding), and it is
+    the first: the numpy references (``ground_hits``'s march, ``plant_hits``'s azimuth
+    intervals) and the Embree path find a hit on the same rays, of the same class, and Embree
+    at the same distance to its float32 precision. The camera stands in the lane under leaf
+    bands whose discs reach over it: from below, their undersides are seen."""
+    from agrinav_gym.sensors.depth import ProxyGeometry
+
+    from .helpers import make_camera
+
+    scn = generate(preset("default", **TINY, crop={"stage": 4}), 0)
+    plants = PlantField.from_scenario(scn)
+    cam = make_camera(None, {"width": 64, "height": 48})
+    rot, pos = lane_pose(scn, 30, turn)
+    o, rays = cam.pose(rot, pos)
+    g = ProxyGeometry(scn.terrain, plants)
+    t, what = g.cast_raw(o, rays, cam.t_lim)
+    lab = g.labels(what)
+    p = o + np.where(np.isfinite(t), t, 0.0)[:, None] * rays
+    ground = what == -1
+    assert ground.mean() > 0.05 and (what >= 0).mean() > 0.05
+    assert np.abs(p[ground, 2] - scn.terrain.height_at(p[ground, 0], p[ground, 1])).max() < 1e-9
+    k = what[what >= 0]
+    q = p[what >= 0]
+    off = np.hypot(q[:, 0] - plants.xy[k, 0], q[:, 1] - plants.xy[k, 1])
+    side = np.abs(off - plants.radius[k]) < 1e-9
+    cap = (np.abs(q[:, 2] - plants.top[k]) < 1e-9) | (np.abs(q[:, 2] - plants.z[k]) < 1e-9)
+    assert (side & (q[:, 2] >= plants.z[k] - 1e-9) & (q[:, 2] <= plants.top[k] + 1e-9) | cap).all()
+    assert (off <= plants.radius[k] + 1e-9).all()
+    # the references: the march extends the grid's edge heights beyond it and plant_hits has
+    # no far limit (callers cut both): compare within the grid and the range
+    tg = ground_hits(o, rays, scn.terrain, cam.t_lim)
+    tp, _ = plant_hits(o, rays, plants, cam.t_lim)
+    ref = np.minimum(tg, tp)
+    ref = np.where(ref <= cam.t_lim, ref, np.inf)
+    r = o + np.where(np.isfinite(ref), ref, 0.0)[:, None] * rays
+    x0, y0, x1, y1 = scn.terrain.bounds
+    inside = ~np.isfinite(ref) | ((r[:, 0] >= x0) & (r[:, 0] <= x1) & (r[:, 1] >= y0) & (r[:, 1] <= y1))
+    assert inside.mean() > 0.9
+    assert np.array_equal(np.isfinite(t)[inside], np.isfinite(ref)[inside])
+    assert np.array_equal((tp < tg)[inside & np.isfinite(ref)], (what >= 0)[inside & np.isfinite(ref)])
+    monkeypatch.setenv("AGRINAV_NATIVE", "0")
+    te, le = cam.cast(o, rays, scn.terrain, plants, cam.t_lim)
+    assert np.array_equal(le, lab) and np.array_equal(np.isfinite(te), np.isfinite(t))
+    fin = np.isfinite(t)
+    # Embree intersects in float32 around the field's centre (~1 µm), which a grazing hit on a
+    # thin stalk stretches along the ray by up to ~100x
+    assert np.abs(te[fin] - t[fin]).max() < 1e-4
