@@ -2,14 +2,18 @@
 
 1. env step cost with the camera against the state-only step (gps, imu, odom, route), on the
    paper's P1 field, driving the same S-curve, blocks interleaved so drift cancels:
-   64 × 48 mesh depth + segmentation (target ≤ 4×) and the analytic proxy depth (≤ 2×);
+   64 × 48 mesh depth + segmentation (target ≤ 4×) and the analytic proxy depth (≤ 2×), the
+   proxy both through the compiled kernels and through the reference path (numpy + Embree,
+   ``AGRINAV_NATIVE=0`` during its blocks: the code before the kernels);
 2. 848 × 480 RGB-D + semantic + instance frames against pybullet's ``getCameraImage``
    (TinyRenderer) at the same pose and resolution, the same meshes (every plant and the terrain)
-   loaded as visual shapes merged per tile (≤ 100k vertices each), alternating (≥ 20×);
+   loaded as visual shapes merged per tile (≤ 100k vertices each), alternating (≥ 20×); the
+   mesh camera rasterising (``camera.renderer="raster"``) and, for reference, casting rays;
 3. memory per plant (≤ 4 KB): RSS and traced allocations of a scene that has rendered, fields
    of two densities each in a fresh process, per plant and marginal;
 4. a 100,000-plant field: scene build + first frame (≤ 10 s), generation timed apart;
-5. frame cost on the 100k field against the 2k one (cost flat in field size).
+5. frame cost on the 100k field against the 2k one (cost flat in field size), 64 × 48 rays and
+   848 × 480 rasterised frames.
 
 Medians of several runs. Run: ``python benchmarks/bench_mesh_camera.py`` (a few minutes).
 """
@@ -38,7 +42,8 @@ BLOCK = 150
 
 
 def step_costs(blocks: int) -> dict[str, float]:
-    """Median seconds per env step: state only, + proxy depth, + mesh depth and segmentation."""
+    """Median seconds per env step: state only, + proxy depth (compiled, reference), + mesh depth
+    and segmentation."""
     base = {"task": {"max_crops_hit": 10**6, "corridor": 2.0}}
     envs = {
         "state": gym.make(
@@ -56,15 +61,30 @@ def step_costs(blocks: int) -> dict[str, float]:
             observations=(*STATE, "depth"),
             config={**base, "camera": {"model": "mesh", "segmentation": True}},
         ),
+        "proxy-reference": gym.make(
+            "AgriNav/FurrowFollow-v1",
+            scenario="paper-p1",
+            observations=(*STATE, "depth"),
+            config=base,
+        ),
     }
     times: dict[str, list[float]] = {k: [] for k in envs}
-    for env in envs.values():
+
+    def run(k: str, env: Any, n: int) -> float:
+        if k.endswith("-reference"):
+            os.environ["AGRINAV_NATIVE"] = "0"
+        try:
+            return drive(env, n)
+        finally:
+            os.environ.pop("AGRINAV_NATIVE", None)
+
+    for k, env in envs.items():
         env.reset(seed=0)
-        drive(env, 50)  # warm: tiles, prototypes, caches
+        run(k, env, 50)  # warm: tiles, prototypes, caches
     for b in range(blocks):
         for k, env in envs.items():
             env.reset(seed=b)
-            times[k].append(drive(env, BLOCK) / BLOCK)
+            times[k].append(run(k, env, BLOCK) / BLOCK)
     for env in envs.values():
         env.close()
     return {k: statistics.median(v) for k, v in times.items()}
@@ -136,28 +156,30 @@ def dataset_frames(name: str, over: dict[str, Any], repeat: int, threads: int) -
     scn = sg.generate(sg.preset(name, **over), 0)
     scene = MeshScene.from_scenario(scn)
     cid, tris = load_pybullet(scn, scene)
-    cfg = EnvConfig.from_dict({"camera": {"width": 848, "height": 480}})
-    model = robot_interface(cfg, RobotGeometry.from_urdf()).camera
-    cam = MeshCamera(cfg.camera, model, threads=threads)
+    cams = {}
+    for renderer in ("raster", "raycast"):
+        cfg = EnvConfig.from_dict({"camera": {"width": 848, "height": 480, "renderer": renderer}})
+        model = robot_interface(cfg, RobotGeometry.from_urdf()).camera
+        cams[renderer] = MeshCamera(cfg.camera, model, threads=threads)
     rot, pos = lane_centre_pose(scn)
     view, proj = pybullet_camera(cid, model, rot, pos, cfg.camera.vfov_deg, cfg.camera.max_range)
     rng = np.random.default_rng(0)
-    cam.render(rot, pos, scene, rng, rgb=True, labels=True)  # first frame: tiles, prototypes
-    ours, tiny = [], []
+    for cam in cams.values():  # first frames: tiles, prototypes, the split between threads
+        for _ in range(3):
+            cam.render(rot, pos, scene, rng, rgb=True, labels=True)
+    times: dict[str, list[float]] = {"tiny": [], "raster": [], "raycast": []}
     for _ in range(repeat):
         t0 = time.perf_counter()
         p.getCameraImage(848, 480, view, proj, renderer=p.ER_TINY_RENDERER, physicsClientId=cid)
-        tiny.append(time.perf_counter() - t0)
-        t0 = time.perf_counter()
-        cam.render(rot, pos, scene, rng, rgb=True, labels=True)
-        ours.append(time.perf_counter() - t0)
+        times["tiny"].append(time.perf_counter() - t0)
+        for k, cam in cams.items():
+            t0 = time.perf_counter()
+            cam.render(rot, pos, scene, rng, rgb=True, labels=True)
+            times[k].append(time.perf_counter() - t0)
     p.disconnect(cid)
-    return {
-        "plants": len(scn.plants),
-        "triangles": tris,
-        "tiny": statistics.median(tiny),
-        "mesh": statistics.median(ours),
-    }
+    out: dict[str, Any] = {"plants": len(scn.plants), "triangles": tris}
+    out.update({k: statistics.median(v) for k, v in times.items()})
+    return out
 
 
 MEMORY_CHILD = r"""
@@ -165,7 +187,7 @@ import json, sys, time, tracemalloc, numpy as np, scenario_gen as sg
 def rss():
     with open("/proc/self/statm") as f:
         return int(f.read().split()[1]) * 4096
-preset, over = sys.argv[1], json.loads(sys.argv[2])
+preset, over, cam_over = sys.argv[1], json.loads(sys.argv[2]), json.loads(sys.argv[3])
 from agrinav_gym.config import EnvConfig
 from agrinav_gym.env import robot_interface
 from agrinav_gym.sensors.embree import device
@@ -176,7 +198,7 @@ device()
 t0 = time.perf_counter()
 scn = sg.generate(sg.preset(preset, **over), 0)
 gen = time.perf_counter() - t0
-cfg = EnvConfig.from_dict({"camera": {"segmentation": True}})
+cfg = EnvConfig.from_dict({"camera": {"segmentation": True, **cam_over}})
 cam = MeshCamera(cfg.camera, robot_interface(cfg, RobotGeometry.from_urdf()).camera)
 rows = scn.rows
 mid = len(rows.offsets) // 2
@@ -191,12 +213,12 @@ before = rss()
 tracemalloc.start()
 t0 = time.perf_counter()
 scene = MeshScene.from_scenario(scn)
-cam.render(rot, pose(0), scene, np.random.default_rng(0), labels=True)
+cam.render(rot, pose(0), scene, np.random.default_rng(0), rgb=cfg.camera.rgb, labels=True)
 first = time.perf_counter() - t0
 frames = []
 for k in range(1, 200):
     t1 = time.perf_counter()
-    cam.render(rot, pose(k), scene, np.random.default_rng(k), labels=True)
+    cam.render(rot, pose(k), scene, np.random.default_rng(k), rgb=cfg.camera.rgb, labels=True)
     frames.append(time.perf_counter() - t1)
 traced, _ = tracemalloc.get_traced_memory()
 print(json.dumps({
@@ -207,10 +229,10 @@ print(json.dumps({
 """
 
 
-def child(preset: str, over: dict[str, Any]) -> dict[str, Any]:
+def child(preset: str, over: dict[str, Any], cam: dict[str, Any] | None = None) -> dict[str, Any]:
     env = dict(os.environ)
     res = subprocess.run(
-        [sys.executable, "-c", MEMORY_CHILD, preset, json.dumps(over)],
+        [sys.executable, "-c", MEMORY_CHILD, preset, json.dumps(over), json.dumps(cam or {})],
         capture_output=True,
         text=True,
         check=True,
@@ -226,16 +248,22 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=5, help="848x480 frames per renderer")
     ap.add_argument("--threads", type=int, default=2, help="mesh camera threads at 848x480")
     args = ap.parse_args()
+    from agrinav_gym.sensors import native
+
     py = platform.python_version()
     print(f"machine: {platform.platform()}, {os.cpu_count()} cores, Python {py}")
+    print(f"compiled kernels: {'built' if native.available() else 'NOT BUILT (reference paths)'}")
 
     s = step_costs(args.blocks)
     print("\n1. env step (paper-p1, S-curve), median ms per step")
     print(f"   state only (gps, imu, odom, route): {s['state'] * 1e3:.3f}")
-    for k, target in (("proxy", 2.0), ("mesh", 4.0)):
+    for k, label, target in (
+        ("proxy", "proxy depth 64x48, compiled kernel", 2.0),
+        ("proxy-reference", "proxy depth 64x48, reference path (numpy + Embree)", 2.0),
+        ("mesh", "mesh depth 64x48 + segmentation (Embree rays)", 4.0),
+    ):
         print(
-            f"   + {k} depth 64x48{' + segmentation' if k == 'mesh' else ''}: "
-            f"{s[k] * 1e3:.3f}  ratio {s[k] / s['state']:.2f} (target <= {target:g})"
+            f"   + {label}: {s[k] * 1e3:.3f}  ratio {s[k] / s['state']:.2f} (target <= {target:g})"
         )
 
     print("\n2. 848x480 RGB-D + semantic + instance vs pybullet TinyRenderer, median ms")
@@ -249,8 +277,10 @@ def main() -> None:
         r = dataset_frames(name, over, args.frames, args.threads)
         print(
             f"   {label} ({r['plants']} plants, {r['triangles']} triangles in pybullet): "
-            f"TinyRenderer {r['tiny'] * 1e3:.0f}, mesh camera {r['mesh'] * 1e3:.0f} "
-            f"({args.threads} threads): {r['tiny'] / r['mesh']:.1f}x faster (target >= 20)"
+            f"TinyRenderer {r['tiny'] * 1e3:.0f}; mesh camera ({args.threads} threads) "
+            f"rasterising {r['raster'] * 1e3:.1f}: {r['tiny'] / r['raster']:.1f}x faster "
+            f"(target >= 20); casting rays {r['raycast'] * 1e3:.0f}: "
+            f"{r['tiny'] / r['raycast']:.1f}x"
         )
 
     print("\n3-5. fields of growing size (each in a fresh process)")
@@ -258,7 +288,8 @@ def main() -> None:
     # jitter within a sixth of the spacing (generate.check_spec)
     dense = child("paper-p1", {"layout": {"plant_spacing": 0.05, "jitter_longitudinal": 0.008}})
     # the default crop at its spacing: 130 m x 155 m holds just over 100,000 plants
-    big = child("default", {"field": {"width": 130.0, "length": 155.0}})
+    big_field = {"field": {"width": 130.0, "length": 155.0}}
+    big = child("default", big_field)
     if big["plants"] < 100_000:
         sys.exit(f"the '100k field' has {big['plants']} plants: enlarge it (target is 100,000)")
     for label, r in (("paper-p1", small), ("paper-p1 at 0.05 m", dense), ("100k field", big)):
@@ -277,8 +308,19 @@ def main() -> None:
     )
     print(
         f"   100k field: scene build + first frame {big['first']:.2f} s (target <= 10), "
-        f"frame cost 100k / 2k = {big['frame'] / small['frame']:.2f}"
+        f"frame cost 100k / 2k = {big['frame'] / small['frame']:.2f} (64x48 rays)"
     )
+    if native.available():
+        wide = {"width": 848, "height": 480, "renderer": "raster", "rgb": True}
+        small_r = child("default", {}, wide)
+        big_r = child("default", big_field, wide)
+        print(
+            f"   848x480 rasterised RGB-D + labels (default crop, one thread): "
+            f"{small_r['plants']} plants {small_r['frame'] * 1e3:.1f} ms, "
+            f"{big_r['plants']} plants {big_r['frame'] * 1e3:.1f} ms: "
+            f"100k / 2k = {big_r['frame'] / small_r['frame']:.2f}; scene + first frame "
+            f"{big_r['first']:.2f} s"
+        )
 
 
 if __name__ == "__main__":

@@ -88,7 +88,9 @@ class CameraConfig:
         "also produce a mask 0 other, 1 soil, 2 crop, 3 weed, 4 robot (info['segmentation']); "
         "mesh: and plant ids, rows of plants.csv, -1 elsewhere (info['instance'])",
     )
-    threads: int = _f(1, "mesh: threads casting rays (1 for RL, where envs run in parallel)", 1, 64)
+    threads: int = _f(
+        1, "mesh: threads rendering a frame (1 for RL, where envs run in parallel)", 1, 64
+    )
     renderer: str = _f(
         "auto",
         "mesh: 'raster' draws the views with the compiled rasteriser, 'raycast' casts one ray "

@@ -29,7 +29,9 @@ def camera(
     renderer: str = "auto",
     threads: int = 1,
 ) -> MeshCamera:
-    cfg = EnvConfig.from_dict({"robot": robot or {}, "camera": {**(cam or {}), "renderer": renderer}})
+    cfg = EnvConfig.from_dict(
+        {"robot": robot or {}, "camera": {**(cam or {}), "renderer": renderer}}
+    )
     return MeshCamera(cfg.camera, robot_interface(cfg, RobotGeometry.from_urdf()).camera, threads)
 
 

@@ -69,11 +69,17 @@ def test_raster_frame_is_the_ray_cast_frame(maize: MeshScene) -> None:
     relative, a few µm at 6 m), the same plant in every pixel but ties at shared edges, the
     same colours but rounding."""
     rot, pos = lane_pose(maize_scenario(maize))
-    r = camera(848, 480, "raster").render(rot, pos, maize, None, rgb=True, labels=True, stereo=False)
-    e = camera(848, 480, "raycast").render(rot, pos, maize, None, rgb=True, labels=True, stereo=False)
+    r = camera(848, 480, "raster").render(
+        rot, pos, maize, None, rgb=True, labels=True, stereo=False
+    )
+    e = camera(848, 480, "raycast").render(
+        rot, pos, maize, None, rgb=True, labels=True, stereo=False
+    )
     valid = (r.depth > 0) & (e.depth > 0)
     assert valid.mean() > 0.5
-    assert np.array_equal(r.depth > 0, e.depth > 0) or np.mean((r.depth > 0) != (e.depth > 0)) < 1e-4
+    assert (
+        np.array_equal(r.depth > 0, e.depth > 0) or np.mean((r.depth > 0) != (e.depth > 0)) < 1e-4
+    )
     assert np.abs(r.depth[valid] - e.depth[valid]).max() < 5e-5
     n = r.depth.size
     assert (r.instance != e.instance).sum() <= 1e-4 * n and (r.label != e.label).sum() <= 1e-4 * n
@@ -123,7 +129,10 @@ def test_stereo_shadow_misses_only_what_the_right_view_cannot_show(maize: MeshSc
     right = raster_view.new_vis(848 * 480)
     cr = raster_view.camera_params(cam.model, rot, pos, maize.origin, 6.05, cam.cfg.baseline)
     geo_r.draw(cr, right, 848, 480, 0, 480)
-    adj = {k: raster_view.face_adjacency(p.vertices, p.faces) for k, p in enumerate(maize.plants.prototypes)}
+    adj = {
+        k: raster_view.face_adjacency(p.vertices, p.faces)
+        for k, p in enumerate(maize.plants.prototypes)
+    }
     for m, k in enumerate(missed):
         plant = int(hit.inst[m])
         if not (0 <= plant < len(maize.plants)):
@@ -227,10 +236,14 @@ def test_proxy_kernel_hits_the_first_surface_exactly(
     ref = np.where(ref <= cam.t_lim, ref, np.inf)
     r = o + np.where(np.isfinite(ref), ref, 0.0)[:, None] * rays
     x0, y0, x1, y1 = scn.terrain.bounds
-    inside = ~np.isfinite(ref) | ((r[:, 0] >= x0) & (r[:, 0] <= x1) & (r[:, 1] >= y0) & (r[:, 1] <= y1))
+    inside = ~np.isfinite(ref) | (
+        (r[:, 0] >= x0) & (r[:, 0] <= x1) & (r[:, 1] >= y0) & (r[:, 1] <= y1)
+    )
     assert inside.mean() > 0.9
     assert np.array_equal(np.isfinite(t)[inside], np.isfinite(ref)[inside])
-    assert np.array_equal((tp < tg)[inside & np.isfinite(ref)], (what >= 0)[inside & np.isfinite(ref)])
+    assert np.array_equal(
+        (tp < tg)[inside & np.isfinite(ref)], (what >= 0)[inside & np.isfinite(ref)]
+    )
     monkeypatch.setenv("AGRINAV_NATIVE", "0")
     te, le = cam.cast(o, rays, scn.terrain, plants, cam.t_lim)
     assert np.array_equal(le, lab) and np.array_equal(np.isfinite(te), np.isfinite(t))

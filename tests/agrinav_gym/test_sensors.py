@@ -203,8 +203,14 @@ def test_a_band_over_the_camera_is_seen_from_where_the_camera_is(
     o, rays = cam.pose(np.eye(3), pos)
     xy = np.array([[o[0] + 0.2, 0.0]])
     plants = PlantField(
-        xy, np.array([band[0]]), np.array([band[1]]), np.array([0.5]), np.zeros(1, bool),
-        cKDTree(xy), 0.5, 1,
+        xy,
+        np.array([band[0]]),
+        np.array([band[1]]),
+        np.array([0.5]),
+        np.zeros(1, bool),
+        cKDTree(xy),
+        0.5,
+        1,
     )
     t, lab = cam.cast(o, rays, _flat(), plants, cam.t_lim)
     i = 12 * 33 + 16  # the optical axis

@@ -134,9 +134,18 @@ class DepthCamera(Lighting):
         if len(self._no_bad) != n:
             self._no_bad = np.zeros(n, np.uint8)
         native.require("the proxy camera").finish_depth(
-            0, n, t.ctypes.data, self.forward.ctypes.data, native.ptr(noise),
-            cfg.subpixel / (self.f_native * cfg.baseline), cfg.min_range, cfg.max_range,
-            self._no_bad.ctypes.data, depth.ctypes.data, None, None,
+            0,
+            n,
+            t.ctypes.data,
+            self.forward.ctypes.data,
+            native.ptr(noise),
+            cfg.subpixel / (self.f_native * cfg.baseline),
+            cfg.min_range,
+            cfg.max_range,
+            self._no_bad.ctypes.data,
+            depth.ctypes.data,
+            None,
+            None,
         )
         shape = (cfg.height, cfg.width)
         frame = DepthFrame(depth.reshape(shape))
@@ -244,9 +253,9 @@ class ProxyGeometry:
         pad = np.full((bny * b + 1, bnx * b + 1), -np.inf)
         pad[:ny, :nx] = h
         rows = np.maximum.reduceat(pad[:-1], np.arange(0, bny * b, b), axis=0)
-        rows = np.maximum(rows, pad[b :: b][:bny])
+        rows = np.maximum(rows, pad[b::b][:bny])
         blocks = np.maximum.reduceat(rows[:, :-1], np.arange(0, bnx * b, b), axis=1)
-        self.bmax = np.ascontiguousarray(np.maximum(blocks, rows[:, b :: b][:, :bnx]))
+        self.bmax = np.ascontiguousarray(np.maximum(blocks, rows[:, b::b][:, :bnx]))
         self.bnx, self.bny = bnx, bny
         n = len(plants.radius)
         # one record per cylinder: x, y, bottom, top, radius
@@ -260,8 +269,14 @@ class ProxyGeometry:
             self.gx, self.gy = float((x - r).min()) - g, float((y - r).min()) - g
             self.gnx = int((float((x + r).max()) - self.gx) // g) + 2
             self.gny = int((float((y + r).max()) - self.gy) // g) + 2
-            j0, j1 = ((x - r - self.gx) // g).astype(np.int64), ((x + r - self.gx) // g).astype(np.int64)
-            i0, i1 = ((y - r - self.gy) // g).astype(np.int64), ((y + r - self.gy) // g).astype(np.int64)
+            j0, j1 = (
+                ((x - r - self.gx) // g).astype(np.int64),
+                ((x + r - self.gx) // g).astype(np.int64),
+            )
+            i0, i1 = (
+                ((y - r - self.gy) // g).astype(np.int64),
+                ((y + r - self.gy) // g).astype(np.int64),
+            )
             nj, ni = j1 - j0 + 1, i1 - i0 + 1
             cnt = nj * ni
             item = np.repeat(np.arange(n), cnt)
@@ -298,10 +313,30 @@ class ProxyGeometry:
         te = self.terrain
         ny, nx = self.h.shape
         native.require("the proxy camera").proxy_cast(
-            n, o.ctypes.data, d.ctypes.data, lim.ctypes.data, self.h.ctypes.data, nx, ny,
-            te.x0, te.y0, te.spacing, self.bmax.ctypes.data, self.BLOCK, self.bnx, self.bny,
-            self.gnx, self.gny, self.gx, self.gy, self.CELL, self.start.ctypes.data,
-            self.items.ctypes.data, self.cyl.ctypes.data, t.ctypes.data, what.ctypes.data,
+            n,
+            o.ctypes.data,
+            d.ctypes.data,
+            lim.ctypes.data,
+            self.h.ctypes.data,
+            nx,
+            ny,
+            te.x0,
+            te.y0,
+            te.spacing,
+            self.bmax.ctypes.data,
+            self.BLOCK,
+            self.bnx,
+            self.bny,
+            self.gnx,
+            self.gny,
+            self.gx,
+            self.gy,
+            self.CELL,
+            self.start.ctypes.data,
+            self.items.ctypes.data,
+            self.cyl.ctypes.data,
+            t.ctypes.data,
+            what.ctypes.data,
         )
         return t, what
 

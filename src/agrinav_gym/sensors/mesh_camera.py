@@ -222,7 +222,7 @@ class MeshCamera(Lighting):
             robot = (np.ascontiguousarray(rot, np.float64), pr.face_rgb, pr.normals)
         par = geo.shading_params(self.soil_rgb, self.light, rfar)
 
-        def decide(r0: int, r1: int) -> FloatArray | None:
+        def decide(r0: int, r1: int) -> NDArray[np.int64] | None:
             if r0 == 0 and rng is not None and c.subpixel > 0:
                 noise[0] = rng.standard_normal(n)  # every pixel: the ray-cast path's stream
             counts = None
@@ -236,8 +236,17 @@ class MeshCamera(Lighting):
 
         def finish(r0: int, r1: int) -> None:
             raster_view.finish_depth(
-                left, self.rays.forward, noise[0], k_sigma, c.min_range, c.max_range, bad,
-                labels, depth, r0 * w, r1 * w,
+                left,
+                self.rays.forward,
+                noise[0],
+                k_sigma,
+                c.min_range,
+                c.max_range,
+                bad,
+                labels,
+                depth,
+                r0 * w,
+                r1 * w,
             )
             if labels:
                 label[r0 * w : r1 * w] = left.label[r0 * w : r1 * w]

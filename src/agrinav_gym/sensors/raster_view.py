@@ -54,8 +54,14 @@ class Resolved:
     prim: NDArray[np.int32]
 
 
-def camera_params(model: CameraModel, rot: FloatArray, pos: FloatArray, origin: FloatArray,
-                  zfar: float, lateral: float = 0.0) -> NDArray[np.float64]:
+def camera_params(
+    model: CameraModel,
+    rot: FloatArray,
+    pos: FloatArray,
+    origin: FloatArray,
+    zfar: float,
+    lateral: float = 0.0,
+) -> NDArray[np.float64]:
     """The kernels' camera block for ``model`` on a base at ``pos``/``rot``, in scene
     coordinates (world minus ``origin``); ``lateral`` moves it that far to its right."""
     r_wc = rot @ model.rotation  # camera body -> world
@@ -156,8 +162,17 @@ class SceneGeometry:
     def draw(self, cam: FloatArray, vb: VisBuffer, w: int, h: int, r0: int, r1: int) -> None:
         lib = native.require("the rasteriser")
         tris = lib.raster_view(
-            cam.ctypes.data, w, h, self.gptr.ctypes.data, self.gval.ctypes.data, 1,
-            vb.iz.ctypes.data, vb.inst.ctypes.data, vb.prim.ctypes.data, r0, r1,
+            cam.ctypes.data,
+            w,
+            h,
+            self.gptr.ctypes.data,
+            self.gval.ctypes.data,
+            1,
+            vb.iz.ctypes.data,
+            vb.inst.ctypes.data,
+            vb.prim.ctypes.data,
+            r0,
+            r1,
         )
         if tris < 0:
             raise MemoryError("rasteriser: out of memory")
@@ -178,26 +193,54 @@ class SceneGeometry:
     ) -> None:
         lib = native.require("the rasteriser")
         lib.resolve_view(
-            cam.ctypes.data, w, h, self.gptr.ctypes.data, self.gval.ctypes.data,
-            forward.ctypes.data, vb.iz.ctypes.data, vb.inst.ctypes.data, vb.prim.ctypes.data,
+            cam.ctypes.data,
+            w,
+            h,
+            self.gptr.ctypes.data,
+            self.gval.ctypes.data,
+            forward.ctypes.data,
+            vb.iz.ctypes.data,
+            vb.inst.ctypes.data,
+            vb.prim.ctypes.data,
             self.slot_plant.ctypes.data if len(self.slot_plant) else None,
-            self.labels.ctypes.data, int(refine),
-            native.ptr(robot[0]) if robot else None, native.ptr(robot[1]) if robot else None,
-            out.t.ctypes.data, out.label.ctypes.data, out.plant.ctypes.data,
-            out.proto.ctypes.data, out.prim.ctypes.data, r0, r1,
+            self.labels.ctypes.data,
+            int(refine),
+            native.ptr(robot[0]) if robot else None,
+            native.ptr(robot[1]) if robot else None,
+            out.t.ctypes.data,
+            out.label.ctypes.data,
+            out.plant.ctypes.data,
+            out.proto.ctypes.data,
+            out.prim.ctypes.data,
+            r0,
+            r1,
         )
         if r1 > r0 and np.isnan(out.t[r0 * w]):
             raise MemoryError("resolve: out of memory")
 
     def stereo_prepare(
-        self, w: int, h: int, fx: float, baseline: float, left: Resolved, forward: FloatArray,
-        r0: int, r1: int,
+        self,
+        w: int,
+        h: int,
+        fx: float,
+        baseline: float,
+        left: Resolved,
+        forward: FloatArray,
+        r0: int,
+        r1: int,
     ) -> None:
         if self._scratch.size < 3 * w * h:
             self._scratch = np.empty(3 * w * h)
         native.require("the rasteriser").stereo_prepare(
-            w, fx, baseline, left.t.ctypes.data, forward.ctypes.data, self._scratch.ctypes.data,
-            w * h, r0, r1,
+            w,
+            fx,
+            baseline,
+            left.t.ctypes.data,
+            forward.ctypes.data,
+            self._scratch.ctypes.data,
+            w * h,
+            r0,
+            r1,
         )
 
     def stereo(
@@ -219,11 +262,25 @@ class SceneGeometry:
         ``stereo_invalid``, after ``stereo_prepare`` on every row); [candidates, occluded]."""
         counts = np.zeros(2, np.int64)
         native.require("the rasteriser").stereo_invalid(
-            cam.ctypes.data, w, h, baseline, nearest, left.t.ctypes.data, forward.ctypes.data,
-            left_vb.inst.ctypes.data, left_vb.prim.ctypes.data, right.iz.ctypes.data,
-            right.inst.ctypes.data, right.prim.ctypes.data, self.gptr.ctypes.data,
-            self.gval.ctypes.data, self._scratch.ctypes.data, bad.ctypes.data,
-            counts.ctypes.data, r0, r1,
+            cam.ctypes.data,
+            w,
+            h,
+            baseline,
+            nearest,
+            left.t.ctypes.data,
+            forward.ctypes.data,
+            left_vb.inst.ctypes.data,
+            left_vb.prim.ctypes.data,
+            right.iz.ctypes.data,
+            right.inst.ctypes.data,
+            right.prim.ctypes.data,
+            self.gptr.ctypes.data,
+            self.gval.ctypes.data,
+            self._scratch.ctypes.data,
+            bad.ctypes.data,
+            counts.ctypes.data,
+            r0,
+            r1,
         )
         if counts[0] < 0:
             raise MemoryError("stereo: out of memory")
@@ -247,19 +304,41 @@ class SceneGeometry:
         rules); ``par`` from ``shading_params``."""
         tex = tiled_texture(self.scene.seed)
         native.require("the rasteriser").shade_view(
-            cam.ctypes.data, w, h, self.gptr.ctypes.data, self.gval.ctypes.data,
-            forward.ctypes.data, res.t.ctypes.data, res.label.ctypes.data, vb.inst.ctypes.data,
-            res.proto.ctypes.data, res.prim.ctypes.data, self.face_offset.ctypes.data,
-            self.face_rgb.ctypes.data, self.face_normal.ctypes.data, self.tex.ctypes.data,
-            self.tex_hw.ctypes.data, tex.ctypes.data, tex.shape[0], par.ctypes.data,
-            *(native.ptr(a) for a in (robot or (None, None, None))), rgb.ctypes.data, r0, r1,
+            cam.ctypes.data,
+            w,
+            h,
+            self.gptr.ctypes.data,
+            self.gval.ctypes.data,
+            forward.ctypes.data,
+            res.t.ctypes.data,
+            res.label.ctypes.data,
+            vb.inst.ctypes.data,
+            res.proto.ctypes.data,
+            res.prim.ctypes.data,
+            self.face_offset.ctypes.data,
+            self.face_rgb.ctypes.data,
+            self.face_normal.ctypes.data,
+            self.tex.ctypes.data,
+            self.tex_hw.ctypes.data,
+            tex.ctypes.data,
+            tex.shape[0],
+            par.ctypes.data,
+            *(native.ptr(a) for a in (robot or (None, None, None))),
+            rgb.ctypes.data,
+            r0,
+            r1,
         )
 
     def shading_params(self, soil_rgb: FloatArray, light: FloatArray, far: float) -> FloatArray:
         o = self.scene.origin
         return np.concatenate(
-            [soil_rgb, light, shading.SKY_HORIZON, shading.SKY_ZENITH,
-             [shading.AMBIENT, far, o[0], o[1], shading.TEXEL]]
+            [
+                soil_rgb,
+                light,
+                shading.SKY_HORIZON,
+                shading.SKY_ZENITH,
+                [shading.AMBIENT, far, o[0], o[1], shading.TEXEL],
+            ]
         ).astype(np.float64)
 
 
@@ -308,9 +387,18 @@ def finish_depth(
     """Pixels i0..i1 of ``depth``: with noise, 0 where invalid; with ``labels`` cuts
     ``res``'s labels at the far limit in place."""
     native.require("the rasteriser").finish_depth(
-        i0, i1, res.t.ctypes.data, forward.ctypes.data, native.ptr(noise), k_sigma, min_range,
-        max_range, bad.ctypes.data, depth.ctypes.data,
-        res.label.ctypes.data if labels else None, res.plant.ctypes.data if labels else None,
+        i0,
+        i1,
+        res.t.ctypes.data,
+        forward.ctypes.data,
+        native.ptr(noise),
+        k_sigma,
+        min_range,
+        max_range,
+        bad.ctypes.data,
+        depth.ctypes.data,
+        res.label.ctypes.data if labels else None,
+        res.plant.ctypes.data if labels else None,
     )
 
 
@@ -320,7 +408,10 @@ def new_vis(n: int) -> VisBuffer:
 
 def new_resolved(n: int) -> Resolved:
     return Resolved(
-        np.empty(n), np.empty(n, np.uint8), np.empty(n, np.int32), np.empty(n, np.int32),
+        np.empty(n),
+        np.empty(n, np.uint8),
+        np.empty(n, np.int32),
+        np.empty(n, np.int32),
         np.empty(n, np.int32),
     )
 
@@ -359,7 +450,7 @@ class Bands:
         if not self.threaded:
             return [fn(0, h)]
         frac = self.split.get(stage, 0.5)
-        m = min(max(int(round(frac * h)), 1), h - 1)
+        m = min(max(round(frac * h), 1), h - 1)
 
         def timed(r0: int, r1: int) -> tuple[float, Any]:
             t0 = time.perf_counter()
