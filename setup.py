@@ -16,6 +16,7 @@ setup(
                 "src/agrinav_gym/csrc/proxycast.c",
                 "src/agrinav_gym/csrc/raster.c",
                 "src/agrinav_gym/csrc/frame.c",
+                "src/agrinav_gym/csrc/packets.c",
             ],
             depends=["src/agrinav_gym/csrc/native.h"],
             extra_compile_args=["-O3", "-fno-math-errno", "-std=c99"],

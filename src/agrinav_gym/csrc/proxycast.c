@@ -96,6 +96,11 @@ static int clip_rect(double ox, double oy, double dx, double dy, double x0, doub
 static double first_root(double q0, double q1, double q2, double len) {
     const double eps = 1e-12 * (len > 1 ? len : 1);
     if (q0 == 0) return 0;
+    /* above the surface at both ends with no dip between (the usual cell a ray passes over):
+     * no root, decided without the square root (the margins keep the exact path's roots at
+     * the ends, which it accepts within eps) */
+    double qe = q0 + (q1 + q2 * len) * len;
+    if (q0 > 1e-9 && qe > 1e-9 && !(q2 > 0 && q1 < 0 && -q1 < 2 * q2 * len)) return -1;
     double scale = fabs(q1) * len;
     if (fabs(q2) * len * len <= 1e-14 * (scale > fabs(q0) ? scale : fabs(q0))) {
         if (q1 == 0) return -1;
@@ -223,13 +228,15 @@ static inline double cylinder_hit(const double *o, const double *d, double ia, d
     return best;
 }
 
-/* Per ray k (origin o, unit direction d[3k..3k+2], length limit tlim[k]): the first hit's
+/* Per ray k (origin o, unit direction d[3k..3k+2] in the world, or in the body frame when the
+ * row-major rotation ``rot`` (body -> world) is given; length limit tlim[k]): the first hit's
  * t (INFINITY: none) and what it hit (HIT_TERRAIN, HIT_NONE or the cylinder's index).
  * Terrain: heights h (ny x nx, row i at y0 + i s), bmax the highest vertex of each block of
  * bsize x bsize cells (bny x bnx). Plants: cylinder k is cyl[5k..5k+4] = (x, y, bottom z, top
  * z, radius); grid cell (i, j) of size gs from (gx, gy) lists cylinders
  * items[start[c]:start[c+1]] with c = i gnx + j. */
-EXPORT void proxy_cast(int n, const double *o, const double *d, const double *tlim,
+EXPORT void proxy_cast(int n, const double *o, const double *d, const double *rot,
+                       const double *tlim,
                        const double *h, int nx, int ny, double x0, double y0, double s,
                        const double *bmax, int bsize, int bnx, int bny,
                        int gnx, int gny, double gx, double gy, double gs,
@@ -256,7 +263,13 @@ EXPORT void proxy_cast(int n, const double *o, const double *d, const double *tl
     for (int32_t m = 0; m < start[gnx > 0 && gny > 0 ? gnx * gny : 0]; m++)
         ztop = MAX2(ztop, cyl[5 * (size_t)items[m] + 3]);
     for (int k = 0; k < n; k++) {
+        double dw[3];
         const double *dk = d + 3 * (size_t)k;
+        if (rot) { /* body rays turned into the world here (no BLAS call per frame) */
+            for (int i = 0; i < 3; i++)
+                dw[i] = rot[3 * i] * dk[0] + rot[3 * i + 1] * dk[1] + rot[3 * i + 2] * dk[2];
+            dk = dw;
+        }
         double idx = dk[0] != 0 ? 1.0 / dk[0] : INFINITY, idy = dk[1] != 0 ? 1.0 / dk[1] : INFINITY;
         double a = dk[0] * dk[0] + dk[1] * dk[1];
         double ia = a > 0 ? 1.0 / a : INFINITY, isa = a > 0 ? 1.0 / sqrt(a) : INFINITY;
@@ -290,3 +303,4 @@ EXPORT void proxy_cast(int n, const double *o, const double *d, const double *tl
         what[k] = id;
     }
 }
+

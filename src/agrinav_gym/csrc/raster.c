@@ -40,14 +40,19 @@ typedef struct {
     int w, tw, th;  /* image width, tiles across and down */
     float *tmin;    /* per tile: the least 1/z of its pixels in the band (valid when clean) */
     uint8_t *dirty; /* per tile: written since tmin was computed */
+    int hiz;        /* keep and use the tiles (off where a view hides little: its bookkeeping
+                     * would cost more than it saves) */
+    int64_t culled; /* triangles and plants skipped as hidden */
 } vbuf_t;
 
 static inline void mark_row(vbuf_t *b, int y, int x0, int x1) {
+    if (!b->hiz) return;
     uint8_t *d = b->dirty + (size_t)(y >> TSHIFT) * b->tw;
     for (int t = x0 >> TSHIFT; t <= x1 >> TSHIFT; t++) d[t] = 1;
 }
 
 static inline void mark_column(vbuf_t *b, int x, int y0, int y1) {
+    if (!b->hiz) return;
     for (int t = y0 >> TSHIFT; t <= y1 >> TSHIFT; t++) b->dirty[(size_t)t * b->tw + (x >> TSHIFT)] = 1;
 }
 
@@ -76,6 +81,7 @@ static float tile_min(vbuf_t *b, int ty, int tx) {
  * triangle, where refreshing after every write would cost more than it saves). */
 static int hidden(vbuf_t *b, double x0, double x1, double y0, double y1, double qmax,
                   int fresh) {
+    if (!b->hiz) return 0;
     if (x0 < 0) x0 = 0;
     if (y0 < b->row0) y0 = b->row0;
     if (x1 > b->w - 1.0) x1 = b->w - 1.0;
@@ -196,7 +202,10 @@ static void tri_image(const cam_t *c, vbuf_t *b, const cvert_t *p0, const cvert_
     double area = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0);
     if (!(fabs(area) > 1e-18)) return; /* seen edge-on: no pixel centre inside */
     double q0 = p0->q, q1 = p1->q, q2 = p2->q;
-    if (hidden(b, xmin, xmax, ymin, ymax, MAX2(q0, MAX2(q1, q2)), 0)) return;
+    if (hidden(b, xmin, xmax, ymin, ymax, MAX2(q0, MAX2(q1, q2)), 0)) {
+        b->culled++;
+        return;
+    }
     double ia = 1.0 / area;
     double A = ((q1 - q0) * (y2 - y0) - (q2 - q0) * (y1 - y0)) * ia;
     double B = ((x1 - x0) * (q2 - q0) - (x2 - x0) * (q1 - q0)) * ia;
@@ -356,8 +365,10 @@ static int draw_instances(const cam_t *c, const geom_t *g, vbuf_t *b, cvert_t *s
             double ylo = MIN2((Y - rad) / xn, (Y - rad) / xf), yhi = MAX2((Y + rad) / xn, (Y + rad) / xf);
             double zlo = MIN2((Z - rad) / xn, (Z - rad) / xf), zhi = MAX2((Z + rad) / xn, (Z + rad) / xf);
             if (hidden(b, c->cx - c->fx * yhi, c->cx - c->fx * ylo, c->cy - c->fy * zhi,
-                       c->cy - c->fy * zlo, 1.0 / xn, 1))
+                       c->cy - c->fy * zlo, 1.0 / xn, 1)) {
+                b->culled += g->proto_nf[p];
                 continue;
+            }
         }
         double M[12];
         slot_transform(c, g->xfm + 12 * (size_t)k, M);
@@ -469,11 +480,12 @@ static void draw_terrain(const cam_t *c, const geom_t *g, vbuf_t *b) {
 
 /* Rasterise the instances and the terrain of ``geom`` for camera ``cam`` (w x h) into rows
  * [row0, row1) of the visibility buffer (iz zeroed and ids set to VB_NONE there first; two
- * calls on disjoint bands may run at once). ``terrain`` = 0 leaves the ground out. Returns the
- * number of triangles scan-converted, or -1 when out of memory. */
+ * calls on disjoint bands may run at once). ``terrain`` = 0 leaves the ground out; ``hiz`` = 0
+ * draws without the coarse depth tiles (the same image). ``stats`` receives the triangles
+ * scan-converted and those skipped as hidden. Returns 0, or -1 when out of memory. */
 EXPORT int64_t raster_view(const double *cam, int w, int h, const int64_t *gptr,
-                           const double *gval, int terrain, float *iz, int32_t *inst,
-                           int32_t *prim, int row0, int row1) {
+                           const double *gval, int terrain, int hiz, float *iz, int32_t *inst,
+                           int32_t *prim, int row0, int row1, int64_t *stats) {
     cam_t c;
     cam_from(&c, cam, w, h);
     geom_t g;
@@ -483,7 +495,8 @@ EXPORT int64_t raster_view(const double *cam, int w, int h, const int64_t *gptr,
     for (size_t k = (size_t)row0 * w; k < (size_t)row1 * w; k++)
         iz[k] = 0.0f, inst[k] = VB_NONE, prim[k] = -1;
     int tw = (w + TILE - 1) >> TSHIFT, th = (h + TILE - 1) >> TSHIFT;
-    vbuf_t b = {iz, inst, prim, 1.0 / c.zfar, row0, row1, 0, w, tw, th, NULL, NULL};
+    vbuf_t b = {iz, inst, prim, 1.0 / c.zfar, row0, row1, 0, w, tw, th, NULL, NULL, hiz, 0};
+    stats[0] = stats[1] = 0;
     if (row0 >= row1) return 0;
     int maxv = 1;
     for (int p = 0; p < g.n_protos; p++)
@@ -496,5 +509,6 @@ EXPORT int64_t raster_view(const double *cam, int w, int h, const int64_t *gptr,
     if (ok) ok = draw_instances(&c, &g, &b, scratch) == 0;
     if (ok && terrain) draw_terrain(&c, &g, &b);
     free(scratch), free(b.tmin), free(b.dirty);
-    return ok ? b.tris : -1;
+    stats[0] = b.tris, stats[1] = b.culled;
+    return ok ? 0 : -1;
 }

@@ -91,9 +91,9 @@ class DepthCamera(Lighting):
         rgb: bool = False,
         labels: bool = False,
     ) -> DepthFrame:
-        o, rays = self.pose(rot, pos)
         if native.available():
-            return self._render_native(o, rays, terrain, plants, rng, rgb, labels)
+            return self._render_native(rot, pos, terrain, plants, rng, rgb, labels)
+        o, rays = self.pose(rot, pos)
         t, lab = self.cast(o, rays, terrain, plants, self.t_lim)
         z = t * self.forward
         hit = np.isfinite(z)
@@ -113,8 +113,8 @@ class DepthCamera(Lighting):
 
     def _render_native(
         self,
-        o: FloatArray,
-        rays: FloatArray,
+        rot: FloatArray,
+        pos: FloatArray,
         terrain: Terrain,
         plants: PlantField,
         rng: np.random.Generator | None,
@@ -125,7 +125,8 @@ class DepthCamera(Lighting):
         call (csrc/frame.c ``finish_depth``, the same law as the numpy lines of ``render``)."""
         cfg = self.cfg
         g = self._proxy_geometry(terrain, plants)
-        t, what = g.cast_raw(o, rays, self.t_lim)
+        o = pos + rot @ self.mount
+        t, what = g.cast_raw(o, self.rays_body, self.t_lim, rot)
         n = len(t)
         noise = None
         if rng is not None and cfg.subpixel > 0:
@@ -155,6 +156,7 @@ class DepthCamera(Lighting):
             if labels:
                 frame.label = lab.reshape(shape)
             if rgb:
+                rays = self.rays_body @ rot.T
                 frame.rgb = self._shade(o, rays, t, lab, terrain).reshape(*shape, 3)
         return frame
 
@@ -298,13 +300,19 @@ class ProxyGeometry:
         return self.terrain is terrain and self.plants is plants
 
     def cast_raw(
-        self, o: FloatArray, rays: FloatArray, t_lim: FloatArray
+        self,
+        o: FloatArray,
+        rays: FloatArray,
+        t_lim: FloatArray,
+        rot: FloatArray | None = None,
     ) -> tuple[FloatArray, NDArray[np.int32]]:
-        """First hit per ray (``o`` one origin, ``rays`` unit directions) within ``t_lim``:
-        length (inf where none) and what it hit (-1 terrain, -2 nothing, else the cylinder)."""
+        """First hit per ray (``o`` one origin, ``rays`` unit directions, in the body frame when
+        ``rot`` (body -> world) is given) within ``t_lim``: length (inf where none) and what it
+        hit (-1 terrain, -2 nothing, else the cylinder)."""
         n = len(rays)
         o = np.ascontiguousarray(o, np.float64)
         d = np.ascontiguousarray(rays, np.float64)
+        r = None if rot is None else np.ascontiguousarray(rot, np.float64)
         lim = np.ascontiguousarray(t_lim, np.float64)
         if lim.shape != (n,):
             lim = np.ascontiguousarray(np.broadcast_to(lim, (n,)))
@@ -313,31 +321,11 @@ class ProxyGeometry:
         te = self.terrain
         ny, nx = self.h.shape
         native.require("the proxy camera").proxy_cast(
-            n,
-            o.ctypes.data,
-            d.ctypes.data,
-            lim.ctypes.data,
-            self.h.ctypes.data,
-            nx,
-            ny,
-            te.x0,
-            te.y0,
-            te.spacing,
-            self.bmax.ctypes.data,
-            self.BLOCK,
-            self.bnx,
-            self.bny,
-            self.gnx,
-            self.gny,
-            self.gx,
-            self.gy,
-            self.CELL,
-            self.start.ctypes.data,
-            self.items.ctypes.data,
-            self.cyl.ctypes.data,
-            t.ctypes.data,
-            what.ctypes.data,
-        )
+            n, o.ctypes.data, d.ctypes.data, native.ptr(r), lim.ctypes.data, self.h.ctypes.data,
+            nx, ny, te.x0, te.y0, te.spacing, self.bmax.ctypes.data, self.BLOCK, self.bnx,
+            self.bny, self.gnx, self.gny, self.gx, self.gy, self.CELL, self.start.ctypes.data,
+            self.items.ctypes.data, self.cyl.ctypes.data, t.ctypes.data, what.ctypes.data,
+        )  # fmt: skip
         return t, what
 
     def labels(self, what: NDArray[np.int32]) -> NDArray[np.uint8]:

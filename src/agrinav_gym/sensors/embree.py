@@ -29,6 +29,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from . import native
+
 F32 = NDArray[np.float32]
 U32 = NDArray[np.uint32]
 AnyFloat = NDArray[np.floating[Any]]
@@ -322,8 +324,13 @@ class Caster:
 
     def _run(self, fn: Any, scene: Scene, base: int, npk: int) -> None:
         valid, sp = self.dev.valid.ctypes.data, scene.ptr
+        kernels = native.lib()
 
         def loop(lo: int, hi: int) -> None:
+            if kernels is not None:  # one foreign call for the whole range
+                address = ctypes.cast(fn, ctypes.c_void_p).value
+                kernels.embree_packets(address, valid, sp, base + lo * STRIDE, hi - lo, STRIDE)
+                return
             for addr in range(base + lo * STRIDE, base + hi * STRIDE, STRIDE):
                 fn(valid, sp, addr, None)
 

@@ -16,7 +16,7 @@ import os
 import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import lru_cache
 from typing import Any
 
@@ -35,12 +35,36 @@ ZNEAR = 1e-3  # m: the ray casts start at the camera; nothing of the scene comes
 @dataclass
 class VisBuffer:
     """A rasterised view: per pixel 1/z (0: nothing), instance slot (-1 none, -2 terrain) and
-    triangle; ``triangles`` is how many were scan-converted."""
+    triangle; ``triangles`` scan-converted and ``culled`` skipped as hidden in its last frame.
+
+    ``hiz`` says whether the view keeps coarse depth tiles to skip hidden geometry. Under a
+    maize canopy that saves a third of a view; in an open field the triangles it skips are cheap
+    ones and the bookkeeping costs more. The image is the same either way, so each view uses
+    whichever was faster, timing both now and then (every ``PROBE`` frames the other one)."""
 
     iz: NDArray[np.float32]
     inst: NDArray[np.int32]
     prim: NDArray[np.int32]
     triangles: int
+    culled: int = 0
+    hiz: bool = True
+    frames: int = 0
+    seconds: float = 0.0  # drawing this frame (both bands)
+    cost: dict[bool, float] = field(default_factory=dict)  # smoothed seconds, by ``hiz``
+
+    PROBE = 8
+
+    def next_frame(self) -> None:
+        if self.frames:
+            old = self.cost.get(self.hiz)
+            self.cost[self.hiz] = self.seconds if old is None else 0.5 * (old + self.seconds)
+        self.frames += 1
+        if len(self.cost) < 2 or self.frames % self.PROBE == 0:
+            self.hiz = not self.hiz if self.frames > 1 else True
+        else:
+            self.hiz = self.cost[True] <= self.cost[False]
+        self.triangles = self.culled = 0
+        self.seconds = 0.0
 
 
 @dataclass
@@ -161,22 +185,18 @@ class SceneGeometry:
     # Each takes a band of rows [r0, r1): two threads work on one view's two bands at once.
     def draw(self, cam: FloatArray, vb: VisBuffer, w: int, h: int, r0: int, r1: int) -> None:
         lib = native.require("the rasteriser")
-        tris = lib.raster_view(
-            cam.ctypes.data,
-            w,
-            h,
-            self.gptr.ctypes.data,
-            self.gval.ctypes.data,
-            1,
-            vb.iz.ctypes.data,
-            vb.inst.ctypes.data,
-            vb.prim.ctypes.data,
-            r0,
-            r1,
-        )
-        if tris < 0:
+        stats = np.zeros(2, np.int64)
+        t0 = time.perf_counter()
+        ok = lib.raster_view(
+            cam.ctypes.data, w, h, self.gptr.ctypes.data, self.gval.ctypes.data, 1,
+            int(vb.hiz), vb.iz.ctypes.data, vb.inst.ctypes.data, vb.prim.ctypes.data, r0, r1,
+            stats.ctypes.data,
+        )  # fmt: skip
+        if ok < 0:
             raise MemoryError("rasteriser: out of memory")
-        vb.triangles += int(tris)
+        vb.seconds += time.perf_counter() - t0  # both bands: what the view costs the CPU
+        vb.triangles += int(stats[0])
+        vb.culled += int(stats[1])
 
     def resolve(
         self,
@@ -429,7 +449,7 @@ class FrameBuffers:
 
     def parts(self) -> tuple[VisBuffer, VisBuffer, VisBuffer, Resolved, Resolved, Any]:
         for v in self.views:
-            v.triangles = 0
+            v.next_frame()
         return (*self.views, *self.resolved, self.bad)  # type: ignore[return-value]
 
 
