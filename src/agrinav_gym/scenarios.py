@@ -12,6 +12,7 @@ cross-field checks — so a bad range fails at construction, naming the range gi
 from __future__ import annotations
 
 import itertools
+import json
 from collections import OrderedDict
 from dataclasses import dataclass
 from pathlib import Path
@@ -23,7 +24,7 @@ import scenario_gen as sg
 from scenario_gen import Scenario
 from scenario_gen.errors import InputError
 from scenario_gen.generate import COUPLED_FIELDS, check_spec
-from scenario_gen.schema import field_info, is_integer_field, parse_yaml
+from scenario_gen.schema import field_info, is_integer_field, parse_yaml, to_mapping
 from scenario_gen.spec import ScenarioSpec
 
 from .sensors.gnss import MODES
@@ -85,6 +86,16 @@ def _parse(key: str, spec: Any) -> tuple[Any, Any, tuple[Any, ...] | None]:
     raise InputError(where, spec, "allowed: [low, high] or {choices: [...]}")
 
 
+_VALIDATED: OrderedDict[str, tuple[tuple[Draw, ...], tuple[str, ...]]] = OrderedDict()
+
+
+def _memo_key(ranges: dict[str, Any], base: ScenarioSpec | None) -> str | None:
+    try:
+        return json.dumps([ranges, to_mapping(base) if base is not None else None], sort_keys=True)
+    except (TypeError, ValueError):  # something JSON cannot hold: validate it every time
+        return None
+
+
 class Randomization:
     """The ``randomize`` argument, validated; ``sample`` draws keys in sorted order."""
 
@@ -93,7 +104,14 @@ class Randomization:
             ranges = {}
         if not isinstance(ranges, dict):
             raise InputError("randomize", ranges, "allowed: a mapping {key: [low, high]}")
-        self.draws: list[Draw] = []
+        # The same ranges on the same base pass the same checks: a dataset builds an env per
+        # shard, a vector env one per worker (the checks cost ~0.1 s); failures are not kept.
+        memo = _memo_key(ranges, base)
+        known = _VALIDATED.get(memo) if memo is not None else None
+        self.draws: list[Draw] = list(known[0]) if known is not None else []
+        if known is not None:
+            self.scenario_keys: tuple[str, ...] = known[1]
+            return
         scenario_draws: list[Draw] = []
         for key in sorted(ranges):
             if not isinstance(key, str):
@@ -108,6 +126,10 @@ class Randomization:
         self.scenario_keys = tuple(d.key for d in scenario_draws)
         if scenario_draws and base is not None:
             _check_combinations(scenario_draws, base, ranges)
+        if memo is not None:
+            _VALIDATED[memo] = (tuple(self.draws), self.scenario_keys)
+            while len(_VALIDATED) > 32:
+                _VALIDATED.popitem(last=False)
 
     def __bool__(self) -> bool:
         return bool(self.draws)

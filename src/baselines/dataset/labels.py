@@ -128,24 +128,34 @@ def plants(
         proj[name] = (ub, ut, okb, okt)
         if name == "depth":
             q_base, q_top = qb, qt
-    for j, i in enumerate(near):
-        in_view = any(proj[n][2][j] or proj[n][3][j] for n in cams)
-        if not in_view and counts[i] == 0:
-            continue
+    # whole arrays rounded at once (the same np.round as _r, element by element it dominated)
+    seen = counts[near] > 0
+    for n in cams:
+        seen |= proj[n][2] | proj[n][3]
+    keep = np.flatnonzero(seen)
+    ids = near[keep]
+    b3, t3 = _r(q_base[keep]), _r(q_top[keep])
+    two = {
+        n: (_r(ub[keep], 2), _r(ut[keep], 2), okb[keep].tolist(), okt[keep].tolist())
+        for n, (ub, ut, okb, okt) in proj.items()
+    }
+    species, stage = p.species[ids].tolist(), p.stage[ids].tolist()
+    height, weed, pixels = p.height[ids].tolist(), p.is_weed[ids].tolist(), counts[ids].tolist()
+    for j, i in enumerate(ids.tolist()):
         rec: dict[str, Any] = {
-            "id": int(i),
-            "species": str(p.species[i]),
-            "stage": int(p.stage[i]),
-            "height": round(float(p.height[i]), 4),
-            "weed": bool(p.is_weed[i]),
-            "base_3d": _r(q_base[j]),
-            "top_3d": _r(q_top[j]),
-            "visible_pixels": int(counts[i]),
+            "id": i,
+            "species": str(species[j]),
+            "stage": int(stage[j]),
+            "height": round(float(height[j]), 4),
+            "weed": bool(weed[j]),
+            "base_3d": b3[j],
+            "top_3d": t3[j],
+            "visible_pixels": int(pixels[j]),
         }
         for name in cams:
-            ub, ut, okb, okt = proj[name]
-            rec[f"base_2d_{name}"] = _r(ub[j], 2) if okb[j] else None
-            rec[f"top_2d_{name}"] = _r(ut[j], 2) if okt[j] else None
+            ub, ut, okb, okt = two[name]
+            rec[f"base_2d_{name}"] = ub[j] if okb[j] else None
+            rec[f"top_2d_{name}"] = ut[j] if okt[j] else None
         out.append(rec)
     return out
 
