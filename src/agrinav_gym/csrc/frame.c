@@ -468,3 +468,17 @@ EXPORT void shade_view(const double *cam, int w, int h, const int64_t *gptr, con
     }
     free(ab);
 }
+
+/* ``mesh_scene.refine_ground`` for n rays from one origin ``o`` along float32 directions ``d``:
+ * the hits ``t`` flagged in ``ground`` moved onto the bilinear surface, in place (world
+ * coordinates; ``gptr``/``gval`` need only the height grid). */
+EXPORT void refine_rays(int n, const double *o, const float *d, double *t, const uint8_t *ground,
+                        const int64_t *gptr, const double *gval) {
+    geom_t g;
+    geom_from(&g, gptr, gval);
+    for (int k = 0; k < n; k++) {
+        if (!ground[k]) continue;
+        double dk[3] = {d[3 * (size_t)k], d[3 * (size_t)k + 1], d[3 * (size_t)k + 2]};
+        t[k] = refine(&g, o, dk, t[k]);
+    }
+}

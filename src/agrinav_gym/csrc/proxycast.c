@@ -234,9 +234,10 @@ static inline double cylinder_hit(const double *o, const double *d, double ia, d
  * Terrain: heights h (ny x nx, row i at y0 + i s), bmax the highest vertex of each block of
  * bsize x bsize cells (bny x bnx). Plants: cylinder k is cyl[5k..5k+4] = (x, y, bottom z, top
  * z, radius); grid cell (i, j) of size gs from (gx, gy) lists cylinders
- * items[start[c]:start[c+1]] with c = i gnx + j. */
+ * items[start[c]:start[c+1]] with c = i gnx + j; ``ztop`` the tallest cylinder's top (a rising
+ * ray above it meets no plant any more). */
 EXPORT void proxy_cast(int n, const double *o, const double *d, const double *rot,
-                       const double *tlim,
+                       const double *tlim, double ztop,
                        const double *h, int nx, int ny, double x0, double y0, double s,
                        const double *bmax, int bsize, int bnx, int bny,
                        int gnx, int gny, double gx, double gy, double gs,
@@ -258,10 +259,6 @@ EXPORT void proxy_cast(int n, const double *o, const double *d, const double *ro
             for (int j = j0; j <= j1; j++) hmax_all = MAX2(hmax_all, bmax[i * bnx + j]);
     }
     const double igs = 1.0 / gs;
-    /* the tallest cylinder: a rising ray above it meets no plant any more */
-    double ztop = -INFINITY;
-    for (int32_t m = 0; m < start[gnx > 0 && gny > 0 ? gnx * gny : 0]; m++)
-        ztop = MAX2(ztop, cyl[5 * (size_t)items[m] + 3]);
     for (int k = 0; k < n; k++) {
         double dw[3];
         const double *dk = d + 3 * (size_t)k;

@@ -265,6 +265,7 @@ class ProxyGeometry:
         if n:
             self.cyl[:] = np.column_stack([plants.xy, plants.z, plants.top, plants.radius])
         self.weed = plants.is_weed
+        self.ztop = float(plants.top.max()) if n else -np.inf  # the tallest plant
         g = self.CELL
         if n:
             x, y, r = plants.xy[:, 0], plants.xy[:, 1], plants.radius
@@ -321,7 +322,8 @@ class ProxyGeometry:
         te = self.terrain
         ny, nx = self.h.shape
         native.require("the proxy camera").proxy_cast(
-            n, o.ctypes.data, d.ctypes.data, native.ptr(r), lim.ctypes.data, self.h.ctypes.data,
+            n, o.ctypes.data, d.ctypes.data, native.ptr(r), lim.ctypes.data, self.ztop,
+            self.h.ctypes.data,
             nx, ny, te.x0, te.y0, te.spacing, self.bmax.ctypes.data, self.BLOCK, self.bnx,
             self.bny, self.gnx, self.gny, self.gx, self.gy, self.CELL, self.start.ctypes.data,
             self.items.ctypes.data, self.cyl.ctypes.data, t.ctypes.data, what.ctypes.data,

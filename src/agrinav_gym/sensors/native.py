@@ -20,7 +20,7 @@ _vp, _i, _d = ctypes.c_void_p, ctypes.c_int, ctypes.c_double
 _SIGNATURES: dict[str, tuple[Any, list[Any]]] = {
     "proxy_cast": (
         None,
-        [_i, _vp, _vp, _vp, _vp, _vp, _i, _i, _d, _d, _d, _vp, _i, _i, _i, _i, _i, _d, _d, _d]
+        [_i, _vp, _vp, _vp, _vp, _d, _vp, _i, _i, _d, _d, _d, _vp, _i, _i, _i, _i, _i, _d, _d, _d]
         + [_vp] * 5,
     ),
     "raster_view": (ctypes.c_int64, [_vp, _i, _i, _vp, _vp, _i, _i, _vp, _vp, _vp, _i, _i, _vp]),
@@ -31,6 +31,7 @@ _SIGNATURES: dict[str, tuple[Any, list[Any]]] = {
     "stereo_prepare": (None, [_i, _d, _d, _vp, _vp, _vp, _i, _i, _i]),
     "stereo_invalid": (None, [_vp, _i, _i, _d, _d] + [_vp] * 12 + [_i, _i]),
     "finish_depth": (None, [_i, _i, _vp, _vp, _vp, _d, _d, _d, _vp, _vp, _vp, _vp]),
+    "refine_rays": (None, [_i, _vp, _vp, _vp, _vp, _vp, _vp]),
     "embree_packets": (None, [_vp, _vp, _vp, _vp, ctypes.c_int64, ctypes.c_int64]),
     "shade_view": (None, [_vp, _i, _i] + [_vp] * 14 + [_i] + [_vp] * 5 + [_i, _i]),
 }

@@ -19,12 +19,14 @@ from __future__ import annotations
 import math
 from collections import OrderedDict
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from scenario_gen import Scenario, Terrain
 
+from ..sensors import native
 from ..sensors.embree import Caster, Scene, device
 from .plant_meshes import OTHER, SOIL, PlantMeshes
 
@@ -103,6 +105,8 @@ class MeshScene:
         self._statics = 0
         self._last_view: tuple[FloatArray, FloatArray] | None = None  # hull edge normals, offsets
         self._near: tuple[frozenset[int], NDArray[np.int32], F32] | None = None
+        self._heights: FloatArray | None = None  # the grid as the compiled refinement reads it
+        self._grid: tuple[NDArray[np.int64], FloatArray] = (np.zeros(0, np.int64), np.zeros(0))
         self.tiles_built = 0
 
     @classmethod
@@ -289,10 +293,32 @@ class MeshScene:
             label[on_plant] = self._labels[proto[on_plant]]
         if refine and ground.any():
             oo = np.asarray(o, np.float64)
-            t[ground] = refine_ground(
-                self.terrain, oo if oo.ndim == 1 else oo[ground], d[ground], t[ground]
-            )
+            kernels = native.lib()
+            if kernels is not None and oo.ndim == 1:  # the same Newton steps, compiled
+                self._refine_native(kernels, oo, d, t, ground)
+            else:
+                t[ground] = refine_ground(
+                    self.terrain, oo if oo.ndim == 1 else oo[ground], d[ground], t[ground]
+                )
         return SceneHits(t, label, plant, proto, h.prim.copy(), h.u.copy(), h.v.copy(), inst)
+
+    def _refine_native(
+        self, kernels: Any, o: FloatArray, d: Any, t: FloatArray, ground: NDArray[np.bool_]
+    ) -> None:
+        if self._heights is None:
+            te = self.terrain
+            self._heights = np.ascontiguousarray(te.heights, np.float64)
+            ny, nx = te.shape
+            ptrs = np.zeros(9, np.int64)
+            ptrs[7] = self._heights.ctypes.data
+            self._grid = (ptrs, np.array([0, 0, nx, ny, te.x0, te.y0, te.spacing], np.float64))
+        dd = np.ascontiguousarray(d, np.float32)
+        flags = np.ascontiguousarray(ground, np.uint8)
+        ptrs, vals = self._grid
+        kernels.refine_rays(
+            len(t), o.ctypes.data, dd.ctypes.data, t.ctypes.data, flags.ctypes.data,
+            ptrs.ctypes.data, vals.ctypes.data,
+        )  # fmt: skip
 
     def occluded(
         self, o: FloatArray, d: FloatArray, tnear: object, tfar: object
