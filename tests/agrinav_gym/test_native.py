@@ -174,6 +174,37 @@ def test_raster_noise_is_the_ray_cast_noise(maize: MeshScene) -> None:
     assert np.abs(r.depth[both] - e.depth[both]).max() < 1e-4
 
 
+@needs_kernels
+def test_the_robot_in_its_own_camera_is_the_same_on_both_renderers(maize: MeshScene) -> None:
+    """A camera on a short mast behind base_link, pitched down, sees the chassis: its pixels
+    (class 4, constant per mount) merge into the rasterised frame as into the ray-cast one."""
+    cfg = EnvConfig.from_dict(
+        {
+            "robot": {"camera_x": -0.4, "camera_height": 0.5, "camera_pitch_deg": 40.0},
+            "camera": {"width": 424, "height": 240},
+        }
+    )
+    model = robot_interface(cfg, RobotGeometry.from_urdf()).camera
+    rot, pos = lane_pose(maize_scenario(maize))
+    frames = {}
+    for renderer in ("raster", "raycast"):
+        c = EnvConfig.from_dict(
+            {**cfg.to_dict(), "camera": {**cfg.to_dict()["camera"], "renderer": renderer}}
+        )
+        cam = MeshCamera(c.camera, model)
+        frames[renderer] = cam.render(rot, pos, maize, None, rgb=True, labels=True, stereo=False)
+    r, e = frames["raster"], frames["raycast"]
+    robot = e.label == 4
+    assert 0.05 < robot.mean() < 0.9 and (e.rgb_label == 4).mean() > 0.05
+    assert np.array_equal(r.label == 4, robot) and np.array_equal(
+        r.rgb_label == 4, e.rgb_label == 4
+    )
+    near = (r.depth > 0) & (e.depth > 0)
+    assert np.abs(r.depth[near] - e.depth[near]).max() < 5e-5
+    diff = np.abs(r.rgb.astype(int) - e.rgb.astype(int)).max(axis=2)
+    assert (diff[e.rgb_label == 4] <= 2).all()  # the chassis shaded alike
+
+
 def test_face_adjacency_joins_faces_across_shared_edges() -> None:
     """A quad split in two, its diagonal's vertices repeated (a texture seam), and a third
     triangle on one outer edge: faces meet across edges by position, not by vertex index."""
