@@ -37,9 +37,17 @@ def lane_pose(scn, k: int = 40, turn: float = 0.0) -> tuple[np.ndarray, np.ndarr
 
 @pytest.fixture(scope="module")
 def maize() -> MeshScene:
-    """Tall maize (2.5 m) in 1 m rows: leaves hang into the lane and hide each other."""
+    """Tall maize (2.5 m) in 1 m rows: leaves hang into the lane and hide each other. The
+    scene keeps its scenario as ``scene.scenario``."""
     over = {**TINY, "crop": {"stage": 5}, "layout": {"row_spacing": 1.0, "headland": 2.0}}
-    return MeshScene.from_scenario(generate(preset("default", **over), 0))
+    scn = generate(preset("default", **over), 0)
+    scene = MeshScene.from_scenario(scn)
+    scene.scenario = scn  # type: ignore[attr-defined]
+    return scene
+
+
+def maize_scenario(scene: MeshScene):  # type: ignore[no-untyped-def]
+    return scene.scenario  # type: ignore[attr-defined]
 
 
 def test_compiled_kernels_are_built_in_ci() -> None:
@@ -87,16 +95,6 @@ def test_raster_frame_is_the_ray_cast_frame(maize: MeshScene) -> None:
     assert (r.rgb_instance != e.rgb_instance).sum() <= 1e-4 * n
     diff = np.abs(r.rgb.astype(int) - e.rgb.astype(int)).max(axis=2)
     assert (diff > 2).mean() < 1e-4  # 8-bit rounding of float32 against float64 shading
-
-
-def maize_scenario(scene: MeshScene):  # type: ignore[no-untyped-def]
-    return generate(
-        preset(
-            "default",
-            **{**TINY, "crop": {"stage": 5}, "layout": {"row_spacing": 1.0, "headland": 2.0}},
-        ),
-        0,
-    )
 
 
 @needs_kernels
