@@ -7,7 +7,7 @@
 
 #include "native.h"
 
-/* the column and row terms of cam_ray: a[u] = -(u - cx)/fx, b[v] = -(v - cy)/fy (one block) */
+/* the column and row terms of cam_ray_f: a[u] = -(u - cx)/fx, b[v] = -(v - cy)/fy (one block) */
 static double *ray_terms(const cam_t *c) {
     double *a = (double *)malloc(sizeof(double) * (size_t)(c->w + c->h));
     if (!a) return NULL;

@@ -52,31 +52,9 @@ static inline void cam_from(cam_t *c, const double *p, int w, int h) {
     c->sd = (h - 0.5 - c->cy) / c->fy;
 }
 
-/* unit world direction of pixel (u, v); returns the ray length per unit of z-depth */
-static inline double cam_ray(const cam_t *c, double u, double v, double d[3]) {
-    double a = -(u - c->cx) / c->fx, b = -(v - c->cy) / c->fy;
-    double n = sqrt(1.0 + a * a + b * b), in = 1.0 / n;
-    double x = in, y = a * in, z = b * in;
-    const double *r = c->r; /* world = R^T camera */
-    d[0] = r[0] * x + r[3] * y + r[6] * z;
-    d[1] = r[1] * x + r[4] * y + r[7] * z;
-    d[2] = r[2] * x + r[5] * y + r[8] * z;
-    return n;
-}
-
-/* The same per pixel from precomputed column and row terms (a[u], b[v] of cam_ray) */
-static inline double cam_ray_ab(const cam_t *c, double a, double b, double d[3]) {
-    double n = sqrt(1.0 + a * a + b * b), in = 1.0 / n;
-    double y = a * in, z = b * in;
-    const double *r = c->r;
-    d[0] = r[0] * in + r[3] * y + r[6] * z;
-    d[1] = r[1] * in + r[4] * y + r[7] * z;
-    d[2] = r[2] * in + r[5] * y + r[8] * z;
-    return n;
-}
-
-/* The same from the pixel's cosine to the optical axis f = 1/|(1, a, b)| (PixelRays.forward):
- * no square root or division */
+/* The unit world direction of pixel (u, v) from its column and row terms a = -(u - cx)/fx,
+ * b = -(v - cy)/fy and its cosine to the optical axis f = 1/|(1, a, b)| (PixelRays.forward):
+ * no square root or division per pixel */
 static inline void cam_ray_f(const cam_t *c, double a, double b, double f, double d[3]) {
     double y = a * f, z = b * f;
     const double *r = c->r;
