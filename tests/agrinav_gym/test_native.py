@@ -21,6 +21,9 @@ from scenario_gen import generate, preset
 from .helpers import TINY
 
 needs_kernels = pytest.mark.skipif(not native.available(), reason="compiled kernels not built")
+#: Embree intersects in float32 around the field's centre (~1 µm), which a ray grazing a
+#: surface stretches along itself by up to ~100x: how far the two renderers' depths may part
+EMBREE_DEPTH = 1e-4
 
 
 def camera(width: int, height: int, renderer: str, threads: int = 1) -> MeshCamera:
@@ -73,9 +76,9 @@ def test_auto_rasterises_only_large_frames() -> None:
 
 @needs_kernels
 def test_raster_frame_is_the_ray_cast_frame(maize: MeshScene) -> None:
-    """The same geometry: depth to Embree's float32 precision (its hits are exact to ~1e-6
-    relative, a few µm at 6 m), the same plant in every pixel but ties at shared edges, the
-    same colours but rounding."""
+    """The same geometry: where both renderers see the same surface, the same depth to Embree's
+    precision; the same plant in every pixel but ties at shared edges (where float32 rays and
+    double scan conversion may pick the neighbouring triangle); the same colours but rounding."""
     rot, pos = lane_pose(maize_scenario(maize))
     r = camera(848, 480, "raster").render(
         rot, pos, maize, None, rgb=True, labels=True, stereo=False
@@ -83,18 +86,18 @@ def test_raster_frame_is_the_ray_cast_frame(maize: MeshScene) -> None:
     e = camera(848, 480, "raycast").render(
         rot, pos, maize, None, rgb=True, labels=True, stereo=False
     )
-    valid = (r.depth > 0) & (e.depth > 0)
-    assert valid.mean() > 0.5
-    assert (
-        np.array_equal(r.depth > 0, e.depth > 0) or np.mean((r.depth > 0) != (e.depth > 0)) < 1e-4
-    )
-    assert np.abs(r.depth[valid] - e.depth[valid]).max() < 5e-5
     n = r.depth.size
-    assert (r.instance != e.instance).sum() <= 1e-4 * n and (r.label != e.label).sum() <= 1e-4 * n
     assert (r.instance >= 0).mean() > 0.3  # a canopy, not an empty lane
-    assert (r.rgb_instance != e.rgb_instance).sum() <= 1e-4 * n
-    diff = np.abs(r.rgb.astype(int) - e.rgb.astype(int)).max(axis=2)
-    assert (diff > 2).mean() < 1e-4  # 8-bit rounding of float32 against float64 shading
+    ties = (r.instance != e.instance) | (r.label != e.label)
+    assert ties.sum() <= 1e-4 * n and ((r.depth > 0) != (e.depth > 0)).sum() <= 1e-4 * n
+    same = (r.depth > 0) & (e.depth > 0) & ~ties
+    assert same.mean() > 0.5
+    assert np.abs(r.depth[same] - e.depth[same]).max() < EMBREE_DEPTH
+    colour_ties = (r.rgb_instance != e.rgb_instance) | (r.rgb_label != e.rgb_label)
+    assert colour_ties.sum() <= 1e-4 * n
+    diff = np.abs(r.rgb.astype(int) - e.rgb.astype(int)).max(axis=2)[~colour_ties]
+    # float32 normals and rounding: a level or two; a hit on a texel's edge may take the next
+    assert (diff > 2).mean() < 1e-4
 
 
 @needs_kernels
@@ -111,9 +114,17 @@ def test_stereo_shadow_misses_only_what_the_right_view_cannot_show(maize: MeshSc
     geo = cam.render(rot, pos, maize, None, labels=True, stereo=False)
     occluded = (geo.depth > 0) & (e.depth == 0)
     assert occluded.mean() > 0.05  # a frame with a real shadow
-    assert ((r.depth == 0) & (e.depth > 0)).sum() <= 2  # float32 grazing rays, at most
+    # Hidden here but seen by the exact ray: only where its float32 segment grazes an
+    # occluder's silhouette, i.e. at the edge of a shadow both paths find.
+    extra = (r.depth == 0) & (e.depth > 0) & (geo.depth > 0)
+    both = np.pad((r.depth == 0) & (e.depth == 0) & (geo.depth > 0), 1)
+    beside = np.zeros_like(extra)
+    for dv in (-1, 0, 1):
+        for du in (-1, 0, 1):
+            beside |= both[1 + dv : 1 + dv + 480, 1 + du : 1 + du + 848]
+    assert not (extra & ~beside).any()
     missed = np.flatnonzero(((r.depth > 0) & (e.depth == 0)).ravel())
-    assert len(missed) <= 0.01 * occluded.sum()
+    assert len(missed) <= 0.01 * occluded.sum()  # a guard: a few tenths of a per cent here
     # what the exact rays hit for the missed pixels
     o, d = cam.rays.world(rot, pos)
     rw = cam.right_world(rot, pos)
@@ -163,13 +174,22 @@ def test_two_threads_draw_the_same_frame(maize: MeshScene) -> None:
 
 @needs_kernels
 def test_raster_noise_is_the_ray_cast_noise(maize: MeshScene) -> None:
-    """Both paths draw one standard normal per pixel from the same generator, in one call."""
+    """Both paths draw one standard normal per pixel from the same generator in one call: the
+    noise each adds, divided by its σ = z²·s/(f·B), is the same number in every pixel (to the
+    float32 rounding of the depths, < 1e-3 σ from 0.4 to 6 m)."""
     rot, pos = lane_pose(maize_scenario(maize))
-    r = camera(424, 240, "raster").render(rot, pos, maize, np.random.default_rng(7), stereo=False)
-    e = camera(424, 240, "raycast").render(rot, pos, maize, np.random.default_rng(7), stereo=False)
-    both = (r.depth > 0) & (e.depth > 0)
-    assert both.mean() > 0.5
-    assert np.abs(r.depth[both] - e.depth[both]).max() < 1e-4
+    cams = {k: camera(424, 240, k) for k in ("raster", "raycast")}
+    draws = {}
+    for k, cam in cams.items():
+        noisy = cam.render(rot, pos, maize, np.random.default_rng(7), stereo=False).depth
+        clean = cam.render(rot, pos, maize, None, stereo=False).depth
+        ok = (noisy > 0) & (clean > 0)
+        z = np.where(ok, clean, 1.0).astype(float)  # σ of the valid pixels only
+        draws[k] = (np.where(ok, (noisy - z) / cam.noise_sigma(z), np.nan), ok)
+    (nr, okr), (ne, oke) = draws["raster"], draws["raycast"]
+    both = okr & oke
+    assert both.mean() > 0.5 and np.nanstd(nr) == pytest.approx(1.0, abs=0.05)
+    assert np.abs(nr[both] - ne[both]).max() < 1e-3
 
 
 @needs_kernels
@@ -197,8 +217,8 @@ def test_the_robot_in_its_own_camera_is_the_same_on_both_renderers(maize: MeshSc
     assert np.array_equal(r.label == 4, robot) and np.array_equal(
         r.rgb_label == 4, e.rgb_label == 4
     )
-    near = (r.depth > 0) & (e.depth > 0)
-    assert np.abs(r.depth[near] - e.depth[near]).max() < 5e-5
+    near = (r.depth > 0) & (e.depth > 0) & (r.instance == e.instance) & (r.label == e.label)
+    assert np.abs(r.depth[near] - e.depth[near]).max() < EMBREE_DEPTH
     diff = np.abs(r.rgb.astype(int) - e.rgb.astype(int)).max(axis=2)
     assert (diff[e.rgb_label == 4] <= 2).all()  # the chassis shaded alike
 
@@ -277,6 +297,4 @@ def test_proxy_kernel_hits_the_first_surface_exactly(
     te, le = cam.cast(o, rays, scn.terrain, plants, cam.t_lim)
     assert np.array_equal(le, lab) and np.array_equal(np.isfinite(te), np.isfinite(t))
     fin = np.isfinite(t)
-    # Embree intersects in float32 around the field's centre (~1 µm), which a grazing hit on a
-    # thin stalk stretches along the ray by up to ~100x
-    assert np.abs(te[fin] - t[fin]).max() < 1e-4
+    assert np.abs(te[fin] - t[fin]).max() < EMBREE_DEPTH

@@ -68,8 +68,9 @@ static inline double refine(const geom_t *g, const double *o, const double *d, d
 
 /* Per pixel of a visibility buffer: ray length t (inf: none), class, plant id (-1), prototype
  * (-1) and triangle. ``refine`` moves terrain hits onto the bilinear surface; the robot's own
- * constant hits (robot_t, robot_prim; NULL: none in view) win where nearer. */
-EXPORT void resolve_view(const double *cam, int w, int h, const int64_t *gptr,
+ * constant hits (robot_t, robot_prim; NULL: none in view) win where nearer. Returns 0, or -1
+ * when out of memory. */
+EXPORT int resolve_view(const double *cam, int w, int h, const int64_t *gptr,
                          const double *gval, const double *fwd, const float *iz,
                          const int32_t *inst, const int32_t *vprim, const int32_t *slot_plant,
                          const uint8_t *proto_label, int refine_terrain, const double *robot_t,
@@ -80,10 +81,7 @@ EXPORT void resolve_view(const double *cam, int w, int h, const int64_t *gptr,
     geom_t g;
     geom_from(&g, gptr, gval);
     double *ab = ray_terms(&c);
-    if (!ab) {
-        t_out[(size_t)row0 * w] = NAN;
-        return;
-    }
+    if (!ab) return -1;
     for (int v = row0; v < row1; v++)
         for (int u = 0; u < w; u++) {
             size_t k = (size_t)v * w + u;
@@ -112,6 +110,7 @@ EXPORT void resolve_view(const double *cam, int w, int h, const int64_t *gptr,
             t_out[k] = t, label[k] = lab, plant[k] = pl, proto[k] = pr, prim[k] = tri;
         }
     free(ab);
+    return 0;
 }
 
 /* A segment (from the right imager R along seg, to t = tfar) tested against triangles once
@@ -155,8 +154,8 @@ static int seg_test(seg_test_t *s, int32_t si, int32_t sp) {
  * triangles the left view shows where the epipolar test found its nearest sample (on the
  * point's row and the rows beside it) are tested too: there the segment passes behind the
  * surface the left imager sees. What can still slip through is a whole occluder narrower than
- * a pixel in both views. ``scratch`` holds 3 w h doubles; ``counts`` returns
- * [candidates, occluded]. */
+ * a pixel in both views. ``scratch`` holds 3 w h doubles (``stereo_prepare``). Returns 0, or
+ * -1 when out of memory. */
 EXPORT void stereo_prepare(int w, double fx, double baseline, const double *t,
                            const double *fwd, double *scratch, int n, int row0, int row1) {
     const double ifb = 1.0 / (fx * baseline);
@@ -180,11 +179,11 @@ EXPORT void stereo_prepare(int w, double fx, double baseline, const double *t,
     }
 }
 
-EXPORT void stereo_invalid(const double *cam, int w, int h, double baseline, double nearest,
+EXPORT int stereo_invalid(const double *cam, int w, int h, double baseline, double nearest,
                            const double *t, const double *fwd, const int32_t *linst,
                            const int32_t *lprim, const float *riz, const int32_t *rinst, const int32_t *rprim,
                            const int64_t *gptr, const double *gval, const double *scratch,
-                           uint8_t *bad, int64_t *counts, int row0, int row1) {
+                           uint8_t *bad, int row0, int row1) {
     cam_t c;
     cam_from(&c, cam, w, h);
     geom_t g;
@@ -193,12 +192,8 @@ EXPORT void stereo_invalid(const double *cam, int w, int h, double baseline, dou
     const size_t n = (size_t)w * h;
     const double *inv = scratch, *after = scratch + n;
     const int32_t *arg = (const int32_t *)(scratch + 2 * n);
-    counts[0] = counts[1] = 0;
     double *ab = ray_terms(&c);
-    if (!ab) {
-        counts[0] = -1;
-        return;
-    }
+    if (!ab) return -1;
     /* the right imager's centre: B to the right of the depth origin (-y in the camera) */
     double R[3] = {c.o[0] - baseline * c.r[3], c.o[1] - baseline * c.r[4],
                    c.o[2] - baseline * c.r[5]};
@@ -218,7 +213,6 @@ EXPORT void stereo_invalid(const double *cam, int w, int h, double baseline, dou
             int occluder = near >= iv - (u + 0.5) * ifb;
             int leaves = iv + (w - 1 - u) * ifb < inear;
             if (!occluder && !leaves) continue;
-            counts[0]++;
             double d[3];
             cam_ray_f(&c, ab[u], ab[w + v], fwd[k], d);
             double P[3] = {c.o[0] + t[k] * d[0], c.o[1] + t[k] * d[1], c.o[2] + t[k] * d[2]};
@@ -263,16 +257,15 @@ EXPORT void stereo_invalid(const double *cam, int w, int h, double baseline, dou
                     for (int e = 0; e < na && !hit; e++) hit = seg_test(&st, si, adj[e]);
                 }
             }
-            if (hit) {
-                bad[k] = 1;
-                counts[1]++;
-            }
+            if (hit) bad[k] = 1;
         }
     free(ab);
+    return 0;
 }
 
 /* The depth image: noise (sigma = z^2 s / (f B), ``noise`` the standard normal draws, NULL:
- * none) on every hit, then 0 where invalid; and the labels cut at the far limit. */
+ * none) on every hit, then 0 where invalid (``bad``: the stereo pair's, NULL: none); and the
+ * labels cut at the far limit. */
 EXPORT void finish_depth(int i0, int i1, const double *t, const double *fwd,
                          const double *noise, double k_sigma, double min_range, double max_range,
                          const uint8_t *bad, float *depth, uint8_t *label, int32_t *plant) {
@@ -281,7 +274,7 @@ EXPORT void finish_depth(int i0, int i1, const double *t, const double *fwd,
         int hit = isfinite(z);
         double zn = z;
         if (hit && noise) zn += k_sigma * z * z * noise[i];
-        int valid = hit && !bad[i] && zn >= min_range && zn <= max_range;
+        int valid = hit && !(bad && bad[i]) && zn >= min_range && zn <= max_range;
         depth[i] = valid ? (float)zn : 0.0f;
         if (label && !(hit && z <= max_range)) {
             label[i] = CLS_OTHER;
@@ -315,8 +308,7 @@ enum {
     SH_AMBIENT = 12,      /* ambient share of Lambert */
     SH_FAR = 13,          /* haze distance scale */
     SH_ORIGIN = 14,       /* scene origin x, y (the soil texture is in world coordinates) */
-    SH_TEXEL = 16,        /* soil texel size */
-    SH_N = 17
+    SH_TEXEL = 16         /* soil texel size */
 };
 
 static inline void lambert(const double *alb, double nx, double ny, double nz, const double *d,

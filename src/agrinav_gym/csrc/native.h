@@ -23,6 +23,9 @@
 #define VB_NONE (-1)
 #define VB_TERRAIN (-2)
 
+#define MIN2(a, b) ((a) < (b) ? (a) : (b))
+#define MAX2(a, b) ((a) > (b) ? (a) : (b))
+
 /* semantic classes (sim/plant_meshes.py) */
 #define CLS_OTHER 0
 #define CLS_SOIL 1

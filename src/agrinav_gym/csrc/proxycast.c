@@ -119,8 +119,6 @@ static double first_root(double q0, double q1, double q2, double len) {
     return -1;
 }
 
-#define MAX2(a, b) ((a) > (b) ? (a) : (b))
-#define MIN2(a, b) ((a) < (b) ? (a) : (b))
 
 /* The ray's first crossing of the bilinear surface within [lo, hi], or INFINITY. ``hmax`` is
  * the highest vertex the ray can reach: a descending ray starts where it drops below it. */

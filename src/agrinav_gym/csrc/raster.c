@@ -36,13 +36,11 @@ typedef struct {
     int32_t *prim;
     double izfar;
     int row0, row1; /* the band of rows this call draws (two threads draw one view) */
-    int64_t tris;   /* triangles that reached scan conversion */
-    int w, tw, th;  /* image width, tiles across and down */
+    int w, tw;      /* image width, tiles across */
     float *tmin;    /* per tile: the least 1/z of its pixels in the band (valid when clean) */
     uint8_t *dirty; /* per tile: written since tmin was computed */
     int hiz;        /* keep and use the tiles (off where a view hides little: its bookkeeping
                      * would cost more than it saves) */
-    int64_t culled; /* triangles and plants skipped as hidden */
 } vbuf_t;
 
 static inline void mark_row(vbuf_t *b, int y, int x0, int x1) {
@@ -148,9 +146,6 @@ static inline void fill_span(float *iz, int32_t *in, int32_t *pr, int c0, int c1
     }
 }
 
-#define MIN2(a, b) ((a) < (b) ? (a) : (b))
-#define MAX2(a, b) ((a) > (b) ? (a) : (b))
-
 /* ceil and floor of x in [0, 6e4] (image columns and rows, clamped first): an offset turns
  * truncation into flooring without a rounding-mode change or a libm call */
 static inline int ceil_px(double x) { return 65536 - (int)(65536.0 - x); }
@@ -202,10 +197,7 @@ static void tri_image(const cam_t *c, vbuf_t *b, const cvert_t *p0, const cvert_
     double area = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0);
     if (!(fabs(area) > 1e-18)) return; /* seen edge-on: no pixel centre inside */
     double q0 = p0->q, q1 = p1->q, q2 = p2->q;
-    if (hidden(b, xmin, xmax, ymin, ymax, MAX2(q0, MAX2(q1, q2)), 0)) {
-        b->culled++;
-        return;
-    }
+    if (hidden(b, xmin, xmax, ymin, ymax, MAX2(q0, MAX2(q1, q2)), 0)) return;
     double ia = 1.0 / area;
     double A = ((q1 - q0) * (y2 - y0) - (q2 - q0) * (y1 - y0)) * ia;
     double B = ((x1 - x0) * (q2 - q0) - (x2 - x0) * (q1 - q0)) * ia;
@@ -236,7 +228,6 @@ static void tri_image(const cam_t *c, vbuf_t *b, const cvert_t *p0, const cvert_
     double kd = z > m ? (mi[iz_] - mi[im]) / (z - m) : 0.0;
     double ma_ = by_col ? B : A; /* 1/z slope along the minor axis */
     double mj_ = by_col ? A : B; /* and along the major one */
-    b->tris++;
     for (int sl = s0; sl <= s1; sl++) {
         double el = mi[ia_] + (sl - a) * kl;
         double es = sl < m ? mi[ia_] + (sl - a) * ku : mi[im] + (sl - m) * kd;
@@ -365,10 +356,8 @@ static int draw_instances(const cam_t *c, const geom_t *g, vbuf_t *b, cvert_t *s
             double ylo = MIN2((Y - rad) / xn, (Y - rad) / xf), yhi = MAX2((Y + rad) / xn, (Y + rad) / xf);
             double zlo = MIN2((Z - rad) / xn, (Z - rad) / xf), zhi = MAX2((Z + rad) / xn, (Z + rad) / xf);
             if (hidden(b, c->cx - c->fx * yhi, c->cx - c->fx * ylo, c->cy - c->fy * zhi,
-                       c->cy - c->fy * zlo, 1.0 / xn, 1)) {
-                b->culled += g->proto_nf[p];
+                       c->cy - c->fy * zlo, 1.0 / xn, 1))
                 continue;
-            }
         }
         double M[12];
         slot_transform(c, g->xfm + 12 * (size_t)k, M);
@@ -481,11 +470,11 @@ static void draw_terrain(const cam_t *c, const geom_t *g, vbuf_t *b) {
 /* Rasterise the instances and the terrain of ``geom`` for camera ``cam`` (w x h) into rows
  * [row0, row1) of the visibility buffer (iz zeroed and ids set to VB_NONE there first; two
  * calls on disjoint bands may run at once). ``terrain`` = 0 leaves the ground out; ``hiz`` = 0
- * draws without the coarse depth tiles (the same image). ``stats`` receives the triangles
- * scan-converted and those skipped as hidden. Returns 0, or -1 when out of memory. */
+ * draws without the coarse depth tiles (the same image). Returns 0, or -1 when out of
+ * memory. */
 EXPORT int64_t raster_view(const double *cam, int w, int h, const int64_t *gptr,
                            const double *gval, int terrain, int hiz, float *iz, int32_t *inst,
-                           int32_t *prim, int row0, int row1, int64_t *stats) {
+                           int32_t *prim, int row0, int row1) {
     cam_t c;
     cam_from(&c, cam, w, h);
     geom_t g;
@@ -495,8 +484,7 @@ EXPORT int64_t raster_view(const double *cam, int w, int h, const int64_t *gptr,
     for (size_t k = (size_t)row0 * w; k < (size_t)row1 * w; k++)
         iz[k] = 0.0f, inst[k] = VB_NONE, prim[k] = -1;
     int tw = (w + TILE - 1) >> TSHIFT, th = (h + TILE - 1) >> TSHIFT;
-    vbuf_t b = {iz, inst, prim, 1.0 / c.zfar, row0, row1, 0, w, tw, th, NULL, NULL, hiz, 0};
-    stats[0] = stats[1] = 0;
+    vbuf_t b = {iz, inst, prim, 1.0 / c.zfar, row0, row1, w, tw, NULL, NULL, hiz};
     if (row0 >= row1) return 0;
     int maxv = 1;
     for (int p = 0; p < g.n_protos; p++)
@@ -509,6 +497,5 @@ EXPORT int64_t raster_view(const double *cam, int w, int h, const int64_t *gptr,
     if (ok) ok = draw_instances(&c, &g, &b, scratch) == 0;
     if (ok && terrain) draw_terrain(&c, &g, &b);
     free(scratch), free(b.tmin), free(b.dirty);
-    stats[0] = b.tris, stats[1] = b.culled;
     return ok ? 0 : -1;
 }

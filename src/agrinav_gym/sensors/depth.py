@@ -70,7 +70,6 @@ class DepthCamera(Lighting):
         self._scene: tuple[Terrain, MeshScene] | None = None
         self._cylinders: tuple[PlantField, int] | None = None
         self._proxy: ProxyGeometry | None = None
-        self._no_bad = np.zeros(0, np.uint8)  # the proxy has no stereo pair: nothing invalid
         self.f_native = 0.5 * cfg.native_width / math.tan(math.radians(cfg.hfov_deg) / 2)
         self._init_lighting(SOIL_RGB)
 
@@ -91,67 +90,35 @@ class DepthCamera(Lighting):
         rgb: bool = False,
         labels: bool = False,
     ) -> DepthFrame:
-        if native.available():
-            return self._render_native(rot, pos, terrain, plants, rng, rgb, labels)
-        o, rays = self.pose(rot, pos)
-        t, lab = self.cast(o, rays, terrain, plants, self.t_lim)
-        z = t * self.forward
-        hit = np.isfinite(z)
-        if rng is not None and self.cfg.subpixel > 0:
-            noise = rng.standard_normal(z.shape)  # drawn for every pixel: same stream length
-            z[hit] += self.noise_sigma(z[hit]) * noise[hit]
-        valid = hit & (z >= self.cfg.min_range) & (z <= self.cfg.max_range)
-        shape = (self.cfg.height, self.cfg.width)
-        frame = DepthFrame(np.where(valid, z, 0.0).astype(np.float32).reshape(shape))
-        if labels or rgb:
-            lab = np.where(t * self.forward <= self.cfg.max_range, lab, OTHER).astype(np.uint8)
-            if labels:
-                frame.label = lab.reshape(shape)
-            if rgb:
-                frame.rgb = self._shade(o, rays, t, lab, terrain).reshape(*shape, 3)
-        return frame
-
-    def _render_native(
-        self,
-        rot: FloatArray,
-        pos: FloatArray,
-        terrain: Terrain,
-        plants: PlantField,
-        rng: np.random.Generator | None,
-        rgb: bool,
-        labels: bool,
-    ) -> DepthFrame:
-        """``render`` through the compiled kernels: the cast, then noise and validity in one
-        call (csrc/frame.c ``finish_depth``, the same law as the numpy lines of ``render``)."""
         cfg = self.cfg
-        g = self._proxy_geometry(terrain, plants)
         o = pos + rot @ self.mount
-        t, what = g.cast_raw(o, self.rays_body, self.t_lim, rot)
-        n = len(t)
         noise = None
-        if rng is not None and cfg.subpixel > 0:
-            noise = rng.standard_normal(n)  # drawn for every pixel: same stream length
-        depth = np.empty(n, np.float32)
-        if len(self._no_bad) != n:
-            self._no_bad = np.zeros(n, np.uint8)
-        native.require("the proxy camera").finish_depth(
-            0,
-            n,
-            t.ctypes.data,
-            self.forward.ctypes.data,
-            native.ptr(noise),
-            cfg.subpixel / (self.f_native * cfg.baseline),
-            cfg.min_range,
-            cfg.max_range,
-            self._no_bad.ctypes.data,
-            depth.ctypes.data,
-            None,
-            None,
-        )
+        kernels = native.lib()
+        if kernels is not None:  # one cast, then noise and validity in one call (finish_depth)
+            g = self._proxy_geometry(terrain, plants)
+            t, what = g.cast_raw(o, self.rays_body, self.t_lim, rot)
+            if rng is not None and cfg.subpixel > 0:
+                noise = rng.standard_normal(len(t))  # drawn for every pixel: same stream length
+            depth = np.empty(len(t), np.float32)
+            kernels.finish_depth(
+                0, len(t), t.ctypes.data, self.forward.ctypes.data, native.ptr(noise),
+                cfg.subpixel / (self.f_native * cfg.baseline), cfg.min_range, cfg.max_range,
+                None, depth.ctypes.data, None, None,
+            )  # fmt: skip
+        else:
+            t, lab = self.cast(o, self.rays_body @ rot.T, terrain, plants, self.t_lim)
+            z = t * self.forward
+            hit = np.isfinite(z)
+            if rng is not None and cfg.subpixel > 0:
+                noise = rng.standard_normal(z.shape)  # drawn for every pixel: same stream length
+                z[hit] += self.noise_sigma(z[hit]) * noise[hit]
+            valid = hit & (z >= cfg.min_range) & (z <= cfg.max_range)
+            depth = np.where(valid, z, 0.0).astype(np.float32)
         shape = (cfg.height, cfg.width)
         frame = DepthFrame(depth.reshape(shape))
         if labels or rgb:
-            lab = g.labels(what)
+            if kernels is not None:
+                lab = g.labels(what)
             lab = np.where(t * self.forward <= cfg.max_range, lab, OTHER).astype(np.uint8)
             if labels:
                 frame.label = lab.reshape(shape)

@@ -325,10 +325,10 @@ class Caster:
     def _run(self, fn: Any, scene: Scene, base: int, npk: int) -> None:
         valid, sp = self.dev.valid.ctypes.data, scene.ptr
         kernels = native.lib()
+        address = ctypes.cast(fn, ctypes.c_void_p).value
 
         def loop(lo: int, hi: int) -> None:
             if kernels is not None:  # one foreign call for the whole range
-                address = ctypes.cast(fn, ctypes.c_void_p).value
                 kernels.embree_packets(address, valid, sp, base + lo * STRIDE, hi - lo, STRIDE)
                 return
             for addr in range(base + lo * STRIDE, base + hi * STRIDE, STRIDE):

@@ -85,7 +85,6 @@ class MeshCamera(Lighting):
         self._geometry: tuple[MeshScene, raster_view.SceneGeometry] | None = None
         self._bands = raster_view.Bands(model.height, threads)
         self._work: raster_view.FrameBuffers | None = None
-        self.stereo_counts = np.zeros(2, np.int64)  # last raster frame: candidates, occluded
         if cfg.renderer == "raster":
             native.require("camera.renderer='raster'")
 
@@ -182,7 +181,6 @@ class MeshCamera(Lighting):
         n = h * w
         if self._geometry is None or self._geometry[0] is not scene:
             self._geometry = (scene, raster_view.SceneGeometry(scene))
-            self._bands = raster_view.Bands(h, self.threads)
         geo = self._geometry[1]
         geo.near(self._view_points(rot, pos, rgb))
         far = c.max_range + 0.05
@@ -207,7 +205,7 @@ class MeshCamera(Lighting):
         def resolve(r0: int, r1: int) -> None:
             geo.resolve(cam, fwd, vl, left, w, h, True, self._robot_hits("depth"), r0, r1)
             if stereo:
-                geo.stereo_prepare(w, h, self.fx, c.baseline, left, self.rays.forward, r0, r1)
+                geo.stereo_prepare(w, h, self.fx, c.baseline, left, fwd, r0, r1)
             if rgb:
                 geo.resolve(cam_c, fwd_c, vc, col, w, h, False, self._robot_hits("color"), r0, r1)
 
@@ -222,22 +220,20 @@ class MeshCamera(Lighting):
             robot = (np.ascontiguousarray(rot, np.float64), pr.face_rgb, pr.normals)
         par = geo.shading_params(self.soil_rgb, self.light, rfar)
 
-        def decide(r0: int, r1: int) -> NDArray[np.int64] | None:
+        def decide(r0: int, r1: int) -> None:
             if r0 == 0 and rng is not None and c.subpixel > 0:
                 noise[0] = rng.standard_normal(n)  # every pixel: the ray-cast path's stream
-            counts = None
             if stereo:
-                counts = geo.stereo(
+                geo.stereo(
                     cam, fwd, w, h, c.baseline, d455.NEAREST_OCCLUDER, left, vl, vr, bad, r0, r1
                 )
             if rgb:
                 geo.shade(cam_c, fwd_c, w, h, col, vc, par, robot, pixels, r0, r1)
-            return counts
 
         def finish(r0: int, r1: int) -> None:
             raster_view.finish_depth(
                 left,
-                self.rays.forward,
+                fwd,
                 noise[0],
                 k_sigma,
                 c.min_range,
@@ -263,10 +259,8 @@ class MeshCamera(Lighting):
         bands = self._bands
         bands.run("draw", draw)
         bands.run("resolve", resolve)
-        counts = [k for k in bands.run("decide", decide) if k is not None]
+        bands.run("decide", decide)
         bands.run("finish", finish)
-        if counts:
-            self.stereo_counts = np.sum(counts, axis=0)
         frame = DepthFrame(depth.reshape(h, w))
         if labels:
             frame.label = label.reshape(h, w)

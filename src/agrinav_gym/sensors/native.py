@@ -23,13 +23,13 @@ _SIGNATURES: dict[str, tuple[Any, list[Any]]] = {
         [_i, _vp, _vp, _vp, _vp, _d, _vp, _i, _i, _d, _d, _d, _vp, _i, _i, _i, _i, _i, _d, _d, _d]
         + [_vp] * 5,
     ),
-    "raster_view": (ctypes.c_int64, [_vp, _i, _i, _vp, _vp, _i, _i, _vp, _vp, _vp, _i, _i, _vp]),
+    "raster_view": (ctypes.c_int64, [_vp, _i, _i, _vp, _vp, _i, _i, _vp, _vp, _vp, _i, _i]),
     "resolve_view": (
-        None,
+        _i,
         [_vp, _i, _i, _vp, _vp, _vp, _vp, _vp, _vp, _vp, _vp, _i] + [_vp] * 7 + [_i, _i],
     ),
     "stereo_prepare": (None, [_i, _d, _d, _vp, _vp, _vp, _i, _i, _i]),
-    "stereo_invalid": (None, [_vp, _i, _i, _d, _d] + [_vp] * 12 + [_i, _i]),
+    "stereo_invalid": (_i, [_vp, _i, _i, _d, _d] + [_vp] * 11 + [_i, _i]),
     "finish_depth": (None, [_i, _i, _vp, _vp, _vp, _d, _d, _d, _vp, _vp, _vp, _vp]),
     "refine_rays": (None, [_i, _vp, _vp, _vp, _vp, _vp, _vp]),
     "embree_packets": (None, [_vp, _vp, _vp, _vp, ctypes.c_int64, ctypes.c_int64]),
@@ -92,3 +92,17 @@ def ptr(a: np.ndarray | None) -> int | None:
         return None
     assert a.flags.c_contiguous, "kernels take C-contiguous arrays"
     return int(a.ctypes.data)
+
+
+def geometry_block(
+    heights: np.ndarray, x0: float, y0: float, spacing: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The kernels' geometry block (csrc/native.h ``geom_from``) for a height grid alone: nine
+    pointers (slot prototypes, transforms, prototype vertices, faces, vertex and face counts,
+    bounding spheres, heights, face adjacency) and seven values (slots, prototypes, nx, ny, x0,
+    y0, spacing). ``heights`` must stay alive and C-contiguous float64; a caller with plants
+    fills in their pointers and counts."""
+    ny, nx = heights.shape
+    ptrs = np.zeros(9, np.int64)
+    ptrs[7] = heights.ctypes.data
+    return ptrs, np.array([0, 0, nx, ny, x0, y0, spacing], np.float64)

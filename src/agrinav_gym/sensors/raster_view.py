@@ -35,7 +35,7 @@ ZNEAR = 1e-3  # m: the ray casts start at the camera; nothing of the scene comes
 @dataclass
 class VisBuffer:
     """A rasterised view: per pixel 1/z (0: nothing), instance slot (-1 none, -2 terrain) and
-    triangle; ``triangles`` scan-converted and ``culled`` skipped as hidden in its last frame.
+    triangle.
 
     ``hiz`` says whether the view keeps coarse depth tiles to skip hidden geometry. Under a
     maize canopy that saves a third of a view; in an open field the triangles it skips are cheap
@@ -45,8 +45,6 @@ class VisBuffer:
     iz: NDArray[np.float32]
     inst: NDArray[np.int32]
     prim: NDArray[np.int32]
-    triangles: int
-    culled: int = 0
     hiz: bool = True
     frames: int = 0
     seconds: float = 0.0  # drawing this frame (both bands)
@@ -63,7 +61,6 @@ class VisBuffer:
             self.hiz = not self.hiz if self.frames > 1 else True
         else:
             self.hiz = self.cost[True] <= self.cost[False]
-        self.triangles = self.culled = 0
         self.seconds = 0.0
 
 
@@ -120,10 +117,9 @@ class SceneGeometry:
                 self.sphere[k, :3] = c
                 self.sphere[k, 3] = float(np.linalg.norm(v - c, axis=1).max())
         self.labels = np.array([p.label for p in protos] or [0], np.uint8)
-        t = scene.terrain
+        t, o = scene.terrain, scene.origin
         self.heights = np.ascontiguousarray(t.heights, np.float64)
-        o = scene.origin
-        self._terrain_vals = (t.shape[1], t.shape[0], t.x0 - o[0], t.y0 - o[1], t.spacing)
+        self._grid = native.geometry_block(self.heights, t.x0 - o[0], t.y0 - o[1], t.spacing)
         # shading: all prototypes' faces in one table, textures by address
         counts = [len(f) for f in self._f]
         self.face_offset = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
@@ -145,6 +141,7 @@ class SceneGeometry:
                 self.tex[2 * k : 2 * k + 2] = (img.ctypes.data, uv.ctypes.data)
                 self.tex_hw[2 * k : 2 * k + 2] = img.shape[:2]
         self._scratch = np.empty(0)
+        self._near_ids: NDArray[np.int32] | None = None
         self.use(np.zeros(0, np.int32), np.zeros((0, 12), np.float32))
 
     def use(self, plant_ids: NDArray[np.int32], xfm: NDArray[np.float32]) -> None:
@@ -157,27 +154,24 @@ class SceneGeometry:
         if not len(self.slot_plant):  # the kernels read one slot's worth of pointers
             self.slot_proto = np.zeros(1, np.int32)
             self.xfm = np.zeros((1, 12), np.float32)
-        self.gptr = np.array(
-            [
-                self.slot_proto.ctypes.data,
-                self.xfm.ctypes.data,
-                self.vaddr.ctypes.data if len(self.vaddr) else 0,
-                self.faddr.ctypes.data if len(self.faddr) else 0,
-                self.nv.ctypes.data if len(self.nv) else 0,
-                self.nf.ctypes.data if len(self.nf) else 0,
-                self.sphere.ctypes.data,
-                self.heights.ctypes.data,
-                self.adjaddr.ctypes.data if len(self.adjaddr) else 0,
-            ],
-            np.int64,
+        ptrs, vals = self._grid
+        self.gptr, self.gval = ptrs.copy(), vals.copy()
+        self.gptr[:7] = (
+            self.slot_proto.ctypes.data,
+            self.xfm.ctypes.data,
+            self.vaddr.ctypes.data if len(self.vaddr) else 0,
+            self.faddr.ctypes.data if len(self.faddr) else 0,
+            self.nv.ctypes.data if len(self.nv) else 0,
+            self.nf.ctypes.data if len(self.nf) else 0,
+            self.sphere.ctypes.data,
         )
-        nx, ny, gx0, gy0, s = self._terrain_vals
-        self.gval = np.array([len(plant_ids), len(self.protos), nx, ny, gx0, gy0, s], np.float64)
+        self.gptr[8] = self.adjaddr.ctypes.data if len(self.adjaddr) else 0
+        self.gval[:2] = (len(plant_ids), len(self.protos))
 
     def near(self, xy: FloatArray) -> None:
         """Slots for the plants of every tile a view spanning world points ``xy`` can reach."""
         ids, xfm = self.scene.instances_near(xy)
-        if ids is not getattr(self, "_near_ids", None):
+        if ids is not self._near_ids:
             self.use(ids, xfm)
             self._near_ids = ids
 
@@ -185,18 +179,14 @@ class SceneGeometry:
     # Each takes a band of rows [r0, r1): two threads work on one view's two bands at once.
     def draw(self, cam: FloatArray, vb: VisBuffer, w: int, h: int, r0: int, r1: int) -> None:
         lib = native.require("the rasteriser")
-        stats = np.zeros(2, np.int64)
         t0 = time.perf_counter()
         ok = lib.raster_view(
             cam.ctypes.data, w, h, self.gptr.ctypes.data, self.gval.ctypes.data, 1,
             int(vb.hiz), vb.iz.ctypes.data, vb.inst.ctypes.data, vb.prim.ctypes.data, r0, r1,
-            stats.ctypes.data,
         )  # fmt: skip
         if ok < 0:
             raise MemoryError("rasteriser: out of memory")
         vb.seconds += time.perf_counter() - t0  # both bands: what the view costs the CPU
-        vb.triangles += int(stats[0])
-        vb.culled += int(stats[1])
 
     def resolve(
         self,
@@ -212,7 +202,7 @@ class SceneGeometry:
         r1: int,
     ) -> None:
         lib = native.require("the rasteriser")
-        lib.resolve_view(
+        ok = lib.resolve_view(
             cam.ctypes.data,
             w,
             h,
@@ -235,7 +225,7 @@ class SceneGeometry:
             r0,
             r1,
         )
-        if r1 > r0 and np.isnan(out.t[r0 * w]):
+        if ok < 0:
             raise MemoryError("resolve: out of memory")
 
     def stereo_prepare(
@@ -277,11 +267,10 @@ class SceneGeometry:
         bad: NDArray[np.uint8],
         r0: int,
         r1: int,
-    ) -> NDArray[np.int64]:
+    ) -> None:
         """Rows r0..r1 of ``bad``: 1 where the stereo pair cannot match, else 0 (csrc/frame.c
-        ``stereo_invalid``, after ``stereo_prepare`` on every row); [candidates, occluded]."""
-        counts = np.zeros(2, np.int64)
-        native.require("the rasteriser").stereo_invalid(
+        ``stereo_invalid``, after ``stereo_prepare`` on every row)."""
+        ok = native.require("the rasteriser").stereo_invalid(
             cam.ctypes.data,
             w,
             h,
@@ -298,13 +287,11 @@ class SceneGeometry:
             self.gval.ctypes.data,
             self._scratch.ctypes.data,
             bad.ctypes.data,
-            counts.ctypes.data,
             r0,
             r1,
         )
-        if counts[0] < 0:
+        if ok < 0:
             raise MemoryError("stereo: out of memory")
-        return counts
 
     def shade(
         self,
@@ -423,7 +410,7 @@ def finish_depth(
 
 
 def new_vis(n: int) -> VisBuffer:
-    return VisBuffer(np.empty(n, np.float32), np.empty(n, np.int32), np.empty(n, np.int32), 0)
+    return VisBuffer(np.empty(n, np.float32), np.empty(n, np.int32), np.empty(n, np.int32))
 
 
 def new_resolved(n: int) -> Resolved:
@@ -492,8 +479,8 @@ _POOL_LOCK = threading.Lock()
 
 
 def pool() -> ThreadPoolExecutor:
-    """One worker thread per process for the second view of a frame (a forked child gets its
-    own: executors do not survive ``fork``)."""
+    """One worker thread per process for the second band of a frame's stages (a forked child
+    gets its own: executors do not survive ``fork``)."""
     pid = os.getpid()
     with _POOL_LOCK:
         ex = _POOLS.get(pid)

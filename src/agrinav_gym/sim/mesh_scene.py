@@ -105,8 +105,8 @@ class MeshScene:
         self._statics = 0
         self._last_view: tuple[FloatArray, FloatArray] | None = None  # hull edge normals, offsets
         self._near: tuple[frozenset[int], NDArray[np.int32], F32] | None = None
-        self._heights: FloatArray | None = None  # the grid as the compiled refinement reads it
-        self._grid: tuple[NDArray[np.int64], FloatArray] = (np.zeros(0, np.int64), np.zeros(0))
+        # the height grid as the compiled refinement reads it: (heights, pointers, values)
+        self._grid: tuple[FloatArray, NDArray[np.int64], FloatArray] | None = None
         self.tiles_built = 0
 
     @classmethod
@@ -204,12 +204,7 @@ class MeshScene:
                 for i, x in zip(tile.plants, tile.xfm, strict=True):
                     top.attach_instance(i, self._proto_scene(int(proto[i])), x)
         self._attached = want
-        while len(self._cache) > max(self.cache_tiles, len(self._attached)):
-            old = next(iter(self._cache))
-            if old in self._attached:
-                self._cache.move_to_end(old)
-                continue
-            del self._cache[old]
+        self._evict(want)
         top.commit()
 
     def instances_near(self, xy: FloatArray) -> tuple[NDArray[np.int32], F32]:
@@ -221,12 +216,7 @@ class MeshScene:
         if self._near is not None and self._near[0] == want:
             return self._near[1], self._near[2]
         tiles = [self._tile(k) for k in sorted(want)]
-        while len(self._cache) > max(self.cache_tiles, len(self._attached) + len(want)):
-            old = next(iter(self._cache))
-            if old in self._attached or old in want:
-                self._cache.move_to_end(old)
-                continue
-            del self._cache[old]
+        self._evict(self._attached | want)
         ids = np.array([i for t in tiles for i in t.plants], np.int32)
         xfm = (
             np.ascontiguousarray(np.concatenate([t.xfm for t in tiles]).reshape(-1, 12))
@@ -235,6 +225,15 @@ class MeshScene:
         )
         self._near = (want, ids, xfm)
         return ids, xfm
+
+    def _evict(self, keep: set[int] | frozenset[int]) -> None:
+        """Drop the least recently used cached tiles beyond ``cache_tiles``, never ``keep``."""
+        while len(self._cache) > max(self.cache_tiles, len(keep)):
+            old = next(iter(self._cache))
+            if old in keep:
+                self._cache.move_to_end(old)
+                continue
+            del self._cache[old]
 
     def add_static(self, child: Scene) -> int:
         """Put ``child`` (world coordinates relative to ``origin``) in every view; its top-level
@@ -305,16 +304,13 @@ class MeshScene:
     def _refine_native(
         self, kernels: Any, o: FloatArray, d: Any, t: FloatArray, ground: NDArray[np.bool_]
     ) -> None:
-        if self._heights is None:
+        if self._grid is None:  # world coordinates: the rays are the caller's
             te = self.terrain
-            self._heights = np.ascontiguousarray(te.heights, np.float64)
-            ny, nx = te.shape
-            ptrs = np.zeros(9, np.int64)
-            ptrs[7] = self._heights.ctypes.data
-            self._grid = (ptrs, np.array([0, 0, nx, ny, te.x0, te.y0, te.spacing], np.float64))
+            heights = np.ascontiguousarray(te.heights, np.float64)
+            self._grid = (heights, *native.geometry_block(heights, te.x0, te.y0, te.spacing))
         dd = np.ascontiguousarray(d, np.float32)
         flags = np.ascontiguousarray(ground, np.uint8)
-        ptrs, vals = self._grid
+        _, ptrs, vals = self._grid
         kernels.refine_rays(
             len(t), o.ctypes.data, dd.ctypes.data, t.ctypes.data, flags.ctypes.data,
             ptrs.ctypes.data, vals.ctypes.data,
