@@ -18,8 +18,8 @@ setup(
                 "src/agrinav_gym/csrc/frame.c",
                 "src/agrinav_gym/csrc/packets.c",
             ],
-            depends=["src/agrinav_gym/csrc/native.h"],
-            extra_compile_args=["-O3", "-fno-math-errno", "-std=c99"],
+            depends=["src/agrinav_gym/csrc/native.h", "src/agrinav_gym/csrc/batch.h"],
+            extra_compile_args=["-O3", "-fno-math-errno", "-fno-trapping-math", "-std=c99"],
             optional=True,
         )
     ]

@@ -173,6 +173,25 @@ def test_two_threads_draw_the_same_frame(maize: MeshScene) -> None:
 
 
 @needs_kernels
+def test_vector_and_scalar_kernels_draw_the_same_frame(
+    maize: MeshScene, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The batched loops (soil and plant colour, the terrain's Newton step) run as AVX2 where
+    the CPU has it and as the baseline build otherwise; with contraction off both round every
+    operation alike, so the frames are bit-identical (on a CPU without AVX2 both runs take the
+    baseline and the test holds trivially)."""
+    rot, pos = lane_pose(maize_scenario(maize), turn=0.2)
+    cam = camera(424, 240, "raster", 1)
+    frames = []
+    for flag in ("1", "0"):
+        monkeypatch.setenv("AGRINAV_AVX2", flag)
+        frames.append(cam.render(rot, pos, maize, np.random.default_rng(3), rgb=True, labels=True))
+    for f in ("depth", "label", "instance", "rgb", "rgb_label", "rgb_instance"):
+        assert np.array_equal(getattr(frames[0], f), getattr(frames[1], f)), f
+    assert (frames[0].label == 1).mean() > 0.05 and (frames[0].instance >= 0).mean() > 0.05
+
+
+@needs_kernels
 def test_raster_noise_is_the_ray_cast_noise(maize: MeshScene) -> None:
     """Both paths draw one standard normal per pixel from the same generator in one call: the
     noise each adds, divided by its σ = z²·s/(f·B), is the same number in every pixel (to the

@@ -5,6 +5,7 @@
  */
 #include <stdlib.h>
 
+#include "batch.h"
 #include "native.h"
 
 /* the column and row terms of cam_ray_f: a[u] = -(u - cx)/fx, b[v] = -(v - cy)/fy (one block) */
@@ -81,8 +82,23 @@ EXPORT int resolve_view(const double *cam, int w, int h, const int64_t *gptr,
     geom_t g;
     geom_from(&g, gptr, gval);
     double *ab = ray_terms(&c);
-    if (!ab) return -1;
-    for (int v = row0; v < row1; v++)
+    /* per row: the terrain pixels to refine, their lengths before and after the first step */
+    int32_t *us = (int32_t *)malloc(sizeof(int32_t) * (size_t)w);
+    double *tin = (double *)malloc(sizeof(double) * 2 * (size_t)w);
+    uint8_t *ok = (uint8_t *)malloc((size_t)w);
+    if (!ab || !us || !tin || !ok) {
+        free(ab), free(us), free(tin), free(ok);
+        return -1;
+    }
+    step_par_t sp = {.gx0 = g.gx0, .gy0 = g.gy0, .inv_s = g.inv_s, .umax = g.nx - 1.0,
+                     .vmax = g.ny - 1.0, .nx = g.nx, .heights = g.heights};
+    for (int i = 0; i < 3; i++) sp.o[i] = c.o[i];
+    for (int i = 0; i < 9; i++) sp.r[i] = c.r[i];
+    (void)sp;
+    /* with AVX2 the terrain pixels of a row take the first step together, else one by one */
+    const int batch = cpu_has_avx2() && g.heights != NULL && g.nx >= 2 && g.ny >= 2;
+    for (int v = row0; v < row1; v++) {
+        int n = 0;
         for (int u = 0; u < w; u++) {
             size_t k = (size_t)v * w + u;
             double t = INFINITY;
@@ -90,12 +106,19 @@ EXPORT int resolve_view(const double *cam, int w, int h, const int64_t *gptr,
             uint8_t lab = CLS_OTHER;
             int32_t pl = -1, pr = -1, tri = vprim[k];
             if (s != VB_NONE) {
-                double d[3];
-                cam_ray_f(&c, ab[u], ab[w + v], fwd[k], d);
                 t = 1.0 / ((double)iz[k] * fwd[k]);
                 if (s == VB_TERRAIN) {
                     lab = CLS_SOIL;
-                    if (refine_terrain) t = refine(&g, c.o, d, t);
+                    if (refine_terrain && batch) { /* refined below, then the robot's test */
+                        us[n] = u, tin[n++] = t;
+                        t_out[k] = t, label[k] = lab, plant[k] = pl, proto[k] = pr, prim[k] = tri;
+                        continue;
+                    }
+                    if (refine_terrain) {
+                        double d[3];
+                        cam_ray_f(&c, ab[u], ab[w + v], fwd[k], d);
+                        t = refine(&g, c.o, d, t);
+                    }
                 } else {
                     pr = g.slot_proto[s];
                     pl = slot_plant[s];
@@ -109,7 +132,26 @@ EXPORT int resolve_view(const double *cam, int w, int h, const int64_t *gptr,
             }
             t_out[k] = t, label[k] = lab, plant[k] = pl, proto[k] = pr, prim[k] = tri;
         }
-    free(ab);
+#ifdef AGRINAV_AVX2
+        if (!n) continue;
+        double *tout = tin + w;
+        step_avx2(&sp, n, us, ab, ab[w + v], fwd + (size_t)v * w, tin, tout, ok);
+        for (int i = 0; i < n; i++) {
+            int u = us[i];
+            size_t k = (size_t)v * w + u;
+            double t = tout[i];
+            if (!ok[i]) {
+                double d[3];
+                cam_ray_f(&c, ab[u], ab[w + v], fwd[k], d);
+                t = refine_loop(&g, c.o, d, tin[i]);
+            }
+            t_out[k] = t;
+            if (robot_t && robot_t[k] < t)
+                t_out[k] = robot_t[k], label[k] = CLS_ROBOT, prim[k] = robot_prim[k];
+        }
+#endif
+    }
+    free(ab), free(us), free(tin), free(ok);
     return 0;
 }
 
@@ -380,14 +422,55 @@ EXPORT void shade_view(const double *cam, int w, int h, const int64_t *gptr, con
     for (int i = 0; i <= SKY_STEPS; i++) sky_a[i] = pow((double)i / SKY_STEPS, 0.6);
     sky_a[SKY_STEPS + 1] = 1.0;
     double *ab = ray_terms(&c);
-    if (!ab) return;
+    /* per row, batched: the soil pixels (us) and the untextured plant pixels (up: their face
+     * fl, slot sl, face colour pc), and their colours sc, qc */
+    int32_t *us = (int32_t *)malloc(sizeof(int32_t) * 4 * (size_t)w);
+    uint8_t *sc = (uint8_t *)malloc(9 * (size_t)w);
+    if (!ab || !us || !sc) {
+        free(ab), free(us), free(sc);
+        return;
+    }
+    int32_t *up = us + w, *fl = us + 2 * (size_t)w, *sl = us + 3 * (size_t)w;
+    uint8_t *pc = sc + 3 * (size_t)w, *qc = sc + 6 * (size_t)w;
+    plant_par_t pp = {.face_normal = face_normal, .xfm = g.xfm, .ambient = ambient, .i3f = i3f};
+    for (int i = 0; i < 3; i++) pp.light[i] = light[i], pp.horizon[i] = horizon[i];
+    for (int i = 0; i < 9; i++) pp.r[i] = c.r[i];
+    (void)pp, (void)qc;
+
+    soil_par_t sp = {.org = {par[SH_ORIGIN], par[SH_ORIGIN + 1]}, .itx = itx, .itx7 = itx7,
+                     .ca = ca, .sa = sa, .soil_n = soil_n, .inv_n = 1.0 / soil_n, .soil = soil,
+                     .gx0 = g.gx0, .gy0 = g.gy0, .inv_s = g.inv_s, .umax = g.nx - 1.0,
+                     .vmax = g.ny - 1.0, .nx = g.nx, .jmax = g.nx - 2, .imax = g.ny - 2,
+                     .heights = g.heights, .ambient = ambient, .i3f = i3f};
+    for (int i = 0; i < 3; i++) {
+        sp.o[i] = c.o[i], sp.light[i] = light[i], sp.horizon[i] = horizon[i];
+        sp.rgb[i] = par[SH_SOIL + i];
+    }
+    for (int i = 0; i < 9; i++) sp.r[i] = c.r[i];
+    (void)sp;
+    const int batch = cpu_has_avx2(); /* else pixel by pixel, as below */
     for (int v = row0; v < row1; v++) {
+        int ns = 0, np = 0;
         for (int u = 0; u < w; u++) {
             size_t k = (size_t)v * w + u;
-            double d[3], out[3];
-            cam_ray_f(&c, ab[u], ab[w + v], fwd[k], d);
             double tk = t[k];
             uint8_t lab = label[k];
+            if (batch && lab == CLS_SOIL && isfinite(tk)) { /* batched below */
+                us[ns++] = u;
+                continue;
+            }
+            if (batch && lab != CLS_ROBOT && proto[k] >= 0 && !tex[2 * proto[k]]) {
+                size_t flat = (size_t)face_offset[proto[k]] + prim[k];
+                if (flat < (size_t)INT32_MAX / 3 && vinst[k] < INT32_MAX / 12) {
+                    const uint8_t *col = face_rgb + 3 * flat;
+                    up[np] = u, fl[np] = (int32_t)flat, sl[np] = vinst[k];
+                    pc[np] = col[0], pc[w + np] = col[1], pc[2 * (size_t)w + np] = col[2];
+                    np++;
+                    continue;
+                }
+            }
+            double d[3], out[3];
+            cam_ray_f(&c, ab[u], ab[w + v], fwd[k], d);
             if (!isfinite(tk)) {
                 if (d[2] < 0) {
                     out[0] = ground[0], out[1] = ground[1], out[2] = ground[2];
@@ -457,8 +540,27 @@ EXPORT void shade_view(const double *cam, int w, int h, const int64_t *gptr, con
             }
             for (int i = 0; i < 3; i++) rgb[3 * k + i] = to_u8(out[i]);
         }
+#ifdef AGRINAV_AVX2
+        const double *fr = fwd + (size_t)v * w, *tr = t + (size_t)v * w;
+        uint8_t *row = rgb + 3 * (size_t)v * w;
+        if (ns) {
+            soil_avx2(&sp, ns, us, ab, ab[w + v], fr, tr, sc, sc + w, sc + 2 * (size_t)w);
+            for (int i = 0; i < ns; i++) {
+                uint8_t *px = row + 3 * (size_t)us[i];
+                px[0] = sc[i], px[1] = sc[w + i], px[2] = sc[2 * (size_t)w + i];
+            }
+        }
+        if (np) {
+            plant_avx2(&pp, np, up, fl, sl, pc, pc + w, pc + 2 * (size_t)w, ab, ab[w + v], fr, tr,
+                      qc, qc + w, qc + 2 * (size_t)w);
+            for (int i = 0; i < np; i++) {
+                uint8_t *px = row + 3 * (size_t)up[i];
+                px[0] = qc[i], px[1] = qc[w + i], px[2] = qc[2 * (size_t)w + i];
+            }
+        }
+#endif
     }
-    free(ab);
+    free(ab), free(us), free(sc);
 }
 
 /* ``mesh_scene.refine_ground`` for n rays from one origin ``o`` along float32 directions ``d``:
