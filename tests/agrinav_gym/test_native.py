@@ -253,6 +253,25 @@ def test_face_adjacency_joins_faces_across_shared_edges() -> None:
     assert adj.tolist() == [[-1, 2, 1], [0, -1, -1], [-1, -1, 0]]
 
 
+def test_cluster_spheres_hold_their_faces(maize: MeshScene) -> None:
+    """Each run of faces lies inside its sphere, as float32 stores it (the rasteriser skips a
+    run whose sphere is out of view: a vertex outside would be a hole in the image)."""
+    assert maize.plants is not None
+    for proto in maize.plants.prototypes:
+        v = np.asarray(proto.vertices, np.float32)
+        f = np.asarray(proto.faces, np.int64)
+        for size in (1, 7, raster_view.CLUSTER_FACES):
+            cs = raster_view.cluster_spheres(v, f, size)
+            assert cs.dtype == np.float32 and len(cs) == -(-len(f) // size)
+            run = np.arange(len(f)) // size
+            reach = np.linalg.norm(
+                v[f].astype(np.float64) - cs[run, None, :3].astype(np.float64), axis=2
+            )
+            assert (reach <= cs[run, 3:4].astype(np.float64)).all()
+            if size == 1:  # a triangle's sphere is no larger than the triangle
+                assert (cs[:, 3] <= np.ptp(v[f], axis=1).max(axis=1) + 1e-5).all()
+
+
 def test_face_adjacency_of_a_closed_mesh_is_complete() -> None:
     box = trimesh.creation.box()
     adj = raster_view.face_adjacency(np.asarray(box.vertices, np.float32), box.faces)

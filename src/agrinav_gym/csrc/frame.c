@@ -158,11 +158,32 @@ EXPORT int resolve_view(const double *cam, int w, int h, const int64_t *gptr,
 /* A segment (from the right imager R along seg, to t = tfar) tested against triangles once
  * each, the point's own triangle skipped */
 #define SEEN 24
+
+/* World triangles by (slot, triangle), direct-mapped: neighbouring pixels of a shadow test the
+ * same few occluders, and building one from its instance costs more than the test itself */
+#define TRI_CACHE 512
+typedef struct {
+    int64_t key[TRI_CACHE]; /* (slot << 32 | triangle) + 1; 0: empty */
+    double tri[TRI_CACHE][9];
+} tri_cache_t;
+
+static const double *cached_triangle(tri_cache_t *tc, const geom_t *g, int32_t si, int32_t sp) {
+    int64_t key = (((int64_t)si << 32) | (uint32_t)sp) + 1;
+    uint32_t hsh = (uint32_t)si * 2654435761u ^ (uint32_t)sp * 2246822519u;
+    size_t e = (hsh >> 7) & (TRI_CACHE - 1);
+    if (tc->key[e] != key) {
+        geom_triangle(g, si, sp, tc->tri[e]);
+        tc->key[e] = key;
+    }
+    return tc->tri[e];
+}
+
 typedef struct {
     int32_t i[SEEN], p[SEEN];
     int n;
     int32_t own_i, own_p;
     const geom_t *g;
+    tri_cache_t *cache;
     const double *R, *seg;
     double tfar;
 } seg_test_t;
@@ -173,9 +194,7 @@ static int seg_test(seg_test_t *s, int32_t si, int32_t sp) {
         if (s->i[e] == si && s->p[e] == sp) return 0;
     if (s->n == SEEN) return 0;
     s->i[s->n] = si, s->p[s->n] = sp, s->n++;
-    double tri[9];
-    geom_triangle(s->g, si, sp, tri);
-    double th = ray_triangle(s->R, s->seg, tri, NULL, NULL);
+    double th = ray_triangle(s->R, s->seg, cached_triangle(s->cache, s->g, si, sp), NULL, NULL);
     return th > 0.0 && th <= s->tfar;
 }
 
@@ -235,7 +254,11 @@ EXPORT int stereo_invalid(const double *cam, int w, int h, double baseline, doub
     const double *inv = scratch, *after = scratch + n;
     const int32_t *arg = (const int32_t *)(scratch + 2 * n);
     double *ab = ray_terms(&c);
-    if (!ab) return -1;
+    tri_cache_t *cache = (tri_cache_t *)calloc(1, sizeof(tri_cache_t));
+    if (!ab || !cache) {
+        free(ab), free(cache);
+        return -1;
+    }
     /* the right imager's centre: B to the right of the depth origin (-y in the camera) */
     double R[3] = {c.o[0] - baseline * c.r[3], c.o[1] - baseline * c.r[4],
                    c.o[2] - baseline * c.r[5]};
@@ -283,8 +306,9 @@ EXPORT int stereo_invalid(const double *cam, int w, int h, double baseline, doub
                 if (v + dv < 0 || v + dv >= h) continue;
                 cand_v[nc] = v + dv, cand_u[nc] = arg[k + dv * w], cand_r[nc++] = 0;
             }
-            seg_test_t st = {.n = 0, .own_i = linst[k], .own_p = lprim[k], .g = &g,
-                             .R = R, .seg = seg, .tfar = tfar};
+            seg_test_t st; /* field by field: an initialiser would zero the lists too */
+            st.n = 0, st.own_i = linst[k], st.own_p = lprim[k], st.g = &g, st.cache = cache;
+            st.R = R, st.seg = seg, st.tfar = tfar;
             int hit = 0;
             for (int m = 0; m < nc && !hit; m++) {
                 int kk = cand_u[m];
@@ -301,7 +325,7 @@ EXPORT int stereo_invalid(const double *cam, int w, int h, double baseline, doub
             }
             if (hit) bad[k] = 1;
         }
-    free(ab);
+    free(ab), free(cache);
     return 0;
 }
 

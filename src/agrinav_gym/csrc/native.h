@@ -84,14 +84,18 @@ typedef struct {
     const int32_t *proto_nv, *proto_nf;
     const float *proto_sphere; /* (n_protos, 4): bounding sphere centre and radius */
     const int64_t *proto_adj;  /* addresses of int32 (F, 3): the face across each edge, -1 */
+    /* addresses of float32 (ceil(F / cluster), 4): the bounding sphere of each run of
+     * ``cluster`` faces (0: no clusters), culled like an instance before its triangles */
+    const int64_t *proto_clusters;
+    int cluster;
     const double *heights;
     int nx, ny;
     double gx0, gy0, s, inv_s;
 } geom_t;
 
 /* the geometry block passed from Python: pointers as int64 then scalars as doubles */
-#define GEOM_PTRS 9
-#define GEOM_VALS 7
+#define GEOM_PTRS 10
+#define GEOM_VALS 8
 static inline void geom_from(geom_t *g, const int64_t *p, const double *v) {
     g->slot_proto = (const int32_t *)(intptr_t)p[0];
     g->xfm = (const float *)(intptr_t)p[1];
@@ -102,9 +106,11 @@ static inline void geom_from(geom_t *g, const int64_t *p, const double *v) {
     g->proto_sphere = (const float *)(intptr_t)p[6];
     g->heights = (const double *)(intptr_t)p[7];
     g->proto_adj = (const int64_t *)(intptr_t)p[8];
+    g->proto_clusters = (const int64_t *)(intptr_t)p[9];
     g->n_slots = (int)v[0], g->n_protos = (int)v[1];
     g->nx = (int)v[2], g->ny = (int)v[3];
     g->gx0 = v[4], g->gy0 = v[5], g->s = v[6], g->inv_s = 1.0 / v[6];
+    g->cluster = g->proto_clusters ? (int)v[7] : 0;
 }
 
 /* the (up to 3) triangles sharing an edge with triangle ``prim`` of slot ``slot``; returns

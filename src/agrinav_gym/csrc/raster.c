@@ -79,12 +79,12 @@ static float tile_min(vbuf_t *b, int ty, int tx) {
  * triangle, where refreshing after every write would cost more than it saves). */
 static int hidden(vbuf_t *b, double x0, double x1, double y0, double y1, double qmax,
                   int fresh) {
-    if (!b->hiz) return 0;
     if (x0 < 0) x0 = 0;
     if (y0 < b->row0) y0 = b->row0;
     if (x1 > b->w - 1.0) x1 = b->w - 1.0;
     if (y1 > b->row1 - 1.0) y1 = b->row1 - 1.0;
     if (x0 > x1 || y0 > y1) return 1; /* no pixel of the band */
+    if (!b->hiz) return 0;
     int tx0 = (int)x0 >> TSHIFT, tx1 = (int)x1 >> TSHIFT;
     int ty0 = (int)y0 >> TSHIFT, ty1 = (int)y1 >> TSHIFT;
     int all = 1;
@@ -291,6 +291,18 @@ static int sphere_visible(const cam_t *c, double X, double Y, double Z, double r
     return 1;
 }
 
+/* whether a camera-space sphere in front of the near plane covers no pixel of the band or
+ * lies behind what is drawn there (its image box and nearest depth; tiles brought up to date) */
+static int sphere_hidden(const cam_t *c, vbuf_t *b, double X, double Y, double Z, double rad,
+                         int fresh) {
+    if (!(X - rad > c->znear)) return 0;
+    double xn = X - rad, xf = X + rad;
+    double ylo = MIN2((Y - rad) / xn, (Y - rad) / xf), yhi = MAX2((Y + rad) / xn, (Y + rad) / xf);
+    double zlo = MIN2((Z - rad) / xn, (Z - rad) / xf), zhi = MAX2((Z + rad) / xn, (Z + rad) / xf);
+    return hidden(b, c->cx - c->fx * yhi, c->cx - c->fx * ylo, c->cy - c->fy * zhi,
+                  c->cy - c->fy * zlo, 1.0 / xn, fresh);
+}
+
 static inline void to_camera(const cam_t *c, double x, double y, double z, cvert_t *v) {
     double px = x - c->o[0], py = y - c->o[1], pz = z - c->o[2];
     const double *r = c->r;
@@ -325,7 +337,7 @@ static void slot_transform(const cam_t *c, const float *x, double M[12]) {
  * memory. The order only decides exact ties of depth, which stay deterministic. */
 static int draw_instances(const cam_t *c, const geom_t *g, vbuf_t *b, cvert_t *scratch) {
     order_t *ord = (order_t *)malloc(sizeof(order_t) * (size_t)(g->n_slots > 0 ? g->n_slots : 1));
-    double *sph = (double *)malloc(sizeof(double) * 4 * (size_t)(g->n_slots > 0 ? g->n_slots : 1));
+    double *sph = (double *)malloc(sizeof(double) * 5 * (size_t)(g->n_slots > 0 ? g->n_slots : 1));
     if (!ord || !sph) {
         free(ord), free(sph);
         return -1;
@@ -342,23 +354,15 @@ static int draw_instances(const cam_t *c, const geom_t *g, vbuf_t *b, cvert_t *s
         double Z = M[8] * sp[0] + M[9] * sp[1] + M[10] * sp[2] + M[11];
         double rad = sp[3] * scale * 1.0001 + 1e-6;
         if (!sphere_visible(c, X, Y, Z, rad)) continue;
-        double *s4 = sph + 4 * (size_t)k;
-        s4[0] = X, s4[1] = Y, s4[2] = Z, s4[3] = rad;
+        double *s4 = sph + 5 * (size_t)k; /* centre, radius, the transform's scale */
+        s4[0] = X, s4[1] = Y, s4[2] = Z, s4[3] = rad, s4[4] = scale;
         ord[n].X = X, ord[n].k = k, n++;
     }
     qsort(ord, (size_t)n, sizeof(order_t), by_depth);
     for (int m = 0; m < n; m++) {
         int k = ord[m].k, p = g->slot_proto[k];
-        const double *s4 = sph + 4 * (size_t)k;
-        double X = s4[0], Y = s4[1], Z = s4[2], rad = s4[3];
-        if (X - rad > c->znear) { /* the sphere's image box and nearest depth */
-            double xn = X - rad, xf = X + rad;
-            double ylo = MIN2((Y - rad) / xn, (Y - rad) / xf), yhi = MAX2((Y + rad) / xn, (Y + rad) / xf);
-            double zlo = MIN2((Z - rad) / xn, (Z - rad) / xf), zhi = MAX2((Z + rad) / xn, (Z + rad) / xf);
-            if (hidden(b, c->cx - c->fx * yhi, c->cx - c->fx * ylo, c->cy - c->fy * zhi,
-                       c->cy - c->fy * zlo, 1.0 / xn, 1))
-                continue;
-        }
+        const double *s4 = sph + 5 * (size_t)k;
+        if (sphere_hidden(c, b, s4[0], s4[1], s4[2], s4[3], 1)) continue;
         double M[12];
         slot_transform(c, g->xfm + 12 * (size_t)k, M);
         const float *v = (const float *)(intptr_t)g->proto_vertices[p];
@@ -372,9 +376,23 @@ static int draw_instances(const cam_t *c, const geom_t *g, vbuf_t *b, cvert_t *s
             o->Z = M[8] * q[0] + M[9] * q[1] + M[10] * q[2] + M[11];
             if (o->X >= c->znear) project(c, o);
         }
-        for (int i = 0; i < nf; i++) {
-            const uint32_t *t = f + 3 * (size_t)i;
-            tri_camera(c, b, scratch + t[0], scratch + t[1], scratch + t[2], k, i);
+        const int cl = g->cluster;
+        const float *cs = cl ? (const float *)(intptr_t)g->proto_clusters[p] : NULL;
+        const double scale = s4[4];
+        for (int i0 = 0; i0 < nf; i0 += cl ? cl : nf) {
+            if (cs) { /* a run of faces (a piece of a leaf) outside, off the band or hidden */
+                const float *q = cs + 4 * (size_t)(i0 / cl);
+                double X = M[0] * q[0] + M[1] * q[1] + M[2] * q[2] + M[3];
+                double Y = M[4] * q[0] + M[5] * q[1] + M[6] * q[2] + M[7];
+                double Z = M[8] * q[0] + M[9] * q[1] + M[10] * q[2] + M[11];
+                double rad = q[3] * scale * 1.0001 + 1e-6;
+                if (!sphere_visible(c, X, Y, Z, rad) || sphere_hidden(c, b, X, Y, Z, rad, 0)) continue;
+            }
+            int i1 = cl && i0 + cl < nf ? i0 + cl : nf;
+            for (int i = i0; i < i1; i++) {
+                const uint32_t *t = f + 3 * (size_t)i;
+                tri_camera(c, b, scratch + t[0], scratch + t[1], scratch + t[2], k, i);
+            }
         }
     }
     free(ord);

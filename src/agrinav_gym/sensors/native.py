@@ -97,12 +97,12 @@ def ptr(a: np.ndarray | None) -> int | None:
 def geometry_block(
     heights: np.ndarray, x0: float, y0: float, spacing: float
 ) -> tuple[np.ndarray, np.ndarray]:
-    """The kernels' geometry block (csrc/native.h ``geom_from``) for a height grid alone: nine
+    """The kernels' geometry block (csrc/native.h ``geom_from``) for a height grid alone: ten
     pointers (slot prototypes, transforms, prototype vertices, faces, vertex and face counts,
-    bounding spheres, heights, face adjacency) and seven values (slots, prototypes, nx, ny, x0,
-    y0, spacing). ``heights`` must stay alive and C-contiguous float64; a caller with plants
-    fills in their pointers and counts."""
+    bounding spheres, heights, face adjacency, face clusters) and eight values (slots,
+    prototypes, nx, ny, x0, y0, spacing, faces per cluster). ``heights`` must stay alive and
+    C-contiguous float64; a caller with plants fills in their pointers and counts."""
     ny, nx = heights.shape
-    ptrs = np.zeros(9, np.int64)
+    ptrs = np.zeros(10, np.int64)
     ptrs[7] = heights.ctypes.data
-    return ptrs, np.array([0, 0, nx, ny, x0, y0, spacing], np.float64)
+    return ptrs, np.array([0, 0, nx, ny, x0, y0, spacing, 0], np.float64)

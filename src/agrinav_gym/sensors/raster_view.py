@@ -94,6 +94,10 @@ def camera_params(
     return out
 
 
+#: Faces per culling cluster (cluster_spheres): measured, see docs/camera.md.
+CLUSTER_FACES = 32
+
+
 class SceneGeometry:
     """A ``MeshScene``'s prototypes, terrain and shading tables as the kernels read them, and
     the plant instances near the current view. Built once per scene; keeps the arrays alive."""
@@ -116,6 +120,8 @@ class SceneGeometry:
                 c = 0.5 * (v.min(axis=0) + v.max(axis=0))
                 self.sphere[k, :3] = c
                 self.sphere[k, 3] = float(np.linalg.norm(v - c, axis=1).max())
+        self._clusters = [cluster_spheres(v, f, CLUSTER_FACES) for v, f in zip(self._v, self._f, strict=True)]
+        self.claddr = np.array([a.ctypes.data for a in self._clusters], np.int64)
         self.labels = np.array([p.label for p in protos] or [0], np.uint8)
         t, o = scene.terrain, scene.origin
         self.heights = np.ascontiguousarray(t.heights, np.float64)
@@ -166,7 +172,9 @@ class SceneGeometry:
             self.sphere.ctypes.data,
         )
         self.gptr[8] = self.adjaddr.ctypes.data if len(self.adjaddr) else 0
+        self.gptr[9] = self.claddr.ctypes.data if len(self.claddr) else 0
         self.gval[:2] = (len(plant_ids), len(self.protos))
+        self.gval[7] = CLUSTER_FACES
 
     def near(self, xy: FloatArray) -> None:
         """Slots for the plants of every tile a view spanning world points ``xy`` can reach."""
@@ -356,6 +364,27 @@ def tiled_texture(seed: int) -> NDArray[np.float32]:
     n = tex.shape[0]
     out = tex.reshape(n // 8, 8, n // 8, 8).transpose(0, 2, 1, 3)
     return np.ascontiguousarray(out).reshape(n, n)
+
+
+def cluster_spheres(
+    vertices: NDArray[np.float32], faces: NDArray[np.uint32], size: int
+) -> NDArray[np.float32]:
+    """(ceil(F / size), 4): centre and radius of a sphere around each run of ``size`` faces (a
+    mesh's faces come leaf by leaf, so a run is a piece of one organ): the rasteriser skips a
+    run outside the view, its band of rows or behind what is drawn, as it skips a plant."""
+    f = np.asarray(faces, np.int64)
+    n = -(-len(f) // size)
+    if n == 0:
+        return np.zeros((0, 4), np.float32)
+    pad = np.concatenate([f, np.repeat(f[-1:], n * size - len(f), axis=0)])  # repeat the last
+    p = np.asarray(vertices, np.float64)[pad.reshape(n, size * 3)]  # (n, 3 size, 3)
+    centre = (0.5 * (p.min(axis=1) + p.max(axis=1))).astype(np.float32)
+    reach = np.linalg.norm(p - centre[:, None, :].astype(np.float64), axis=2).max(axis=1)
+    out = np.empty((n, 4), np.float32)
+    out[:, :3] = centre
+    # float32 rounding of the radius must not shrink the sphere
+    out[:, 3] = reach * (1 + 1e-6) + 1e-7
+    return out
 
 
 def face_adjacency(vertices: NDArray[np.float32], faces: NDArray[np.uint32]) -> NDArray[np.int32]:
