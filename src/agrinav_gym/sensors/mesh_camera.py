@@ -196,6 +196,14 @@ class MeshCamera(Lighting):
         noise: list[FloatArray | None] = [None]
 
         def draw(r0: int, r1: int) -> None:
+            if rgb and bands.threaded:
+                # one imager's view whole per thread and the colour view split between them:
+                # a band must sift through all of a view's triangles, so whole views waste less
+                whole = (cam, vl) if r0 == 0 else (cam_r, vr) if stereo else None
+                if whole is not None:
+                    geo.draw(whole[0], whole[1], w, h, 0, h)
+                geo.draw(cam_c, vc, w, h, r0, r1)
+                return
             geo.draw(cam, vl, w, h, r0, r1)
             if stereo:
                 geo.draw(cam_r, vr, w, h, r0, r1)
