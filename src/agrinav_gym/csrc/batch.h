@@ -71,10 +71,10 @@ TARGET_AVX2 static inline uint8_t u8_of(double x) {
     return (uint8_t)(int)(x * 255.0 + 0.5);
 }
 
-/* The soil's 8-bit colour at pixels us[0..n) of one row (ray terms a[u], row term b, cosines
- * fwd[u], ray lengths t[u]): shade_view's soil branch, operation for operation. */
-TARGET_AVX2 static void soil_avx2(const soil_par_t *P, int n, const int32_t *restrict us,
-                                    const double *restrict a, double b,
+/* The soil's 8-bit colour at n pixels of one row (packed by the caller: column ray terms a,
+ * cosines fwd, ray lengths t; the row term b): shade_view's soil branch, operation for
+ * operation. */
+TARGET_AVX2 static void soil_avx2(const soil_par_t *P, int n, const double *restrict a, double b,
                                     const double *restrict fwd, const double *restrict t,
                                     uint8_t *restrict o0, uint8_t *restrict o1,
                                     uint8_t *restrict o2) {
@@ -92,8 +92,7 @@ TARGET_AVX2 static void soil_avx2(const soil_par_t *P, int n, const int32_t *res
     const float *restrict soil = P->soil;
     const double *restrict hg = P->heights;
     for (int i = 0; i < n; i++) {
-        int u = us[i];
-        double f = fwd[u], y = a[u] * f, z = b * f, tk = t[u];
+        double f = fwd[i], y = a[i] * f, z = b * f, tk = t[i];
         double d0 = r0 * f + r3 * y + r6 * z;
         double d1 = r1 * f + r4 * y + r7 * z;
         double d2 = r2 * f + r5 * y + r8 * z;
@@ -138,12 +137,11 @@ TARGET_AVX2 static void soil_avx2(const soil_par_t *P, int n, const int32_t *res
     }
 }
 
-/* refine()'s inline first Newton step at pixels us[0..n) of one row (ray lengths tin[i]):
- * the refined length in tout[i], and ok[i] = 0 where refine() would go on to refine_loop
- * (outside the grid, a flat derivative, a long step or one that leaves the cell), which the
- * caller then runs from tin[i]. */
-TARGET_AVX2 static void step_avx2(const step_par_t *P, int n, const int32_t *restrict us,
-                                    const double *restrict a, double b,
+/* refine()'s inline first Newton step at n pixels of one row (packed: column ray terms a,
+ * cosines fwd, ray lengths tin; the row term b): the refined length in tout[i], and ok[i] = 0
+ * where refine() would go on to refine_loop (outside the grid, a flat derivative, a long step
+ * or one that leaves the cell), which the caller then runs from tin[i]. */
+TARGET_AVX2 static void step_avx2(const step_par_t *P, int n, const double *restrict a, double b,
                                     const double *restrict fwd, const double *restrict tin,
                                     double *restrict tout, uint8_t *restrict ok) {
     const double r0 = P->r[0], r1 = P->r[1], r2 = P->r[2], r3 = P->r[3], r4 = P->r[4],
@@ -153,8 +151,7 @@ TARGET_AVX2 static void step_avx2(const step_par_t *P, int n, const int32_t *res
     const int nx = P->nx, jmax = (int)umax - 1, imax = (int)vmax - 1;
     const double *restrict hg = P->heights;
     for (int i = 0; i < n; i++) {
-        int u = us[i];
-        double f = fwd[u], y = a[u] * f, z = b * f, tk = tin[i];
+        double f = fwd[i], y = a[i] * f, z = b * f, tk = tin[i];
         double d0 = r0 * f + r3 * y + r6 * z;
         double d1 = r1 * f + r4 * y + r7 * z;
         double d2 = r2 * f + r5 * y + r8 * z;
@@ -186,16 +183,17 @@ TARGET_AVX2 static void step_avx2(const step_par_t *P, int n, const int32_t *res
     }
 }
 
-/* An untextured plant's 8-bit colour at pixels us[0..n) of one row: face colour (c0..c2),
- * face fl[i]'s normal turned by slot sl[i]'s transform, two-sided Lambert, haze; shade_view's
- * plant branch, operation for operation. */
-TARGET_AVX2 static void plant_avx2(const plant_par_t *P, int n, const int32_t *restrict us,
-                                     const int32_t *restrict fl, const int32_t *restrict sl,
-                                     const uint8_t *restrict c0, const uint8_t *restrict c1,
-                                     const uint8_t *restrict c2, const double *restrict a,
-                                     double b, const double *restrict fwd,
-                                     const double *restrict t, uint8_t *restrict o0,
-                                     uint8_t *restrict o1, uint8_t *restrict o2) {
+/* An untextured plant's 8-bit colour at n pixels of one row (packed: face colour c0..c2, face
+ * fl[i] whose normal slot sl[i]'s transform turns, column ray terms a, cosines fwd, ray
+ * lengths t; the row term b): two-sided Lambert and haze, shade_view's plant branch,
+ * operation for operation. */
+TARGET_AVX2 static void plant_avx2(const plant_par_t *P, int n, const int32_t *restrict fl,
+                                     const int32_t *restrict sl, const uint8_t *restrict c0,
+                                     const uint8_t *restrict c1, const uint8_t *restrict c2,
+                                     const double *restrict a, double b,
+                                     const double *restrict fwd, const double *restrict t,
+                                     uint8_t *restrict o0, uint8_t *restrict o1,
+                                     uint8_t *restrict o2) {
     const double r0 = P->r[0], r1 = P->r[1], r2 = P->r[2], r3 = P->r[3], r4 = P->r[4],
                  r5 = P->r[5], r6 = P->r[6], r7 = P->r[7], r8 = P->r[8];
     const double amb = P->ambient, i3f = P->i3f;
@@ -203,8 +201,8 @@ TARGET_AVX2 static void plant_avx2(const plant_par_t *P, int n, const int32_t *r
     const double H0 = P->horizon[0], H1 = P->horizon[1], H2 = P->horizon[2];
     const float *restrict fn = P->face_normal, *restrict xf = P->xfm;
     for (int i = 0; i < n; i++) {
-        int u = us[i], q = 3 * fl[i], s = 12 * sl[i];
-        double f = fwd[u], y = a[u] * f, z = b * f, tk = t[u];
+        int q = 3 * fl[i], s = 12 * sl[i];
+        double f = fwd[i], y = a[i] * f, z = b * f, tk = t[i];
         double d0 = r0 * f + r3 * y + r6 * z;
         double d1 = r1 * f + r4 * y + r7 * z;
         double d2 = r2 * f + r5 * y + r8 * z;

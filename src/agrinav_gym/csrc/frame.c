@@ -82,9 +82,10 @@ EXPORT int resolve_view(const double *cam, int w, int h, const int64_t *gptr,
     geom_t g;
     geom_from(&g, gptr, gval);
     double *ab = ray_terms(&c);
-    /* per row: the terrain pixels to refine, their lengths before and after the first step */
+    /* per row: the terrain pixels to refine, their ray terms, cosines and lengths before and
+     * after the first step */
     int32_t *us = (int32_t *)malloc(sizeof(int32_t) * (size_t)w);
-    double *tin = (double *)malloc(sizeof(double) * 2 * (size_t)w);
+    double *tin = (double *)malloc(sizeof(double) * 4 * (size_t)w);
     uint8_t *ok = (uint8_t *)malloc((size_t)w);
     if (!ab || !us || !tin || !ok) {
         free(ab), free(us), free(tin), free(ok);
@@ -110,7 +111,7 @@ EXPORT int resolve_view(const double *cam, int w, int h, const int64_t *gptr,
                 if (s == VB_TERRAIN) {
                     lab = CLS_SOIL;
                     if (refine_terrain && batch) { /* refined below, then the robot's test */
-                        us[n] = u, tin[n++] = t;
+                        us[n] = u, tin[n] = t, tin[2 * w + n] = ab[u], tin[3 * w + n++] = fwd[k];
                         t_out[k] = t, label[k] = lab, plant[k] = pl, proto[k] = pr, prim[k] = tri;
                         continue;
                     }
@@ -135,7 +136,7 @@ EXPORT int resolve_view(const double *cam, int w, int h, const int64_t *gptr,
 #ifdef AGRINAV_AVX2
         if (!n) continue;
         double *tout = tin + w;
-        step_avx2(&sp, n, us, ab, ab[w + v], fwd + (size_t)v * w, tin, tout, ok);
+        step_avx2(&sp, n, tin + 2 * w, ab[w + v], tin + 3 * w, tin, tout, ok);
         for (int i = 0; i < n; i++) {
             int u = us[i];
             size_t k = (size_t)v * w + u;
@@ -450,8 +451,10 @@ EXPORT void shade_view(const double *cam, int w, int h, const int64_t *gptr, con
      * fl, slot sl, face colour pc), and their colours sc, qc */
     int32_t *us = (int32_t *)malloc(sizeof(int32_t) * 4 * (size_t)w);
     uint8_t *sc = (uint8_t *)malloc(9 * (size_t)w);
-    if (!ab || !us || !sc) {
-        free(ab), free(us), free(sc);
+    /* the batches' column ray terms, cosines and ray lengths, packed: soil, then plants */
+    double *pk = (double *)malloc(sizeof(double) * 6 * (size_t)w);
+    if (!ab || !us || !sc || !pk) {
+        free(ab), free(us), free(sc), free(pk);
         return;
     }
     int32_t *up = us + w, *fl = us + 2 * (size_t)w, *sl = us + 3 * (size_t)w;
@@ -480,6 +483,7 @@ EXPORT void shade_view(const double *cam, int w, int h, const int64_t *gptr, con
             double tk = t[k];
             uint8_t lab = label[k];
             if (batch && lab == CLS_SOIL && isfinite(tk)) { /* batched below */
+                pk[ns] = ab[u], pk[w + ns] = fwd[k], pk[2 * w + ns] = tk;
                 us[ns++] = u;
                 continue;
             }
@@ -488,6 +492,7 @@ EXPORT void shade_view(const double *cam, int w, int h, const int64_t *gptr, con
                 if (flat < (size_t)INT32_MAX / 3 && vinst[k] < INT32_MAX / 12) {
                     const uint8_t *col = face_rgb + 3 * flat;
                     up[np] = u, fl[np] = (int32_t)flat, sl[np] = vinst[k];
+                    pk[3 * w + np] = ab[u], pk[4 * w + np] = fwd[k], pk[5 * w + np] = tk;
                     pc[np] = col[0], pc[w + np] = col[1], pc[2 * (size_t)w + np] = col[2];
                     np++;
                     continue;
@@ -565,18 +570,17 @@ EXPORT void shade_view(const double *cam, int w, int h, const int64_t *gptr, con
             for (int i = 0; i < 3; i++) rgb[3 * k + i] = to_u8(out[i]);
         }
 #ifdef AGRINAV_AVX2
-        const double *fr = fwd + (size_t)v * w, *tr = t + (size_t)v * w;
         uint8_t *row = rgb + 3 * (size_t)v * w;
         if (ns) {
-            soil_avx2(&sp, ns, us, ab, ab[w + v], fr, tr, sc, sc + w, sc + 2 * (size_t)w);
+            soil_avx2(&sp, ns, pk, ab[w + v], pk + w, pk + 2 * w, sc, sc + w, sc + 2 * (size_t)w);
             for (int i = 0; i < ns; i++) {
                 uint8_t *px = row + 3 * (size_t)us[i];
                 px[0] = sc[i], px[1] = sc[w + i], px[2] = sc[2 * (size_t)w + i];
             }
         }
         if (np) {
-            plant_avx2(&pp, np, up, fl, sl, pc, pc + w, pc + 2 * (size_t)w, ab, ab[w + v], fr, tr,
-                      qc, qc + w, qc + 2 * (size_t)w);
+            plant_avx2(&pp, np, fl, sl, pc, pc + w, pc + 2 * (size_t)w, pk + 3 * w, ab[w + v],
+                       pk + 4 * w, pk + 5 * w, qc, qc + w, qc + 2 * (size_t)w);
             for (int i = 0; i < np; i++) {
                 uint8_t *px = row + 3 * (size_t)up[i];
                 px[0] = qc[i], px[1] = qc[w + i], px[2] = qc[2 * (size_t)w + i];
@@ -584,7 +588,7 @@ EXPORT void shade_view(const double *cam, int w, int h, const int64_t *gptr, con
         }
 #endif
     }
-    free(ab), free(us), free(sc);
+    free(ab), free(us), free(sc), free(pk);
 }
 
 /* ``mesh_scene.refine_ground`` for n rays from one origin ``o`` along float32 directions ``d``:
