@@ -16,7 +16,7 @@ mast nothing of the robot is in view).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -171,11 +171,11 @@ class MeshCamera(Lighting):
         labels: bool,
         stereo: bool,
     ) -> DepthFrame:
-        """``render`` by rasterising the views (raster_view): the same frame. Four stages,
+        """``render`` by rasterising the views (raster_view): the same frame. Three stages,
         each over two bands of rows with ``threads`` > 1: draw the depth, right and colour
-        views; resolve them (and prepare the stereo test); decide the stereo pair and shade the
-        colour (the top band draws the noise first, in one call, as the ray-cast path draws
-        it); finish the depth and the labels."""
+        views; resolve them and prepare the stereo test (the top band draws the noise first,
+        in one call, as the ray-cast path draws it); decide the stereo pair, finish the depth
+        and the labels and shade the colour."""
         c, m = self.cfg, self.model
         h, w = m.height, m.width
         n = h * w
@@ -193,7 +193,12 @@ class MeshCamera(Lighting):
         if self._work is None:  # kept: fresh 40 MB a frame would be page faults every frame
             self._work = raster_view.FrameBuffers(n)
         vl, vr, vc, left, col, bad = self._work.parts()
+        if labels:  # the label outputs, fresh each frame, are written where they are resolved
+            left = replace(left, label=np.empty(n, np.uint8), plant=np.empty(n, np.int32))
+            if rgb:
+                col = replace(col, label=np.empty(n, np.uint8), plant=np.empty(n, np.int32))
         noise: list[FloatArray | None] = [None]
+        bands = self._bands
 
         def draw(r0: int, r1: int) -> None:
             if rgb and bands.threaded:
@@ -211,6 +216,8 @@ class MeshCamera(Lighting):
                 geo.draw(cam_c, vc, w, h, r0, r1)
 
         def resolve(r0: int, r1: int) -> None:
+            if r0 == 0 and rng is not None and c.subpixel > 0:
+                noise[0] = rng.standard_normal(n)  # every pixel: the ray-cast path's stream
             geo.resolve(cam, fwd, vl, left, w, h, True, self._robot_hits("depth"), r0, r1)
             if stereo:
                 geo.stereo_prepare(w, h, self.fx, c.baseline, left, fwd, r0, r1)
@@ -228,56 +235,30 @@ class MeshCamera(Lighting):
             robot = (np.ascontiguousarray(rot, np.float64), pr.face_rgb, pr.normals)
         par = geo.shading_params(self.soil_rgb, self.light, rfar)
 
-        def decide(r0: int, r1: int) -> None:
-            if r0 == 0 and rng is not None and c.subpixel > 0:
-                noise[0] = rng.standard_normal(n)  # every pixel: the ray-cast path's stream
+        def finish(r0: int, r1: int) -> None:
             if stereo:
                 geo.stereo(
                     cam, fwd, w, h, c.baseline, d455.NEAREST_OCCLUDER, left, vl, vr, bad, r0, r1
                 )
+            raster_view.finish_depth(
+                left, fwd, noise[0], k_sigma, c.min_range, c.max_range, bad, labels, depth,
+                r0 * w, r1 * w,
+            )  # fmt: skip
             if rgb:
                 geo.shade(cam_c, fwd_c, w, h, col, vc, par, robot, pixels, r0, r1)
 
-        def finish(r0: int, r1: int) -> None:
-            raster_view.finish_depth(
-                left,
-                fwd,
-                noise[0],
-                k_sigma,
-                c.min_range,
-                c.max_range,
-                bad,
-                labels,
-                depth,
-                r0 * w,
-                r1 * w,
-            )
-            if labels:
-                label[r0 * w : r1 * w] = left.label[r0 * w : r1 * w]
-                instance[r0 * w : r1 * w] = left.plant[r0 * w : r1 * w]
-                if rgb:
-                    rgb_label[r0 * w : r1 * w] = col.label[r0 * w : r1 * w]
-                    rgb_instance[r0 * w : r1 * w] = col.plant[r0 * w : r1 * w]
-
-        # the outputs, fresh each frame (the working buffers serve the next one)
-        label = np.empty(n if labels else 0, np.uint8)
-        instance = np.empty(n if labels else 0, np.int32)
-        rgb_label = np.empty(n if labels and rgb else 0, np.uint8)
-        rgb_instance = np.empty(n if labels and rgb else 0, np.int32)
-        bands = self._bands
         bands.run("draw", draw)
         bands.run("resolve", resolve)
-        bands.run("decide", decide)
         bands.run("finish", finish)
         frame = DepthFrame(depth.reshape(h, w))
         if labels:
-            frame.label = label.reshape(h, w)
-            frame.instance = instance.reshape(h, w)
+            frame.label = left.label.reshape(h, w)
+            frame.instance = left.plant.reshape(h, w)
         if rgb:
             frame.rgb = pixels.reshape(h, w, 3)
             if labels:
-                frame.rgb_label = rgb_label.reshape(h, w)
-                frame.rgb_instance = rgb_instance.reshape(h, w)
+                frame.rgb_label = col.label.reshape(h, w)
+                frame.rgb_instance = col.plant.reshape(h, w)
         return frame
 
     def right_world(self, rot: FloatArray, pos: FloatArray) -> FloatArray:
