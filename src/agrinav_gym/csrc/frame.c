@@ -279,12 +279,6 @@ EXPORT int stereo_invalid(const double *cam, int w, int h, double baseline, doub
             int occluder = near >= iv - (u + 0.5) * ifb;
             int leaves = iv + (w - 1 - u) * ifb < inear;
             if (!occluder && !leaves) continue;
-            double d[3];
-            cam_ray_f(&c, ab[u], ab[w + v], fwd[k], d);
-            double P[3] = {c.o[0] + t[k] * d[0], c.o[1] + t[k] * d[1], c.o[2] + t[k] * d[2]};
-            double seg[3] = {P[0] - R[0], P[1] - R[1], P[2] - R[2]};
-            double len = sqrt(seg[0] * seg[0] + seg[1] * seg[1] + seg[2] * seg[2]);
-            double tfar = 1.0 - (0.01 + 0.002 * len) / len;
             int k0 = (int)ifloor(u - fb * iv);
             /* Seen: the rays of the two right-view pixels around the point's image both meet
              * the point's own triangle first, or nothing nearer than the point; the ray to the
@@ -298,6 +292,12 @@ EXPORT int stereo_invalid(const double *cam, int w, int h, double baseline, doub
                 clear = own || (double)riz[q] <= iv;
             }
             if (clear) continue;
+            double d[3];
+            cam_ray_f(&c, ab[u], ab[w + v], fwd[k], d);
+            double P[3] = {c.o[0] + t[k] * d[0], c.o[1] + t[k] * d[1], c.o[2] + t[k] * d[2]};
+            double seg[3] = {P[0] - R[0], P[1] - R[1], P[2] - R[2]};
+            double len = sqrt(seg[0] * seg[0] + seg[1] * seg[1] + seg[2] * seg[2]);
+            double tfar = 1.0 - (0.01 + 0.002 * len) / len;
             /* (row, column, view) of the triangles to test: the right view around the point's
              * image, then the left view where its depth came nearest to the segment */
             int cand_v[7], cand_u[7], cand_r[7], nc = 0;
