@@ -256,16 +256,31 @@ def child(preset: str, over: dict[str, Any], cam: dict[str, Any] | None = None) 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--blocks", type=int, default=7, help="interleaved blocks of env steps")
-    ap.add_argument("--frames", type=int, default=5, help="848x480 frames per renderer")
+    ap.add_argument("--frames", type=int, default=5, help="848x480 blocks per renderer")
     ap.add_argument("--threads", type=int, default=2, help="mesh camera threads at 848x480")
+    ap.add_argument(
+        "--sections", default="1,2,3", help="which to run: 1 steps, 2 frames, 3 fields (3-5)"
+    )
     args = ap.parse_args()
+    sections = {x.strip() for x in args.sections.split(",")}
+    if not sections <= {"1", "2", "3"}:
+        ap.error(f"--sections: {args.sections!r}; allowed: a comma list of 1, 2, 3")
     from agrinav_gym.sensors import native
 
     py = platform.python_version()
     print(f"machine: {platform.platform()}, {os.cpu_count()} cores, Python {py}")
     print(f"compiled kernels: {'built' if native.available() else 'NOT BUILT (reference paths)'}")
 
-    s = step_costs(args.blocks)
+    if "1" in sections:
+        steps(args.blocks)
+    if "2" in sections:
+        frames(args.frames, args.threads)
+    if "3" in sections:
+        fields(native.available())
+
+
+def steps(blocks: int) -> None:
+    s = step_costs(blocks)
     print("\n1. env step (paper-p1, S-curve), median ms per step")
     print(f"   state only (gps, imu, odom, route): {s['state'] * 1e3:.3f}")
     for k, label, target in (
@@ -277,6 +292,9 @@ def main() -> None:
             f"   + {label}: {s[k] * 1e3:.3f}  ratio {s[k] / s['state']:.2f} (target <= {target:g})"
         )
 
+
+
+def frames(repeat: int, threads: int) -> None:
     print("\n2. 848x480 RGB-D + semantic + instance vs pybullet TinyRenderer, median ms")
     for label, (name, over) in {
         "paper-p1": ("paper-p1", {}),
@@ -285,16 +303,19 @@ def main() -> None:
             {"crop": {"stage": 5}, "layout": {"row_spacing": 1.0}},
         ),
     }.items():
-        r = dataset_frames(name, over, args.frames, args.threads)
+        r = dataset_frames(name, over, repeat, threads)
         print(
             f"   {label} ({r['plants']} plants, {r['triangles']} triangles in pybullet): "
-            f"TinyRenderer {r['tiny'] * 1e3:.0f}; mesh camera ({args.threads} threads) "
+            f"TinyRenderer {r['tiny'] * 1e3:.0f}; mesh camera ({threads} threads) "
             f"rasterising {r['raster'] * 1e3:.1f}: {r['tiny'] / r['raster']:.1f}x faster "
             f"(target >= 20; a block's first frame alone {r['raster first'] * 1e3:.1f}: "
             f"{r['tiny'] / r['raster first']:.1f}x); casting rays {r['raycast'] * 1e3:.0f}: "
             f"{r['tiny'] / r['raycast']:.1f}x"
         )
 
+
+
+def fields(kernels: bool) -> None:
     print("\n3-5. fields of growing size (each in a fresh process)")
     small = child("paper-p1", {})
     # jitter within a sixth of the spacing (generate.check_spec)
@@ -322,7 +343,7 @@ def main() -> None:
         f"   100k field: scene build + first frame {big['first']:.2f} s (target <= 10), "
         f"frame cost 100k / 2k = {big['frame'] / small['frame']:.2f} (64x48 rays)"
     )
-    if native.available():
+    if kernels:
         wide = {"width": 848, "height": 480, "renderer": "raster", "rgb": True}
         small_r = child("default", {}, wide)
         big_r = child("default", big_field, wide)

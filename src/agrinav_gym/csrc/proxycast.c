@@ -25,7 +25,7 @@ typedef struct {
     double t, tx, ty, dtx, dty;
 } walk_t;
 
-static void walk_init(walk_t *w, double ox, double oy, double dx, double dy, double idx,
+static inline void walk_init(walk_t *w, double ox, double oy, double dx, double dy, double idx,
                       double idy, double t0, double gx, double gy, double cs, double ics, int ni,
                       int nj) {
     double px = ox + t0 * dx, py = oy + t0 * dy;
@@ -230,10 +230,11 @@ static inline double cylinder_hit(const double *o, const double *d, double ia, d
  * row-major rotation ``rot`` (body -> world) is given; length limit tlim[k]): the first hit's
  * t (INFINITY: none) and what it hit (HIT_TERRAIN, HIT_NONE or the cylinder's index).
  * Terrain: heights h (ny x nx, row i at y0 + i s), bmax the highest vertex of each block of
- * bsize x bsize cells (bny x bnx). Plants: cylinder k is cyl[5k..5k+4] = (x, y, bottom z, top
- * z, radius); grid cell (i, j) of size gs from (gx, gy) lists cylinders
- * items[start[c]:start[c+1]] with c = i gnx + j; ``ztop`` the tallest cylinder's top (a rising
- * ray above it meets no plant any more). */
+ * bsize x bsize cells (bny x bnx). Plants: grid cell (i, j) of size gs from (gx, gy) lists
+ * cylinders items[start[c]:start[c+1]] with c = i gnx + j, and cyl[5m..5m+4] = (x, y, bottom
+ * z, top z, radius) is the record of cylinder items[m] (in cell order: read one after
+ * another); ``ztop`` the tallest cylinder's top (a rising ray above it meets no plant any
+ * more). */
 EXPORT void proxy_cast(int n, const double *o, const double *d, const double *rot,
                        const double *tlim, double ztop,
                        const double *h, int nx, int ny, double x0, double y0, double s,
@@ -284,7 +285,7 @@ EXPORT void proxy_cast(int n, const double *o, const double *d, const double *ro
                 int c = w.i * gnx + w.j;
                 for (int32_t m = start[c]; m < start[c + 1]; m++) {
                     int32_t p = items[m];
-                    const double *q = cyl + 5 * (size_t)p;
+                    const double *q = cyl + 5 * (size_t)m;
                     double t = cylinder_hit(o, dk, ia, isa, q[0], q[1], q[2], q[3], q[4], lim);
                     if (t < lim || (t == lim && p < id)) {
                         lim = t, id = p;

@@ -263,6 +263,8 @@ class ProxyGeometry:
             self.gnx = self.gny = 0
             self.items = np.zeros(1, np.int32)
             self.start = np.zeros(2, np.int32)
+        # the records again in cell order: a cell's cylinders are read one after another
+        self.item_cyl = np.ascontiguousarray(self.cyl[self.items])
 
     def serves(self, terrain: Terrain, plants: PlantField) -> bool:
         return self.terrain is terrain and self.plants is plants
@@ -293,7 +295,7 @@ class ProxyGeometry:
             self.h.ctypes.data,
             nx, ny, te.x0, te.y0, te.spacing, self.bmax.ctypes.data, self.BLOCK, self.bnx,
             self.bny, self.gnx, self.gny, self.gx, self.gy, self.CELL, self.start.ctypes.data,
-            self.items.ctypes.data, self.cyl.ctypes.data, t.ctypes.data, what.ctypes.data,
+            self.items.ctypes.data, self.item_cyl.ctypes.data, t.ctypes.data, what.ctypes.data,
         )  # fmt: skip
         return t, what
 
