@@ -5,7 +5,22 @@ The extension is optional: where it cannot be built the sensors fall back to num
 -ffast-math, whose reordering would change results between builds.
 """
 
+import hashlib
+from pathlib import Path
+
 from setuptools import Extension, setup
+
+CSRC = Path(__file__).parent / "src" / "agrinav_gym" / "csrc"
+
+
+def source_hash() -> str:
+    """The kernels' sources, hashed as sensors/native.py hashes them: an extension built from
+    other sources than those beside it (a pull or an edit without a rebuild) is refused there."""
+    h = hashlib.sha256()
+    for f in sorted(CSRC.glob("*.[ch]")):
+        h.update(f.name.encode() + b"\0" + f.read_bytes())
+    return h.hexdigest()[:16]
+
 
 setup(
     ext_modules=[
@@ -19,6 +34,7 @@ setup(
                 "src/agrinav_gym/csrc/packets.c",
             ],
             depends=["src/agrinav_gym/csrc/native.h", "src/agrinav_gym/csrc/batch.h"],
+            define_macros=[("AGRINAV_SOURCE_HASH", f'"{source_hash()}"')],
             extra_compile_args=["-O3", "-fno-math-errno", "-fno-trapping-math", "-std=c99"],
             optional=True,
         )

@@ -176,9 +176,7 @@ def dataset_frames(name: str, over: dict[str, Any], repeat: int, threads: int) -
         # each renderer runs frame after frame as a dataset loop runs it
         for _ in range(BLOCK):
             t0 = time.perf_counter()
-            p.getCameraImage(
-                848, 480, view, proj, renderer=p.ER_TINY_RENDERER, physicsClientId=cid
-            )
+            p.getCameraImage(848, 480, view, proj, renderer=p.ER_TINY_RENDERER, physicsClientId=cid)
             times["tiny"].append(time.perf_counter() - t0)
         for k, cam in cams.items():
             for i in range(BLOCK):
@@ -293,7 +291,6 @@ def steps(blocks: int) -> None:
         )
 
 
-
 def frames(repeat: int, threads: int) -> None:
     print("\n2. 848x480 RGB-D + semantic + instance vs pybullet TinyRenderer, median ms")
     for label, (name, over) in {
@@ -312,7 +309,6 @@ def frames(repeat: int, threads: int) -> None:
             f"{r['tiny'] / r['raster first']:.1f}x); casting rays {r['raycast'] * 1e3:.0f}: "
             f"{r['tiny'] / r['raycast']:.1f}x"
         )
-
 
 
 def fields(kernels: bool) -> None:

@@ -3,6 +3,7 @@ against Embree's ray casts, the proxy kernel against the numpy marches, and the 
 
 import math
 import os
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -58,6 +59,27 @@ def test_compiled_kernels_are_built_in_ci() -> None:
     if os.environ.get("CI", "").lower() in ("", "0", "false"):
         pytest.skip("outside CI the extension is optional")
     assert native.available(), "agrinav_gym._native did not build (see pip's build log)"
+
+
+def test_a_build_from_other_sources_is_refused(tmp_path: Path) -> None:
+    """An extension left from other sources (an edit or a pull without a rebuild) would be
+    called with the wrong arguments and draw wrong images without an error: it is refused."""
+    csrc = Path(native.__file__).resolve().parent.parent / "csrc"
+    here = native.source_hash(csrc)
+
+    class Build:
+        def __init__(self, built: bytes) -> None:
+            self.agrinav_source_hash = lambda: built
+
+    assert native.stale(Build(here.encode())) is None
+    assert "built from sources 0000" in str(native.stale(Build(b"0000")))
+    assert "predates" in str(native.stale(object()))
+    (tmp_path / "a.c").write_text("int f(void) { return 1; }\n")
+    before = native.source_hash(tmp_path)
+    (tmp_path / "a.c").write_text("int f(void) { return 2; }\n")
+    assert native.source_hash(tmp_path) != before
+    if native.available():  # the build under test is this tree's
+        assert native.stale(native.lib()) is None
 
 
 def test_raster_without_kernels_is_a_clear_error(monkeypatch: pytest.MonkeyPatch) -> None:

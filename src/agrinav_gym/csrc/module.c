@@ -6,7 +6,19 @@
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 
+#include "native.h"
+
 static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "_native",
                                     "Compiled sensor kernels (called through ctypes).", -1, NULL};
 
 PyMODINIT_FUNC PyInit__native(void) { return PyModule_Create(&module); }
+
+#ifndef AGRINAV_SOURCE_HASH
+#define AGRINAV_SOURCE_HASH "unknown"
+#endif
+
+/* the hash of the sources this build was made from (setup.py): sensors/native.py refuses a
+ * build whose sources differ from those beside it */
+EXPORT const char *agrinav_source_hash(void) {
+    return AGRINAV_SOURCE_HASH;
+}

@@ -10,8 +10,11 @@ and Embree paths, which give the same images more slowly (tests compare the two)
 from __future__ import annotations
 
 import ctypes
+import hashlib
 import importlib.util
 import os
+import warnings
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -38,10 +41,36 @@ _SIGNATURES: dict[str, tuple[Any, list[Any]]] = {
 
 _LIB: Any = None
 _TRIED = False
+_STALE: str | None = None  # why a build was refused
 
 
 class NativeUnavailable(RuntimeError):
     """The compiled kernels were asked for but are not built (or disabled)."""
+
+
+def source_hash(csrc: Path) -> str:
+    """setup.py's hash of the kernels' sources in ``csrc``."""
+    h = hashlib.sha256()
+    for f in sorted(csrc.glob("*.[ch]")):
+        h.update(f.name.encode() + b"\0" + f.read_bytes())
+    return h.hexdigest()[:16]
+
+
+def stale(handle: Any) -> str | None:
+    """Why a loaded build does not match the sources beside it (None: it does, or there are
+    none to compare, as in an installed wheel). A build left from other sources would be called
+    with the wrong arguments: wrong images, not an error."""
+    try:
+        fn = handle.agrinav_source_hash
+    except AttributeError:
+        return "it predates the source check"
+    fn.restype = ctypes.c_char_p
+    built = fn().decode()
+    csrc = Path(__file__).resolve().parent.parent / "csrc"
+    if not any(csrc.glob("*.c")):
+        return None
+    here = source_hash(csrc)
+    return None if built == here else f"built from sources {built}, these are {here}"
 
 
 def disabled() -> bool:
@@ -61,7 +90,17 @@ def lib() -> Any:
                 handle = ctypes.CDLL(spec.origin)
             except OSError:
                 handle = None
-            if handle is not None:
+            why = stale(handle) if handle is not None else None
+            if why is not None:
+                global _STALE
+                _STALE = why
+                warnings.warn(
+                    f"agrinav_gym._native is stale ({why}); the sensors use their numpy and "
+                    "Embree paths until it is rebuilt (pip install -e . or make test)",
+                    RuntimeWarning,
+                    stacklevel=2,
+                )
+            elif handle is not None:
                 for name, (res, args) in _SIGNATURES.items():
                     f = getattr(handle, name)
                     f.restype, f.argtypes = res, args
@@ -77,11 +116,12 @@ def require(what: str) -> Any:
     """The kernels, or an error saying how to get them."""
     handle = lib()
     if handle is None:
-        why = (
-            "disabled by AGRINAV_NATIVE=0"
-            if disabled()
-            else "not built (reinstall with a C compiler: pip install -e . or make test)"
-        )
+        if disabled():
+            why = "disabled by AGRINAV_NATIVE=0"
+        elif _STALE is not None:
+            why = f"stale, {_STALE} (rebuild: pip install -e . or make test)"
+        else:
+            why = "not built (reinstall with a C compiler: pip install -e . or make test)"
         raise NativeUnavailable(f"{what} needs the compiled kernels agrinav_gym._native: {why}")
     return handle
 

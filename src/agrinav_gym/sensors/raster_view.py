@@ -120,7 +120,9 @@ class SceneGeometry:
                 c = 0.5 * (v.min(axis=0) + v.max(axis=0))
                 self.sphere[k, :3] = c
                 self.sphere[k, 3] = float(np.linalg.norm(v - c, axis=1).max())
-        self._clusters = [cluster_spheres(v, f, CLUSTER_FACES) for v, f in zip(self._v, self._f, strict=True)]
+        self._clusters = [
+            cluster_spheres(v, f, CLUSTER_FACES) for v, f in zip(self._v, self._f, strict=True)
+        ]
         self.claddr = np.array([a.ctypes.data for a in self._clusters], np.int64)
         self.labels = np.array([p.label for p in protos] or [0], np.uint8)
         t, o = scene.terrain, scene.origin
