@@ -164,12 +164,12 @@ EXPORT int resolve_view(const double *cam, int w, int h, const int64_t *gptr,
  * same few occluders, and building one from its instance costs more than the test itself */
 #define TRI_CACHE 512
 typedef struct {
-    int64_t key[TRI_CACHE]; /* (slot << 32 | triangle) + 1; 0: empty */
+    uint64_t key[TRI_CACHE]; /* (slot << 32 | triangle) + 1 as unsigned; 0: empty */
     double tri[TRI_CACHE][9];
 } tri_cache_t;
 
 static const double *cached_triangle(tri_cache_t *tc, const geom_t *g, int32_t si, int32_t sp) {
-    int64_t key = (((int64_t)si << 32) | (uint32_t)sp) + 1;
+    uint64_t key = (((uint64_t)(uint32_t)si << 32) | (uint32_t)sp) + 1;
     uint32_t hsh = (uint32_t)si * 2654435761u ^ (uint32_t)sp * 2246822519u;
     size_t e = (hsh >> 7) & (TRI_CACHE - 1);
     if (tc->key[e] != key) {
