@@ -227,6 +227,32 @@ TARGET_AVX2 static void plant_avx2(const plant_par_t *P, int n, const int32_t *r
     }
 }
 
+/* resolve_view's pixel loop over one row of a visibility buffer, before refinement and the
+ * robot: ray length (inf: none), class (lab32: each prototype's, widened), plant id, prototype
+ * and triangle, operation for operation as resolve_view's pixel-by-pixel code */
+TARGET_AVX2 static void resolve_row_avx2(int w, const int32_t *restrict inst,
+                                           const float *restrict iz, const double *restrict fwd,
+                                           const int32_t *restrict vprim,
+                                           const int32_t *restrict slot_proto,
+                                           const int32_t *restrict slot_plant,
+                                           const int32_t *restrict lab32, double *restrict t,
+                                           uint8_t *restrict label, int32_t *restrict plant,
+                                           int32_t *restrict proto, int32_t *restrict prim) {
+    for (int u = 0; u < w; u++) {
+        int32_t s = inst[u];
+        int has = s != VB_NONE, obj = s >= 0;
+        int32_t si = obj ? s : 0; /* slot 0 exists (the tables hold at least one) */
+        double tt = 1.0 / ((double)iz[u] * fwd[u]);
+        int32_t pr = slot_proto[si], pl = slot_plant[si]; /* read unconditionally: gathers */
+        int32_t lb = lab32[pr];
+        t[u] = has ? tt : INFINITY;
+        proto[u] = obj ? pr : -1;
+        plant[u] = obj ? pl : -1;
+        label[u] = (uint8_t)(obj ? lb : s == VB_TERRAIN ? CLS_SOIL : CLS_OTHER);
+        prim[u] = has ? vprim[u] : -1;
+    }
+}
+
 #else
 static inline int cpu_has_avx2(void) { return 0; }
 #endif /* AGRINAV_AVX2 */

@@ -96,10 +96,56 @@ EXPORT int resolve_view(const double *cam, int w, int h, const int64_t *gptr,
     for (int i = 0; i < 3; i++) sp.o[i] = c.o[i];
     for (int i = 0; i < 9; i++) sp.r[i] = c.r[i];
     (void)sp;
-    /* with AVX2 the terrain pixels of a row take the first step together, else one by one */
-    const int batch = cpu_has_avx2() && g.heights != NULL && g.nx >= 2 && g.ny >= 2;
+    const int grid = g.heights != NULL && g.nx >= 2 && g.ny >= 2;
+    /* with AVX2 a row is resolved at once, its terrain pixels take the first Newton step
+     * together, and the robot's hits are laid over it; else pixel by pixel */
+    const int batch = cpu_has_avx2();
+    int32_t *lab32 = NULL, none = -1;
+    (void)none;
+    if (batch) {
+        lab32 = (int32_t *)malloc(sizeof(int32_t) * (size_t)(g.n_protos > 0 ? g.n_protos : 1));
+        if (!lab32) {
+            free(ab), free(us), free(tin), free(ok);
+            return -1;
+        }
+        lab32[0] = CLS_OTHER;
+        for (int i = 0; i < g.n_protos; i++) lab32[i] = proto_label[i];
+    }
     for (int v = row0; v < row1; v++) {
-        int n = 0;
+#ifdef AGRINAV_AVX2
+        if (batch) {
+            size_t r = (size_t)v * w;
+            resolve_row_avx2(w, inst + r, iz + r, fwd + r, vprim + r, g.slot_proto,
+                             slot_plant ? slot_plant : &none, lab32, t_out + r, label + r,
+                             plant + r, proto + r, prim + r);
+            int n = 0;
+            if (refine_terrain && grid) {
+                for (int u = 0; u < w; u++)
+                    if (inst[r + u] == VB_TERRAIN)
+                        us[n] = u, tin[n] = t_out[r + u], tin[2 * w + n] = ab[u],
+                        tin[3 * w + n++] = fwd[r + u];
+                double *tout = tin + w;
+                if (n) step_avx2(&sp, n, tin + 2 * w, ab[w + v], tin + 3 * w, tin, tout, ok);
+                for (int i = 0; i < n; i++) {
+                    size_t k = r + us[i];
+                    double t = tout[i];
+                    if (!ok[i]) {
+                        double d[3];
+                        cam_ray_f(&c, ab[us[i]], ab[w + v], fwd[k], d);
+                        t = refine_loop(&g, c.o, d, tin[i]);
+                    }
+                    t_out[k] = t;
+                }
+            }
+            if (robot_t)
+                for (size_t k = r; k < r + w; k++)
+                    if (robot_t[k] < t_out[k]) {
+                        t_out[k] = robot_t[k], label[k] = CLS_ROBOT, plant[k] = -1;
+                        proto[k] = -1, prim[k] = robot_prim[k];
+                    }
+            continue;
+        }
+#endif
         for (int u = 0; u < w; u++) {
             size_t k = (size_t)v * w + u;
             double t = INFINITY;
@@ -110,12 +156,7 @@ EXPORT int resolve_view(const double *cam, int w, int h, const int64_t *gptr,
                 t = 1.0 / ((double)iz[k] * fwd[k]);
                 if (s == VB_TERRAIN) {
                     lab = CLS_SOIL;
-                    if (refine_terrain && batch) { /* refined below, then the robot's test */
-                        us[n] = u, tin[n] = t, tin[2 * w + n] = ab[u], tin[3 * w + n++] = fwd[k];
-                        t_out[k] = t, label[k] = lab, plant[k] = pl, proto[k] = pr, prim[k] = tri;
-                        continue;
-                    }
-                    if (refine_terrain) {
+                    if (refine_terrain && grid) {
                         double d[3];
                         cam_ray_f(&c, ab[u], ab[w + v], fwd[k], d);
                         t = refine(&g, c.o, d, t);
@@ -133,26 +174,8 @@ EXPORT int resolve_view(const double *cam, int w, int h, const int64_t *gptr,
             }
             t_out[k] = t, label[k] = lab, plant[k] = pl, proto[k] = pr, prim[k] = tri;
         }
-#ifdef AGRINAV_AVX2
-        if (!n) continue;
-        double *tout = tin + w;
-        step_avx2(&sp, n, tin + 2 * w, ab[w + v], tin + 3 * w, tin, tout, ok);
-        for (int i = 0; i < n; i++) {
-            int u = us[i];
-            size_t k = (size_t)v * w + u;
-            double t = tout[i];
-            if (!ok[i]) {
-                double d[3];
-                cam_ray_f(&c, ab[u], ab[w + v], fwd[k], d);
-                t = refine_loop(&g, c.o, d, tin[i]);
-            }
-            t_out[k] = t;
-            if (robot_t && robot_t[k] < t)
-                t_out[k] = robot_t[k], label[k] = CLS_ROBOT, prim[k] = robot_prim[k];
-        }
-#endif
     }
-    free(ab), free(us), free(tin), free(ok);
+    free(ab), free(us), free(tin), free(ok), free(lab32);
     return 0;
 }
 
