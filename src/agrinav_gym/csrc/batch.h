@@ -253,6 +253,29 @@ TARGET_AVX2 static void resolve_row_avx2(int w, const int32_t *restrict inst,
     }
 }
 
+/* stereo_invalid's first test over one row (inverse depths inv, the best occluder ``after``
+ * of this row and of the rows above and below, this row's where there is none): flag[u] = 1
+ * where the point's match falls left of the right imager (invalid), 2 where something may hide
+ * it (the exact test follows), 0 where it is seen */
+TARGET_AVX2 static void stereo_row_avx2(int w, const double *restrict inv,
+                                          const double *restrict after,
+                                          const double *restrict above,
+                                          const double *restrict below, double fb, double ifb,
+                                          double inear, uint8_t *restrict flag) {
+    for (int u = 0; u < w; u++) {
+        double iv = inv[u];
+        int valid = iv > 0;
+        int outside = u - fb * iv < -0.5;
+        double near = after[u];
+        near = above[u] > near ? above[u] : near;
+        near = below[u] > near ? below[u] : near;
+        int occluder = near >= iv - (u + 0.5) * ifb;
+        int leaves = iv + (w - 1 - u) * ifb < inear;
+        int f = outside ? 1 : (occluder | leaves) << 1;
+        flag[u] = (uint8_t)(valid ? f : 0);
+    }
+}
+
 #else
 static inline int cpu_has_avx2(void) { return 0; }
 #endif /* AGRINAV_AVX2 */

@@ -286,22 +286,35 @@ EXPORT int stereo_invalid(const double *cam, int w, int h, double baseline, doub
     /* the right imager's centre: B to the right of the depth origin (-y in the camera) */
     double R[3] = {c.o[0] - baseline * c.r[3], c.o[1] - baseline * c.r[4],
                    c.o[2] - baseline * c.r[5]};
-    for (int v = row0; v < row1; v++)
+    const int batch = cpu_has_avx2();
+    for (int v = row0; v < row1; v++) {
+#ifdef AGRINAV_AVX2
+        if (batch) { /* the first test for the whole row at once, into bad[] */
+            const double *af = after + (size_t)v * w;
+            stereo_row_avx2(w, inv + (size_t)v * w, af, v > 0 ? af - w : af,
+                            v < h - 1 ? af + w : af, fb, ifb, inear, bad + (size_t)v * w);
+        }
+#endif
         for (int u = 0; u < w; u++) {
             size_t k = (size_t)v * w + u;
-            bad[k] = 0;
             double iv = inv[k];
-            if (iv <= 0) continue;
-            if (u - fb * iv < -0.5) { /* d455.outside_right_imager */
-                bad[k] = 1;
-                continue;
+            if (batch) {
+                if (bad[k] != 2) continue; /* 1: outside the right imager; 0: seen */
+                bad[k] = 0;
+            } else {
+                bad[k] = 0;
+                if (iv <= 0) continue;
+                if (u - fb * iv < -0.5) { /* d455.outside_right_imager */
+                    bad[k] = 1;
+                    continue;
+                }
+                double near = after[k];
+                if (v > 0 && after[k - w] > near) near = after[k - w];
+                if (v < h - 1 && after[k + w] > near) near = after[k + w];
+                int occluder = near >= iv - (u + 0.5) * ifb;
+                int leaves = iv + (w - 1 - u) * ifb < inear;
+                if (!occluder && !leaves) continue;
             }
-            double near = after[k];
-            if (v > 0 && after[k - w] > near) near = after[k - w];
-            if (v < h - 1 && after[k + w] > near) near = after[k + w];
-            int occluder = near >= iv - (u + 0.5) * ifb;
-            int leaves = iv + (w - 1 - u) * ifb < inear;
-            if (!occluder && !leaves) continue;
             int k0 = (int)ifloor(u - fb * iv);
             /* Seen: the rays of the two right-view pixels around the point's image both meet
              * the point's own triangle first, or nothing nearer than the point; the ray to the
@@ -349,6 +362,7 @@ EXPORT int stereo_invalid(const double *cam, int w, int h, double baseline, doub
             }
             if (hit) bad[k] = 1;
         }
+    }
     free(ab), free(cache);
     return 0;
 }
