@@ -1,8 +1,9 @@
 /* Batched per-pixel loops for the auto-vectoriser, compiled for AVX2 (four doubles, gathers)
- * and chosen at run time where the CPU has it: the soil's and the untextured plants' colour
- * and the first Newton step onto the bilinear terrain, over the pixels of one row that need
- * them. Elsewhere (and with AGRINAV_AVX2=0) frame.c runs its pixel-by-pixel twins: batched
- * without gathers or a rounding floor these loops were slower than scalar code (measured).
+ * and chosen at run time where the CPU has it, each over one row: a visibility buffer's
+ * resolve, the first Newton step onto the bilinear terrain, the stereo pair's epipolar test,
+ * the soil's and the untextured plants' colour. Elsewhere (and with AGRINAV_AVX2=0) frame.c
+ * runs its pixel-by-pixel twins: batched without gathers or a rounding floor these loops were
+ * slower than scalar code (measured).
  * -std=c99 keeps floating-point contraction off and each loop repeats its twin's operations
  * in order, so the two give bit-identical images (tested).
  */
