@@ -53,9 +53,13 @@ def test_lane_offset_agrees_with_the_envs_cross_track_error(dataset: Path) -> No
         assert abs(abs(lab["lane"]["lateral_offset"]) - lab["route_cte"]) < 0.01
 
 
-def test_the_same_spec_and_seed_give_byte_identical_shards(dataset: Path, tmp_path: Path) -> None:
+@pytest.mark.parametrize("overlap", [False, True])
+def test_the_same_spec_and_seed_give_byte_identical_shards(
+    dataset: Path, tmp_path: Path, overlap: bool
+) -> None:
+    """Encoding a frame while the next one renders (``overlap``) changes no byte."""
     again = tmp_path / shard_name(1)
-    write_shard(shard_frames(load_spec(None, TINY), 7, 1), again)
+    write_shard(shard_frames(load_spec(None, TINY), 7, 1), again, overlap)
     assert again.read_bytes() == (dataset / shard_name(1)).read_bytes()
 
 

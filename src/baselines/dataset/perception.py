@@ -15,6 +15,7 @@ import json
 import math
 import tarfile
 from collections.abc import Iterator
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, BinaryIO
@@ -173,13 +174,14 @@ def _frame(
         "rows": row_lines(scn, pos, rot, cams, spec.label_range),
         "plants": plants(scn, pos, rot, cams, instance, spec.label_range),
     }
-    depth = np.asarray(obs["depth"], np.float32).reshape(spec.height, spec.width)
+    depth = np.array(obs["depth"], np.float32).reshape(spec.height, spec.width)
+    # copies: a frame is encoded while the env steps on, which may reuse its buffers
     return Frame(
         key,
-        np.asarray(info["rgb"], np.uint8),
+        np.array(info["rgb"], np.uint8),
         depth,
-        np.asarray(info["segmentation"], np.uint8),
-        instance,
+        np.array(info["segmentation"], np.uint8),
+        instance.copy(),
         labels,
     )
 
@@ -207,29 +209,54 @@ def _add(tar: tarfile.TarFile, name: str, data: bytes) -> None:
     tar.addfile(ti, io.BytesIO(data))
 
 
-def write_tar(frames: Iterator[Frame], fileobj: BinaryIO) -> int:
+def _encode(f: Frame) -> list[tuple[str, bytes]]:
+    """A frame's tar members, in order."""
+    text = json.dumps(f.labels, sort_keys=True, allow_nan=False, default=_nan)
+    return [
+        (f"{f.key}.rgb.png", _png(f.rgb)),
+        (f"{f.key}.depth.npy", _npy(f.depth)),
+        (f"{f.key}.semantic.png", _png(f.semantic)),
+        (f"{f.key}.instance.npy", _npy(f.instance)),
+        (f"{f.key}.json", text.encode()),
+    ]
+
+
+def write_tar(frames: Iterator[Frame], fileobj: BinaryIO, overlap: bool = False) -> int:
     """WebDataset layout: ``<key>.rgb.png``, ``.depth.npy`` (float32 m, 0 invalid),
-    ``.semantic.png``, ``.instance.npy`` (int32 plant id, -1 none), ``.json``."""
+    ``.semantic.png``, ``.instance.npy`` (int32 plant id, -1 none), ``.json``. With
+    ``overlap`` a frame is encoded (PNG mostly, which releases the GIL) in a second thread while
+    the next one renders: for a core the workers leave idle. The members are written in frame
+    order either way, so the bytes are the same."""
     n = 0
-    with tarfile.open(fileobj=fileobj, mode="w", format=tarfile.USTAR_FORMAT) as tar:
+    with (
+        tarfile.open(fileobj=fileobj, mode="w", format=tarfile.USTAR_FORMAT) as tar,
+        ThreadPoolExecutor(max_workers=1, thread_name_prefix="agrinav-encode") as pool,
+    ):
+        pending: Future[list[tuple[str, bytes]]] | None = None
         for f in frames:
-            _add(tar, f"{f.key}.rgb.png", _png(f.rgb))
-            _add(tar, f"{f.key}.depth.npy", _npy(f.depth))
-            _add(tar, f"{f.key}.semantic.png", _png(f.semantic))
-            _add(tar, f"{f.key}.instance.npy", _npy(f.instance))
-            text = json.dumps(f.labels, sort_keys=True, allow_nan=False, default=_nan)
-            _add(tar, f"{f.key}.json", text.encode())
-            n += 1
+            if not overlap:
+                for name, data in _encode(f):
+                    _add(tar, name, data)
+                n += 1
+                continue
+            job = pool.submit(_encode, f)
+            if pending is not None:
+                for name, data in pending.result():
+                    _add(tar, name, data)
+            pending, n = job, n + 1
+        if pending is not None:
+            for name, data in pending.result():
+                _add(tar, name, data)
     return n
 
 
-def write_shard(frames: Iterator[Frame], path: Path) -> int:
+def write_shard(frames: Iterator[Frame], path: Path, overlap: bool = False) -> int:
     """The frames as a tar shard at ``path``, written to a temporary file and renamed, so the
-    shard exists whole or not at all."""
+    shard exists whole or not at all (``overlap``: see ``write_tar``)."""
 
     def write(tmp: Path) -> int:
         with open(tmp, "wb") as fh:
-            return write_tar(frames, fh)
+            return write_tar(frames, fh, overlap)
 
     return atomic_write(path, write)
 

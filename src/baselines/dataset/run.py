@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import multiprocessing as mp
+import os
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -77,10 +78,10 @@ def prepare(spec: PerceptionSpec, out: Path, seed: int, frames: int) -> tuple[in
     return shards, todo
 
 
-def _work(args: tuple[PerceptionSpec, int, int, str]) -> tuple[int, int, float]:
-    spec, seed, i, out = args
+def _work(args: tuple[PerceptionSpec, int, int, str, bool]) -> tuple[int, int, float]:
+    spec, seed, i, out, overlap = args
     t0 = time.perf_counter()
-    n = write_shard(shard_frames(spec, seed, i), Path(out) / shard_name(i))
+    n = write_shard(shard_frames(spec, seed, i), Path(out) / shard_name(i), overlap)
     return i, n, time.perf_counter() - t0
 
 
@@ -109,7 +110,10 @@ def generate(
     out = Path(out)
     fresh = not out.exists()
     shards, todo = prepare(spec, out, seed, frames)
-    jobs = [(spec, seed, i, str(out)) for i in todo]
+    procs = 1 if workers == 1 or len(todo) <= 1 else min(workers, len(todo))
+    # a core the workers leave idle encodes each frame while the next one renders
+    overlap = procs < (os.cpu_count() or 1)
+    jobs = [(spec, seed, i, str(out), overlap) for i in todo]
     written = 0
     try:
         with tqdm(total=len(todo) * spec.frames_per_shard, unit="frame", desc="dataset") as bar:
