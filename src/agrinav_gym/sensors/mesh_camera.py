@@ -193,6 +193,7 @@ class MeshCamera(Lighting):
         if self._work is None:  # kept: fresh 40 MB a frame would be page faults every frame
             self._work = raster_view.FrameBuffers(n)
         vl, vr, vc, left, col, bad = self._work.parts()
+        scratch = self._work.stereo
         if labels:  # the label outputs, fresh each frame, are written where they are resolved
             left = replace(left, label=np.empty(n, np.uint8), plant=np.empty(n, np.int32))
             if rgb:
@@ -220,7 +221,7 @@ class MeshCamera(Lighting):
                 noise[0] = rng.standard_normal(n)  # every pixel: the ray-cast path's stream
             geo.resolve(cam, fwd, vl, left, w, h, True, self._robot_hits("depth"), r0, r1)
             if stereo:
-                geo.stereo_prepare(w, h, self.fx, c.baseline, left, fwd, r0, r1)
+                geo.stereo_prepare(w, h, self.fx, c.baseline, left, fwd, scratch, r0, r1)
             if rgb:
                 geo.resolve(cam_c, fwd_c, vc, col, w, h, False, self._robot_hits("color"), r0, r1)
 
@@ -238,8 +239,9 @@ class MeshCamera(Lighting):
         def finish(r0: int, r1: int) -> None:
             if stereo:
                 geo.stereo(
-                    cam, fwd, w, h, c.baseline, d455.NEAREST_OCCLUDER, left, vl, vr, bad, r0, r1
-                )
+                    cam, fwd, w, h, c.baseline, d455.NEAREST_OCCLUDER, left, vl, vr, scratch,
+                    bad, r0, r1,
+                )  # fmt: skip
             raster_view.finish_depth(
                 left, fwd, noise[0], k_sigma, c.min_range, c.max_range, bad, labels, depth,
                 r0 * w, r1 * w,

@@ -49,6 +49,7 @@ class VisBuffer:
     frames: int = 0
     seconds: float = 0.0  # drawing this frame (both bands)
     cost: dict[bool, float] = field(default_factory=dict)  # smoothed seconds, by ``hiz``
+    lock: threading.Lock = field(default_factory=threading.Lock, repr=False)  # for ``seconds``
 
     PROBE = 8
 
@@ -148,7 +149,6 @@ class SceneGeometry:
                 self._tex += [img, uv]
                 self.tex[2 * k : 2 * k + 2] = (img.ctypes.data, uv.ctypes.data)
                 self.tex_hw[2 * k : 2 * k + 2] = img.shape[:2]
-        self._scratch = np.empty(0)
         self._near_ids: NDArray[np.int32] | None = None
         self.use(np.zeros(0, np.int32), np.zeros((0, 12), np.float32))
 
@@ -196,7 +196,8 @@ class SceneGeometry:
         )  # fmt: skip
         if ok < 0:
             raise MemoryError("rasteriser: out of memory")
-        vb.seconds += time.perf_counter() - t0  # both bands: what the view costs the CPU
+        with vb.lock:  # both bands, drawn at once: what the view costs the CPU
+            vb.seconds += time.perf_counter() - t0
 
     def resolve(
         self,
@@ -246,18 +247,18 @@ class SceneGeometry:
         baseline: float,
         left: Resolved,
         forward: FloatArray,
+        scratch: FloatArray,
         r0: int,
         r1: int,
     ) -> None:
-        if self._scratch.size < 3 * w * h:
-            self._scratch = np.empty(3 * w * h)
+        """Rows r0..r1 of ``scratch`` (3 h·w: FrameBuffers.stereo) for ``stereo``."""
         native.require("the rasteriser").stereo_prepare(
             w,
             fx,
             baseline,
             left.t.ctypes.data,
             forward.ctypes.data,
-            self._scratch.ctypes.data,
+            scratch.ctypes.data,
             w * h,
             r0,
             r1,
@@ -274,12 +275,13 @@ class SceneGeometry:
         left: Resolved,
         left_vb: VisBuffer,
         right: VisBuffer,
+        scratch: FloatArray,
         bad: NDArray[np.uint8],
         r0: int,
         r1: int,
     ) -> None:
         """Rows r0..r1 of ``bad``: 1 where the stereo pair cannot match, else 0 (csrc/frame.c
-        ``stereo_invalid``, after ``stereo_prepare`` on every row)."""
+        ``stereo_invalid``, after ``stereo_prepare`` on every row into ``scratch``)."""
         ok = native.require("the rasteriser").stereo_invalid(
             cam.ctypes.data,
             w,
@@ -295,7 +297,7 @@ class SceneGeometry:
             right.prim.ctypes.data,
             self.gptr.ctypes.data,
             self.gval.ctypes.data,
-            self._scratch.ctypes.data,
+            scratch.ctypes.data,
             bad.ctypes.data,
             r0,
             r1,
@@ -464,6 +466,9 @@ class FrameBuffers:
         self.views = [new_vis(self.n) for _ in range(3)]
         self.resolved = [new_resolved(self.n) for _ in range(2)]
         self.bad = np.zeros(self.n, np.uint8)
+        # the stereo test's per-pixel inverse depth, best occluder after it and its column
+        # (stereo_prepare), made here once: both bands write into the one array
+        self.stereo = np.empty(3 * self.n)
 
     def parts(self) -> tuple[VisBuffer, VisBuffer, VisBuffer, Resolved, Resolved, Any]:
         for v in self.views:
