@@ -174,14 +174,14 @@ def _frame(
         "rows": row_lines(scn, pos, rot, cams, spec.label_range),
         "plants": plants(scn, pos, rot, cams, instance, spec.label_range),
     }
-    depth = np.array(obs["depth"], np.float32).reshape(spec.height, spec.width)
-    # copies: a frame is encoded while the env steps on, which may reuse its buffers
+    # the env hands out copies (observations.Depth), so a frame may be encoded while it steps on
+    depth = np.asarray(obs["depth"], np.float32).reshape(spec.height, spec.width)
     return Frame(
         key,
-        np.array(info["rgb"], np.uint8),
+        np.asarray(info["rgb"], np.uint8),
         depth,
-        np.array(info["segmentation"], np.uint8),
-        instance.copy(),
+        np.asarray(info["segmentation"], np.uint8),
+        instance,
         labels,
     )
 
@@ -221,6 +221,23 @@ def _encode(f: Frame) -> list[tuple[str, bytes]]:
     ]
 
 
+def _encoded(frames: Iterator[Frame], overlap: bool) -> Iterator[list[tuple[str, bytes]]]:
+    """Each frame's members, in frame order; with ``overlap`` frame k is encoded in a second
+    thread while frame k + 1 is made."""
+    if not overlap:
+        yield from map(_encode, frames)
+        return
+    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="agrinav-encode") as pool:
+        pending: Future[list[tuple[str, bytes]]] | None = None
+        for f in frames:
+            job = pool.submit(_encode, f)
+            if pending is not None:
+                yield pending.result()
+            pending = job
+        if pending is not None:
+            yield pending.result()
+
+
 def write_tar(frames: Iterator[Frame], fileobj: BinaryIO, overlap: bool = False) -> int:
     """WebDataset layout: ``<key>.rgb.png``, ``.depth.npy`` (float32 m, 0 invalid),
     ``.semantic.png``, ``.instance.npy`` (int32 plant id, -1 none), ``.json``. With
@@ -228,25 +245,11 @@ def write_tar(frames: Iterator[Frame], fileobj: BinaryIO, overlap: bool = False)
     the next one renders: for a core the workers leave idle. The members are written in frame
     order either way, so the bytes are the same."""
     n = 0
-    with (
-        tarfile.open(fileobj=fileobj, mode="w", format=tarfile.USTAR_FORMAT) as tar,
-        ThreadPoolExecutor(max_workers=1, thread_name_prefix="agrinav-encode") as pool,
-    ):
-        pending: Future[list[tuple[str, bytes]]] | None = None
-        for f in frames:
-            if not overlap:
-                for name, data in _encode(f):
-                    _add(tar, name, data)
-                n += 1
-                continue
-            job = pool.submit(_encode, f)
-            if pending is not None:
-                for name, data in pending.result():
-                    _add(tar, name, data)
-            pending, n = job, n + 1
-        if pending is not None:
-            for name, data in pending.result():
+    with tarfile.open(fileobj=fileobj, mode="w", format=tarfile.USTAR_FORMAT) as tar:
+        for members in _encoded(frames, overlap):
+            for name, data in members:
                 _add(tar, name, data)
+            n += 1
     return n
 
 

@@ -110,7 +110,7 @@ def generate(
     out = Path(out)
     fresh = not out.exists()
     shards, todo = prepare(spec, out, seed, frames)
-    procs = 1 if workers == 1 or len(todo) <= 1 else min(workers, len(todo))
+    procs = max(1, min(workers, len(todo)))
     # a core the workers leave idle encodes each frame while the next one renders
     overlap = procs < (os.cpu_count() or 1)
     jobs = [(spec, seed, i, str(out), overlap) for i in todo]
@@ -124,14 +124,14 @@ def generate(
                     save_shard(data, out / shard_name(i))
                     written += n
                     bar.update(n)
-            elif workers == 1 or len(jobs) <= 1:
+            elif procs == 1:
                 results = map(_work, jobs)
                 for _, n, _ in results:
                     written += n
                     bar.update(n)
             else:
                 ctx = mp.get_context("spawn")  # pybullet and Embree state must not be forked
-                with ctx.Pool(min(workers, len(jobs))) as pool:
+                with ctx.Pool(procs) as pool:
                     for _, n, _ in pool.imap_unordered(_work, jobs):
                         written += n
                         bar.update(n)
