@@ -104,7 +104,8 @@ class MeshScene:
         self._n_ground = self._n_plants + self.nx * self.ny
         self._statics = 0
         self._last_view: tuple[FloatArray, FloatArray] | None = None  # hull edge normals, offsets
-        self._near: tuple[frozenset[int], NDArray[np.int32], F32] | None = None
+        # instances_near's last answer: its tiles, plant ids, transforms and hull edges
+        self._near: tuple[frozenset[int], NDArray[np.int32], F32, Any] | None = None
         # the height grid as the compiled refinement reads it: (heights, pointers, values)
         self._grid: tuple[FloatArray, NDArray[np.int64], FloatArray] | None = None
         self.tiles_built = 0
@@ -176,12 +177,8 @@ class MeshScene:
     def view(self, xy: FloatArray) -> None:
         """Attach exactly the tiles a view spanning the world points ``xy`` (k, 2) can reach."""
         pts = np.asarray(xy, np.float64).reshape(-1, 2)
-        if self._last_view is not None:
-            # the attached tiles cover the last hull grown by MARGIN: enough while the new
-            # points stay within half of that
-            nrm, off = self._last_view
-            if len(off) == 0 or (pts @ nrm.T <= off + 0.5 * MARGIN).all():
-                return
+        if self._last_view is not None and _still_covered(pts, self._last_view):
+            return
         hull = convex_hull(pts)
         self._last_view = _edges(hull)
         want = self._tiles_near(hull, self.reach + MARGIN)
@@ -210,10 +207,15 @@ class MeshScene:
     def instances_near(self, xy: FloatArray) -> tuple[NDArray[np.int32], F32]:
         """Plant ids and transforms (n, 12) of the tiles a view spanning the world points ``xy``
         can reach (those ``view`` would attach), for the rasteriser: no Embree scene is built.
-        The arrays are reused while the set of tiles stays the same."""
-        hull = convex_hull(np.asarray(xy, np.float64).reshape(-1, 2))
+        The arrays are reused while the set of tiles stays the same, and without a look while
+        the view stays within the last one's margin (as ``view``)."""
+        pts = np.asarray(xy, np.float64).reshape(-1, 2)
+        if self._near is not None and _still_covered(pts, self._near[3]):
+            return self._near[1], self._near[2]
+        hull = convex_hull(pts)
         want = frozenset(self._tiles_near(hull, self.reach + MARGIN))
         if self._near is not None and self._near[0] == want:
+            self._near = (*self._near[:3], _edges(hull))
             return self._near[1], self._near[2]
         tiles = [self._tile(k) for k in sorted(want)]
         self._evict(self._attached | want)
@@ -223,7 +225,7 @@ class MeshScene:
             if len(ids)
             else np.zeros((0, 12), np.float32)
         )
-        self._near = (want, ids, xfm)
+        self._near = (want, ids, xfm, _edges(hull))
         return ids, xfm
 
     def _evict(self, keep: set[int] | frozenset[int]) -> None:
@@ -356,6 +358,13 @@ def _grid_faces(h: int, w: int) -> NDArray[np.uint32]:
         ).astype(np.uint32)
         _FACES[(h, w)] = f
     return f
+
+
+def _still_covered(pts: FloatArray, edges: tuple[FloatArray, FloatArray]) -> bool:
+    """Whether tiles chosen for a hull (its ``_edges``) grown by MARGIN still serve a view
+    through ``pts``: enough while the points stay within half of that margin."""
+    nrm, off = edges
+    return len(off) == 0 or bool((pts @ nrm.T <= off + 0.5 * MARGIN).all())
 
 
 def _edges(hull: FloatArray) -> tuple[FloatArray, FloatArray]:
