@@ -228,9 +228,9 @@ class ProxyGeometry:
         self.bnx, self.bny = bnx, bny
         n = len(plants.radius)
         # one record per cylinder: x, y, bottom, top, radius
-        self.cyl = np.zeros((max(n, 1), 5))
+        cyl = np.zeros((max(n, 1), 5))
         if n:
-            self.cyl[:] = np.column_stack([plants.xy, plants.z, plants.top, plants.radius])
+            cyl[:] = np.column_stack([plants.xy, plants.z, plants.top, plants.radius])
         self.weed = plants.is_weed
         self.ztop = float(plants.top.max()) if n else -np.inf  # the tallest plant
         g = self.CELL
@@ -263,8 +263,8 @@ class ProxyGeometry:
             self.gnx = self.gny = 0
             self.items = np.zeros(1, np.int32)
             self.start = np.zeros(2, np.int32)
-        # the records again in cell order: a cell's cylinders are read one after another
-        self.item_cyl = np.ascontiguousarray(self.cyl[self.items])
+        # the records in cell order (a cell's cylinders are read one after another)
+        self.item_cyl = np.ascontiguousarray(cyl[self.items])
 
     def serves(self, terrain: Terrain, plants: PlantField) -> bool:
         return self.terrain is terrain and self.plants is plants
