@@ -67,6 +67,64 @@ static inline double refine(const geom_t *g, const double *o, const double *d, d
     return refine_loop(g, o, d, t);
 }
 
+#ifdef AGRINAV_AVX2
+/* resolve_view with AVX2, row by row: the row resolved at once, its terrain pixels' first
+ * Newton step together (refine_loop where that step is not enough, as refine does), then the
+ * robot's hits laid over it. The same numbers as the pixel-by-pixel loop. */
+static int resolve_rows_avx2(const cam_t *c, const geom_t *g, const double *ab, int w,
+                             const double *fwd, const float *iz, const int32_t *inst,
+                             const int32_t *vprim, const int32_t *slot_plant,
+                             const uint8_t *proto_label, int refine_terrain, const double *robot_t,
+                             const int32_t *robot_prim, double *t_out, uint8_t *label,
+                             int32_t *plant, int32_t *proto, int32_t *prim, int row0, int row1) {
+    /* a row's terrain pixels: column, then (packed) length before and after the step, ray
+     * term, cosine; the prototypes' classes widened for the gathers */
+    int32_t *us = (int32_t *)malloc(sizeof(int32_t) * (size_t)w);
+    double *tin = (double *)malloc(sizeof(double) * 4 * (size_t)w);
+    uint8_t *ok = (uint8_t *)malloc((size_t)w);
+    size_t np = (size_t)(g->n_protos > 0 ? g->n_protos : 1);
+    int32_t *lab32 = (int32_t *)malloc(sizeof(int32_t) * np);
+    if (!us || !tin || !ok || !lab32) {
+        free(us), free(tin), free(ok), free(lab32);
+        return -1;
+    }
+    double *tout = tin + w, *pa = tin + 2 * w, *pf = tin + 3 * w;
+    lab32[0] = CLS_OTHER;
+    for (int i = 0; i < g->n_protos; i++) lab32[i] = proto_label[i];
+    int32_t none = -1; /* slot_plant when there are no slots (slot 0 is read, never used) */
+    step_par_t sp = {.cam = *c, .gx0 = g->gx0, .gy0 = g->gy0, .inv_s = g->inv_s,
+                     .umax = g->nx - 1.0, .vmax = g->ny - 1.0, .nx = g->nx, .heights = g->heights};
+    const int refine = refine_terrain && g->heights != NULL && g->nx >= 2 && g->ny >= 2;
+    for (int v = row0; v < row1; v++) {
+        size_t r = (size_t)v * w;
+        resolve_row_avx2(w, inst + r, iz + r, fwd + r, vprim + r, g->slot_proto,
+                         slot_plant ? slot_plant : &none, lab32, t_out + r, label + r, plant + r,
+                         proto + r, prim + r);
+        int n = 0;
+        for (int u = 0; refine && u < w; u++)
+            if (inst[r + u] == VB_TERRAIN)
+                us[n] = u, tin[n] = t_out[r + u], pa[n] = ab[u], pf[n++] = fwd[r + u];
+        if (n) step_avx2(&sp, n, pa, ab[c->w + v], pf, tin, tout, ok);
+        for (int i = 0; i < n; i++) {
+            double t = tout[i];
+            if (!ok[i]) {
+                double d[3];
+                cam_ray_f(c, pa[i], ab[c->w + v], pf[i], d);
+                t = refine_loop(g, c->o, d, tin[i]);
+            }
+            t_out[r + us[i]] = t;
+        }
+        for (size_t k = r; robot_t && k < r + w; k++)
+            if (robot_t[k] < t_out[k]) {
+                t_out[k] = robot_t[k], label[k] = CLS_ROBOT, plant[k] = -1;
+                proto[k] = -1, prim[k] = robot_prim[k];
+            }
+    }
+    free(us), free(tin), free(ok), free(lab32);
+    return 0;
+}
+#endif
+
 /* Per pixel of a visibility buffer: ray length t (inf: none), class, plant id (-1), prototype
  * (-1) and triangle. ``refine`` moves terrain hits onto the bilinear surface; the robot's own
  * constant hits (robot_t, robot_prim; NULL: none in view) win where nearer. Returns 0, or -1
@@ -82,70 +140,19 @@ EXPORT int resolve_view(const double *cam, int w, int h, const int64_t *gptr,
     geom_t g;
     geom_from(&g, gptr, gval);
     double *ab = ray_terms(&c);
-    /* per row: the terrain pixels to refine, their ray terms, cosines and lengths before and
-     * after the first step */
-    int32_t *us = (int32_t *)malloc(sizeof(int32_t) * (size_t)w);
-    double *tin = (double *)malloc(sizeof(double) * 4 * (size_t)w);
-    uint8_t *ok = (uint8_t *)malloc((size_t)w);
-    if (!ab || !us || !tin || !ok) {
-        free(ab), free(us), free(tin), free(ok);
-        return -1;
-    }
-    step_par_t sp = {.gx0 = g.gx0, .gy0 = g.gy0, .inv_s = g.inv_s, .umax = g.nx - 1.0,
-                     .vmax = g.ny - 1.0, .nx = g.nx, .heights = g.heights};
-    for (int i = 0; i < 3; i++) sp.o[i] = c.o[i];
-    for (int i = 0; i < 9; i++) sp.r[i] = c.r[i];
-    (void)sp;
-    const int grid = g.heights != NULL && g.nx >= 2 && g.ny >= 2;
-    /* with AVX2 a row is resolved at once, its terrain pixels take the first Newton step
-     * together, and the robot's hits are laid over it; else pixel by pixel */
-    const int batch = cpu_has_avx2();
-    int32_t *lab32 = NULL, none = -1;
-    (void)none;
-    if (batch) {
-        lab32 = (int32_t *)malloc(sizeof(int32_t) * (size_t)(g.n_protos > 0 ? g.n_protos : 1));
-        if (!lab32) {
-            free(ab), free(us), free(tin), free(ok);
-            return -1;
-        }
-        lab32[0] = CLS_OTHER;
-        for (int i = 0; i < g.n_protos; i++) lab32[i] = proto_label[i];
-    }
-    for (int v = row0; v < row1; v++) {
+    if (!ab) return -1;
+    int ret = 0;
 #ifdef AGRINAV_AVX2
-        if (batch) {
-            size_t r = (size_t)v * w;
-            resolve_row_avx2(w, inst + r, iz + r, fwd + r, vprim + r, g.slot_proto,
-                             slot_plant ? slot_plant : &none, lab32, t_out + r, label + r,
-                             plant + r, proto + r, prim + r);
-            int n = 0;
-            if (refine_terrain && grid) {
-                for (int u = 0; u < w; u++)
-                    if (inst[r + u] == VB_TERRAIN)
-                        us[n] = u, tin[n] = t_out[r + u], tin[2 * w + n] = ab[u],
-                        tin[3 * w + n++] = fwd[r + u];
-                double *tout = tin + w;
-                if (n) step_avx2(&sp, n, tin + 2 * w, ab[w + v], tin + 3 * w, tin, tout, ok);
-                for (int i = 0; i < n; i++) {
-                    size_t k = r + us[i];
-                    double t = tout[i];
-                    if (!ok[i]) {
-                        double d[3];
-                        cam_ray_f(&c, ab[us[i]], ab[w + v], fwd[k], d);
-                        t = refine_loop(&g, c.o, d, tin[i]);
-                    }
-                    t_out[k] = t;
-                }
-            }
-            if (robot_t)
-                for (size_t k = r; k < r + w; k++)
-                    if (robot_t[k] < t_out[k]) {
-                        t_out[k] = robot_t[k], label[k] = CLS_ROBOT, plant[k] = -1;
-                        proto[k] = -1, prim[k] = robot_prim[k];
-                    }
-            continue;
-        }
+    if (cpu_has_avx2()) {
+        ret = resolve_rows_avx2(&c, &g, ab, w, fwd, iz, inst, vprim, slot_plant, proto_label,
+                                refine_terrain, robot_t, robot_prim, t_out, label, plant, proto,
+                                prim, row0, row1);
+        free(ab);
+        return ret;
+    }
 #endif
+    const int refine_ok = refine_terrain && g.heights != NULL && g.nx >= 2 && g.ny >= 2;
+    for (int v = row0; v < row1; v++)
         for (int u = 0; u < w; u++) {
             size_t k = (size_t)v * w + u;
             double t = INFINITY;
@@ -156,7 +163,7 @@ EXPORT int resolve_view(const double *cam, int w, int h, const int64_t *gptr,
                 t = 1.0 / ((double)iz[k] * fwd[k]);
                 if (s == VB_TERRAIN) {
                     lab = CLS_SOIL;
-                    if (refine_terrain && grid) {
+                    if (refine_ok) {
                         double d[3];
                         cam_ray_f(&c, ab[u], ab[w + v], fwd[k], d);
                         t = refine(&g, c.o, d, t);
@@ -174,9 +181,8 @@ EXPORT int resolve_view(const double *cam, int w, int h, const int64_t *gptr,
             }
             t_out[k] = t, label[k] = lab, plant[k] = pl, proto[k] = pr, prim[k] = tri;
         }
-    }
-    free(ab), free(us), free(tin), free(ok), free(lab32);
-    return 0;
+    free(ab);
+    return ret;
 }
 
 /* A segment (from the right imager R along seg, to t = tfar) tested against triangles once
@@ -222,25 +228,9 @@ static int seg_test(seg_test_t *s, int32_t si, int32_t sp) {
     return th > 0.0 && th <= s->tfar;
 }
 
-/* Which pixels the stereo pair cannot match (sensors/d455.py): left of the right imager's
- * image, or in its occlusion shadow. Candidates for the shadow come from the epipolar test on
- * the depth image (d455.shadow_candidates, the same expression; ``stereo_prepare`` first, on
- * every row, since a row reads the rows beside it); each is then decided by
- * intersecting the segment from the right imager to the point (stopping 1 cm + 0.2 % short of
- * it, as the ray-cast path does) with the triangles that the right imager's own rasterised view
- * shows at the four pixels of its row around the point's image there. The segment passes
- * through the right imager's centre, so an occluder covers that image point: one wider than a
- * pixel there is seen at one of the four unless a nearer surface hides it at all of them.
- * Candidates whose two right-view pixels around that image point both show the point's own
- * triangle or nothing nearer than the point are seen (the ray lies between those two rays).
- * Where one of those surfaces is nearer than the point, the triangles sharing an edge with
- * its triangle are tested as well: a mesh's quads split along a diagonal leave slivers of
- * their second triangle, narrower than a pixel, between the pixel centres of a row. The
- * triangles the left view shows where the epipolar test found its nearest sample (on the
- * point's row and the rows beside it) are tested too: there the segment passes behind the
- * surface the left imager sees. What can still slip through is a whole occluder narrower than
- * a pixel in both views. ``scratch`` holds 3 w h doubles (``stereo_prepare``). Returns 0, or
- * -1 when out of memory. */
+/* The stereo test's per-row preparation (``scratch``: 3 w h doubles): inverse depth, and for
+ * each pixel the best occluder candidate after it along the row (the maximum over u' > u of
+ * 1/z(u') - u'/(f B)) and its column. Every row first: stereo_invalid reads the rows beside. */
 EXPORT void stereo_prepare(int w, double fx, double baseline, const double *t,
                            const double *fwd, double *scratch, int n, int row0, int row1) {
     const double ifb = 1.0 / (fx * baseline);
@@ -264,6 +254,25 @@ EXPORT void stereo_prepare(int w, double fx, double baseline, const double *t,
     }
 }
 
+/* Which pixels the stereo pair cannot match (sensors/d455.py): left of the right imager's
+ * image, or in its occlusion shadow. Candidates for the shadow come from the epipolar test on
+ * the depth image (d455.shadow_candidates, the same expression; ``stereo_prepare`` first, on
+ * every row, since a row reads the rows beside it); each is then decided by
+ * intersecting the segment from the right imager to the point (stopping 1 cm + 0.2 % short of
+ * it, as the ray-cast path does) with the triangles that the right imager's own rasterised view
+ * shows at the four pixels of its row around the point's image there. The segment passes
+ * through the right imager's centre, so an occluder covers that image point: one wider than a
+ * pixel there is seen at one of the four unless a nearer surface hides it at all of them.
+ * Candidates whose two right-view pixels around that image point both show the point's own
+ * triangle or nothing nearer than the point are seen (the ray lies between those two rays).
+ * Where one of those surfaces is nearer than the point, the triangles sharing an edge with
+ * its triangle are tested as well: a mesh's quads split along a diagonal leave slivers of
+ * their second triangle, narrower than a pixel, between the pixel centres of a row. The
+ * triangles the left view shows where the epipolar test found its nearest sample (on the
+ * point's row and the rows beside it) are tested too: there the segment passes behind the
+ * surface the left imager sees. What can still slip through is a whole occluder narrower than
+ * a pixel in both views. ``scratch`` holds 3 w h doubles (``stereo_prepare``). Returns 0, or
+ * -1 when out of memory. */
 EXPORT int stereo_invalid(const double *cam, int w, int h, double baseline, double nearest,
                            const double *t, const double *fwd, const int32_t *linst,
                            const int32_t *lprim, const float *riz, const int32_t *rinst, const int32_t *rprim,
@@ -286,35 +295,21 @@ EXPORT int stereo_invalid(const double *cam, int w, int h, double baseline, doub
     /* the right imager's centre: B to the right of the depth origin (-y in the camera) */
     double R[3] = {c.o[0] - baseline * c.r[3], c.o[1] - baseline * c.r[4],
                    c.o[2] - baseline * c.r[5]};
-    const int batch = cpu_has_avx2();
-    for (int v = row0; v < row1; v++) {
+    void (*first)(int, const double *, const double *, const double *, const double *, double,
+                  double, double, uint8_t *) = stereo_row;
 #ifdef AGRINAV_AVX2
-        if (batch) { /* the first test for the whole row at once, into bad[] */
-            const double *af = after + (size_t)v * w;
-            stereo_row_avx2(w, inv + (size_t)v * w, af, v > 0 ? af - w : af,
-                            v < h - 1 ? af + w : af, fb, ifb, inear, bad + (size_t)v * w);
-        }
+    if (cpu_has_avx2()) first = stereo_row_avx2;
 #endif
+    for (int v = row0; v < row1; v++) {
+        /* the first test for the whole row, into bad[]; the candidates (2) are decided below */
+        const double *af = after + (size_t)v * w;
+        first(w, inv + (size_t)v * w, af, v > 0 ? af - w : af, v < h - 1 ? af + w : af, fb, ifb,
+              inear, bad + (size_t)v * w);
         for (int u = 0; u < w; u++) {
             size_t k = (size_t)v * w + u;
+            if (bad[k] != 2) continue; /* 1: outside the right imager; 0: seen */
+            bad[k] = 0;
             double iv = inv[k];
-            if (batch) {
-                if (bad[k] != 2) continue; /* 1: outside the right imager; 0: seen */
-                bad[k] = 0;
-            } else {
-                bad[k] = 0;
-                if (iv <= 0) continue;
-                if (u - fb * iv < -0.5) { /* d455.outside_right_imager */
-                    bad[k] = 1;
-                    continue;
-                }
-                double near = after[k];
-                if (v > 0 && after[k - w] > near) near = after[k - w];
-                if (v < h - 1 && after[k + w] > near) near = after[k + w];
-                int occluder = near >= iv - (u + 0.5) * ifb;
-                int leaves = iv + (w - 1 - u) * ifb < inear;
-                if (!occluder && !leaves) continue;
-            }
             int k0 = (int)ifloor(u - fb * iv);
             /* Seen: the rays of the two right-view pixels around the point's image both meet
              * the point's own triangle first, or nothing nearer than the point; the ray to the
@@ -415,43 +410,11 @@ enum {
     SH_TEXEL = 16         /* soil texel size */
 };
 
-static inline void lambert(const double *alb, double nx, double ny, double nz, const double *d,
-                           const double *light, double ambient, double *out) {
-    /* the unit normal turned towards the viewer: only its sign and the sun's cosine matter */
-    float len = sqrtf((float)(nx * nx + ny * ny + nz * nz)); /* shading: float is plenty */
-    double il = 1.0f / (len < 1e-12f ? 1e-12f : len);
-    double side = -(nx * d[0] + ny * d[1] + nz * d[2]);
-    double flip = side < 0 ? -il : il;
-    double cs = flip * (nx * light[0] + ny * light[1] + nz * light[2]);
-    if (cs < 0) cs = 0;
-    if (cs > 1) cs = 1;
-    double lit = ambient + (1.0 - ambient) * cs;
-    for (int i = 0; i < 3; i++) out[i] = alb[i] * lit;
-}
-
-static inline void haze(double *rgb, double dist, double inv3far, const double *horizon) {
-    double a = dist * inv3far;
-    if (a < 0) a = 0;
-    if (a > 0.6) a = 0.6;
-    for (int i = 0; i < 3; i++) rgb[i] = rgb[i] * (1 - a) + horizon[i] * a;
-}
-
 /* floor(x) mod n, n a power of two (the soil texture's 512) */
 static inline int64_t wrap(double x, int64_t n) { return ifloor(x) & (n - 1); }
 
-/* texel (row j, column i) of a texture stored in 8 x 8 tiles (raster_view.tiled_texture): a
- * pixel's neighbours land in the same few cache lines whichever way the view runs */
-static inline size_t tiled(int64_t j, int64_t i, int64_t n) {
-    return (size_t)((((j >> 3) * (n >> 3) + (i >> 3)) << 6) + ((j & 7) << 3) + (i & 7));
-}
-
 #define SKY_STEPS 4096
 
-static inline uint8_t to_u8(double x) {
-    if (!(x > 0)) x = 0;
-    if (x > 1) x = 1;
-    return (uint8_t)(x * 255.0 + 0.5);
-}
 
 /* Linear RGB of every pixel of a resolved colour view, as MeshCamera.shade: sky, distant
  * ground in haze, textured soil lit through the bilinear normal, plants by face colour or
@@ -496,21 +459,19 @@ EXPORT void shade_view(const double *cam, int w, int h, const int64_t *gptr, con
     }
     int32_t *up = us + w, *fl = us + 2 * (size_t)w, *sl = us + 3 * (size_t)w;
     uint8_t *pc = sc + 3 * (size_t)w, *qc = sc + 6 * (size_t)w;
-    plant_par_t pp = {.face_normal = face_normal, .xfm = g.xfm, .ambient = ambient, .i3f = i3f};
+    plant_par_t pp = {.cam = c, .face_normal = face_normal, .xfm = g.xfm, .ambient = ambient,
+                      .i3f = i3f};
     for (int i = 0; i < 3; i++) pp.light[i] = light[i], pp.horizon[i] = horizon[i];
-    for (int i = 0; i < 9; i++) pp.r[i] = c.r[i];
     (void)pp, (void)qc;
 
-    soil_par_t sp = {.org = {par[SH_ORIGIN], par[SH_ORIGIN + 1]}, .itx = itx, .itx7 = itx7,
-                     .ca = ca, .sa = sa, .soil_n = soil_n, .inv_n = 1.0 / soil_n, .soil = soil,
+    soil_par_t sp = {.cam = c, .org = {par[SH_ORIGIN], par[SH_ORIGIN + 1]}, .itx = itx,
+                     .itx7 = itx7, .ca = ca, .sa = sa, .soil_n = soil_n, .inv_n = 1.0 / soil_n, .soil = soil,
                      .gx0 = g.gx0, .gy0 = g.gy0, .inv_s = g.inv_s, .umax = g.nx - 1.0,
                      .vmax = g.ny - 1.0, .nx = g.nx, .jmax = g.nx - 2, .imax = g.ny - 2,
                      .heights = g.heights, .ambient = ambient, .i3f = i3f};
     for (int i = 0; i < 3; i++) {
-        sp.o[i] = c.o[i], sp.light[i] = light[i], sp.horizon[i] = horizon[i];
-        sp.rgb[i] = par[SH_SOIL + i];
+        sp.light[i] = light[i], sp.horizon[i] = horizon[i], sp.rgb[i] = par[SH_SOIL + i];
     }
-    for (int i = 0; i < 9; i++) sp.r[i] = c.r[i];
     (void)sp;
     const int batch = cpu_has_avx2(); /* else pixel by pixel, as below */
     for (int v = row0; v < row1; v++) {
@@ -553,7 +514,7 @@ EXPORT void shade_view(const double *cam, int w, int h, const int64_t *gptr, con
                 int64_t i1 = wrap(x * itx, soil_n), j1 = wrap(y * itx, soil_n);
                 double xr = ca * x - sa * y, yr = sa * x + ca * y;
                 int64_t i2 = wrap(xr * itx7, soil_n), j2 = wrap(yr * itx7, soil_n);
-                float m = soil[tiled(j1, i1, soil_n)] * soil[tiled(j2, i2, soil_n)];
+                float m = soil[tiled((int)j1, (int)i1, soil_n)] * soil[tiled((int)j2, (int)i2, soil_n)];
                 double alb[3] = {par[SH_SOIL] * m, par[SH_SOIL + 1] * m, par[SH_SOIL + 2] * m};
                 double hx, hy;
                 slope(&g, p[0], p[1], &hx, &hy);
