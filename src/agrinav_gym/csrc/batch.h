@@ -3,9 +3,10 @@
  * resolve, the first Newton step onto the bilinear terrain, the stereo pair's epipolar test,
  * the soil's and the untextured plants' colour. Elsewhere (and with AGRINAV_AVX2=0) frame.c
  * runs its pixel-by-pixel twins: batched without gathers or a rounding floor these loops were
- * slower than scalar code (measured).
- * -std=c99 keeps floating-point contraction off and each loop repeats its twin's operations
- * in order, so the two give bit-identical images (tested).
+ * slower than scalar code (measured). Both call the same inline pieces (cam_ray_f, lambert,
+ * haze, to_u8, tiled, stereo_row); -std=c99 keeps floating-point contraction off and the rest
+ * of each loop repeats its twin's operations in order, so the two give bit-identical images
+ * (tested).
  */
 #ifndef AGRINAV_BATCH_H
 #define AGRINAV_BATCH_H
