@@ -215,9 +215,9 @@ def test_vector_and_scalar_kernels_draw_the_same_frame(
 
 @needs_kernels
 def test_raster_noise_is_the_ray_cast_noise(maize: MeshScene) -> None:
-    """Both paths draw one standard normal per pixel from the same generator in one call: the
-    noise each adds, divided by its σ = z²·s/(f·B), is the same number in every pixel (to the
-    float32 rounding of the depths, < 1e-3 σ from 0.4 to 6 m)."""
+    """Both paths take one key from the rng and the same draw per pixel from it (pixel_noise):
+    the noise each adds, divided by its σ = z²·s/(f·B), is the same number in every pixel (to
+    the float32 rounding of the depths, < 1e-3 σ from 0.4 to 6 m)."""
     rot, pos = lane_pose(maize_scenario(maize))
     cams = {k: camera(424, 240, k) for k in ("raster", "raycast")}
     draws = {}

@@ -7,6 +7,7 @@
 
 #include "batch.h"
 #include "native.h"
+#include "pixel_noise.h"
 
 /* the column and row terms of cam_ray_f: a[u] = -(u - cx)/fx, b[v] = -(v - cy)/fy (one block) */
 static double *ray_terms(const cam_t *c) {
@@ -362,24 +363,33 @@ EXPORT int stereo_invalid(const double *cam, int w, int h, double baseline, doub
     return 0;
 }
 
-/* The depth image: noise (sigma = z^2 s / (f B), ``noise`` the standard normal draws, NULL:
- * none) on every hit, then 0 where invalid (``bad``: the stereo pair's, NULL: none); and the
- * labels cut at the far limit. */
+/* The depth image: noise (sigma = z^2 s / (f B) times pixel i's draw for the frame's ``key``,
+ * pixel_noise.h; ``tables`` NULL: none) on every valid hit, then 0 where invalid (``bad``: the
+ * stereo pair's, NULL: none); and the labels cut at the far limit. */
 EXPORT void finish_depth(int i0, int i1, const double *t, const double *fwd,
-                         const double *noise, double k_sigma, double min_range, double max_range,
-                         const uint8_t *bad, float *depth, uint8_t *label, int32_t *plant) {
+                         const double *tables, uint64_t key, double k_sigma, double min_range,
+                         double max_range, const uint8_t *bad, float *depth, uint8_t *label,
+                         int32_t *plant) {
+    pnoise_t pn = {0};
+    if (tables) pn = pn_init(tables, key);
     for (int i = i0; i < i1; i++) {
         double z = t[i] * fwd[i];
-        int hit = isfinite(z);
+        int hit = isfinite(z) && !(bad && bad[i]);
         double zn = z;
-        if (hit && noise) zn += k_sigma * z * z * noise[i];
-        int valid = hit && !(bad && bad[i]) && zn >= min_range && zn <= max_range;
+        if (hit && tables) zn += k_sigma * z * z * pn_normal(&pn, (uint64_t)i);
+        int valid = hit && zn >= min_range && zn <= max_range;
         depth[i] = valid ? (float)zn : 0.0f;
-        if (label && !(hit && z <= max_range)) {
+        if (label && !(isfinite(z) && z <= max_range)) {
             label[i] = CLS_OTHER;
             plant[i] = -1;
         }
     }
+}
+
+/* pixels i0..i1's draws for ``key`` (the ray-cast paths' and the tests') */
+EXPORT void pixel_normals(const double *tables, uint64_t key, int i0, int i1, double *out) {
+    pnoise_t pn = pn_init(tables, key);
+    for (int i = i0; i < i1; i++) out[i - i0] = pn_normal(&pn, (uint64_t)i);
 }
 
 /* the bilinear surface's x, y derivatives (``bilinear``'s), without its clamps inside the grid */

@@ -31,7 +31,7 @@ from ..interface import CameraModel
 from ..sim.mesh_scene import MeshScene
 from ..sim.plants import PlantField
 from ..sim.world import SOIL_RGB
-from . import native
+from . import native, pixel_noise
 from .embree import Scene
 from .shading import Lighting
 
@@ -92,16 +92,17 @@ class DepthCamera(Lighting):
     ) -> DepthFrame:
         cfg = self.cfg
         o = pos + rot @ self.mount
-        noise = None
+        key = None  # one draw a frame, whatever the scene (pixel_noise)
+        if rng is not None and cfg.subpixel > 0:
+            key = pixel_noise.frame_key(rng)
         kernels = native.lib()
         if kernels is not None:  # one cast, then noise and validity in one call (finish_depth)
             g = self._proxy_geometry(terrain, plants)
             t, what = g.cast_raw(o, self.rays_body, self.t_lim, rot)
-            if rng is not None and cfg.subpixel > 0:
-                noise = rng.standard_normal(len(t))  # drawn for every pixel: same stream length
             depth = np.empty(len(t), np.float32)
             kernels.finish_depth(
-                0, len(t), t.ctypes.data, self.forward.ctypes.data, native.ptr(noise),
+                0, len(t), t.ctypes.data, self.forward.ctypes.data,
+                None if key is None else pixel_noise.TABLES.ctypes.data, key or 0,
                 cfg.subpixel / (self.f_native * cfg.baseline), cfg.min_range, cfg.max_range,
                 None, depth.ctypes.data, None, None,
             )  # fmt: skip
@@ -109,9 +110,8 @@ class DepthCamera(Lighting):
             t, lab = self.cast(o, self.rays_body @ rot.T, terrain, plants, self.t_lim)
             z = t * self.forward
             hit = np.isfinite(z)
-            if rng is not None and cfg.subpixel > 0:
-                noise = rng.standard_normal(z.shape)  # drawn for every pixel: same stream length
-                z[hit] += self.noise_sigma(z[hit]) * noise[hit]
+            if key is not None:
+                z[hit] += self.noise_sigma(z[hit]) * pixel_noise.normals(key, len(z))[hit]
             valid = hit & (z >= cfg.min_range) & (z <= cfg.max_range)
             depth = np.where(valid, z, 0.0).astype(np.float32)
         shape = (cfg.height, cfg.width)

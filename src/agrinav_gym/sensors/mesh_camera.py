@@ -28,7 +28,7 @@ from ..sim.mesh_scene import MeshScene, SceneHits, bilinear
 from ..sim.plant_meshes import OTHER, ROBOT, SOIL, Prototype, rotation_rpy, sample_texture
 from ..sim.robot_mesh import robot_prototype
 from ..sim.world import SOIL_RGB
-from . import d455, native, raster_view, shading
+from . import d455, native, pixel_noise, raster_view, shading
 from .depth import DepthFrame, corner_pixels
 from .embree import Caster, Scene, device
 from .shading import Lighting
@@ -142,8 +142,8 @@ class MeshCamera(Lighting):
             tfar = 1.0 - (0.01 + 0.002 * length) / length  # stop short of the surface itself
             bad[cand] = scene.occluded(self.right_world(rot, pos), seg, 0.0, tfar)
         zn = z.copy()
-        if rng is not None and c.subpixel > 0:
-            noise = rng.standard_normal(z.shape)  # drawn for every pixel: same stream length
+        if rng is not None and c.subpixel > 0:  # one draw a frame, whatever the scene
+            noise = pixel_noise.normals(pixel_noise.frame_key(rng), len(z))
             zn[hit] += self.noise_sigma(z[hit]) * noise[hit]
         valid = hit & ~bad & (zn >= c.min_range) & (zn <= c.max_range)
         frame = DepthFrame(np.where(valid, zn, 0.0).astype(np.float32).reshape(h, w))
@@ -198,7 +198,9 @@ class MeshCamera(Lighting):
             left = replace(left, label=np.empty(n, np.uint8), plant=np.empty(n, np.int32))
             if rgb:
                 col = replace(col, label=np.empty(n, np.uint8), plant=np.empty(n, np.int32))
-        noise: list[FloatArray | None] = [None]
+        key = None  # one draw a frame, whatever the scene; the pixels' draws in finish_depth
+        if rng is not None and c.subpixel > 0:
+            key = pixel_noise.frame_key(rng)
         bands = self._bands
 
         def draw(r0: int, r1: int) -> None:
@@ -217,8 +219,6 @@ class MeshCamera(Lighting):
                 geo.draw(cam_c, vc, w, h, r0, r1)
 
         def resolve(r0: int, r1: int) -> None:
-            if r0 == 0 and rng is not None and c.subpixel > 0:
-                noise[0] = rng.standard_normal(n)  # every pixel: the ray-cast path's stream
             geo.resolve(cam, fwd, vl, left, w, h, True, self._robot_hits("depth"), r0, r1)
             if stereo:
                 geo.stereo_prepare(w, h, self.fx, c.baseline, left, fwd, scratch, r0, r1)
@@ -243,7 +243,7 @@ class MeshCamera(Lighting):
                     bad, r0, r1,
                 )  # fmt: skip
             raster_view.finish_depth(
-                left, fwd, noise[0], k_sigma, c.min_range, c.max_range, bad, labels, depth,
+                left, fwd, key, k_sigma, c.min_range, c.max_range, bad, labels, depth,
                 r0 * w, r1 * w,
             )  # fmt: skip
             if rgb:

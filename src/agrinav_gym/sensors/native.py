@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-_vp, _i, _d = ctypes.c_void_p, ctypes.c_int, ctypes.c_double
+_vp, _i, _d, _u64 = ctypes.c_void_p, ctypes.c_int, ctypes.c_double, ctypes.c_uint64
 _SIGNATURES: dict[str, tuple[Any, list[Any]]] = {
     "proxy_cast": (
         None,
@@ -33,7 +33,8 @@ _SIGNATURES: dict[str, tuple[Any, list[Any]]] = {
     ),
     "stereo_prepare": (None, [_i, _d, _d, _vp, _vp, _vp, _i, _i, _i]),
     "stereo_invalid": (_i, [_vp, _i, _i, _d, _d] + [_vp] * 11 + [_i, _i]),
-    "finish_depth": (None, [_i, _i, _vp, _vp, _vp, _d, _d, _d, _vp, _vp, _vp, _vp]),
+    "finish_depth": (None, [_i, _i, _vp, _vp, _vp, _u64, _d, _d, _d, _vp, _vp, _vp, _vp]),
+    "pixel_normals": (None, [_vp, _u64, _i, _i, _vp]),
     "refine_rays": (None, [_i, _vp, _vp, _vp, _vp, _vp, _vp]),
     "embree_packets": (None, [_vp, _vp, _vp, _vp, ctypes.c_int64, ctypes.c_int64]),
     "shade_view": (None, [_vp, _i, _i] + [_vp] * 14 + [_i] + [_vp] * 5 + [_i, _i]),

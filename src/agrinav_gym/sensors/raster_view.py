@@ -26,7 +26,7 @@ from numpy.typing import NDArray
 from ..interface import CameraModel
 from ..sim.mesh_scene import MeshScene
 from ..sim.plant_meshes import Prototype
-from . import native, shading
+from . import native, pixel_noise, shading
 
 FloatArray = NDArray[np.float64]
 ZNEAR = 1e-3  # m: the ray casts start at the camera; nothing of the scene comes this close
@@ -414,7 +414,7 @@ def face_adjacency(vertices: NDArray[np.float32], faces: NDArray[np.uint32]) -> 
 def finish_depth(
     res: Resolved,
     forward: FloatArray,
-    noise: FloatArray | None,
+    key: int | None,
     k_sigma: float,
     min_range: float,
     max_range: float,
@@ -424,14 +424,15 @@ def finish_depth(
     i0: int,
     i1: int,
 ) -> None:
-    """Pixels i0..i1 of ``depth``: with noise, 0 where invalid; with ``labels`` cuts
-    ``res``'s labels at the far limit in place."""
+    """Pixels i0..i1 of ``depth``: with the noise of the frame's ``key`` (pixel_noise; None:
+    none), 0 where invalid; with ``labels`` cuts ``res``'s labels at the far limit in place."""
     native.require("the rasteriser").finish_depth(
         i0,
         i1,
         res.t.ctypes.data,
         forward.ctypes.data,
-        native.ptr(noise),
+        None if key is None else pixel_noise.TABLES.ctypes.data,
+        key or 0,
         k_sigma,
         min_range,
         max_range,
