@@ -3,8 +3,8 @@
  * resolve, the first Newton step onto the bilinear terrain, the stereo pair's epipolar test,
  * the soil's and the untextured plants' colour. Elsewhere (and with AGRINAV_AVX2=0) frame.c
  * runs its pixel-by-pixel twins: batched without gathers or a rounding floor these loops were
- * slower than scalar code (measured). Both call the same inline pieces (cam_ray_f, lambert,
- * haze, to_u8, tiled, stereo_row); -std=c99 keeps floating-point contraction off and the rest
+ * slower than scalar code (measured). Both call the same inline pieces (cam_ray_f, grid_cell,
+ * lambert, haze, to_u8, tiled, stereo_row); -std=c99 keeps floating-point contraction off and the rest
  * of each loop repeats its twin's operations in order, so the two give bit-identical images
  * (tested).
  */
@@ -23,8 +23,8 @@ typedef struct {
     double ca, sa;         /* the second octave's turn */
     double soil_n, inv_n;  /* texture size (a power of two) and its inverse */
     const float *soil;     /* the texture in 8 x 8 tiles (raster_view.tiled_texture) */
-    double gx0, gy0, inv_s, umax, vmax;
-    int nx, jmax, imax;    /* grid columns, the last cell's column and row */
+    double gx0, gy0, inv_s;
+    int nx, ny;
     const double *heights;
     double light[3], ambient, i3f, horizon[3], rgb[3];
 } soil_par_t;
@@ -32,8 +32,8 @@ typedef struct {
 /* what the terrain refinement needs (geom_t's grid, cam_t's ray) */
 typedef struct {
     cam_t cam;
-    double gx0, gy0, inv_s, umax, vmax; /* umax = nx - 1, vmax = ny - 1 */
-    int nx;
+    double gx0, gy0, inv_s;
+    int nx, ny;
     const double *heights;
 } step_par_t;
 
@@ -140,11 +140,11 @@ TARGET_AVX2 static void soil_avx2(const soil_par_t *P, int n, const double *rest
     const double orx = P->org[0], ory = P->org[1];
     const double itx = P->itx, itx7 = P->itx7, ca = P->ca, sa = P->sa;
     const double sn = P->soil_n, isn = P->inv_n, gx0 = P->gx0, gy0 = P->gy0, is = P->inv_s;
-    const double umax = P->umax, vmax = P->vmax, amb = P->ambient, i3f = P->i3f;
+    const double amb = P->ambient, i3f = P->i3f;
     const double light[3] = {P->light[0], P->light[1], P->light[2]};
     const double s0 = P->rgb[0], s1 = P->rgb[1], s2 = P->rgb[2];
     const double horizon[3] = {P->horizon[0], P->horizon[1], P->horizon[2]};
-    const int nx = P->nx, jmax = P->jmax, imax = P->imax, tn = (int)P->soil_n;
+    const int nx = P->nx, ny = P->ny, tn = (int)P->soil_n;
     const float *restrict soil = P->soil;
     const double *restrict hg = P->heights;
     for (int i = 0; i < n; i++) {
@@ -159,16 +159,8 @@ TARGET_AVX2 static void soil_avx2(const soil_par_t *P, int n, const double *rest
         int j2 = wrap_texel(yr * itx7, sn, isn);
         float m = soil[tiled(j1, i1, tn)] * soil[tiled(j2, i2, tn)];
         /* the bilinear surface's slope, clamped as ``bilinear`` clamps */
-        double gu = (p0 - gx0) * is, gv = (p1 - gy0) * is;
-        gu = gu < 0 ? 0.0 : gu;
-        gu = gu > umax ? umax : gu;
-        gv = gv < 0 ? 0.0 : gv;
-        gv = gv > vmax ? vmax : gv;
-        int j = (int)gu, ii = (int)gv;
-        j = j > jmax ? jmax : j;
-        ii = ii > imax ? imax : ii;
-        double fu = gu - j, fv = gv - ii;
-        int q = ii * nx + j;
+        double fu, fv;
+        int q = grid_cell((p0 - gx0) * is, (p1 - gy0) * is, nx, ny, &fu, &fv);
         double h00 = hg[q], h01 = hg[q + 1], h10 = hg[q + nx], h11 = hg[q + nx + 1];
         double ea = h01 - h00, eb = h11 - h10;
         double z0 = h00 + ea * fu, z1 = h10 + eb * fu;
@@ -188,8 +180,9 @@ TARGET_AVX2 static void step_avx2(const step_par_t *P, int n, const double *rest
                                     const double *restrict fwd, const double *restrict tin,
                                     double *restrict tout, uint8_t *restrict ok) {
     const cam_t cam = P->cam;
-    const double gx0 = P->gx0, gy0 = P->gy0, is = P->inv_s, umax = P->umax, vmax = P->vmax;
-    const int nx = P->nx, jmax = (int)umax - 1, imax = (int)vmax - 1;
+    const double gx0 = P->gx0, gy0 = P->gy0, is = P->inv_s;
+    const int nx = P->nx, ny = P->ny;
+    const double umax = nx - 1.0, vmax = ny - 1.0;
     const double *restrict hg = P->heights;
     for (int i = 0; i < n; i++) {
         double d[3], tk = tin[i];
@@ -197,15 +190,8 @@ TARGET_AVX2 static void step_avx2(const step_par_t *P, int n, const double *rest
         double px = cam.o[0] + tk * d[0], py = cam.o[1] + tk * d[1], pz = cam.o[2] + tk * d[2];
         double gu = (px - gx0) * is, gv = (py - gy0) * is;
         int inside = (gu >= 0.0) & (gv >= 0.0) & (gu < umax) & (gv < vmax);
-        /* outside: the nearest cell (the result is discarded) */
-        double cu = gu < 0 ? 0.0 : gu, cv = gv < 0 ? 0.0 : gv;
-        cu = cu > umax ? umax : cu;
-        cv = cv > vmax ? vmax : cv;
-        int j = (int)cu, ii = (int)cv;
-        j = j > jmax ? jmax : j;
-        ii = ii > imax ? imax : ii;
-        double fu = cu - j, fv = cv - ii;
-        int q = ii * nx + j;
+        double fu, fv; /* outside: the nearest cell (the result is discarded) */
+        int q = grid_cell(gu, gv, nx, ny, &fu, &fv);
         double h00 = hg[q], h01 = hg[q + 1], h10 = hg[q + nx], h11 = hg[q + nx + 1];
         double ea = h01 - h00, eb = h11 - h10;
         double z0 = h00 + ea * fu, z1 = h10 + eb * fu, dz = z1 - z0;

@@ -70,12 +70,12 @@ static inline double refine(const geom_t *g, const double *o, const double *d, d
 
 #ifdef AGRINAV_AVX2
 /* resolve_view with AVX2, row by row: the row resolved at once, its terrain pixels' first
- * Newton step together (refine_loop where that step is not enough, as refine does), then the
- * robot's hits laid over it. The same numbers as the pixel-by-pixel loop. */
+ * Newton step together where ``refine`` (refine_loop where that step is not enough, as refine
+ * does), then the robot's hits laid over it. The same numbers as the pixel-by-pixel loop. */
 static int resolve_rows_avx2(const cam_t *c, const geom_t *g, const double *ab, int w,
                              const double *fwd, const float *iz, const int32_t *inst,
                              const int32_t *vprim, const int32_t *slot_plant,
-                             const uint8_t *proto_label, int refine_terrain, const double *robot_t,
+                             const uint8_t *proto_label, int refine, const double *robot_t,
                              const int32_t *robot_prim, double *t_out, uint8_t *label,
                              int32_t *plant, int32_t *proto, int32_t *prim, int row0, int row1) {
     /* a row's terrain pixels: column, then (packed) length before and after the step, ray
@@ -93,9 +93,8 @@ static int resolve_rows_avx2(const cam_t *c, const geom_t *g, const double *ab, 
     lab32[0] = CLS_OTHER;
     for (int i = 0; i < g->n_protos; i++) lab32[i] = proto_label[i];
     int32_t none = -1; /* slot_plant when there are no slots (slot 0 is read, never used) */
-    step_par_t sp = {.cam = *c, .gx0 = g->gx0, .gy0 = g->gy0, .inv_s = g->inv_s,
-                     .umax = g->nx - 1.0, .vmax = g->ny - 1.0, .nx = g->nx, .heights = g->heights};
-    const int refine = refine_terrain && g->heights != NULL && g->nx >= 2 && g->ny >= 2;
+    step_par_t sp = {.cam = *c, .gx0 = g->gx0, .gy0 = g->gy0, .inv_s = g->inv_s, .nx = g->nx,
+                     .ny = g->ny, .heights = g->heights};
     for (int v = row0; v < row1; v++) {
         size_t r = (size_t)v * w;
         resolve_row_avx2(w, inst + r, iz + r, fwd + r, vprim + r, g->slot_proto,
@@ -142,17 +141,17 @@ EXPORT int resolve_view(const double *cam, int w, int h, const int64_t *gptr,
     geom_from(&g, gptr, gval);
     double *ab = ray_terms(&c);
     if (!ab) return -1;
+    const int refine_ok = refine_terrain && g.heights != NULL && g.nx >= 2 && g.ny >= 2;
     int ret = 0;
 #ifdef AGRINAV_AVX2
     if (cpu_has_avx2()) {
         ret = resolve_rows_avx2(&c, &g, ab, w, fwd, iz, inst, vprim, slot_plant, proto_label,
-                                refine_terrain, robot_t, robot_prim, t_out, label, plant, proto,
-                                prim, row0, row1);
+                                refine_ok, robot_t, robot_prim, t_out, label, plant, proto, prim,
+                                row0, row1);
         free(ab);
         return ret;
     }
 #endif
-    const int refine_ok = refine_terrain && g.heights != NULL && g.nx >= 2 && g.ny >= 2;
     for (int v = row0; v < row1; v++)
         for (int u = 0; u < w; u++) {
             size_t k = (size_t)v * w + u;
@@ -468,21 +467,20 @@ EXPORT void shade_view(const double *cam, int w, int h, const int64_t *gptr, con
         return;
     }
     int32_t *up = us + w, *fl = us + 2 * (size_t)w, *sl = us + 3 * (size_t)w;
-    uint8_t *pc = sc + 3 * (size_t)w, *qc = sc + 6 * (size_t)w;
+    uint8_t *pc = sc + 3 * (size_t)w;
+#ifdef AGRINAV_AVX2
+    uint8_t *qc = sc + 6 * (size_t)w;
     plant_par_t pp = {.cam = c, .face_normal = face_normal, .xfm = g.xfm, .ambient = ambient,
                       .i3f = i3f};
-    for (int i = 0; i < 3; i++) pp.light[i] = light[i], pp.horizon[i] = horizon[i];
-    (void)pp, (void)qc;
-
     soil_par_t sp = {.cam = c, .org = {par[SH_ORIGIN], par[SH_ORIGIN + 1]}, .itx = itx,
-                     .itx7 = itx7, .ca = ca, .sa = sa, .soil_n = soil_n, .inv_n = 1.0 / soil_n, .soil = soil,
-                     .gx0 = g.gx0, .gy0 = g.gy0, .inv_s = g.inv_s, .umax = g.nx - 1.0,
-                     .vmax = g.ny - 1.0, .nx = g.nx, .jmax = g.nx - 2, .imax = g.ny - 2,
-                     .heights = g.heights, .ambient = ambient, .i3f = i3f};
+                     .itx7 = itx7, .ca = ca, .sa = sa, .soil_n = soil_n, .inv_n = 1.0 / soil_n,
+                     .soil = soil, .gx0 = g.gx0, .gy0 = g.gy0, .inv_s = g.inv_s, .nx = g.nx,
+                     .ny = g.ny, .heights = g.heights, .ambient = ambient, .i3f = i3f};
     for (int i = 0; i < 3; i++) {
-        sp.light[i] = light[i], sp.horizon[i] = horizon[i], sp.rgb[i] = par[SH_SOIL + i];
+        pp.light[i] = sp.light[i] = light[i], pp.horizon[i] = sp.horizon[i] = horizon[i];
+        sp.rgb[i] = par[SH_SOIL + i];
     }
-    (void)sp;
+#endif
     const int batch = cpu_has_avx2(); /* else pixel by pixel, as below */
     for (int v = row0; v < row1; v++) {
         int ns = 0, np = 0;

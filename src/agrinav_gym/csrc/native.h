@@ -190,18 +190,28 @@ static inline double ray_triangle(const double *o, const double *d, const double
     return (e2[0] * q[0] + e2[1] * q[1] + e2[2] * q[2]) * inv;
 }
 
+/* The cell of an nx x ny height grid under grid coordinates (u, v), clamped to the grid as
+ * mesh_scene.bilinear clamps: the index of its first corner (row i, column j: i nx + j) and the
+ * position (fu, fv) in it. Also inlined into batch.h's AVX2 loops (int indices: gathers). */
+static inline int grid_cell(double u, double v, int nx, int ny, double *fu, double *fv) {
+    const double umax = nx - 1.0, vmax = ny - 1.0;
+    u = u < 0 ? 0.0 : u;
+    u = u > umax ? umax : u;
+    v = v < 0 ? 0.0 : v;
+    v = v > vmax ? vmax : v;
+    int j = (int)u, i = (int)v;
+    j = j > nx - 2 ? nx - 2 : j;
+    i = i > ny - 2 ? ny - 2 : i;
+    *fu = u - j, *fv = v - i;
+    return i * nx + j;
+}
+
 /* height and its x, y derivatives on the bilinear surface (as mesh_scene.bilinear) */
 static inline double bilinear(const geom_t *g, double x, double y, double *hx, double *hy) {
-    double u = (x - g->gx0) * g->inv_s, v = (y - g->gy0) * g->inv_s;
-    if (u < 0) u = 0;
-    if (u > g->nx - 1.0) u = g->nx - 1.0;
-    if (v < 0) v = 0;
-    if (v > g->ny - 1.0) v = g->ny - 1.0;
-    int j = (int)u, i = (int)v;
-    if (j > g->nx - 2) j = g->nx - 2;
-    if (i > g->ny - 2) i = g->ny - 2;
-    double fu = u - j, fv = v - i;
-    const double *h = g->heights + (size_t)i * g->nx + j;
+    double fu, fv;
+    const double *h =
+        g->heights + grid_cell((x - g->gx0) * g->inv_s, (y - g->gy0) * g->inv_s, g->nx, g->ny,
+                               &fu, &fv);
     double h00 = h[0], h01 = h[1], h10 = h[g->nx], h11 = h[g->nx + 1];
     double a = h01 - h00, b = h11 - h10;
     double z0 = h00 + a * fu, z1 = h10 + b * fu, dz = z1 - z0;

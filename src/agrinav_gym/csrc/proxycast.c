@@ -119,7 +119,6 @@ static double first_root(double q0, double q1, double q2, double len) {
     return -1;
 }
 
-
 /* The ray's first crossing of the bilinear surface within [lo, hi], or INFINITY. ``hmax`` is
  * the highest vertex the ray can reach: a descending ray starts where it drops below it. */
 static double terrain_hit(const double *o, const double *d, double idx, double idy, double lo,
@@ -299,4 +298,3 @@ EXPORT void proxy_cast(int n, const double *o, const double *d, const double *ro
         what[k] = id;
     }
 }
-

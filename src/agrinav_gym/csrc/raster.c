@@ -333,6 +333,20 @@ static void slot_transform(const cam_t *c, const float *x, double M[12]) {
     }
 }
 
+/* a prototype's point q (float32) through a slot's camera-space transform M */
+static inline void transform(const double M[12], const float *q, double *X, double *Y,
+                             double *Z) {
+    *X = M[0] * q[0] + M[1] * q[1] + M[2] * q[2] + M[3];
+    *Y = M[4] * q[0] + M[5] * q[1] + M[6] * q[2] + M[7];
+    *Z = M[8] * q[0] + M[9] * q[1] + M[10] * q[2] + M[11];
+}
+
+/* the radius of a bounding sphere q (centre, radius) through a transform whose linear part
+ * scales by ``scale``, grown past the float32 rounding of its vertices */
+static inline double sphere_radius(const float *q, double scale) {
+    return q[3] * scale * 1.0001 + 1e-6;
+}
+
 /* The plants in view, nearest first (what they hide is then skipped); returns -1 when out of
  * memory. The order only decides exact ties of depth, which stay deterministic. */
 static int draw_instances(const cam_t *c, const geom_t *g, vbuf_t *b, cvert_t *scratch) {
@@ -349,10 +363,8 @@ static int draw_instances(const cam_t *c, const geom_t *g, vbuf_t *b, cvert_t *s
         double M[12];
         slot_transform(c, x, M);
         double scale = sqrt((double)x[0] * x[0] + (double)x[4] * x[4] + (double)x[8] * x[8]);
-        double X = M[0] * sp[0] + M[1] * sp[1] + M[2] * sp[2] + M[3];
-        double Y = M[4] * sp[0] + M[5] * sp[1] + M[6] * sp[2] + M[7];
-        double Z = M[8] * sp[0] + M[9] * sp[1] + M[10] * sp[2] + M[11];
-        double rad = sp[3] * scale * 1.0001 + 1e-6;
+        double X, Y, Z, rad = sphere_radius(sp, scale);
+        transform(M, sp, &X, &Y, &Z);
         if (!sphere_visible(c, X, Y, Z, rad)) continue;
         double *s4 = sph + 5 * (size_t)k; /* centre, radius, the transform's scale */
         s4[0] = X, s4[1] = Y, s4[2] = Z, s4[3] = rad, s4[4] = scale;
@@ -369,11 +381,8 @@ static int draw_instances(const cam_t *c, const geom_t *g, vbuf_t *b, cvert_t *s
         const uint32_t *f = (const uint32_t *)(intptr_t)g->proto_faces[p];
         int nv = g->proto_nv[p], nf = g->proto_nf[p];
         for (int i = 0; i < nv; i++) {
-            const float *q = v + 3 * (size_t)i;
             cvert_t *o = scratch + i;
-            o->X = M[0] * q[0] + M[1] * q[1] + M[2] * q[2] + M[3];
-            o->Y = M[4] * q[0] + M[5] * q[1] + M[6] * q[2] + M[7];
-            o->Z = M[8] * q[0] + M[9] * q[1] + M[10] * q[2] + M[11];
+            transform(M, v + 3 * (size_t)i, &o->X, &o->Y, &o->Z);
             if (o->X >= c->znear) project(c, o);
         }
         const int cl = g->cluster;
@@ -382,10 +391,8 @@ static int draw_instances(const cam_t *c, const geom_t *g, vbuf_t *b, cvert_t *s
         for (int i0 = 0; i0 < nf; i0 += cl ? cl : nf) {
             if (cs) { /* a run of faces (a piece of a leaf) outside, off the band or hidden */
                 const float *q = cs + 4 * (size_t)(i0 / cl);
-                double X = M[0] * q[0] + M[1] * q[1] + M[2] * q[2] + M[3];
-                double Y = M[4] * q[0] + M[5] * q[1] + M[6] * q[2] + M[7];
-                double Z = M[8] * q[0] + M[9] * q[1] + M[10] * q[2] + M[11];
-                double rad = q[3] * scale * 1.0001 + 1e-6;
+                double X, Y, Z, rad = sphere_radius(q, scale);
+                transform(M, q, &X, &Y, &Z);
                 if (!sphere_visible(c, X, Y, Z, rad) || sphere_hidden(c, b, X, Y, Z, rad, 0)) continue;
             }
             int i1 = cl && i0 + cl < nf ? i0 + cl : nf;
@@ -490,7 +497,7 @@ static void draw_terrain(const cam_t *c, const geom_t *g, vbuf_t *b) {
  * calls on disjoint bands may run at once). ``terrain`` = 0 leaves the ground out; ``hiz`` = 0
  * draws without the coarse depth tiles (the same image). Returns 0, or -1 when out of
  * memory. */
-EXPORT int64_t raster_view(const double *cam, int w, int h, const int64_t *gptr,
+EXPORT int raster_view(const double *cam, int w, int h, const int64_t *gptr,
                            const double *gval, int terrain, int hiz, float *iz, int32_t *inst,
                            int32_t *prim, int row0, int row1) {
     cam_t c;

@@ -26,7 +26,7 @@ _SIGNATURES: dict[str, tuple[Any, list[Any]]] = {
         [_i, _vp, _vp, _vp, _vp, _d, _vp, _i, _i, _d, _d, _d, _vp, _i, _i, _i, _i, _i, _d, _d, _d]
         + [_vp] * 5,
     ),
-    "raster_view": (ctypes.c_int64, [_vp, _i, _i, _vp, _vp, _i, _i, _vp, _vp, _vp, _i, _i]),
+    "raster_view": (_i, [_vp, _i, _i, _vp, _vp, _i, _i, _vp, _vp, _vp, _i, _i]),
     "resolve_view": (
         _i,
         [_vp, _i, _i, _vp, _vp, _vp, _vp, _vp, _vp, _vp, _vp, _i] + [_vp] * 7 + [_i, _i],
