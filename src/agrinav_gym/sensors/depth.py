@@ -96,18 +96,19 @@ class DepthCamera(Lighting):
         if rng is not None and cfg.subpixel > 0:
             key = pixel_noise.frame_key(rng)
         kernels = native.lib()
+        rays = None  # world directions, made only where needed (the kernel turns body rays)
         if kernels is not None:  # one cast, then noise and validity in one call (finish_depth)
             g = self._proxy_geometry(terrain, plants)
             t, what = g.cast_raw(o, self.rays_body, self.t_lim, rot)
             depth = np.empty(len(t), np.float32)
             kernels.finish_depth(
-                0, len(t), t.ctypes.data, self.forward.ctypes.data,
-                None if key is None else pixel_noise.TABLES.ctypes.data, key or 0,
+                0, len(t), t.ctypes.data, self.forward.ctypes.data, *pixel_noise.kernel_args(key),
                 cfg.subpixel / (self.f_native * cfg.baseline), cfg.min_range, cfg.max_range,
                 None, depth.ctypes.data, None, None,
             )  # fmt: skip
         else:
-            t, lab = self.cast(o, self.rays_body @ rot.T, terrain, plants, self.t_lim)
+            rays = self.rays_body @ rot.T
+            t, lab = self.cast(o, rays, terrain, plants, self.t_lim)
             z = t * self.forward
             hit = np.isfinite(z)
             if key is not None:
@@ -123,7 +124,8 @@ class DepthCamera(Lighting):
             if labels:
                 frame.label = lab.reshape(shape)
             if rgb:
-                rays = self.rays_body @ rot.T
+                if rays is None:
+                    rays = self.rays_body @ rot.T
                 frame.rgb = self._shade(o, rays, t, lab, terrain).reshape(*shape, 3)
         return frame
 

@@ -6,7 +6,8 @@ instanced plant meshes of a ``MeshScene`` gives z-depth, the semantic class (soi
 stereo model of ``d455`` then invalidates what the pair cannot match: the right imager's
 occlusion shadow (candidate pixels from the epipolar test, each confirmed by an exact ray from
 the right imager), points outside the right imager's view, and the range limits; noise is
-σ_z = z²·s/(f·B) with this mode's focal length, drawn for every pixel from the one ``rng``.
+σ_z = z²·s/(f·B) with this mode's focal length, each pixel's draw computed from one key a
+frame takes from the episode's ``rng`` (``pixel_noise``).
 RGB is cast again from the colour camera's pose (59 mm along the baseline) and shaded.
 
 The robot is rigid and the camera fixed on it, so its own parts appear in its camera at a
@@ -173,9 +174,9 @@ class MeshCamera(Lighting):
     ) -> DepthFrame:
         """``render`` by rasterising the views (raster_view): the same frame. Three stages,
         each over two bands of rows with ``threads`` > 1: draw the depth, right and colour
-        views; resolve them and prepare the stereo test (the top band draws the noise first,
-        in one call, as the ray-cast path draws it); decide the stereo pair, finish the depth
-        and the labels and shade the colour."""
+        views; resolve them and prepare the stereo test; decide the stereo pair, finish the
+        depth with its noise (each valid pixel's draw from the frame's key, as the ray-cast
+        path takes it) and the labels, and shade the colour."""
         c, m = self.cfg, self.model
         h, w = m.height, m.width
         n = h * w

@@ -10,11 +10,11 @@ paired frames carry the same noise pixel by pixel.
 The bits are SplitMix64's (Steele, Lea & Flood 2014; passes BigCrush): output ``c`` of the
 stream whose state is ``key`` is ``mix(key + (c + 1)·γ)``, counter-based by construction. A
 pixel's first 64 bits come from the key's stream at ``c = i``; the few draws that need more
-(≈ 1.1 %) continue in a second stream (key ``mix(key ^ KEY2)``) at ``c = i·2¹² + k``.
+(≈ 1.5 %) continue in a second stream (key ``mix(key ^ KEY2)``) at ``c = i·2¹² + k``.
 
 The normal is Marsaglia & Tsang's ziggurat with 256 layers (J. Stat. Softw. 5(8), 2000): the
 low 8 bits pick a layer, bit 8 the sign, the top 53 bits the abscissa; a draw inside the
-layer's rectangle under the curve (≈ 98.9 %) is returned at once, the wedges are tested against
+layer's rectangle under the curve (≈ 98.5 %) is returned at once, the wedges are tested against
 exp(−x²/2) and the tail beyond r is Marsaglia's exponential method (1964).
 
 The kernels (``csrc/pixel_noise.h``) compute the same function; this module's numpy twin gives
@@ -91,9 +91,9 @@ def _unit_open(b: int) -> float:
     return float((b >> 11) + 1) * 2.0**-53
 
 
-def _slow(key: int, i: int, u: int) -> float:
-    """The draw of pixel ``i`` whose first bits ``u`` fell outside their layer's rectangle."""
-    key2 = _mix(key ^ KEY2)
+def _slow(key2: int, i: int, u: int) -> float:
+    """The draw of pixel ``i`` whose first bits ``u`` fell outside their layer's rectangle
+    (``key2``: the second stream's key)."""
     c = i * SLOW_STRIDE
     while True:
         layer = u & 0xFF
@@ -124,9 +124,16 @@ def normals_numpy(key: int, n: int) -> NDArray[np.float64]:
     layer = (u & np.uint64(0xFF)).astype(np.intp)
     x = (u >> np.uint64(11)).astype(np.float64) * _W[layer]
     out: NDArray[np.float64] = np.where((u & np.uint64(0x100)) != 0, -x, x)
+    key2 = _mix(key ^ KEY2)
     for i in np.flatnonzero(~(x < _X[layer + 1])):
-        out[i] = _slow(key, int(i), int(u[i]))
+        out[i] = _slow(key2, int(i), int(u[i]))
     return out
+
+
+def kernel_args(key: int | None) -> tuple[int | None, int]:
+    """``finish_depth``'s noise arguments for a frame's ``key`` (None: no noise): the tables'
+    address (NULL: none) and the key."""
+    return (None, 0) if key is None else (TABLES.ctypes.data, key)
 
 
 def normals(key: int, n: int) -> NDArray[np.float64]:
