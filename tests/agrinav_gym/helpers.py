@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import gymnasium as gym
@@ -35,3 +36,25 @@ def make_camera(robot: dict[str, Any] | None = None, camera: dict[str, Any] | No
 
     cfg = EnvConfig.from_dict({"robot": robot or {}, "camera": camera or {}})
     return DepthCamera(cfg.camera, robot_interface(cfg, RobotGeometry.from_urdf()).camera)
+
+
+def mesh_camera(width: int, height: int, renderer: str, threads: int = 1) -> Any:
+    """The mesh camera of the default robot at width x height with ``renderer``."""
+    from agrinav_gym.config import EnvConfig
+    from agrinav_gym.env import robot_interface
+    from agrinav_gym.sensors.mesh_camera import MeshCamera
+    from agrinav_gym.sim.world import RobotGeometry
+
+    cfg = EnvConfig.from_dict({"camera": {"width": width, "height": height, "renderer": renderer}})
+    return MeshCamera(cfg.camera, robot_interface(cfg, RobotGeometry.from_urdf()).camera, threads)
+
+
+def lane_pose(scn: Any, k: int = 40, turn: float = 0.0) -> tuple[Any, Any]:
+    """Base rotation and position at route point ``k`` of a scenario, facing along the rows
+    (turned by ``turn`` rad), on the terrain."""
+    import numpy as np
+
+    xy = scn.route.xy[k]
+    pos = np.array([xy[0], xy[1], float(scn.terrain.height_at(*xy)) + 0.11])
+    c, s = math.cos(scn.rows.angle + turn), math.sin(scn.rows.angle + turn)
+    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]]), pos

@@ -19,24 +19,12 @@ from agrinav_gym.sim.plants import PlantField
 from agrinav_gym.sim.world import RobotGeometry
 from scenario_gen import generate, preset
 
-from .helpers import TINY
+from .helpers import TINY, lane_pose, mesh_camera
 
 needs_kernels = pytest.mark.skipif(not native.available(), reason="compiled kernels not built")
 #: Embree intersects in float32 around the field's centre (~1 µm), which a ray grazing a
 #: surface stretches along itself by up to ~100x: how far the two renderers' depths may part
 EMBREE_DEPTH = 1e-4
-
-
-def camera(width: int, height: int, renderer: str, threads: int = 1) -> MeshCamera:
-    cfg = EnvConfig.from_dict({"camera": {"width": width, "height": height, "renderer": renderer}})
-    return MeshCamera(cfg.camera, robot_interface(cfg, RobotGeometry.from_urdf()).camera, threads)
-
-
-def lane_pose(scn, k: int = 40, turn: float = 0.0) -> tuple[np.ndarray, np.ndarray]:  # type: ignore[no-untyped-def]
-    xy = scn.route.xy[k]
-    pos = np.array([xy[0], xy[1], float(scn.terrain.height_at(*xy)) + 0.11])
-    c, s = math.cos(scn.rows.angle + turn), math.sin(scn.rows.angle + turn)
-    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]]), pos
 
 
 @pytest.fixture(scope="module")
@@ -85,15 +73,15 @@ def test_a_build_from_other_sources_is_refused(tmp_path: Path) -> None:
 def test_raster_without_kernels_is_a_clear_error(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("AGRINAV_NATIVE", "0")
     with pytest.raises(native.NativeUnavailable, match=r"camera.renderer='raster'.*AGRINAV_NATIVE"):
-        camera(64, 48, "raster")
-    assert not camera(848, 480, "auto").rasterises  # auto falls back to the rays
+        mesh_camera(64, 48, "raster")
+    assert not mesh_camera(848, 480, "auto").rasterises  # auto falls back to the rays
 
 
 @needs_kernels
 def test_auto_rasterises_only_large_frames() -> None:
-    assert camera(848, 480, "auto").rasterises
-    assert not camera(64, 48, "auto").rasterises
-    assert not camera(848, 480, "raycast").rasterises
+    assert mesh_camera(848, 480, "auto").rasterises
+    assert not mesh_camera(64, 48, "auto").rasterises
+    assert not mesh_camera(848, 480, "raycast").rasterises
 
 
 @needs_kernels
@@ -102,10 +90,10 @@ def test_raster_frame_is_the_ray_cast_frame(maize: MeshScene) -> None:
     precision; the same plant in every pixel but ties at shared edges (where float32 rays and
     double scan conversion may pick the neighbouring triangle); the same colours but rounding."""
     rot, pos = lane_pose(maize_scenario(maize))
-    r = camera(848, 480, "raster").render(
+    r = mesh_camera(848, 480, "raster").render(
         rot, pos, maize, None, rgb=True, labels=True, stereo=False
     )
-    e = camera(848, 480, "raycast").render(
+    e = mesh_camera(848, 480, "raycast").render(
         rot, pos, maize, None, rgb=True, labels=True, stereo=False
     )
     n = r.depth.size
@@ -130,9 +118,9 @@ def test_stereo_shadow_misses_only_what_the_right_view_cannot_show(maize: MeshSc
     occluder narrower than a pixel there; and it never hides a pixel the exact ray sees."""
     scn = maize_scenario(maize)
     rot, pos = lane_pose(scn)
-    cam = camera(848, 480, "raster")
+    cam = mesh_camera(848, 480, "raster")
     r = cam.render(rot, pos, maize, None, labels=True)
-    e = camera(848, 480, "raycast").render(rot, pos, maize, None, labels=True)
+    e = mesh_camera(848, 480, "raycast").render(rot, pos, maize, None, labels=True)
     geo = cam.render(rot, pos, maize, None, labels=True, stereo=False)
     occluded = (geo.depth > 0) & (e.depth == 0)
     assert occluded.mean() > 0.05  # a frame with a real shadow
@@ -186,7 +174,7 @@ def test_two_threads_draw_the_same_frame(maize: MeshScene) -> None:
     """The bands of rows are disjoint and each pixel depends only on the frame: the split
     between threads (which moves from frame to frame) changes nothing, noise included."""
     rot, pos = lane_pose(maize_scenario(maize), turn=0.3)
-    one, two = camera(424, 240, "raster", 1), camera(424, 240, "raster", 2)
+    one, two = mesh_camera(424, 240, "raster", 1), mesh_camera(424, 240, "raster", 2)
     for k in range(3):  # the split adapts between frames
         a = one.render(rot, pos, maize, np.random.default_rng(k), rgb=True, labels=True)
         b = two.render(rot, pos, maize, np.random.default_rng(k), rgb=True, labels=True)
@@ -203,7 +191,7 @@ def test_vector_and_scalar_kernels_draw_the_same_frame(
     operation alike, so the frames are bit-identical (on a CPU without AVX2 both runs take the
     baseline and the test holds trivially)."""
     rot, pos = lane_pose(maize_scenario(maize), turn=0.2)
-    cam = camera(424, 240, "raster", 1)
+    cam = mesh_camera(424, 240, "raster", 1)
     frames = []
     for flag in ("1", "0"):
         monkeypatch.setenv("AGRINAV_AVX2", flag)
@@ -219,7 +207,7 @@ def test_raster_noise_is_the_ray_cast_noise(maize: MeshScene) -> None:
     the noise each adds, divided by its σ = z²·s/(f·B), is the same number in every pixel (to
     the float32 rounding of the depths, < 1e-3 σ from 0.4 to 6 m)."""
     rot, pos = lane_pose(maize_scenario(maize))
-    cams = {k: camera(424, 240, k) for k in ("raster", "raycast")}
+    cams = {k: mesh_camera(424, 240, k) for k in ("raster", "raycast")}
     draws = {}
     for k, cam in cams.items():
         noisy = cam.render(rot, pos, maize, np.random.default_rng(7), stereo=False).depth

@@ -10,7 +10,7 @@ from scipy import stats
 from agrinav_gym.sensors import native, pixel_noise
 from scenario_gen import generate, preset
 
-from .helpers import TINY, make_camera
+from .helpers import TINY, lane_pose, make_camera, mesh_camera
 
 N = 1_000_000
 
@@ -78,8 +78,6 @@ def test_a_frame_takes_one_draw_from_the_rng_whatever_the_scene(renderer: str) -
     from agrinav_gym.sim.mesh_scene import MeshScene
     from agrinav_gym.sim.plants import PlantField
 
-    from .test_native import camera, lane_pose
-
     if renderer == "raster" and not native.available():
         pytest.skip("the rasteriser needs the compiled kernels")
     after, valid = [], []
@@ -91,7 +89,7 @@ def test_a_frame_takes_one_draw_from_the_rng_whatever_the_scene(renderer: str) -
             cam = make_camera(None, {"width": w, "height": h})
             frame = cam.render(rot, pos, scn.terrain, PlantField.from_scenario(scn), rng)
         else:
-            cam = camera(w, h, renderer)
+            cam = mesh_camera(w, h, renderer)
             frame = cam.render(rot, pos, MeshScene.from_scenario(scn), rng)
         valid.append(int((frame.depth > 0).sum()))
         after.append(rng.bit_generator.state)
