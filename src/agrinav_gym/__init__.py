@@ -12,7 +12,14 @@ from scenario_gen.errors import InputError
 from .config import EnvConfig
 from .interface import CameraModel, RobotInterface
 from .metrics import EpisodeMetrics
-from .registration import ENV_IDS, ENVS, register_envs, register_scenario, register_scenario_bank
+from .registration import (
+    ENV_IDS,
+    ENVS,
+    check_env_id,
+    register_envs,
+    register_scenario,
+    register_scenario_bank,
+)
 
 register_envs()
 
@@ -24,6 +31,7 @@ __all__ = [
     "EpisodeMetrics",
     "InputError",
     "RobotInterface",
+    "check_env_id",
     "register_envs",
     "register_scenario",
     "register_scenario_bank",

@@ -46,6 +46,21 @@ ENV_IDS = tuple(d.id for d in ENVS)
 _BY_NAME = {d.name: d for d in ENVS}
 
 
+def check_env_id(env_id: Any, field: str = "env") -> str:
+    """``env_id`` if it names an AgriNav env (built-in or made by ``register_scenario``).
+
+    ``gym.make("module:Id")`` imports ``module`` first, so an id read from a spec file, a
+    checkpoint or a command line is checked here before it reaches ``gym.make``: a file can
+    never name code to run."""
+    entry_points = {d.entry_point for d in ENVS}
+    if isinstance(env_id, str) and env_id.startswith(f"{NAMESPACE}/") and ":" not in env_id:
+        spec = registry.get(env_id)
+        if spec is not None and spec.entry_point in entry_points:
+            return env_id
+    ids = sorted(i for i, s in registry.items() if s.entry_point in entry_points)
+    raise InputError(field, env_id, f"allowed: a registered AgriNav env id ({', '.join(ids)})")
+
+
 def register_envs() -> None:
     """Register the built-in ids (idempotent: importing twice is harmless)."""
     for d in ENVS:

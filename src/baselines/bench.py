@@ -63,7 +63,6 @@ def _make_env(
     import gymnasium as gym
 
     import agrinav_gym
-    from agrinav_gym.registration import NAMESPACE
 
     if isinstance(case_or_id, Case):
         kw = case_or_id.env_kwargs()
@@ -77,9 +76,7 @@ def _make_env(
             kw["scenario"] = scenario
         if max_steps is not None:
             kw["max_episode_steps"] = max_steps
-    ids = sorted(i for i in gym.registry if i.startswith(f"{NAMESPACE}/"))
-    if env_id not in gym.registry:
-        raise InputError("--env", env_id, f"allowed: {', '.join(ids or agrinav_gym.ENV_IDS)}")
+    agrinav_gym.check_env_id(env_id, "--env")
     if render:
         kw["render_mode"] = "rgb_array"
     return gym.make(env_id, **kw)

@@ -10,7 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from scenario_gen import generate, preset, save
-from scenario_gen.atomic import check_output_dir
+from scenario_gen.atomic import check_output_dir, mark_output
 from scenario_gen.errors import InputError
 
 
@@ -24,6 +24,7 @@ def demo(out: str | Path, seeds: int = 2) -> Path:
         raise InputError("--seeds", seeds, "allowed: an integer >= 1")
     check_output_dir(out, overwrite=True)  # re-running the demo replaces its own results
     out.mkdir(parents=True, exist_ok=True)
+    mark_output(out)
     scn = generate(preset("default"), seed=0)
     save(scn, out / "scenario", overwrite=True)
     print(f"scenario: {out / 'scenario'} ({scn.summary()['plants']} plants; preview.png)")

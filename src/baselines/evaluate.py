@@ -18,9 +18,9 @@ def evaluate(
     """``episodes`` deterministic episodes with reset seeds ``seed``, ``seed + 1``, ..."""
     import gymnasium as gym
 
-    import agrinav_gym  # noqa: F401  (registers the ids)
+    import agrinav_gym
 
-    env = gym.make(env_id, **kwargs)
+    env = gym.make(agrinav_gym.check_env_id(env_id), **kwargs)
     rets, rmse, furrow, comp, succ, crops = [], [], [], [], [], []
     try:
         for ep in range(episodes):

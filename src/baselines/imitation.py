@@ -62,11 +62,11 @@ def demonstrate(
     carry the training scenario seeds), one ``SeedSequence`` for resets and perturbation."""
     import gymnasium as gym
 
-    import agrinav_gym  # noqa: F401
+    import agrinav_gym
     from policies import make_policy
 
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), 0x5EED]))
-    env: Any = gym.make(env_id, **env_kwargs)
+    env: Any = gym.make(agrinav_gym.check_env_id(env_id), **env_kwargs)
     obs_buf: dict[str, list[NDArray[np.float32]]] = {}
     acts: list[NDArray[np.float32]] = []
     rets: list[FloatArray] = []

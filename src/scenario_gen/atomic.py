@@ -34,12 +34,18 @@ from .errors import InputError
 TMP_TAG = ".tmp-"
 OLD_TAG = ".old-"
 LOCK_TAG = ".lock"
+#: The file that marks a folder as agrinav's output, the only kind ``--force`` replaces.
+MARKER = ".agrinav-output"
 _RENAME_EXCHANGE = 2
 _AT_FDCWD = -100
 
 
 def check_output_dir(directory: str | Path, overwrite: bool, what: str = "out") -> Path:
-    """Refuse an unusable output path before any work is done (and before anything is made)."""
+    """Refuse an unusable output path before any work is done (and before anything is made).
+
+    Overwriting replaces only a folder agrinav wrote (it holds ``MARKER``), and never the
+    current folder, one above it, the home folder or ``/``: ``--out . --force`` must not
+    delete a user's files."""
     out = Path(os.path.abspath(directory))  # "." and ".." resolved: out.name is a real name
     if out.exists() and not out.is_dir():
         raise InputError(what, str(out), "exists and is not a directory")
@@ -49,12 +55,39 @@ def check_output_dir(directory: str | Path, overwrite: bool, what: str = "out") 
             str(out),
             "already exists; choose another directory or allow overwriting (--force)",
         )
+    if out.exists():
+        check_replaceable(out, what)
     parent = _existing_parent(out)
     if not parent.is_dir():
         raise InputError(what, str(out), f"its parent {parent} is not a directory")
     if not os.access(parent, os.W_OK | os.X_OK):
         raise InputError(what, str(out), f"cannot be created: {parent} is not writable")
     return out
+
+
+def check_replaceable(out: Path, what: str = "out") -> None:
+    """Refuse to replace ``out`` unless agrinav wrote it (see ``check_output_dir``)."""
+    real = out.resolve()
+    cwd = Path.cwd().resolve()
+    protected = {Path("/"), Path.home().resolve()}
+    if real in protected or real == cwd or real in cwd.parents:
+        raise InputError(
+            what, str(out), "is the current, home or root folder (or above it); never replaced"
+        )
+    if not (out / MARKER).is_file():
+        raise InputError(
+            what,
+            str(out),
+            f"was not written by agrinav (no {MARKER} in it), so --force will not replace it; "
+            "choose another folder or remove it yourself",
+        )
+
+
+def mark_output(folder: Path) -> None:
+    """Mark ``folder`` as agrinav's output: ``--force`` may replace it later."""
+    (folder / MARKER).write_text(
+        "Written by agrinav; a later run with --force may replace this folder.\n"
+    )
 
 
 def _existing_parent(p: Path) -> Path:
@@ -186,6 +219,7 @@ def output_dir(directory: str | Path, overwrite: bool = False, what: str = "out"
                 os.umask(umask)
                 os.chmod(tmp, 0o777 & ~umask)  # mkdtemp makes 0700; honour the umask like mkdir
                 yield tmp
+                mark_output(tmp)
                 _publish(tmp, out)
             except BaseException:
                 shutil.rmtree(tmp, ignore_errors=True)

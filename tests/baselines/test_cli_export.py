@@ -78,8 +78,15 @@ def test_existing_out_needs_force(scenario: Path, tmp_path: Path, capsys) -> Non
     (out / "keep.txt").write_text("mine")
     assert "--force" in _error(capsys, ["export", str(scenario), "--to", "gis", "--out", str(out)])
     assert [p.name for p in out.iterdir()] == ["keep.txt"]
-    assert main(["export", str(scenario), "--to", "gis", "--out", str(out), "--force"]) == 0
-    assert (out / "terrain.tif").is_file() and not (out / "keep.txt").exists()
+    # --force replaces only a folder agrinav wrote: the user's own folder stays
+    force = ["export", str(scenario), "--to", "gis", "--out", str(out), "--force"]
+    assert "not written by agrinav" in _error(capsys, force)
+    assert [p.name for p in out.iterdir()] == ["keep.txt"]
+    ours = tmp_path / "ours"
+    assert main(["export", str(scenario), "--to", "mesh", "--out", str(ours)]) == 0
+    (ours / "stale.txt").write_text("from the last export")
+    assert main(["export", str(scenario), "--to", "gis", "--out", str(ours), "--force"]) == 0
+    assert (ours / "terrain.tif").is_file() and not (ours / "stale.txt").exists()
 
 
 def test_broken_scenario_folders(scenario: Path, tmp_path: Path, capsys) -> None:

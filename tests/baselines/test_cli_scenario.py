@@ -57,6 +57,7 @@ def test_cli_config_file_and_bank(tmp_path: Path) -> None:
         == 0
     )
     assert sorted(p.name for p in out.iterdir()) == [
+        ".agrinav-output",
         "bank.yaml",
         "seed-000010",
         "seed-000011",

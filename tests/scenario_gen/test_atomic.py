@@ -152,3 +152,38 @@ def test_output_folders_honour_the_umask(tmp_path: Path, umask: int) -> None:
 
 def test_clean_stale_without_a_parent_is_a_no_op(tmp_path: Path) -> None:
     clean_stale(tmp_path / "missing" / "scn")
+
+
+def test_force_replaces_only_a_folder_agrinav_wrote(tmp_path: Path) -> None:
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "thesis.tex").write_text("years of work")
+    with pytest.raises(InputError, match="not written by agrinav"), output_dir(mine, True):
+        pass
+    assert (mine / "thesis.tex").read_text() == "years of work"
+    out = tmp_path / "scn"
+    with output_dir(out) as tmp:
+        _write(tmp, "old")
+    assert (out / atomic.MARKER).is_file()  # what agrinav writes carries the marker
+    with output_dir(out, overwrite=True) as tmp:
+        _write(tmp, "new")
+    assert (out / "data.txt").read_text() == "new" and (out / atomic.MARKER).is_file()
+
+
+@pytest.mark.parametrize("where", [".", "..", "~", "/"])
+def test_force_never_replaces_the_current_home_or_root_folder(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, where: str
+) -> None:
+    cwd = tmp_path / "home" / "project"
+    cwd.mkdir(parents=True)
+    (cwd / "notes.txt").write_text("mine")
+    for d in (cwd, cwd.parent):
+        (d / atomic.MARKER).write_text("")  # even a marker (copied by hand) does not allow it
+    monkeypatch.chdir(cwd)
+    monkeypatch.setenv("HOME", str(cwd.parent))
+    with (
+        pytest.raises(InputError, match="never replaced"),
+        output_dir(os.path.expanduser(where), overwrite=True),
+    ):
+        pass
+    assert (cwd / "notes.txt").read_text() == "mine"

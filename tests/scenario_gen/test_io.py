@@ -31,6 +31,7 @@ def test_directory_has_every_output(saved) -> None:
             "route.geojson",
             "plants.geojson",
             "preview.png",
+            ".agrinav-output",  # the marker that lets --force replace it later
         ]
     )
     assert (out / "preview.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -49,7 +49,7 @@ def make_env(spec: PerceptionSpec, camera_height: float, pitch_deg: float) -> An
     size, rendering only on frame steps."""
     import gymnasium as gym
 
-    import agrinav_gym  # noqa: F401
+    import agrinav_gym
 
     control_hz = 20
     config = {
@@ -64,7 +64,7 @@ def make_env(spec: PerceptionSpec, camera_height: float, pitch_deg: float) -> An
         "robot": {"camera_height": camera_height, "camera_pitch_deg": pitch_deg},
     }
     return gym.make(
-        spec.env,
+        agrinav_gym.check_env_id(spec.env, "spec.env"),
         scenario=spec.preset,
         scenario_overrides={"field": {"length": spec.field_length}},
         randomize=spec.randomize,

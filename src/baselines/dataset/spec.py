@@ -85,6 +85,9 @@ def load_spec(path: str | Path | None, overrides: dict[str, Any] | None = None) 
         data.update(loaded)
     data.update(overrides or {})
     spec: PerceptionSpec = from_mapping(PerceptionSpec, data, "spec.")
+    from agrinav_gym import check_env_id
+
+    check_env_id(spec.env, "spec.env")  # gym.make would import a ``module:`` named here
     for name in ("camera_height", "camera_pitch_deg"):
         lo, hi = getattr(spec, name)
         if lo > hi:

@@ -87,8 +87,7 @@ def record(
         raise InputError("--dataset-id", dataset_id, "allowed: namespace/name-vN, lower case")
     check_policy_spec(policy)
     check_output_dir(out, force)
-    if env_id not in gym.registry:
-        raise InputError("--env", env_id, f"allowed: {', '.join(agrinav_gym.ENV_IDS)}")
+    agrinav_gym.check_env_id(env_id, "--env")
     env = gym.make(env_id)
     parts = tuple(sorted(REWARD_TERMS))
 

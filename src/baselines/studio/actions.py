@@ -10,6 +10,7 @@ from __future__ import annotations
 import dataclasses
 import importlib
 import json
+import os
 import shutil
 import tempfile
 from pathlib import Path
@@ -25,7 +26,17 @@ POLICIES = ("dwb", "rpp", "ppo:shipped")
 RUN_ENV = "AgriNav/FieldRoute-v1"
 
 
-def generate_and_save(session: Session, out: str, overwrite: bool = False) -> dict[str, Any]:
+def inside_workspace(out: str, workspace: Path) -> None:
+    """Refuse an output folder outside ``workspace`` (the page writes nowhere else)."""
+    target = Path(os.path.abspath(out)).resolve()
+    root = workspace.resolve()
+    if target == root or not target.is_relative_to(root):
+        raise InputError("out", out, f"allowed: a folder inside the studio's workspace {root}")
+
+
+def generate_and_save(
+    session: Session, out: str, overwrite: bool = False, workspace: Path | None = None
+) -> dict[str, Any]:
     """Generate the session's scenario and save it to ``out`` (and the drawn field beside it).
 
     The scenario is generated in memory first, from a temporary copy of the field file, so
@@ -36,6 +47,8 @@ def generate_and_save(session: Session, out: str, overwrite: bool = False) -> di
 
     if not out or not out.strip():
         raise InputError("out", out, "allowed: a folder path")
+    if workspace is not None:
+        inside_workspace(out, workspace)
     check_output_dir(out, overwrite)
     path = field_file(out) if session.field_text is not None else None
     spec = session.spec(str(path) if path is not None else None)

@@ -23,7 +23,7 @@ from scenario_gen import crops, preset_names
 from scenario_gen.errors import InputError
 from scenario_gen.generate import growth_of
 
-from . import actions, fields, layers
+from . import actions, fields, guard, layers
 from .card import ScenarioCard
 from .preview import Preview, SiteCache, layout_preview
 from .session import Session, Terrain
@@ -151,7 +151,10 @@ class Page:
                 self.form.labels["field"] = self.error_label("field")
                 with ui.row().classes("items-center"):
                     ui.upload(
-                        label="load GeoJSON", auto_upload=True, on_upload=self.on_geojson
+                        label="load GeoJSON",
+                        auto_upload=True,
+                        on_upload=self.on_geojson,
+                        max_file_size=guard.MAX_BODY,
                     ).props('accept=".geojson,.json" flat dense data-key="upload-geojson"').classes(
                         "w-56"
                     )
@@ -179,7 +182,10 @@ class Page:
         self.model.without_auto_validation()
         self.form.widgets["crop.model"] = self.model
         ui.upload(
-            label="upload a model (.zip or mesh)", auto_upload=True, on_upload=self.on_model_upload
+            label="upload a model (.zip or mesh)",
+            auto_upload=True,
+            on_upload=self.on_model_upload,
+            max_file_size=guard.MAX_BODY,
         ).props(
             'accept=".zip,.glb,.gltf,.obj,.ply,.dae,.stl" flat dense data-key="upload-model"'
         ).classes("w-full")
@@ -405,8 +411,15 @@ def _centre(pv: Preview | None) -> tuple[float, float]:
     return (0.5 * (south + north), 0.5 * (west + east))
 
 
-def serve(studio: Studio, port: int, host: str = "127.0.0.1") -> None:
-    """Serve the studio until interrupted (blocks)."""
+def serve(studio: Studio, port: int, host: str = "127.0.0.1", token: str | None = None) -> None:
+    """Serve the studio until interrupted (blocks); only the printed address can drive it
+    (``guard.Guard``: Host, Origin, the per-launch token, body size, no framing)."""
+    from nicegui import core
+
+    token = token or guard.new_token()
+    extra = () if host in ("127.0.0.1", "0.0.0.0", "::") else (host,)
+    core.sio.eio.cors_allowed_origins = guard.allowed_origins(port, extra)
+    app.add_middleware(guard.Guard, token=token, hosts=guard.allowed_hosts(port, extra))
     app.add_static_files("/studio/static", STATIC)
 
     @app.get("/studio/layer/{key}.png")
@@ -418,7 +431,7 @@ def serve(studio: Studio, port: int, host: str = "127.0.0.1") -> None:
     async def index() -> None:
         await Page(studio).build()
 
-    print(f"AgriNav studio on http://{host}:{port} (Ctrl+C to stop)", flush=True)
+    print(f"AgriNav studio on http://{host}:{port}/?token={token} (Ctrl+C to stop)", flush=True)
     ui.run(
         host=host,
         port=port,

@@ -93,7 +93,11 @@ class ScenarioCard:
         self.result.set_text("generating…")
         try:
             summary = await run.io_bound(
-                actions.generate_and_save, session, out, bool(self.overwrite.value)
+                actions.generate_and_save,
+                session,
+                out,
+                bool(self.overwrite.value),
+                self.studio.workspace,
             )
         except InputError as exc:
             self.result.set_text("nothing was written")

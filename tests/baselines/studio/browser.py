@@ -76,19 +76,27 @@ def studio_server(workspace: Path, *args: str) -> Iterator[str]:
         stdout=log,
         stderr=subprocess.STDOUT,
     )
-    url = f"http://127.0.0.1:{port}/"
+    base = f"http://127.0.0.1:{port}/"
     try:
         deadline = time.monotonic() + 60
+        url = ""
         while True:
             if proc.poll() is not None:
                 raise RuntimeError((workspace / "studio.log").read_text())
+            url = url or printed_url(workspace / "studio.log")
             try:
-                urllib.request.urlopen(url + "studio/static/studio.js", timeout=2).read()
-                break
+                if url:  # the printed address carries the token; the static file needs it too
+                    token = url.split("?token=")[1]
+                    urllib.request.urlopen(
+                        f"{base}studio/static/studio.js?token={token}", timeout=2
+                    ).read()
+                    break
             except OSError:
-                if time.monotonic() > deadline:
-                    raise
-                time.sleep(0.1)
+                pass
+            if time.monotonic() > deadline:
+                log_text = (workspace / "studio.log").read_text()
+                raise RuntimeError(f"the studio did not answer: {log_text}")
+            time.sleep(0.1)
         yield url
     finally:
         proc.terminate()
@@ -98,6 +106,14 @@ def studio_server(workspace: Path, *args: str) -> Iterator[str]:
             proc.kill()
             proc.wait()
         log.close()
+
+
+def printed_url(log: Path) -> str:
+    """The address ``agrinav studio`` printed (with its access token), or ''."""
+    for line in log.read_text().splitlines():
+        if line.startswith("AgriNav studio on "):
+            return line.split()[3]
+    return ""
 
 
 @contextmanager
