@@ -235,6 +235,18 @@ class TaskConfig:
     route_points: int = _f(10, "waypoints in the route observation", 1, 100)
     route_spacing: float = _f(0.4, "arc-length spacing of route observation points, m", 0.05, 10)
     success_tolerance: float = _f(0.3, "route end reached within this arc length, m", 0.01, 10)
+    # Nav2 Humble's SimpleProgressChecker (nav2_controller): required_movement_radius 0.5 m,
+    # movement_time_allowance 10 s. Off by default: the paper and ood suites turn it on.
+    progress_time: float | None = _f(
+        None,
+        "episode fails when the robot stays within progress_radius for this long, s "
+        "(Nav2's progress checker; null: never)",
+        0.5,
+        3600,
+    )
+    progress_radius: float = _f(
+        0.5, "distance the robot must move within progress_time, m (Nav2: 0.5)", 0.01, 10
+    )
 
 
 @dataclass(frozen=True)

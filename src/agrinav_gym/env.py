@@ -170,8 +170,10 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         self.tracker.reset(self.start[0], self.start[1])
         self.metrics = EpisodeMetrics(self.route.xy, self.route.furrow)
         self._cmd, self._prev_action, self._steps = (0.0, 0.0), (0.0, 0.0), 0
+        self._ended = False
         self._hit: set[int] = set()
         self.state = self.world.state()
+        self._anchor = (*self._xy(), 0.0)  # progress checker: where and when it last moved
         self.readings = self.sensors.reset(self.state, rng)
         self.estimator.reset(*self.start, rng)
         self.estimator.update(self.readings, self.dt)
@@ -198,6 +200,7 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         self.estimator.update(self.readings, self.dt)
         ctx = self._context(a)
         ctx = dataclasses.replace(ctx, termination=self.task.check(ctx))
+        self._ended = ctx.termination is not None
         parts = rewards.evaluate(self.cfg.reward, ctx)
         self._prev_action = a
         obs = self._observe(self._snapshot())
@@ -281,7 +284,18 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
             prev_action=self._prev_action,
             off_terrain=not bool(self.scenario.terrain.contains(x, y)),
             route_left=self.route.length - s,
+            stalled=self._stalled(x, y),
         )
+
+    def _stalled(self, x: float, y: float) -> float:
+        """Seconds since the robot last left the progress_radius disc around its anchor (Nav2's
+        SimpleProgressChecker: the anchor moves to the robot each time it leaves the disc)."""
+        ax, ay, t0 = self._anchor
+        now = self._steps * self.dt
+        if math.hypot(x - ax, y - ay) > self.cfg.task.progress_radius:
+            self._anchor = (x, y, now)
+            return 0.0
+        return now - t0
 
     def _snapshot(self) -> Snapshot:
         assert self.route is not None
@@ -394,10 +408,17 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         self._check_open("step")
         if self.route is None:
             raise InputError("step", "before reset()", "allowed: call reset() first")
+        if self._ended:
+            raise gym.error.ResetNeeded(
+                "step() after the episode terminated: call reset() first (Gymnasium's contract)"
+            )
         try:
-            a = np.asarray(action, dtype=np.float64).reshape(-1)
+            raw = np.asarray(action)
         except (TypeError, ValueError):
-            raise InputError("action", action, "allowed: 2 numbers (v, w) in [-1, 1]") from None
+            raw = np.asarray(None)
+        if raw.dtype.kind not in "fiu":  # strings, complex, objects: never coerced silently
+            raise InputError("action", action, "allowed: 2 real numbers (v, w) in [-1, 1]")
+        a = raw.astype(np.float64).reshape(-1)
         if a.shape != (2,):
             raise InputError("action", f"shape {np.shape(action)}", "allowed: shape (2,)")
         if not np.isfinite(a).all():

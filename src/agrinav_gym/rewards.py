@@ -36,6 +36,7 @@ class StepContext:
     prev_action: tuple[float, float]
     off_terrain: bool
     route_left: float  # route arc length still to go, m
+    stalled: float = 0.0  # s since the robot last moved progress_radius from where it was
     termination: str | None = None  # name of the check that ended the episode, if any
 
     @property

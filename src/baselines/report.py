@@ -14,7 +14,19 @@ import numpy as np
 
 from scenario_gen.errors import InputError
 
-METRICS = ("rmse", "mae", "max", "in_furrow_rmse", "headland_rmse", "completion", "crops_hit")
+#: Cross-track errors: path-weighted (the headline) and the paper's per-pose (time-weighted).
+CTE_METRICS = (
+    "path_rmse",
+    "path_in_furrow_rmse",
+    "path_headland_rmse",
+    "rmse",
+    "mae",
+    "max",
+    "in_furrow_rmse",
+    "headland_rmse",
+)
+METRICS = (*CTE_METRICS, "completion", "crops_hit")
+BOOTSTRAP = 2000  # resamples of the per-episode values for a 95 % percentile interval
 
 
 def policy_labels(specs: Sequence[str]) -> list[str]:
@@ -37,13 +49,28 @@ def policy_labels(specs: Sequence[str]) -> list[str]:
     return labels
 
 
-def _mean_std(values: list[Any]) -> str:
-    v = [float(x) for x in values if x is not None and not math.isnan(float(x))]
-    if not v:
-        return "—"
-    m = statistics.fmean(v)
-    s = statistics.stdev(v) if len(v) > 1 else 0.0
-    return f"{m:.3f} ± {s:.3f}"
+def mean_ci(values: Sequence[Any]) -> tuple[float, float, float] | None:
+    """(mean, low, high): the mean of the finite values with a 95 % percentile bootstrap
+    interval (a fixed seed: the same records give the same table)."""
+    v = np.array([float(x) for x in values if x is not None and math.isfinite(float(x))])
+    if v.size == 0:
+        return None
+    m = float(v.mean())
+    if v.size == 1:
+        return m, m, m
+    rng = np.random.default_rng(0)
+    means = v[rng.integers(0, v.size, (BOOTSTRAP, v.size))].mean(axis=1)
+    lo, hi = np.percentile(means, [2.5, 97.5])
+    return m, float(lo), float(hi)
+
+
+def _cell(values: Sequence[Any]) -> str:
+    ci = mean_ci(values)
+    return "—" if ci is None else f"{ci[0]:.3f} [{ci[1]:.3f}, {ci[2]:.3f}]"
+
+
+def finished(record: dict[str, Any]) -> bool:
+    return record.get("termination") == "success"
 
 
 def table(records: list[dict[str, Any]], suite_name: str, command: str) -> str:
@@ -51,13 +78,17 @@ def table(records: list[dict[str, Any]], suite_name: str, command: str) -> str:
     pols = list(dict.fromkeys(r["policy"] for r in records))
     # each case draws its own reset seeds: count episodes per (case, policy), not seeds overall
     episodes = max(Counter((r["scenario"], r["policy"]) for r in records).values())
-    head = ["scenario", "policy", *METRICS, "poses", "episodes"]
+    head = ["scenario", "policy", "finished", *METRICS, "poses", "episodes"]
     lines = [
         f"# Benchmark: `{suite_name}` suite",
         "",
-        f"Mean ± std over {episodes} held-out episode(s) per policy and scenario group; "
-        "cross-track errors in metres (true pose to nearest reference segment), "
-        "completion in % of the route, crops hit per episode.",
+        f"Mean [95 % bootstrap interval] over {episodes} held-out episode(s) per policy and "
+        "scenario group. Cross-track errors in metres (true pose to nearest reference segment) "
+        "over the episodes that **finished** the route only: a failed episode is a failure, not a "
+        "short RMSE (`—`: none finished). `path_*` weigh each pose by the path driven around it "
+        "(the headline); the paper's `rmse`, `mae`, `in_furrow_rmse`, `headland_rmse` weigh every "
+        "20 Hz pose, standing still included. Completion in % of the route and crops hit per "
+        "episode over every episode.",
         "",
         "| " + " | ".join(head) + " |",
         "|" + "---|" * len(head),
@@ -66,10 +97,17 @@ def table(records: list[dict[str, Any]], suite_name: str, command: str) -> str:
         for p in pols:
             rows = [r for r in records if r["scenario"] == g and r["policy"] == p]
             if rows:
-                cells = [_mean_std([r[m] for r in rows]) for m in METRICS]
+                done = [r for r in rows if finished(r)]
+                cells = [
+                    _cell([r.get(m) for r in (done if m in CTE_METRICS else rows)]) for m in METRICS
+                ]
                 counts = [int(r["poses"]) for r in rows if r.get("poses") is not None]
                 poses = f"{statistics.fmean(counts):.0f}" if counts else "—"
-                lines.append(f"| {g} | {p} | " + " | ".join(cells) + f" | {poses} | {len(rows)} |")
+                lines.append(
+                    f"| {g} | {p} | {len(done)}/{len(rows)} | "
+                    + " | ".join(cells)
+                    + f" | {poses} | {len(rows)} |"
+                )
     lines += ["", *conditions(records, groups, pols)]
     lines += held_out(records)
     lines += ["", *failures(records, groups, pols)]

@@ -109,9 +109,13 @@ def prepare(run: TrainRun) -> tuple[hpmod.PPOHyperparams, hpmod.EnvSetup, dict[s
     kwargs = _scenario_kwargs(dict(setup.env_kwargs), run.scenario)
     import gymnasium as gym
 
-    import agrinav_gym  # noqa: F401  (registers the ids)
+    import agrinav_gym
 
-    probe = gym.make(run.env_id, **kwargs, scenario_seeds=list(setup.train_seeds))
+    probe = gym.make(
+        agrinav_gym.check_env_id(run.env_id, "env_id"),
+        **kwargs,
+        scenario_seeds=list(setup.train_seeds),
+    )
     probe.close()  # every env kwarg is valid before the run starts
     return hp, setup, kwargs
 
@@ -140,14 +144,16 @@ def train(run: TrainRun, argv: list[str] | None = None) -> Path:
     model.set_logger(configure(str(out / "logs"), formats))
     if run.resume is not None:
         _restore(model, norm, run.resume)
-    eval_kwargs = {**kwargs, "scenario_seeds": list(setup.eval_seeds)}
+    # Training-time evaluation (the curve, the best checkpoint, any stop/continue decision)
+    # sees validation fields only: the test seeds are agrinav bench's.
+    eval_kwargs = {**kwargs, "scenario_seeds": list(setup.val_seeds)}
     saver = _Saver(out, run, hp, setup, kwargs)
     history: list[dict[str, float]] = []
     t_start = time.perf_counter()
 
     def evaluation(m: Any) -> dict[str, float]:
         res = evaluate(
-            _predictor(m, norm), run.env_id, eval_kwargs, run.eval_episodes, setup.eval_seeds[0]
+            _predictor(m, norm), run.env_id, eval_kwargs, run.eval_episodes, setup.val_seeds[0]
         )
         res.update(timesteps=int(m.num_timesteps), minutes=(time.perf_counter() - t_start) / 60)
         history.append(res)
@@ -297,6 +303,7 @@ class _Saver:
             "hyperparams": hpmod.to_zoo(self.hp),
             "env_kwargs": self.kwargs,
             "train_seeds": list(self.setup.train_seeds),
+            "val_seeds": list(self.setup.val_seeds),
             "eval_seeds": list(self.setup.eval_seeds),
             "resumed_from": str(self.run.resume) if self.run.resume else None,
             # behaviour cloning before PPO (warm_start.json: its fit); a resumed run inherits it

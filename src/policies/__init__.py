@@ -2,7 +2,8 @@
 
 ``make_policy(spec, env)`` builds one from an env's spaces and its public configuration (speed
 limits, camera calibration); ``spec`` is ``dwb`` (= ``dwb:furrow``), ``dwb:nav2``,
-``dwb:PATH.yaml``, ``rpp``, ``depth`` or ``ppo:PATH``. Policies see observations only.
+``dwb:PATH.yaml``, ``rpp``, ``depth``, ``ppo:PATH`` or ``blind`` (a constant command, the
+reference that shows what the field steers by itself). Policies see observations only.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from typing import Any
 from scenario_gen.errors import InputError
 
 from .base import Policy
+from .blind import Blind
 from .depth_follower import DepthFurrowFollower
 from .dwb import DWB
 from .ppo import PPOPolicy
@@ -24,6 +26,7 @@ POLICIES: dict[str, type[Policy]] = {
     "rpp": RegulatedPurePursuit,
     "depth": DepthFurrowFollower,
     "ppo": PPOPolicy,
+    "blind": Blind,
 }
 
 

@@ -72,13 +72,38 @@ def test_step_before_reset(env: Any) -> None:
 
 @pytest.mark.parametrize(
     "action",
-    ["forward", {"v": 1.0}, [1.0], [[1.0, 0.0, 0.0]], [np.nan, 0.0], [np.inf, 0.0], None, object()],
+    [
+        "forward",
+        {"v": 1.0},
+        [1.0],
+        [[1.0, 0.0, 0.0]],
+        [np.nan, 0.0],
+        [np.inf, 0.0],
+        None,
+        object(),
+        ["0.5", "0"],  # strings were coerced to numbers
+        [0.5 + 1j, 0.0],  # complex lost its imaginary part silently
+    ],
 )
 def test_bad_actions(env: Any, action: Any) -> None:
     env.reset(seed=0)
     with pytest.raises(InputError) as info:
         env.step(action)
     assert info.value.field == "action"
+
+
+def test_step_after_termination_needs_a_reset(env: Any) -> None:
+    env.reset(seed=0)
+    terminated = False
+    for _ in range(2000):  # full speed, turning: out of the lane within seconds
+        _, _, terminated, _, _ = env.step(np.array([1.0, 1.0], np.float32))
+        if terminated:
+            break
+    assert terminated
+    with pytest.raises(gym.error.ResetNeeded):
+        env.step(np.zeros(2, np.float32))
+    env.reset(seed=1)
+    env.step(np.zeros(2, np.float32))  # a new episode steps again
 
 
 @pytest.mark.parametrize(

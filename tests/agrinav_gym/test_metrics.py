@@ -47,6 +47,21 @@ def test_metrics_on_a_straight_path_by_hand() -> None:
     assert m["headland_rmse"] is None and m["poses"] == 4
 
 
+def test_path_weighted_rmse_by_hand_ignores_standing_still() -> None:
+    path = np.array([[0.0, 0.0], [10.0, 0.0]])
+    stall = [[2.0, 0.3]] * 10  # stopped 0.3 m off the line for ten more steps
+    poses = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.3], *stall])
+    m = _metrics(path, np.array([True, True]), poses)
+    assert m["rmse"] == pytest.approx(math.sqrt(0.09 * 11 / 13))  # time-weighted: the stall counts
+    ds2 = math.hypot(1.0, 0.3)
+    # trapezoid over the two driven pieces: (0 + 0) / 2 · 1 m, then (0 + 0.09) / 2 · ds2
+    assert m["path_rmse"] == pytest.approx(math.sqrt(0.045 * ds2 / (1.0 + ds2)))
+    assert m["path_in_furrow_rmse"] == pytest.approx(m["path_rmse"])
+    assert m["path_headland_rmse"] is None and m["driven_m"] == pytest.approx(1.0 + ds2)
+    one = _metrics(path, np.array([True, True]), poses[:1])
+    assert one["path_rmse"] is None and one["rmse"] == 0.0  # no path driven: nothing to weigh
+
+
 def test_nearest_segment_and_furrow_headland_split() -> None:
     # an L: furrow along x, then a headland leg along y
     path = np.array([[0.0, 0.0], [4.0, 0.0], [4.0, 3.0]])

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import itertools
+
 import gymnasium as gym
 import pytest
 
-import agrinav_gym  # noqa: F401
+import agrinav_gym
 from baselines.bench import geometry
 from baselines.hyperparams import load
 from baselines.suites import EVAL_SCENARIO_SEEDS, EVAL_SEED, SUITES, suite
@@ -58,3 +60,30 @@ def test_no_evaluation_field_is_a_training_field() -> None:
     for seed, direction, length in evaluated:
         assert not lo <= seed < hi
         assert all(abs(direction - d) > 0.05 or abs(length - n) > 0.05 for _, d, n in trained)
+
+
+@pytest.mark.parametrize("env_id", agrinav_gym.ENV_IDS)
+def test_train_validation_and_test_seeds_are_three_disjoint_ranges(env_id: str) -> None:
+    _, setup = load(env_id)
+    ranges = sorted([setup.train_seeds, setup.val_seeds, setup.eval_seeds])
+    assert all(hi <= lo for (_, hi), (lo, _) in itertools.pairwise(ranges))
+
+
+@pytest.mark.parametrize(
+    "split,value,other",
+    [
+        ("val_seeds", [1_000_000_500, 1_000_000_600], "eval_seeds"),  # validation on test fields
+        ("val_seeds", [10, 20], "train_seeds"),
+        ("eval_seeds", [5, 6], "train_seeds"),
+    ],
+)
+def test_an_overlapping_split_is_refused_when_loading(split: str, value: list, other: str) -> None:
+    from baselines.hyperparams import EnvSetup, check_splits
+    from scenario_gen.errors import InputError
+    from scenario_gen.schema import from_mapping
+
+    setup = from_mapping(EnvSetup, {split: value}, "envs.yml X.")
+    with pytest.raises(InputError) as e:
+        check_splits(setup, "envs.yml X.")
+    assert split in e.value.field or other in e.value.field
+    assert other in str(e.value) or split in str(e.value)

@@ -58,6 +58,11 @@ def _crops_hit(c: StepContext, t: TaskConfig) -> bool:
     return c.crops_hit > t.max_crops_hit
 
 
+@termination_check("progress")
+def _progress(c: StepContext, t: TaskConfig) -> bool:
+    return t.progress_time is not None and c.stalled >= t.progress_time
+
+
 def _wrap(a: float) -> float:
     return float((a + math.pi) % (2 * math.pi) - math.pi)
 
@@ -73,6 +78,7 @@ class Task(ABC):
         "off_terrain",
         "tip_over",
         "crops_hit",
+        "progress",
     )
     options: ClassVar[tuple[str, ...]] = ()  # extra ``reset(options=...)`` keys it reads
 

@@ -28,6 +28,10 @@ def int_at_least(lo: int, hi: int | None = None) -> Callable[[str], int]:
 
 
 seed_type = int_at_least(0, MAX_SEED)
+#: Episodes (or seeds per case) one command may ask for: 10⁴ FieldRoute episodes are days of
+#: simulation already; a typo such as 10¹² must be an error, not a run that never ends.
+MAX_EPISODES = 10_000
+episodes_type = int_at_least(1, MAX_EPISODES)
 
 
 def parse_set(items: list[str], flag: str = "--set") -> dict[str, Any]:

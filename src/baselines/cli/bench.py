@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from .args import int_at_least, seed_type
+from .args import episodes_type, int_at_least, seed_type
 
 
 def add(sub: Any) -> None:
@@ -20,7 +20,7 @@ def add(sub: Any) -> None:
         help="dwb (= dwb:furrow), dwb:nav2, dwb:PATH.yaml, rpp, depth or ppo:PATH",
     )
     ru.add_argument("--seed", type=seed_type, default=1_000_000_000)
-    ru.add_argument("--episodes", type=int_at_least(1), default=1)
+    ru.add_argument("--episodes", type=episodes_type, default=1)
     ru.add_argument("--scenario", help="a scenario directory or preset (default: the env's)")
     ru.add_argument("--out", required=True)
     ru.add_argument("--video", action="store_true", help="write a WebM video of the first episode")
@@ -42,7 +42,7 @@ def add(sub: Any) -> None:
     be.add_argument(
         "--policies", required=True, help="comma list, e.g. dwb:nav2,dwb:furrow,rpp,depth,ppo:PATH"
     )
-    be.add_argument("--seeds", type=int_at_least(1), default=3)
+    be.add_argument("--seeds", type=episodes_type, default=3)
     be.add_argument("--out", required=True)
     _common(be)
     be.set_defaults(func=bench)

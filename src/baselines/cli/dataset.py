@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from .args import int_at_least, parse_set, seed_type
+from .args import episodes_type, int_at_least, parse_set, seed_type
 
 
 def add(sub: Any) -> None:
@@ -27,7 +27,7 @@ def add(sub: Any) -> None:
     tr = kinds.add_parser("trajectories", help="policy rollouts as a Minari dataset")
     tr.add_argument("--env", default="AgriNav/FurrowFollow-v1")
     tr.add_argument("--policy", required=True, help="dwb, rpp, depth or ppo:PATH")
-    tr.add_argument("--episodes", type=int_at_least(1), default=10)
+    tr.add_argument("--episodes", type=episodes_type, default=10)
     tr.add_argument("--seed", type=seed_type, default=0)
     tr.add_argument("--dataset-id", default="agrinav/furrow_follow-v0")
     tr.add_argument("--out", required=True)

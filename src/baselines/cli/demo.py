@@ -5,13 +5,13 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from .args import int_at_least
+from .args import episodes_type
 
 
 def add(sub: Any) -> None:
     de = sub.add_parser("demo", help="default scenario + DWB vs shipped PPO on the paper suite")
     de.add_argument("--out", default="runs/demo")
-    de.add_argument("--seeds", type=int_at_least(1), default=2)
+    de.add_argument("--seeds", type=episodes_type, default=2)
     de.set_defaults(func=run)
 
 

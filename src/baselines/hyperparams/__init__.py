@@ -86,8 +86,17 @@ class EnvSetup:
     train_seeds: tuple[int, int] = param(
         (0, 1_000_000), "[low, high) scenario seeds to train on", 0, 2**62
     )
+    val_seeds: tuple[int, int] = param(
+        (500_000_000, 501_000_000),
+        "[low, high) validation scenario seeds: training-time evaluation and checkpoint choice",
+        0,
+        2**62,
+    )
     eval_seeds: tuple[int, int] = param(
-        (1_000_000_000, 1_001_000_000), "[low, high) held-out scenario seeds", 0, 2**62
+        (1_000_000_000, 1_001_000_000),
+        "[low, high) held-out test scenario seeds: agrinav bench only, no decision taken on them",
+        0,
+        2**62,
     )
     warm_start: dict[str, Any] | None = param(
         None, "behaviour-cloning warm start before PPO (baselines/imitation.py; null: none)"
@@ -132,16 +141,27 @@ def load(env_id: str, overrides: dict[str, Any] | None = None) -> tuple[PPOHyper
             f"allowed: at most n_steps × n_envs = {hp.n_steps * hp.n_envs}",
         )
     setup: EnvSetup = from_mapping(EnvSetup, envs.get(env_id, {}), f"envs.yml {env_id}.")
-    lo, hi = setup.train_seeds
-    elo, ehi = setup.eval_seeds
-    if not (lo < hi and elo < ehi and (hi <= elo or ehi <= lo)):
-        raise InputError(
-            f"envs.yml {env_id}.eval_seeds",
-            [elo, ehi],
-            f"allowed: a [low, high) range disjoint from train_seeds {[lo, hi]}",
-        )
+    check_splits(setup, f"envs.yml {env_id}.")
     setup.warm(env_id)
     return hp, setup
+
+
+def check_splits(setup: EnvSetup, where: str) -> None:
+    """Train, validation and test seed ranges: each non-empty, no two overlapping."""
+    ranges = {"train_seeds": setup.train_seeds, "val_seeds": setup.val_seeds}
+    ranges["eval_seeds"] = setup.eval_seeds
+    seen: dict[str, tuple[int, int]] = {}
+    for name, (lo, hi) in ranges.items():
+        if not lo < hi:
+            raise InputError(f"{where}{name}", [lo, hi], "allowed: a [low, high) range, low < high")
+        for other, (olo, ohi) in seen.items():
+            if lo < ohi and olo < hi:
+                raise InputError(
+                    f"{where}{name}",
+                    [lo, hi],
+                    f"allowed: a range disjoint from {other} {[olo, ohi]}",
+                )
+        seen[name] = (lo, hi)
 
 
 def to_zoo(hp: PPOHyperparams) -> dict[str, Any]:

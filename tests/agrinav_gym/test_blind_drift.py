@@ -1,0 +1,36 @@
+"""A controller that reads no sensor must not follow the lane on flat planting: the ground
+steers only as much as physics says. With no heading feedback a start-pose heading error of
+a few degrees alone walks the robot out of its ±0.19 m clearance within ~5 m of a 22 m lane,
+and soil roughness adds yaw disturbances that nothing corrects."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import pytest
+
+import agrinav_gym  # noqa: F401
+from policies import make_policy
+
+FLAT = {"furrows": {"enabled": False}}
+
+
+def _drive_blind(overrides: dict[str, object], seed: int) -> dict[str, object]:
+    env = gym.make("AgriNav/FurrowFollow-v1", scenario_overrides=overrides)
+    try:
+        obs, info = env.reset(seed=seed)
+        pi = make_policy("blind", env)
+        done = False
+        while not done:
+            obs, _, term, trunc, info = env.step(pi.act(obs))
+            done = term or trunc
+        return dict(info)
+    finally:
+        env.close()
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_a_blind_constant_command_leaves_a_flat_planted_lane(seed: int) -> None:
+    info = _drive_blind(FLAT, seed)
+    assert info.get("termination") != "success" and not info["is_success"]
+    completion = float(info["metrics"]["completion"])
+    assert completion < 90.0, completion
