@@ -35,7 +35,7 @@ STEPS = 1000
 
 def steps_per_second(observations: tuple[str, ...], repeat: int) -> tuple[float, float]:
     env = gym.make(
-        "AgriNav/FurrowFollow-v1",
+        "AgriNav/FurrowFollow-v2",
         scenario="paper-p1",
         observations=observations,
         config={"task": {"max_crops_hit": 10**6, "corridor": 2.0}},
@@ -50,7 +50,7 @@ def steps_per_second(observations: tuple[str, ...], repeat: int) -> tuple[float,
 def step_cost_ratio(repeat: int) -> tuple[float, float, float]:
     """(env step, raw substeps in the same world, robot alone on a plane), seconds per step."""
     env = gym.make(
-        "AgriNav/FurrowFollow-v1",
+        "AgriNav/FurrowFollow-v2",
         scenario="paper-p1",
         observations=("gps", "imu", "odom", "route"),
         config={"task": {"max_crops_hit": 10**6, "corridor": 2.0}},
@@ -111,7 +111,7 @@ scn = sg.generate(sg.preset("paper-p1", layout=lay), 0)
 _ = scn.terrain.tree
 before = rss()
 tracemalloc.start()
-env = gym.make("AgriNav/FurrowFollow-v1", scenario=scn)
+env = gym.make("AgriNav/FurrowFollow-v2", scenario=scn)
 env.reset(seed=0)
 for _ in range(50):
     env.step(env.action_space.sample() * 0)
@@ -156,7 +156,7 @@ def load_100k(repeat: int) -> tuple[int, float, float, float]:
         t0 = time.perf_counter()
         scn = sg.generate(spec, r)
         t1 = time.perf_counter()
-        env = gym.make("AgriNav/FurrowFollow-v1", scenario=scn)
+        env = gym.make("AgriNav/FurrowFollow-v2", scenario=scn)
         env.reset(seed=0)
         env.step(np.zeros(2, np.float32))
         t2 = time.perf_counter()
@@ -170,7 +170,7 @@ def load_100k(repeat: int) -> tuple[int, float, float, float]:
 
 def randomized_reset(repeat: int) -> float:
     env = gym.make(
-        "AgriNav/FurrowFollow-v1",
+        "AgriNav/FurrowFollow-v2",
         scenario="paper-p1",
         randomize={
             "crop.stage": [1, 5],

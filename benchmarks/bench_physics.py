@@ -79,9 +79,9 @@ def plane(slope_deg: float = 0.0) -> Terrain:
 
 
 def furrowed() -> tuple[Terrain, tuple[float, float, float]]:
-    """The default preset's terrain (DEM window, 0.12 m ridges, roughness) and a pose in the
+    """The ridged preset's terrain (DEM window, 0.12 m ridges, roughness) and a pose in the
     middle of its first lane, along the rows."""
-    scn = sg.generate(sg.preset("default"), 0)
+    scn = sg.generate(sg.preset("ridged"), 0)
     lane = np.flatnonzero(np.asarray(scn.route.segment) == "furrow")
     x, y = scn.route.xy[lane[len(lane) // 4]]
     return scn.terrain, (float(x), float(y), float(scn.rows.angle))
@@ -197,7 +197,7 @@ def accelerometer() -> None:
     }
     for name in ("legacy", "tyres"):
         env = gym.make(
-            "AgriNav/FurrowFollow-v1",
+            "AgriNav/FurrowFollow-v2",
             scenario_overrides=flat,
             config={"task": {"corridor": 5.0, "max_crops_hit": 10**6}},
         )
@@ -227,7 +227,7 @@ def step_cost(repeat: int) -> None:
     envs = []
     for name, loc, stage in setups:
         env = gym.make(
-            "AgriNav/FurrowFollow-v1",
+            "AgriNav/FurrowFollow-v2",
             scenario="paper-p1",
             scenario_overrides={"crop": {"stage": stage}} if stage else None,
             observations=("gps", "imu", "odom", "route"),
@@ -286,7 +286,7 @@ def estimate_errors(seeds: int) -> dict[tuple[str, str], list[float]]:
     with tqdm(total=len(CASES) * seeds, desc="episodes", unit="ep", leave=False) as bar:
         for case, gnss, stage in CASES:
             env = gym.make(
-                "AgriNav/FurrowFollow-v1",
+                "AgriNav/FurrowFollow-v2",
                 scenario_overrides={"crop": {"stage": stage}},
                 observations=["gps", "imu", "odom", "route"],
                 config={

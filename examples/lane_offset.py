@@ -27,7 +27,7 @@ def main() -> None:
     generate(spec, a.out, seed=0, frames=a.frames, workers=a.workers)
     print(validate(a.out))
     print(depth_follower_check(a.out))
-    learned = "ppo:" + str(shipped_model("AgriNav/FurrowFollowDepth-v1"))
+    learned = "ppo:" + str(shipped_model("AgriNav/FurrowFollowDepth-v2"))
     for name, policy in (("depth", "depth"), ("learned", learned), ("rpp", "rpp")):
         out = f"{a.out}-driving-{name}"
         print(driving_check(policy, out, a.driving_frames, seed=1, workers=a.workers))

@@ -2,7 +2,7 @@
 
 >>> import gymnasium as gym
 >>> import agrinav_gym  # registers the AgriNav/ namespace
->>> env = gym.make("AgriNav/FurrowFollow-v1")
+>>> env = gym.make("AgriNav/FurrowFollow-v2")
 """
 
 from __future__ import annotations

@@ -35,12 +35,13 @@ class EnvDef:
 
 # Step limits: a default-field lane (22 m) at the slowest shipped controller's 0.3 m/s is 73 s,
 # 1,470 steps at 20 Hz; the paper's zigzag (≈ 60 m with the U-turn) at 0.3 m/s is 4,000.
+#: v2: flat planting by default (no ridges under every field: docs/physics.md).
 #: v1: drivable default fields, tyre–soil physics, the EKF's pose in the route observation,
 #: canopy-driven GNSS fix modes, fitted plant proxies (docs/design.md "Version history").
 ENVS = (
-    EnvDef("FurrowFollow", 1, "agrinav_gym.envs.furrow_follow:FurrowFollowEnv", 1500),
-    EnvDef("FurrowFollowDepth", 1, "agrinav_gym.envs.furrow_follow:FurrowFollowDepthEnv", 1500),
-    EnvDef("FieldRoute", 1, "agrinav_gym.envs.field_route:FieldRouteEnv", 4000),
+    EnvDef("FurrowFollow", 2, "agrinav_gym.envs.furrow_follow:FurrowFollowEnv", 1500),
+    EnvDef("FurrowFollowDepth", 2, "agrinav_gym.envs.furrow_follow:FurrowFollowDepthEnv", 1500),
+    EnvDef("FieldRoute", 2, "agrinav_gym.envs.field_route:FieldRouteEnv", 4000),
 )
 ENV_IDS = tuple(d.id for d in ENVS)
 _BY_NAME = {d.name: d for d in ENVS}
@@ -102,7 +103,8 @@ def _user_id(name: Any, task: Any, kwargs: dict[str, Any]) -> tuple[str, EnvDef]
 def register_scenario(
     name: str, scenario: str | Path, task: str = "FurrowFollow", **kwargs: Any
 ) -> str:
-    """Register ``AgriNav/<name>-v1``: ``task`` on the scenario saved in ``scenario``."""
+    """Register ``AgriNav/<name>-v<N>`` (the task's version): ``task`` on the scenario saved in
+    ``scenario``."""
     if isinstance(scenario, Scenario):
         raise InputError(
             "scenario",
@@ -120,7 +122,8 @@ def register_scenario(
 def register_scenario_bank(
     name: str, directory: str | Path, task: str = "FurrowFollow", **kwargs: Any
 ) -> str:
-    """Register ``AgriNav/<name>-v1`` sampling a scenario of the bank ``directory`` each reset."""
+    """Register ``AgriNav/<name>-v<N>`` sampling a scenario of the bank ``directory`` each
+    reset."""
     from .scenarios import Bank
 
     Bank(directory)  # refuse an empty or missing bank now

@@ -30,7 +30,7 @@ def demo(out: str | Path, seeds: int = 2) -> Path:
     print(f"scenario: {out / 'scenario'} ({scn.summary()['plants']} plants; preview.png)")
     policies = ["dwb"]
     try:
-        shipped_model("AgriNav/FieldRoute-v1")
+        shipped_model("AgriNav/FieldRoute-v2")
         policies.append("ppo:shipped")
     except InputError as exc:  # a checkout without the trained model still runs the demo
         print(f"note: {exc}; benchmarking DWB only")

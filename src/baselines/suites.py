@@ -46,28 +46,71 @@ class Case:
 #: Held-out scenario seeds, the range every envs.yml entry evaluates on.
 EVAL_SCENARIO_SEEDS = (1_000_000_000, 1_001_000_000)
 PAPER_FIELD = {"field": {"width": 12.5, "length": 30.0}, "route": {"lanes": 2}}
-#: The paper's localisation: RTK through the EKF (robot_localization + navsat_transform).
-RTK_EKF = {"localisation": {"kind": "ekf"}, "gnss": {"mode": "rtk_fixed"}}
+#: The paper's localisation: RTK through the EKF (robot_localization + navsat_transform), and
+#: Nav2 Humble's progress checker (SimpleProgressChecker: 0.5 m within 10 s, else the goal
+#: fails), so a stall is a failure after 10 s, not a run to the step limit.
+RTK_EKF = {
+    "localisation": {"kind": "ekf"},
+    "gnss": {"mode": "rtk_fixed"},
+    "task": {"progress_time": 10.0, "progress_radius": 0.5},
+}
+
+#: Each ``ood`` case holds one axis out of the FieldRoute training ranges (envs.yml): the
+#: randomized keys it fixes, its scenario overrides and its env config.
+OOD_AXES: tuple[tuple[str, tuple[str, ...], dict[str, Any], dict[str, Any]], ...] = (
+    (
+        "ridged 12 cm",
+        ("furrows.enabled", "furrows.depth"),
+        {"furrows": {"enabled": True, "depth": 0.12}},
+        {},
+    ),
+    ("rows 0.8 m", ("layout.row_spacing",), {"layout": {"row_spacing": 0.8}}, {}),
+    ("rows 1.2 m", ("layout.row_spacing",), {"layout": {"row_spacing": 1.2}}, {}),
+    ("maize 0.18 m in-row", (), {"layout": {"plant_spacing": 0.18}}, {}),
+    (
+        "slope 9-12 deg",
+        ("terrain.max_slope_deg",),
+        {},
+        {"randomize": {"terrain.max_slope_deg": [9.0, 12.0]}},
+    ),
+    ("RTK float", (), {}, {"gnss": {"mode": "rtk_float", "fix": {"model": "constant"}}}),
+)
 
 
 def _unseen() -> list[Case]:
     """FieldRoute on geometries drawn like the PPO training split's, from the eval seeds."""
     from .hyperparams import load
 
-    _, setup = load("AgriNav/FieldRoute-v1")
+    _, setup = load("AgriNav/FieldRoute-v2")
     kw = setup.env_kwargs
     over = dict(kw.get("scenario_overrides", {}))
     rand = {k: v for k, v in kw.get("randomize", {}).items() if "." in k}
     return [
         Case(
             "unseen fields",
-            "AgriNav/FieldRoute-v1",
+            "AgriNav/FieldRoute-v2",
             str(kw.get("scenario", "paper-p1")),
             over,
             RTK_EKF,
             randomize=rand,
         )
     ]
+
+
+def _ood() -> list[Case]:
+    """FieldRoute on held-out geometries (eval seeds), one planting/sensing axis outside the
+    training ranges per case."""
+    (base,) = _unseen()
+    cases = []
+    for group, fixed, overrides, extra in OOD_AXES:
+        rand = {k: v for k, v in base.randomize.items() if k not in fixed}
+        rand.update(extra.get("randomize", {}))
+        config = {**base.config, **{k: v for k, v in extra.items() if k != "randomize"}}
+        over = {**base.overrides}
+        for section, values in overrides.items():
+            over[section] = {**over.get(section, {}), **values}
+        cases.append(Case(group, base.env_id, base.scenario, over, config, randomize=rand))
+    return cases
 
 
 def _localisation() -> list[Case]:
@@ -81,7 +124,7 @@ def _localisation() -> list[Case]:
         ("canopy 2.5 m", 5, RTK_EKF),
     )
     return [
-        Case(g, "AgriNav/FieldRoute-v1", "paper-p1", {**PAPER_FIELD, "crop": {"stage": s}}, c)
+        Case(g, "AgriNav/FieldRoute-v2", "paper-p1", {**PAPER_FIELD, "crop": {"stage": s}}, c)
         for g, s, c in rows
     ]
 
@@ -97,7 +140,7 @@ def suite(name: str) -> list[Case]:
             "layout": {"headland": 1.5},
             "terrain": {"margin": 4.0},
         }
-        return [Case("tiny", "AgriNav/FurrowFollow-v1", "default", tiny, max_steps=800)]
+        return [Case("tiny", "AgriNav/FurrowFollow-v2", "default", tiny, max_steps=800)]
     if name == "paper":
         # The source paper's run: a zigzag over two lanes with a headland U-turn of the row
         # spacing's diameter, RTK GNSS through the EKF, depth camera, early and intermediate
@@ -106,7 +149,7 @@ def suite(name: str) -> list[Case]:
         return [
             Case(
                 f"corn-{label}",
-                "AgriNav/FieldRoute-v1",
+                "AgriNav/FieldRoute-v2",
                 "paper-p1",
                 {**PAPER_FIELD, "crop": {"stage": stage}},
                 RTK_EKF,
@@ -117,6 +160,8 @@ def suite(name: str) -> list[Case]:
         return _unseen()
     if name == "localisation":
         return _localisation()
+    if name == "ood":
+        return _ood()
     if name in ("growth", "growth-proxy"):
         # Dense maize (0.18 m in the row) on the paper's 1 m rows: in 0.75 m rows a 0.62 m
         # Summit-XL touches stalks at 2 cm of error, and crop contact, not perception, would end
@@ -127,7 +172,7 @@ def suite(name: str) -> list[Case]:
         return [
             Case(
                 f"{h} m",
-                "AgriNav/FurrowFollow-v1",
+                "AgriNav/FurrowFollow-v2",
                 "default",
                 {"crop": {"stage": s}, "layout": {"row_spacing": 1.0}},
                 {"camera": {"model": model}},
@@ -139,7 +184,7 @@ def suite(name: str) -> list[Case]:
         return [
             Case(
                 p.upper(),
-                "AgriNav/FurrowFollow-v1",
+                "AgriNav/FurrowFollow-v2",
                 f"paper-{p}",
                 {"field": {"width": 20.0, "length": 30.0}},
             )
@@ -147,8 +192,8 @@ def suite(name: str) -> list[Case]:
         ]
     if name == "terrain":
         return [
-            Case("flat", "AgriNav/FurrowFollow-v1", "default"),
-            Case("hillside", "AgriNav/FurrowFollow-v1", "hillside"),
+            Case("flat", "AgriNav/FurrowFollow-v2", "default"),
+            Case("hillside", "AgriNav/FurrowFollow-v2", "hillside"),
         ]
     raise ScenarioError("--suite", name, f"allowed: one of {', '.join(SUITES)}")
 
@@ -157,6 +202,7 @@ SUITES = (
     "smoke",
     "paper",
     "unseen",
+    "ood",
     "localisation",
     "growth",
     "growth-proxy",

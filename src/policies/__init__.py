@@ -2,8 +2,9 @@
 
 ``make_policy(spec, env)`` builds one from an env's spaces and its public configuration (speed
 limits, camera calibration); ``spec`` is ``dwb`` (= ``dwb:furrow``), ``dwb:nav2``,
-``dwb:PATH.yaml``, ``rpp``, ``depth``, ``ppo:PATH`` or ``blind`` (a constant command, the
-reference that shows what the field steers by itself). Policies see observations only.
+``dwb:PATH.yaml``, ``rpp``, ``stanley`` (Stanley with integral action), ``depth``, ``ppo:PATH``
+or ``blind`` (a constant command: the reference that shows what the field steers by itself).
+Policies see observations only.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from .depth_follower import DepthFurrowFollower
 from .dwb import DWB
 from .ppo import PPOPolicy
 from .rpp import RegulatedPurePursuit
+from .stanley import Stanley
 
 POLICIES: dict[str, type[Policy]] = {
     "dwb": DWB,
@@ -27,14 +29,15 @@ POLICIES: dict[str, type[Policy]] = {
     "depth": DepthFurrowFollower,
     "ppo": PPOPolicy,
     "blind": Blind,
+    "stanley": Stanley,
 }
 
 
 #: Checkpoints shipped in the package, by the env id they were trained on.
 SHIPPED = {
-    "AgriNav/FurrowFollow-v1": "furrow_follow_ppo",
-    "AgriNav/FieldRoute-v1": "field_route_ppo",
-    "AgriNav/FurrowFollowDepth-v1": "furrow_follow_depth_ppo",
+    "AgriNav/FurrowFollow-v2": "furrow_follow_ppo",
+    "AgriNav/FieldRoute-v2": "field_route_ppo",
+    "AgriNav/FurrowFollowDepth-v2": "furrow_follow_depth_ppo",
 }
 
 

@@ -26,6 +26,7 @@ from gymnasium import spaces
 from numpy.typing import NDArray
 
 from scenario_gen.errors import InputError
+from scenario_gen.schema import parse_json
 
 FORMAT = "agrinav-ppo"
 VERSION = 1
@@ -215,10 +216,7 @@ def read_meta(folder: Path) -> dict[str, Any]:
         raise InputError("checkpoint", str(folder), f"holds no {META} (a safe AgriNav checkpoint)")
     if path.stat().st_size > MAX_META_BYTES:
         raise InputError("checkpoint", str(path), f"allowed: at most {MAX_META_BYTES} bytes")
-    try:
-        meta = json.loads(path.read_text())
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise InputError("checkpoint", str(path), f"is not valid JSON ({exc})") from None
+    meta = parse_json(path.read_bytes(), "checkpoint", str(path))
     if not isinstance(meta, dict) or meta.get("format") != FORMAT or meta.get("version") != VERSION:
         raise InputError("checkpoint", str(path), f"allowed: format {FORMAT!r} version {VERSION}")
     return meta

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 from typing import Any
@@ -15,6 +14,7 @@ from shapely.validation import explain_validity
 
 from .errors import InputError
 from .geodesy import GeoFrame
+from .schema import parse_json
 from .spec import FieldSpec
 
 MIN_FIELD_AREA = 4.0  # m²: below this not even one lane fits
@@ -43,14 +43,7 @@ def read_geojson(path: str | Path) -> BaseGeometry:
         raise InputError(
             "field.geojson", str(path), f"is {size:,} bytes; allowed: at most {MAX_GEOJSON_BYTES:,}"
         )
-    try:
-        data = json.loads(p.read_bytes().decode("utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise InputError("field.geojson", str(path), f"is not valid JSON ({exc})") from None
-    except RecursionError:
-        raise InputError(
-            "field.geojson", str(path), f"is nested too deeply; allowed: {MAX_NESTING} levels"
-        ) from None
+    data = parse_json(p.read_bytes(), "field.geojson", str(path))
     geoms = [g for g in geometries(data, str(path)) if g.get("type") in ("Polygon", "MultiPolygon")]
     if not geoms:
         raise InputError("field.geojson", str(path), "holds no Polygon or MultiPolygon geometry")

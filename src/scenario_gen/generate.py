@@ -33,6 +33,7 @@ from .routes import zigzag
 from .sources import Site, build_terrain, open_site
 from .spec import CropSpec, ScenarioSpec, TerrainSpec
 from .terrain import Terrain
+from .waypoints import read_gps_waypoints, waypoint_route
 
 FloatArray = NDArray[np.float64]
 
@@ -137,6 +138,7 @@ def resolve_paths(spec: ScenarioSpec) -> ScenarioSpec:
         ("terrain.path", spec.terrain.path),
         ("field.geojson", spec.field.geojson),
         ("crop.model", spec.crop.model),
+        ("route.waypoints", spec.route.waypoints),
     ):
         if value is not None:
             try:
@@ -233,7 +235,18 @@ def generate(spec: ScenarioSpec, seed: int) -> Scenario:
     lay = layout(poly, spec.layout, plan.angle, rng["jitter"], rng["gaps"], rng["weeds"])
     terrain = add_relief(base, lay.rows, lay.planting_area, spec.furrows, rng["roughness"])
     plants = place_plants(lay, terrain, spec.crop, growth, rng["plants"])
-    route = zigzag(lay.rows, spec.route, terrain, poly)
+    if spec.route.waypoints is not None:
+        route = waypoint_route(
+            read_gps_waypoints(spec.route.waypoints, "route.waypoints"),
+            site.geo,
+            terrain,
+            spec.route.spacing,
+            lay.rows.angle,
+            lay.planting_area,
+            "route.waypoints",
+        )
+    else:
+        route = zigzag(lay.rows, spec.route, terrain, poly)
     info = {
         "credit": site.credit,
         **site.info,

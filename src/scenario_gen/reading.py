@@ -11,7 +11,6 @@ version 1 has no ``row`` column in plants.csv, so rows are recovered as the near
 from __future__ import annotations
 
 import csv
-import json
 import math
 import zipfile
 import zlib
@@ -38,6 +37,7 @@ from .layout import RowFrame
 from .model import Plants, Scenario
 from .models import UserModel, sha256_file
 from .routes import SEGMENTS, Route
+from .schema import parse_json
 from .spec import ScenarioSpec
 from .terrain import Terrain
 
@@ -104,12 +104,7 @@ def _member(d: Path, name: str, max_bytes: int) -> Path:
 
 
 def _json(path: Path) -> dict[str, Any]:
-    try:
-        data = json.loads(path.read_bytes().decode("utf-8"))
-    except (ValueError, UnicodeDecodeError) as exc:  # JSONDecodeError is a ValueError
-        raise InputError(path.name, str(path), f"is not valid JSON ({exc}); truncated?") from None
-    except RecursionError:
-        raise InputError(path.name, str(path), "is nested too deeply to be a scenario") from None
+    data = parse_json(path.read_bytes(), path.name, str(path))
     if not isinstance(data, dict):
         raise InputError(path.name, type(data).__name__, "allowed: a JSON object")
     return data

@@ -271,6 +271,23 @@ class _NoAliasLoader(yaml.SafeLoader):
             )
         return super().compose_node(parent, index)
 
+    def construct_mapping(self, node: Any, deep: bool = False) -> Any:
+        # PyYAML keeps the last of two equal keys silently: a typo'd duplicate would override
+        # the value the user reads above it
+        seen: set[Any] = set()
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=True)
+            try:
+                duplicate = key in seen
+            except TypeError:  # an unhashable key: PyYAML reports it itself
+                break
+            if duplicate:
+                raise yaml.constructor.ConstructorError(
+                    None, None, f"duplicate key {key!r}", key_node.start_mark
+                )
+            seen.add(key)
+        return super().construct_mapping(node, deep=deep)
+
 
 def parse_yaml(text: str, what: str) -> Any:
     """YAML text to plain data: size-bounded, aliases refused, depth-bounded."""
@@ -286,6 +303,12 @@ def parse_yaml(text: str, what: str) -> Any:
     except RecursionError:
         raise InputError(
             what, "<nested>", f"allowed: at most {MAX_DEPTH} levels of nesting"
+        ) from None
+    except ValueError as exc:  # an integer of more digits than Python converts (4,300)
+        if "integer string conversion" not in str(exc):
+            raise
+        raise InputError(
+            what, "<an integer of thousands of digits>", "allowed: numbers of at most 4300 digits"
         ) from None
     return _plain(data)
 
@@ -315,6 +338,45 @@ def load_yaml(path: str | Path, what: str = "--config") -> dict[str, Any]:
 
 def _head(text: str) -> str:
     return text[:40]
+
+
+#: Python converts integers of at most this many digits (sys.get_int_max_str_digits()).
+MAX_INT_DIGITS = 4300
+
+
+class _Refused(Exception):
+    def __init__(self, why: str) -> None:
+        self.why = why
+
+
+def _unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for k, v in pairs:
+        if k in out:
+            raise _Refused(f"has the key {k!r} twice; allowed: each key once")
+        out[k] = v
+    return out
+
+
+def _bounded_int(text: str) -> int:
+    if len(text.lstrip("-")) > MAX_INT_DIGITS:
+        raise _Refused(f"holds an integer of {len(text):,} digits; allowed: {MAX_INT_DIGITS}")
+    return int(text)
+
+
+def parse_json(data: str | bytes, what: str, name: str = "") -> Any:
+    """JSON to plain data, every reader's one way in: invalid text, duplicate keys (which
+    ``json`` resolves silently, last wins), integers of thousands of digits and deep nesting
+    are ``InputError``s naming ``what`` (and ``name``, the file)."""
+    try:
+        text = data.decode("utf-8") if isinstance(data, bytes) else data
+        return json.loads(text, object_pairs_hook=_unique_keys, parse_int=_bounded_int)
+    except _Refused as exc:
+        raise InputError(what, name, exc.why) from None
+    except (ValueError, UnicodeDecodeError) as exc:  # JSONDecodeError is a ValueError
+        raise InputError(what, name, f"is not valid JSON ({exc})") from None
+    except RecursionError:
+        raise InputError(what, name, "is nested too deeply") from None
 
 
 def field_info(cls: type, dotted: str) -> tuple[Any, Any] | None:

@@ -127,8 +127,12 @@ class CropSpec:
 
 @dataclass(frozen=True)
 class FurrowSpec:
-    enabled: bool = _f(True, "add ridge/furrow micro-relief along the rows")
-    depth: float = _f(0.12, "ridge height above the furrow bottom, metres", 0, 1)
+    enabled: bool = _f(
+        False,
+        "ridge/furrow micro-relief along the rows (ridge-tilled or bedded planting; off: flat "
+        "planting, the default — roughness applies either way)",
+    )
+    depth: float = _f(0.12, "ridge height above the furrow bottom when enabled, metres", 0, 1)
     profile: str = _f("sine", "cross-section of the ridges", choices=("sine", "trapezoid"))
     taper: float = _f(
         1.0, "distance over which relief fades out at the planted edge, metres", 0.01, 100
@@ -151,6 +155,12 @@ class RouteSpec:
         2.0, "headland run before the first lane and after the last, metres", 0, 100
     )
     turn_offset: float = _f(1.0, "how far past the crop the U-turn starts, metres", 0, 100)
+    waypoints: str | None = _f(
+        None,
+        "Nav2 GPS waypoint YAML ({waypoints: [{latitude, longitude, yaw}]}): the route is the "
+        "straight-leg plan through them instead of the zigzag (scenario_gen.waypoints); "
+        "stored resolved",
+    )
 
 
 @dataclass(frozen=True)

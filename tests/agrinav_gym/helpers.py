@@ -22,7 +22,7 @@ FLAT: dict[str, Any] = {
 STILL = {"task": {"start_lateral_std": 0.0, "start_heading_std_deg": 0.0}}
 
 
-def make(env_id: str = "AgriNav/FurrowFollow-v1", **kwargs: Any) -> gym.Env:
+def make(env_id: str = "AgriNav/FurrowFollow-v2", **kwargs: Any) -> gym.Env:
     kwargs.setdefault("scenario_overrides", TINY)
     return gym.make(env_id, **kwargs)
 

@@ -10,7 +10,7 @@ from agrinav_gym import InputError
 
 from .helpers import TINY
 
-ID = "AgriNav/FurrowFollow-v1"
+ID = "AgriNav/FurrowFollow-v2"
 
 
 @pytest.mark.parametrize(

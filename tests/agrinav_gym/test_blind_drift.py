@@ -15,7 +15,7 @@ FLAT = {"furrows": {"enabled": False}}
 
 
 def _drive_blind(overrides: dict[str, object], seed: int) -> dict[str, object]:
-    env = gym.make("AgriNav/FurrowFollow-v1", scenario_overrides=overrides)
+    env = gym.make("AgriNav/FurrowFollow-v2", scenario_overrides=overrides)
     try:
         obs, info = env.reset(seed=seed)
         pi = make_policy("blind", env)

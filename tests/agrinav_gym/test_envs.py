@@ -50,7 +50,7 @@ def test_human_mode_is_declared_only_with_a_display() -> None:
             FurrowFollowEnv(scenario_overrides=TINY, render_mode="human")
 
 
-@pytest.mark.parametrize("env_id", ["AgriNav/FurrowFollowDepth-v1", "AgriNav/FieldRoute-v1"])
+@pytest.mark.parametrize("env_id", ["AgriNav/FurrowFollowDepth-v2", "AgriNav/FieldRoute-v2"])
 def test_camera_extras_and_fresh_arrays_every_step(env_id: str) -> None:
     """info carries the current RGB and segmentation after every step at every camera rate,
     and every observation is a new array (nothing the caller keeps changes under it)."""
@@ -138,7 +138,7 @@ def test_env_pickles(env_id: str) -> None:
 
 def test_async_vector_env() -> None:
     envs = gym.vector.AsyncVectorEnv(
-        [lambda: gym.make("AgriNav/FurrowFollow-v1", scenario_overrides=TINY)] * 2
+        [lambda: gym.make("AgriNav/FurrowFollow-v2", scenario_overrides=TINY)] * 2
     )
     try:
         obs, _ = envs.reset(seed=[0, 1])
@@ -158,7 +158,7 @@ def test_sb3_subproc_vec_env() -> None:
 
     # forkserver workers start fresh: the "module:id" form imports agrinav_gym there first
     venv = make_vec_env(
-        "agrinav_gym:AgriNav/FurrowFollow-v1",
+        "agrinav_gym:AgriNav/FurrowFollow-v2",
         n_envs=2,
         seed=0,
         vec_env_cls=SubprocVecEnv,
@@ -222,8 +222,9 @@ def test_design_notes_list_every_observation_with_its_shape() -> None:
         assert f"| ({n},) |" in rows[key]
 
 
-def test_the_first_wave_ids_point_to_v1() -> None:
+@pytest.mark.parametrize("old", ["v0", "v1"])
+def test_older_ids_point_to_v2(old: str) -> None:
     from gymnasium.error import DeprecatedEnv
 
-    with pytest.raises(DeprecatedEnv, match="AgriNav/FurrowFollow-v1"):
-        gym.make("AgriNav/FurrowFollow-v0")
+    with pytest.raises(DeprecatedEnv, match="AgriNav/FurrowFollow-v2"):
+        gym.make(f"AgriNav/FurrowFollow-{old}")

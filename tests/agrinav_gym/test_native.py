@@ -32,7 +32,7 @@ def maize() -> MeshScene:
     """Tall maize (2.5 m) in 1 m rows: leaves hang into the lane and hide each other. The
     scene keeps its scenario as ``scene.scenario``."""
     over = {**TINY, "crop": {"stage": 5}, "layout": {"row_spacing": 1.0, "headland": 2.0}}
-    scn = generate(preset("default", **over), 0)
+    scn = generate(preset("ridged", **over), 0)  # micro-relief: the harder geometry
     scene = MeshScene.from_scenario(scn)
     scene.scenario = scn  # type: ignore[attr-defined]
     return scene
@@ -306,7 +306,7 @@ def test_proxy_kernel_hits_the_first_surface_exactly(
 
     from .helpers import make_camera
 
-    scn = generate(preset("default", **TINY, crop={"stage": 4}), 0)
+    scn = generate(preset("ridged", **TINY, crop={"stage": 4}), 0)
     plants = PlantField.from_scenario(scn)
     cam = make_camera(None, {"width": 64, "height": 48})
     rot, pos = lane_pose(scn, 30, turn)

@@ -16,7 +16,7 @@ def test_register_scenario_from_a_directory(tmp_path: Path) -> None:
     sg.save(scn, tmp_path / "s")
     a = agrinav_gym.register_scenario("TinyDir", tmp_path / "s")
     b = agrinav_gym.register_scenario("TinyRoute", tmp_path / "s", task="FieldRoute")
-    assert (a, b) == ("AgriNav/TinyDir-v1", "AgriNav/TinyRoute-v1")  # the task's version
+    assert (a, b) == ("AgriNav/TinyDir-v2", "AgriNav/TinyRoute-v2")  # the task's version
     assert gym.spec(b).entry_point.endswith("FieldRouteEnv")
     for env_id in (a, b):
         gym.spec(env_id).to_json()  # serialisable: Minari and zoo tools rely on it
@@ -39,12 +39,12 @@ def test_register_scenario_refuses_objects_bad_tasks_and_built_in_names(tmp_path
     with pytest.raises(ScenarioError) as info:
         agrinav_gym.register_scenario("Tiny", tmp_path / "s", task="route")
     assert info.value.field == "task" and "FieldRoute" in str(info.value)
-    before = gym.spec("AgriNav/FurrowFollow-v1")
+    before = gym.spec("AgriNav/FurrowFollow-v2")
     for name in ("FurrowFollow", "FieldRoute", "FurrowFollowDepth"):
         with pytest.raises(ScenarioError, match="built-in"):
             agrinav_gym.register_scenario(name, tmp_path / "s")
-    assert gym.spec("AgriNav/FurrowFollow-v1") is before
-    assert gym.spec("AgriNav/FurrowFollow-v1").kwargs == {}
+    assert gym.spec("AgriNav/FurrowFollow-v2") is before
+    assert gym.spec("AgriNav/FurrowFollow-v2").kwargs == {}
 
 
 @pytest.mark.parametrize("env_id", list(agrinav_gym.ENV_IDS))

@@ -113,6 +113,20 @@ def _under_a_file(d: Path) -> list[str]:
     return []
 
 
+def _file(d: Path, name: str, text: str, flag: str) -> list[str]:
+    (d / name).write_text(text)
+    return [flag, str(d / name)]
+
+
+HUGE = "9" * 5000  # more digits than Python converts to an int
+
+
+def _dup_geojson(d: Path) -> list[str]:
+    ring = "[[-84.14, 36.55], [-84.139, 36.55], [-84.139, 36.551], [-84.14, 36.55]]"
+    text = f'{{"type": "Polygon", "type": "Point", "coordinates": [{ring}]}}'
+    return _file(d, "dup.geojson", text, "--field")
+
+
 Case = tuple[str, Callable[[Path], list[str]], str, str]
 CASES: list[Case] = [
     ("geojson 10,000 deep", _deep_geojson, "out", "field.geojson"),
@@ -154,6 +168,37 @@ CASES: list[Case] = [
         "--seed/--count",
     ),
     ("bank with bad input", lambda d: ["--count", "3", "--lod", "12"], "out", "terrain.lod"),
+    ("huge integer in --set", lambda d: ["--set", f"layout.rows={HUGE}"], "out", "4300 digits"),
+    (
+        "huge integer in a config",
+        lambda d: _file(d, "c.yaml", f"layout: {{rows: {HUGE}}}\n", "--config"),
+        "out",
+        "4300 digits",
+    ),
+    (
+        "duplicate key in a config",
+        lambda d: _file(d, "c.yaml", "layout:\n  rows: 3\n  rows: 4\n", "--config"),
+        "out",
+        "duplicate key 'rows'",
+    ),
+    ("duplicate key in a geojson", _dup_geojson, "out", "'type' twice"),
+    (
+        "huge integer in a geojson",
+        lambda d: _file(d, "h.geojson", f'{{"type": "Polygon", "coordinates": {HUGE}}}', "--field"),
+        "out",
+        "digits",
+    ),
+    (
+        "waypoint off the terrain",
+        lambda d: _file(
+            d,
+            "w.yaml",
+            "waypoints: [{latitude: 36.55, longitude: -84.14}, {latitude: 37.5, longitude: -84.14}]\n",
+            "--waypoints",
+        ),
+        "out",
+        "off the terrain",
+    ),
 ]
 
 

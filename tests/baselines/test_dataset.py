@@ -112,7 +112,7 @@ def test_trajectories_are_a_minari_dataset_that_recovers_its_env(tmp_path: Path)
     minari = pytest.importorskip("minari", reason="the dataset extra is not installed")
     from baselines.dataset.trajectories import INFO_KEYS, _datasets_root, record
 
-    path = record("AgriNav/FurrowFollow-v1", "rpp", 2, tmp_path / "m", seed=3)
+    path = record("AgriNav/FurrowFollow-v2", "rpp", 2, tmp_path / "m", seed=3)
     with _datasets_root(tmp_path / "m"):
         data = minari.load_dataset("agrinav/furrow_follow-v0")
         assert data.total_episodes == 2
@@ -121,7 +121,7 @@ def test_trajectories_are_a_minari_dataset_that_recovers_its_env(tmp_path: Path)
         assert set(INFO_KEYS) <= set(ep.infos) and "rewards" in ep.infos
         env = data.recover_environment()
         try:
-            assert env.spec is not None and env.spec.id == "AgriNav/FurrowFollow-v1"
+            assert env.spec is not None and env.spec.id == "AgriNav/FurrowFollow-v2"
             env.reset(seed=0)
         finally:
             env.close()

@@ -36,7 +36,7 @@ def test_unseen_suite_draws_the_training_ranges() -> None:
 
 
 def _fields(kwargs: dict, seeds: range) -> list[tuple]:
-    env = gym.make("AgriNav/FieldRoute-v1", **kwargs)
+    env = gym.make("AgriNav/FieldRoute-v2", **kwargs)
     try:
         out = []
         for s in seeds:
@@ -87,3 +87,33 @@ def test_an_overlapping_split_is_refused_when_loading(split: str, value: list, o
         check_splits(setup, "envs.yml X.")
     assert split in e.value.field or other in e.value.field
     assert other in str(e.value) or split in str(e.value)
+
+
+def test_every_ood_case_lies_outside_the_training_ranges() -> None:
+    """Held out means out of distribution: each ood case's value of its axis is outside what
+    any FieldRoute training field was drawn from (the training preset's value where the
+    training does not draw it)."""
+    from scenario_gen import preset
+
+    _, setup = load("AgriNav/FieldRoute-v2")
+    train = setup.env_kwargs["randomize"]
+    spec = preset(setup.env_kwargs["scenario"])
+
+    def outside(key: str, value: float) -> bool:
+        if key in train and isinstance(train[key], list):
+            lo, hi = train[key]
+            return not lo <= value <= hi
+        section, name = key.split(".")
+        return value != getattr(getattr(spec, section), name)
+
+    cases = {c.group: c for c in suite("ood")}
+    assert outside("furrows.depth", cases["ridged 12 cm"].overrides["furrows"]["depth"])
+    for group in ("rows 0.8 m", "rows 1.2 m"):
+        assert outside("layout.row_spacing", cases[group].overrides["layout"]["row_spacing"])
+    in_row = cases["maize 0.18 m in-row"].overrides["layout"]["plant_spacing"]
+    assert outside("layout.plant_spacing", in_row)
+    lo, _ = cases["slope 9-12 deg"].randomize["terrain.max_slope_deg"]
+    assert lo > train["terrain.max_slope_deg"][1]
+    assert cases["RTK float"].config["gnss"]["mode"] == "rtk_float"
+    for case in cases.values():  # every other axis drawn as in training, from the eval seeds
+        assert case.env_kwargs()["scenario_seeds"] == list(EVAL_SCENARIO_SEEDS)

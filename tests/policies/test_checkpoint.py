@@ -20,7 +20,7 @@ TINY = {
     "layout": {"headland": 2.0},
     "terrain": {"margin": 4.0},
 }
-FR = "AgriNav/FieldRoute-v1"
+FR = "AgriNav/FieldRoute-v2"
 OBS = ["imu", "odom", "route"]
 
 

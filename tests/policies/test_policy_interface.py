@@ -16,7 +16,7 @@ ALL = ["gps", "imu", "odom", "route", "depth"]
 
 @pytest.mark.parametrize("name", [n for n in POLICIES if n != "ppo"])
 def test_every_policy_acts_in_the_action_space(name: str) -> None:
-    env = gym.make("AgriNav/FurrowFollow-v1", scenario_overrides=TINY, observations=ALL)
+    env = gym.make("AgriNav/FurrowFollow-v2", scenario_overrides=TINY, observations=ALL)
     try:
         pi = make_policy(name, env)
         obs, _ = env.reset(seed=0)
@@ -30,7 +30,7 @@ def test_every_policy_acts_in_the_action_space(name: str) -> None:
 
 
 def test_missing_observation_and_unknown_policy_are_clear_errors() -> None:
-    env = gym.make("AgriNav/FurrowFollowDepth-v1", scenario_overrides=TINY)
+    env = gym.make("AgriNav/FurrowFollowDepth-v2", scenario_overrides=TINY)
     try:
         with pytest.raises(ValueError, match="needs observations"):
             make_policy("rpp", env)
@@ -50,15 +50,16 @@ FLAT_1M = {
 }
 
 
-@pytest.mark.parametrize("name", ["dwb", "rpp"])
 @pytest.mark.parametrize(
-    "env_id,rmse,max_cte",
+    "name,env_id,rmse,max_cte",
     [
+        ("stanley", "AgriNav/FurrowFollow-v2", 0.03, 0.05),
+        # untuned (the paper's gains), Stanley cuts the U-turn by 0.1 m RMSE: no U-turn row
         # a straight lane: within the RTK GNSS + IMU heading noise of the estimated pose
-        ("AgriNav/FurrowFollow-v1", 0.03, 0.05),
+        *[(n, "AgriNav/FurrowFollow-v2", 0.03, 0.05) for n in ("dwb", "rpp")],
         # the zigzag's headland U-turn (0.5 m radius) is the hard part for a path follower:
         # pure pursuit cuts it by up to half its 0.9 m maximum lookahead
-        ("AgriNav/FieldRoute-v1", 0.08, 0.45),
+        *[(n, "AgriNav/FieldRoute-v2", 0.08, 0.45) for n in ("dwb", "rpp")],
     ],
 )
 def test_classical_controllers_follow_straight_and_curved_paths(
@@ -82,7 +83,7 @@ def test_classical_controllers_follow_straight_and_curved_paths(
 
 def test_depth_follower_finds_the_lane() -> None:
     env = gym.make(
-        "AgriNav/FurrowFollowDepth-v1", scenario_overrides={**FLAT_1M, "crop": {"stage": 2}}
+        "AgriNav/FurrowFollowDepth-v2", scenario_overrides={**FLAT_1M, "crop": {"stage": 2}}
     )
     try:
         pi = make_policy("depth", env)
@@ -99,3 +100,32 @@ def test_depth_follower_finds_the_lane() -> None:
         assert abs(heading - true_heading) < 0.2
     finally:
         env.close()
+
+
+def _mean_offset(integral_time: float | None) -> float:
+    """Mean signed cross-track error over the second half of a lane across a 10° side slope:
+    gravity pulls the robot down the slope all the way, a steady disturbance. A soft
+    proportional gain (k 0.5) lets it show as an offset of centimetres."""
+    side = {**FLAT_1M, "terrain": {**FLAT_1M["terrain"], "slope_deg": 10.0, "aspect_deg": 0.0}}
+    side["field"] = {"width": 5.0, "length": 20.0}
+    env = gym.make("AgriNav/FurrowFollow-v2", scenario_overrides=side, observations=["route"])
+    try:
+        pi = make_policy("stanley", env, k=0.5, integral_time=integral_time)
+        obs, _ = env.reset(seed=0)
+        pi.reset()
+        ctes = []
+        while True:
+            obs, _, term, trunc, info = env.step(pi.act(obs))
+            ctes.append(info["cte"])
+            if term or trunc:
+                break
+        assert info["is_success"], info.get("termination")
+        return sum(ctes[len(ctes) // 2 :]) / (len(ctes) - len(ctes) // 2)
+    finally:
+        env.close()
+
+
+def test_stanleys_integral_removes_the_steady_offset_of_a_side_slope() -> None:
+    without, with_integral = _mean_offset(None), _mean_offset(6.0)
+    assert abs(without) > 0.005  # the slope leaves a steady offset without integral action
+    assert abs(with_integral) < 0.5 * abs(without), (without, with_integral)

@@ -15,13 +15,14 @@ from scenario_gen.geodesy import GeoFrame, ground_sample_distance
 from .helpers import plane, small
 
 LAT = 36.549167  # the embedded DEM's flattest site, where small() lands
+RIDGED = {"enabled": True}  # the ridges' rule: 4 samples per row period
 
 
 @pytest.mark.parametrize("lod", [0, 4, 12, 18])
 def test_coarse_lod_is_refused_with_the_rule_and_the_lod_that_works(lod: int) -> None:
     # 1 m rows with furrows: at most 0.25 m between samples; at 36.5° that is LoD 19 (0.240 m)
     with pytest.raises(ScenarioError) as info:
-        generate(small(terrain={"lod": lod}), seed=0)
+        generate(small(terrain={"lod": lod}, furrows=RIDGED), seed=0)
     e = info.value
     assert e.field == "terrain.lod" and e.value == lod
     assert "off the DEM" not in str(e)
@@ -30,7 +31,7 @@ def test_coarse_lod_is_refused_with_the_rule_and_the_lod_that_works(lod: int) ->
 
 
 def test_the_smallest_lod_the_error_names_is_accepted() -> None:
-    scn = generate(small(terrain={"lod": 19}), seed=0)
+    scn = generate(small(terrain={"lod": 19}, furrows=RIDGED), seed=0)
     assert scn.terrain.spacing <= 0.25
 
 
@@ -52,7 +53,8 @@ def test_roughness_needs_samples_closer_than_its_correlation_length() -> None:
 
 def test_no_lod_is_fine_enough_says_so() -> None:
     with pytest.raises(ScenarioError, match="no LoD up to 22"):
-        generate(small(layout={"row_spacing": 0.1, "jitter_lateral": 0.0}), seed=0)
+        spec = small(layout={"row_spacing": 0.1, "jitter_lateral": 0.0}, furrows=RIDGED)
+        generate(spec, seed=0)
 
 
 # ----------------------------------------------------------------------------- datum

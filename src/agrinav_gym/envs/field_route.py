@@ -14,18 +14,18 @@ class FieldRouteEnv(AgriNavEnv):
     U-turns, with lead-in and lead-out — as in the source paper's Summit-XL / Nav2 experiment.
 
     ## Action Space
-    As ``AgriNav/FurrowFollow-v1``: normalized (v, ω) in [-1, 1]², clipped; NaN raises.
+    As ``AgriNav/FurrowFollow-v2``: normalized (v, ω) in [-1, 1]², clipped; NaN raises.
 
     ## Observation Space
     Default ``gps`` (5,), ``imu`` (10,), ``odom`` (2,), ``route`` (30,), ``depth`` (1, 48, 64);
-    see ``AgriNav/FurrowFollow-v1``. Route points carry a furrow (1) / headland (0) flag.
+    see ``AgriNav/FurrowFollow-v2``. Route points carry a furrow (1) / headland (0) flag.
 
     ## Rewards
-    As ``AgriNav/FurrowFollow-v1``; the corridor is half the row spacing in furrows and
+    As ``AgriNav/FurrowFollow-v2``; the corridor is half the row spacing in furrows and
     ``config.task.headland_corridor`` (1 m) on the headland.
 
     ## Starting State
-    At rest 0.3 m along the lead-in, perturbed as in ``AgriNav/FurrowFollow-v1``.
+    At rest 0.3 m along the lead-in, perturbed as in ``AgriNav/FurrowFollow-v2``.
 
     ## Episode End
     Success at the route's end; failure on leaving the corridor, tipping over or hitting more
@@ -33,9 +33,11 @@ class FieldRouteEnv(AgriNavEnv):
     paper's running metrics (in-furrow and headland RMSE separately).
 
     ## Arguments
-    As ``AgriNav/FurrowFollow-v1``.
+    As ``AgriNav/FurrowFollow-v2``.
 
     ## Version History
+    * v2: fields planted flat by default (roughness, no ridges; ``ridged`` preset for
+      ridge-tilled fields): in v1 the 0.12 m ridges under every field steered the robot.
     * v1: default fields drivable (1 m rows, stalk-vs-footprint contact), tyre–soil drive
       physics (yaw rate follows the command, slope traction limit), the route observation from a
       robot_localization-style EKF with GNSS latency and canopy-driven fix modes (was an ideal

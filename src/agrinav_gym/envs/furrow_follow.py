@@ -64,6 +64,8 @@ class FurrowFollowEnv(AgriNavEnv):
     ``reset(options={"scenario": ..., "lane": i})`` switches scenario or lane.
 
     ## Version History
+    * v2: fields planted flat by default (roughness, no ridges; ``ridged`` preset for
+      ridge-tilled fields): in v1 the 0.12 m ridges under every field steered the robot.
     * v1: default fields drivable (1 m rows, stalk-vs-footprint contact), tyre–soil drive
       physics (yaw rate follows the command, slope traction limit), the route observation from a
       robot_localization-style EKF with GNSS latency and canopy-driven fix modes (was an ideal
@@ -82,24 +84,26 @@ class FurrowFollowDepthEnv(FurrowFollowEnv):
     image; no GNSS and no route observation.
 
     ## Action Space
-    As ``AgriNav/FurrowFollow-v1``.
+    As ``AgriNav/FurrowFollow-v2``.
 
     ## Observation Space
     Default ``depth`` (1, 48, 64) metres, ``imu`` (10,), ``odom`` (2,).
 
     ## Rewards
-    As ``AgriNav/FurrowFollow-v1`` (computed from the true pose).
+    As ``AgriNav/FurrowFollow-v2`` (computed from the true pose).
 
     ## Starting State
-    As ``AgriNav/FurrowFollow-v1``.
+    As ``AgriNav/FurrowFollow-v2``.
 
     ## Episode End
-    As ``AgriNav/FurrowFollow-v1``.
+    As ``AgriNav/FurrowFollow-v2``.
 
     ## Arguments
-    As ``AgriNav/FurrowFollow-v1``.
+    As ``AgriNav/FurrowFollow-v2``.
 
     ## Version History
+    * v2: fields planted flat by default (roughness, no ridges; ``ridged`` preset for
+      ridge-tilled fields): in v1 the 0.12 m ridges under every field steered the robot.
     * v1: default fields drivable (1 m rows, stalk-vs-footprint contact), tyre–soil drive
       physics (yaw rate follows the command, slope traction limit), the route observation from a
       robot_localization-style EKF with GNSS latency and canopy-driven fix modes (was an ideal

@@ -4,9 +4,9 @@ The proxy (``PlantField``) draws a plant as a vertical capped cylinder of radius
 ``fill × canopy width`` from its base to its top and — for planar-leaved maize — a leaf band
 from ``base × height`` to the top whose radius is ``reach × half the canopy width ×
 |sin(yaw − row angle)|`` (the leaf plane's extent across the row). The three numbers are
-fitted per species and catalog stage: on lanes of that crop as the envs make them (the default
-preset's terrain with its 0.12 m furrows, rows 0.75 and 1 m apart, 0.18 m in the row, random
-yaw, heights ±8 %) they minimise, over 16 lane-centre poses with
+fitted per species and catalog stage: on lanes of that crop as the v1 envs made them
+(the ``ridged`` preset's terrain with its 0.12 m furrows, rows 0.75 and 1 m apart, 0.18 m
+in the row, random yaw, heights ±8 %) they minimise, over 16 lane-centre poses with
 heading (±6°) and lateral (±0.1 m) offsets, the sum of the two quantities the issue names, both
 in metres: the mean absolute per-pixel difference between the proxy's 64 × 48 depth image and
 the mesh camera's — geometry against geometry (no noise, no stereo invalidation, no near limit;
@@ -133,7 +133,7 @@ def fit_scenes(name: str, growth: float, seed: int = 0) -> list[FitScene]:
         crop = "corn" if name == "weed" else name
         sp = CATALOG[crop]
         spec = sg.preset(
-            "default",
+            "ridged",  # the terrain FITTED was made on; flat fields are not refitted yet
             terrain={"margin": 4.0},
             field={"width": 4.5 * spacing, "length": 14.0},
             layout={"row_spacing": spacing, "headland": 2.0, "weed_density": 0.0},

@@ -39,6 +39,11 @@ def add(sub: Any) -> None:
         help="LAT,LON,ALT of the mesh or plane origin (a DEM sets its own: refused with one)",
     )
     sc.add_argument("--field", help="GeoJSON polygon of the field (WGS84 lon/lat)")
+    sc.add_argument(
+        "--waypoints",
+        help="Nav2 GPS waypoint YAML (as `agrinav export --to nav2` writes): the route is the "
+        "plan through them instead of the zigzag",
+    )
     sc.add_argument("--lod", type=int, help="level of detail (Web-Mercator zoom 0-22)")
     sc.add_argument(
         "--count",
@@ -84,6 +89,8 @@ def spec_from_args(args: argparse.Namespace) -> Any:
         flags["terrain.datum"] = _parse_datum(args.datum)
     if args.field:
         flags["field.geojson"] = args.field
+    if args.waypoints:
+        flags["route.waypoints"] = args.waypoints
     if args.lod is not None:
         flags["terrain.lod"] = args.lod
     spec = ScenarioSpec.from_dict(merge(merge(base, flags), parse_set(args.set)))

@@ -13,7 +13,7 @@ from typing import Any
 from tqdm import tqdm
 
 from scenario_gen.errors import InputError
-from scenario_gen.schema import to_mapping
+from scenario_gen.schema import parse_json, to_mapping
 
 from .perception import check, save_shard, shard_frames, write_shard
 from .spec import SCHEMA_VERSION, PerceptionSpec
@@ -54,9 +54,11 @@ def prepare(spec: PerceptionSpec, out: Path, seed: int, frames: int) -> tuple[in
                 "holds files that are not a dataset; allowed: a new or empty folder",
             )
         try:
-            have = json.loads(man.read_text())
-        except (OSError, ValueError) as exc:
+            have = parse_json(man.read_bytes(), "--out", f"{out}/{MANIFEST}")
+        except OSError as exc:
             raise InputError("--out", str(out), f"has an unreadable {MANIFEST} ({exc})") from None
+        if not isinstance(have, dict):
+            raise InputError("--out", str(out), f"has a {MANIFEST} that is not a JSON object")
         mine = _manifest(spec, seed, shards)
         for k in ("format", "schema", "digest", "seed", "shards"):
             if have.get(k) != mine[k]:

@@ -31,6 +31,7 @@ DEFAULT_RANDOMIZE: dict[str, Any] = {
     "layout.row_angle_deg": [-180.0, 180.0],
     "terrain.site": {"choices": ["flattest", "steepest"]},
     "terrain.max_slope_deg": [2.0, 10.0],
+    "furrows.enabled": {"choices": [False, True]},
     "furrows.depth": [0.0, 0.15],
     "soil_colour": [[0.25, 0.18, 0.1], [0.6, 0.48, 0.35]],
     "light_azimuth_deg": [0.0, 360.0],
@@ -42,7 +43,7 @@ DEFAULT_RANDOMIZE: dict[str, Any] = {
 class PerceptionSpec:
     """One perception dataset: frames from randomized fields, seen by a robot that errs."""
 
-    env: str = param("AgriNav/FurrowFollow-v1", "env id the frames come from")
+    env: str = param("AgriNav/FurrowFollow-v2", "env id the frames come from")
     preset: str = param("default", "scenario preset the randomization starts from")
     field_length: float = param(
         14.0, "rows length of each field, m (short fields: many fields)", 4, 200

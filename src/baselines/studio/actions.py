@@ -23,7 +23,7 @@ from .session import Session, field_file
 
 #: Policies the page offers: names ``policies.make_policy`` takes.
 POLICIES = ("dwb", "rpp", "ppo:shipped")
-RUN_ENV = "AgriNav/FieldRoute-v1"
+RUN_ENV = "AgriNav/FieldRoute-v2"
 
 
 def inside_workspace(out: str, workspace: Path) -> None:

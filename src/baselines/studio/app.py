@@ -22,6 +22,7 @@ from starlette.responses import Response
 from scenario_gen import crops, preset_names
 from scenario_gen.errors import InputError
 from scenario_gen.generate import growth_of
+from scenario_gen.schema import parse_json
 
 from . import actions, fields, guard, layers
 from .card import ScenarioCard
@@ -319,15 +320,11 @@ class Page:
 
     async def on_geojson(self, e: events.UploadEventArguments) -> None:
         try:
-            text = (await e.file.read()).decode("utf-8")
-            data = json.loads(text)
+            data = parse_json(await e.file.read(), "field", e.file.name)
             geom = fields.combine(fields.polygons_of(data))
             if geom is None:
                 raise InputError("field", e.file.name, "holds no Polygon or MultiPolygon")
             self.s.set_field(geom)
-        except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-            self.form.show(InputError("field", e.file.name, f"is not GeoJSON ({exc})"), sticky=True)
-            return
         except InputError as exc:
             self.form.show(exc, sticky=True)
             return

@@ -19,6 +19,7 @@ from shapely.validation import explain_validity
 
 from scenario_gen.errors import InputError
 from scenario_gen.field import geometries
+from scenario_gen.schema import parse_json
 
 DIGITS = 9  # 1e-9° ≈ 0.1 mm: far below any plant or row spacing
 MAX_VERTICES = 100_000
@@ -81,10 +82,7 @@ def to_text(geom: BaseGeometry) -> str:
 
 def from_text(text: str) -> BaseGeometry:
     """The geometry a field file holds, read the way ``scenario_gen.field.read_geojson`` does."""
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise InputError("field", text[:40], f"is not valid JSON ({exc})") from None
+    data = parse_json(text, "field", text[:40])
     polys = polygons_of(data)
     if not polys:
         raise InputError("field", text[:40], "holds no Polygon or MultiPolygon geometry")

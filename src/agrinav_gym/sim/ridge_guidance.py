@@ -1,0 +1,86 @@
+"""How much a ridged seedbed steers the simulated robot: the turn it lets through.
+
+A skid-steer driving along sine ridges (rows on the crests, the robot's wheels on the flanks
+of the furrow between them) is commanded a gentle turn at speed; the measure is the yaw rate
+it achieves over the one it achieves on level ground under the same command. 1 means the
+ground does not steer; 0 means the furrow holds the robot like a rail (a constant command then
+follows the lane by itself, and a benchmark on such ground measures the terrain, not the
+controller). ``docs/physics.md`` has the curve over ridge height and its sensitivity to the
+soil values nobody measured for this robot.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from scenario_gen import Terrain
+
+from ..config import RobotConfig, SoilConfig
+from .world import World
+
+#: The gentle turn the ridge test commands: 0.2 rad/s at 1 m/s (a 5 m radius).
+TURN = (1.0, 0.2)
+
+
+def ridged_plane(depth: float, row_spacing: float = 1.0, size: float = 30.0) -> Terrain:
+    """Level ground with sine ridges of ``depth`` (crest to trough) along x, rows on the crests
+    at y = k·row_spacing, furrow bottoms between them (as ``scenario_gen.furrows`` lays them)."""
+    sp = 0.05
+    n = round(size / sp) + 1
+    y = -0.5 * size + sp * np.arange(n)
+    profile = 0.5 * depth * np.cos(2.0 * math.pi * y / row_spacing)
+    return Terrain(np.tile(profile[:, None], (1, n)), -0.5 * size, -0.5 * size, sp)
+
+
+def achieved_yaw_rate(
+    terrain: Terrain, soil: SoilConfig, y0: float, seconds: float = 4.0, settle: float = 1.5
+) -> float:
+    """Mean true yaw rate (rad/s) under ``TURN`` after ``settle`` s, starting at rest at
+    (−10, y0) heading along the rows."""
+    world = World(RobotConfig(), soil)
+    try:
+        world.load(terrain)
+        world.place_robot(-10.0, y0, 0.0, terrain)
+        world.drive(0.0, 0.0)
+        world.step(world.cfg.physics_hz // 2)
+        sub = world.cfg.physics_hz // world.cfg.control_hz
+        rates = []
+        for k in range(round(seconds * world.cfg.control_hz)):
+            world.drive(*TURN)
+            world.step(sub)
+            if k >= settle * world.cfg.control_hz:
+                rates.append(float(world.state().ang[2]))
+        return float(np.mean(rates))
+    finally:
+        world.close()
+
+
+def turn_ratio(depth: float, soil: SoilConfig | None = None, row_spacing: float = 1.0) -> float:
+    """Yaw rate achieved in a furrow of ridges ``depth`` high over the rate on level ground."""
+    soil = soil or SoilConfig()
+    lane = 0.5 * row_spacing  # a furrow bottom: the lane centre
+    level = achieved_yaw_rate(ridged_plane(0.0, row_spacing), soil, lane)
+    ridged = achieved_yaw_rate(ridged_plane(depth, row_spacing), soil, lane)
+    return ridged / level
+
+
+def sensitivity(depths: list[float], soils: dict[str, SoilConfig]) -> dict[str, list[float]]:
+    """``turn_ratio`` over ``depths`` for each named soil (the curve and its sensitivity)."""
+    return {name: [turn_ratio(d, soil) for d in depths] for name, soil in soils.items()}
+
+
+def soil_variants(base: SoilConfig | None = None) -> dict[str, SoilConfig]:
+    """The assumed soil values at both ends of their plausible ranges (SoilConfig's docs)."""
+    b = base or SoilConfig()
+    return {
+        "default": b,
+        "μ 0.4": replace(b, friction=0.4),
+        "μ 0.8": replace(b, friction=0.8),
+        "k_z 2·10⁴ N/m": replace(b, vertical_stiffness=2.0e4),
+        "k_z 1.5·10⁵ N/m": replace(b, vertical_stiffness=1.5e5),
+        "K 0.01 m": replace(b, shear_modulus=0.01),
+        "K 0.05 m": replace(b, shear_modulus=0.05),
+    }

@@ -1,0 +1,138 @@
+"""Nav2 GPS waypoints in, an ENU route out: the seed robot's experiment as it was given.
+
+The format is the one Nav2's GPS waypoint follower reads and ``agrinav export --to nav2``
+writes (``config/gps_waypoints.yaml``)::
+
+    waypoints:
+      - {latitude: 36.5491, longitude: -84.1412, yaw: 1.5708}   # yaw: rad, ENU, optional
+
+Each waypoint goes through the scenario's datum (WGS84 → ENU, ``GeoFrame``) and the route is
+the global plan Nav2's planner makes between them on an empty map: straight legs, resampled at
+the route spacing. A leg is ``furrow`` where it runs along the rows inside the planted area
+(within ``FURROW_ALIGN_DEG`` of the row direction, its midpoint in the field) and ``headland``
+otherwise.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import shapely
+from numpy.typing import NDArray
+
+from .bounds import MAX_ROUTE_WAYPOINTS
+from .errors import InputError
+from .geodesy import GeoFrame
+from .routes import FURROW, HEADLAND, Route
+from .schema import load_yaml
+from .terrain import Terrain
+
+FloatArray = NDArray[np.float64]
+
+#: How far a leg's direction may turn from the rows' and still be a furrow leg.
+FURROW_ALIGN_DEG = 10.0
+MAX_WAYPOINTS = 10_000
+
+
+def read_gps_waypoints(path: str | Path, what: str = "--waypoints") -> FloatArray:
+    """(n, 3) latitude, longitude (degrees) and yaw (rad; NaN when absent) of a Nav2 GPS
+    waypoint file, every entry checked."""
+    data: Any = load_yaml(path, what)
+    items = data.get("waypoints") if isinstance(data, dict) else None
+    if not isinstance(items, list) or not 2 <= len(items) <= MAX_WAYPOINTS:
+        raise InputError(
+            what,
+            str(path),
+            f"allowed: a mapping with 'waypoints': a list of 2-{MAX_WAYPOINTS} "
+            "{latitude, longitude, yaw} entries (Nav2's GPS waypoint format)",
+        )
+    out = np.empty((len(items), 3))
+    for k, wp in enumerate(items):
+        where = f"{what} waypoints[{k}]"
+        if not isinstance(wp, dict) or not {"latitude", "longitude"} <= set(wp):
+            raise InputError(where, wp, "allowed: a mapping with latitude and longitude")
+        extra = set(wp) - {"latitude", "longitude", "yaw"}
+        if extra:
+            raise InputError(
+                where, sorted(extra), "unknown keys; allowed: latitude, longitude, yaw"
+            )
+        out[k] = [
+            _number(wp["latitude"], f"{where}.latitude", -90.0, 90.0),
+            _number(wp["longitude"], f"{where}.longitude", -180.0, 180.0),
+            _number(wp.get("yaw", math.nan), f"{where}.yaw", -4 * math.pi, 4 * math.pi, True),
+        ]
+    return out
+
+
+def _number(v: Any, where: str, lo: float, hi: float, nan_ok: bool = False) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise InputError(where, v, f"allowed: a number in [{lo:g}, {hi:g}]")
+    x = float(v)
+    if nan_ok and math.isnan(x):
+        return x
+    if not (math.isfinite(x) and lo <= x <= hi):
+        raise InputError(where, v, f"allowed: a number in [{lo:g}, {hi:g}]")
+    return x
+
+
+def waypoint_route(
+    wps: FloatArray,
+    geo: GeoFrame,
+    terrain: Terrain,
+    spacing: float,
+    row_angle: float | None = None,
+    field: Any = None,
+    what: str = "--waypoints",
+) -> Route:
+    """The straight-leg plan through ``wps`` (read by ``read_gps_waypoints``) in ENU, on the
+    terrain, every ``spacing`` metres; a waypoint off the terrain is refused by number."""
+    x, y, _ = geo.geodetic_to_enu(wps[:, 0], wps[:, 1], 0.0)
+    xy = np.column_stack([x, y])
+    inside = terrain.contains(xy[:, 0], xy[:, 1])
+    if not np.all(inside):
+        k = int(np.flatnonzero(~np.asarray(inside))[0])
+        raise InputError(
+            f"{what} waypoints[{k}]",
+            [float(wps[k, 0]), float(wps[k, 1])],
+            f"is {float(np.hypot(*xy[k])):.1f} m from the datum, off the terrain; allowed: "
+            "waypoints on the scenario's terrain",
+        )
+    legs = np.diff(xy, axis=0)
+    length = np.hypot(legs[:, 0], legs[:, 1])
+    if (length < 1e-6).any():
+        k = int(np.flatnonzero(length < 1e-6)[0])
+        raise InputError(f"{what} waypoints[{k + 1}]", "the same point twice", "allowed: distinct")
+    n_total = int(np.ceil(length / spacing).sum()) + 1
+    if n_total > MAX_ROUTE_WAYPOINTS:
+        raise InputError(
+            what, f"{length.sum():.0f} m of route", f"allowed: at most {MAX_ROUTE_WAYPOINTS} points"
+        )
+    pts, tags = [xy[:1]], [_tag(xy[0], xy[1], row_angle, field)]
+    for k in range(len(legs)):
+        n = max(math.ceil(length[k] / spacing), 1)
+        t = np.arange(1, n + 1) / n
+        pts.append(xy[k] + t[:, None] * legs[k])
+        tags += [_tag(xy[k], xy[k + 1], row_angle, field)] * n
+    p = np.vstack(pts)
+    z = terrain.height_at(p[:, 0], p[:, 1])
+    seg = np.array(tags)
+    return Route(np.column_stack([p, z]), seg, np.full(len(p), -1, np.int64))
+
+
+def _tag(a: FloatArray, b: FloatArray, row_angle: float | None, field: Any) -> str:
+    if row_angle is None or field is None:
+        return HEADLAND
+    d = math.atan2(b[1] - a[1], b[0] - a[0]) - row_angle
+    off = abs((d + 0.5 * math.pi) % math.pi - 0.5 * math.pi)  # either direction along the rows
+    mid = 0.5 * (a + b)
+    along = off <= math.radians(FURROW_ALIGN_DEG)
+    return FURROW if along and bool(shapely.contains_xy(field, mid[0], mid[1])) else HEADLAND
+
+
+def route_to_gps(route: Route, geo: GeoFrame) -> FloatArray:
+    """(n, 2) latitude, longitude of a route's points (for round trips and exports)."""
+    lat, lon, _ = geo.enu_to_geodetic(route.xyz[:, 0], route.xyz[:, 1], route.xyz[:, 2])
+    return np.column_stack([lat, lon])

@@ -1,0 +1,125 @@
+"""Nav2 GPS waypoints in: through the datum to ENU and back, the plan through them, refusals."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from scenario_gen import generate
+from scenario_gen.errors import InputError
+from scenario_gen.waypoints import read_gps_waypoints, route_to_gps
+
+from .helpers import small
+
+
+def _write(path: Path, wps: list[dict]) -> Path:
+    path.write_text(yaml.safe_dump({"waypoints": wps}))
+    return path
+
+
+@pytest.fixture(scope="module")
+def field():  # type: ignore[no-untyped-def]
+    return generate(small(), seed=0)
+
+
+def _corners(scn) -> list[dict]:  # type: ignore[no-untyped-def]
+    """Four waypoints of the seed robot's shape: a leg along a lane, a headland leg, back."""
+    lanes = scn.lanes
+    (a0, a1), (b0, b1) = lanes[0], lanes[1]
+    pts = [a0, a1, b1, b0]
+    lat, lon, _ = scn.geo.enu_to_geodetic(*np.asarray(pts).T, 0.0)
+    return [
+        {"latitude": float(la), "longitude": float(lo)} for la, lo in zip(lat, lon, strict=True)
+    ]
+
+
+def test_waypoints_round_trip_through_enu_within_a_millimetre(field, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    wps = _corners(field)
+    path = _write(tmp_path / "wps.yaml", wps)
+    scn = generate(small(route={"waypoints": str(path)}), seed=0)
+    r = scn.route
+    ll = route_to_gps(r, scn.geo)
+    # the plan passes through every waypoint: each is one of its points, to < 1 mm
+    for wp in wps:
+        x, y, _ = scn.geo.geodetic_to_enu(wp["latitude"], wp["longitude"], 0.0)
+        assert np.hypot(r.xy[:, 0] - x, r.xy[:, 1] - y).min() < 1e-3
+    # and back to lat/lon: the first and last route points are the first and last waypoints
+    for k, i in ((0, 0), (-1, -1)):
+        x, y, _ = scn.geo.geodetic_to_enu(ll[i, 0], ll[i, 1], r.xyz[i, 2])
+        assert np.hypot(x - r.xy[i, 0], y - r.xy[i, 1]) < 1e-3
+        assert ll[i, 0] == pytest.approx(wps[k]["latitude"], abs=1e-8)
+    steps = np.hypot(*np.diff(r.xy, axis=0).T)
+    assert steps.max() <= scn.spec.route.spacing + 1e-9
+    # the two legs along the lanes are furrow, the headland leg between them is not
+    assert set(r.segment) == {"furrow", "headland"}
+    assert (r.segment == "furrow").mean() > 0.7
+
+
+def test_an_exported_waypoint_file_reads_back(field, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    path = _write(tmp_path / "w.yaml", [{**w, "yaw": 1.5} for w in _corners(field)])
+    got = read_gps_waypoints(path)
+    assert got.shape == (4, 3) and np.all(got[:, 2] == 1.5)
+
+
+def test_a_waypoint_off_the_terrain_is_refused_by_number(field, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    wps = _corners(field)
+    wps[2] = {"latitude": wps[2]["latitude"] + 0.01, "longitude": wps[2]["longitude"]}  # 1.1 km
+    path = _write(tmp_path / "far.yaml", wps)
+    with pytest.raises(InputError) as e:
+        generate(small(route={"waypoints": str(path)}), seed=0)
+    assert e.value.field == "route.waypoints waypoints[2]" and "off the terrain" in str(e.value)
+
+
+@pytest.mark.parametrize(
+    "content,needle",
+    [
+        ({"waypoints": [{"latitude": 36.5, "longitude": -84.1}]}, "list of 2-"),
+        ({"points": []}, "'waypoints'"),
+        (
+            {"waypoints": [{"latitude": 91, "longitude": 0}, {"latitude": 0, "longitude": 0}]},
+            "latitude",
+        ),
+        (
+            {"waypoints": [{"latitude": "36", "longitude": 0}, {"latitude": 0, "longitude": 0}]},
+            "latitude",
+        ),
+        (
+            {"waypoints": [{"lat": 36, "lon": 0}, {"latitude": 0, "longitude": 0}]},
+            "latitude and longitude",
+        ),
+        (
+            {
+                "waypoints": [
+                    {"latitude": 0, "longitude": 0, "z": 1},
+                    {"latitude": 0, "longitude": 0},
+                ]
+            },
+            "unknown",
+        ),
+    ],
+)
+def test_bad_waypoint_files_name_the_entry(tmp_path: Path, content: dict, needle: str) -> None:
+    path = tmp_path / "bad.yaml"
+    path.write_text(yaml.safe_dump(content))
+    with pytest.raises(InputError, match=needle):
+        read_gps_waypoints(path)
+
+
+def test_the_cli_reads_waypoints_and_scenario_json_regenerates_them(
+    field,
+    tmp_path: Path,  # type: ignore[no-untyped-def]
+) -> None:
+    from baselines.cli import main
+    from scenario_gen import load
+
+    path = _write(tmp_path / "wps.yaml", _corners(field))
+    argv = ["scenario", "--preset", "default", "--waypoints", str(path), "--out"]
+    argv += [str(tmp_path / "scn"), "--set", "field.width=10", "--set", "field.length=14"]
+    argv += ["--set", "layout.headland=2", "--set", "terrain.margin=4", "--no-preview"]
+    assert main(argv) == 0
+    scn = load(tmp_path / "scn")
+    assert scn.spec.route.waypoints == str(path.resolve())
+    assert len(scn.route) == len(generate(scn.spec, scn.seed).route)
