@@ -26,6 +26,7 @@ import numpy as np
 import yaml
 
 from policies import checkpoint
+from scenario_gen.atomic import lock_output
 from scenario_gen.errors import InputError
 from scenario_gen.schema import to_mapping
 
@@ -121,14 +122,31 @@ def prepare(run: TrainRun) -> tuple[hpmod.PPOHyperparams, hpmod.EnvSetup, dict[s
 
 
 def train(run: TrainRun, argv: list[str] | None = None) -> Path:
+    hp, setup, kwargs = prepare(run)
+    out = run.out
+    out.parent.mkdir(parents=True, exist_ok=True)
+    # A second run on the same --out is refused while this one holds the lock (both used to
+    # exit 0, the second overwriting every checkpoint of the first).
+    with lock_output(out.absolute(), "--out"):
+        if out.exists() and (not out.is_dir() or any(out.iterdir())):
+            raise InputError("--out", str(out), "allowed: a new or empty directory")
+        out.mkdir(parents=True, exist_ok=True)
+        return _train(run, argv, hp, setup, kwargs)
+
+
+def _train(
+    run: TrainRun,
+    argv: list[str] | None,
+    hp: hpmod.PPOHyperparams,
+    setup: hpmod.EnvSetup,
+    kwargs: dict[str, Any],
+) -> Path:
     from stable_baselines3 import PPO
     from stable_baselines3.common.env_util import make_vec_env
     from stable_baselines3.common.logger import configure
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
 
-    hp, setup, kwargs = prepare(run)
     out = run.out
-    out.mkdir(parents=True, exist_ok=True)
     venv: Any = make_vec_env(
         f"agrinav_gym:{run.env_id}",
         n_envs=hp.n_envs,
@@ -328,8 +346,7 @@ def _restore(model: Any, norm: Any, folder: Path) -> None:
     model.policy.load_state_dict(loaded.policy.state_dict())
     meta = loaded.meta
     opt = meta["optimizer"]
-    with np.load(folder / checkpoint.OPTIMIZER, allow_pickle=False) as z:
-        arrays = {k: np.array(z[k]) for k in z.files}
+    arrays = checkpoint.read_npz(folder / checkpoint.OPTIMIZER, "--resume")
     state = model.policy.optimizer.state_dict()
     names = [n for n, _ in model.policy.named_parameters()]
     if names != opt["params"]:

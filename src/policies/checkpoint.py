@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import json
 import math
+import stat
 import warnings
 import zipfile
 from dataclasses import dataclass
@@ -210,6 +211,55 @@ class Loaded:
     meta: dict[str, Any]
 
 
+#: Weights of the largest network a config may ask for, with room: 4 × 10⁷ float32 parameters.
+MAX_NPZ_BYTES = 160 << 20
+
+
+def read_npz(path: Path, what: str, max_bytes: int = MAX_NPZ_BYTES) -> dict[str, NDArray[Any]]:
+    """The arrays of an ``.npz`` file, checked before anything is allocated: a regular file
+    (a FIFO would block forever), a zip whose members are distinct ``.npy`` files, and whose
+    arrays — by their headers — fit in ``max_bytes`` and in the bytes each member holds."""
+    where = str(path)
+    try:
+        st = path.lstat()
+    except OSError as exc:
+        raise InputError(what, where, f"cannot be read ({exc.strerror})") from None
+    if not stat.S_ISREG(st.st_mode):
+        raise InputError(what, where, "allowed: a regular file (not a link, FIFO or device)")
+    try:
+        with zipfile.ZipFile(path) as zf:
+            infos = zf.infolist()
+            names = [i.filename for i in infos]
+            if len(set(names)) != len(names):
+                raise InputError(what, where, "holds two members of the same name")
+            total = 0
+            for info in infos:
+                with zf.open(info) as f:
+                    version = np.lib.format.read_magic(f)
+                    header = {
+                        (1, 0): np.lib.format.read_array_header_1_0,
+                        (2, 0): np.lib.format.read_array_header_2_0,
+                    }.get(version)
+                    if header is None:
+                        raise InputError(what, where, f"npy format {version}; allowed: 1.0, 2.0")
+                    shape, _, dtype = header(f, max_header_size=10_000)
+                if dtype.hasobject:
+                    raise InputError(what, where, f"member {info.filename} holds Python objects")
+                need = int(np.prod(shape, dtype=object)) * dtype.itemsize
+                total += need
+                if need > info.file_size or total > max_bytes:
+                    raise InputError(
+                        what,
+                        where,
+                        f"member {info.filename} claims {need:,} bytes; allowed: arrays that "
+                        f"its {info.file_size:,} bytes hold, {max_bytes:,} in all",
+                    )
+        with np.load(path, allow_pickle=False) as z:
+            return {k: np.array(z[k]) for k in z.files}
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
+        raise InputError(what, where, f"cannot be read as weights ({exc})") from None
+
+
 def read_meta(folder: Path) -> dict[str, Any]:
     path = folder / META
     if not path.is_file() or path.is_symlink():
@@ -243,11 +293,7 @@ def load(folder: str | Path) -> Loaded:
             f"cannot build the network ({exc})",
         ) from None
     where = str(folder / WEIGHTS)
-    try:
-        with np.load(folder / WEIGHTS, allow_pickle=False) as z:
-            arrays = {k: np.array(z[k]) for k in z.files}
-    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
-        raise InputError("checkpoint", where, f"cannot be read as weights ({exc})") from None
+    arrays = read_npz(folder / WEIGHTS, "checkpoint")
     targets = dict([*policy.named_parameters(), *policy.named_buffers()])
     if set(arrays) != set(targets):
         odd = sorted(set(arrays) ^ set(targets))[:3]

@@ -145,7 +145,7 @@ def _exchange(a: Path, b: Path) -> bool:
 
 
 @contextlib.contextmanager
-def _lock(out: Path, what: str) -> Iterator[None]:
+def lock_output(out: Path, what: str) -> Iterator[None]:
     """An exclusive, non-blocking lock on ``out`` (refused while another run holds it).
 
     The lock file is removed by its holder while still locked; a run that opened the old file
@@ -205,7 +205,7 @@ def output_dir(directory: str | Path, overwrite: bool = False, what: str = "out"
     made: list[Path] = []
     try:
         made = _make_parents(out)
-        with _lock(out, what):
+        with lock_output(out, what):
             clean_stale(out)
             check_output_dir(out, overwrite, what)  # again, under the lock
             try:

@@ -30,6 +30,10 @@ from .sources import MESH_SUFFIXES
 MAX_MEMBERS = 1000
 MAX_TOTAL_BYTES = 256 * 2**20
 MAX_RATIO = 200.0
+#: Triangles one crop model may have: every plant instance is drawn with all of them, and
+#: the mesh camera's cost grows with the triangles under each pixel (a 100k-triangle model
+#: made one 848 × 480 frame take minutes). Plant models made for simulation have 1-20k.
+MAX_MODEL_TRIANGLES = 50_000
 #: How a model becomes each plant: recorded in scenario.json next to the model.
 SCALE_RULE = (
     "uniform scale = plant height / native_size[2]; base centred on the plant position, +z up "
@@ -249,6 +253,16 @@ def _read_mesh(p: Path, given: Path, up_axis: str = "auto") -> Any:
         raise InputError("crop.model", str(given), "holds no geometry")
     if not np.isfinite(v).all():
         raise InputError("crop.model", str(given), "has NaN or infinite vertex coordinates")
+    n_faces = len(getattr(mesh, "faces", []))
+    if n_faces > MAX_MODEL_TRIANGLES:
+        raise InputError(
+            "crop.model",
+            str(given),
+            f"has {n_faces:,} triangles; allowed: at most {MAX_MODEL_TRIANGLES:,} (decimate it "
+            "first, e.g. Blender's Decimate modifier: every plant is drawn with all of them)",
+        )
+    if not float(getattr(mesh, "area", 0.0)) > 0.0:
+        raise InputError("crop.model", str(given), "has no surface area (degenerate triangles)")
     up = up_axis if up_axis != "auto" else ("y" if p.suffix.lower() in (".glb", ".gltf") else "z")
     if up == "y":
         mesh.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, [1, 0, 0]))

@@ -355,3 +355,18 @@ def test_a_bad_policy_is_one_line_before_any_simulator_starts(
     assert r.returncode == 2, r.stderr
     assert len(r.stderr.strip().splitlines()) == 1 and "policy: got" in r.stderr
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_second_train_on_the_same_out_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Two `agrinav train` on one --out used to both exit 0, the second overwriting the
+    first's checkpoints: while one holds the folder, another is one clear error."""
+    from scenario_gen.atomic import lock_output
+
+    out = tmp_path / "ppo"
+    with lock_output(out.absolute(), "--out"):  # what a running `agrinav train` holds
+        argv = ["train", "--env", "AgriNav/FurrowFollow-v2", "--timesteps", "64"]
+        assert main([*argv, "--out", str(out)]) == 2
+    assert "being written by another run" in capsys.readouterr().err
+    assert not out.exists()

@@ -2,6 +2,7 @@
 
 import inspect
 import json
+import os
 import pickle
 import shutil
 import zipfile
@@ -177,3 +178,46 @@ def test_hyperparameter_file_is_readable_by_rl_baselines3_zoo() -> None:
             module, _, name = entry["policy"].rpartition(".")
             assert inspect.isclass(getattr(import_module(module), name))
         hyperparams.load(env_id)
+
+
+def _npz_lying_about_its_shape(path: Path) -> None:
+    """A member whose header claims 10¹⁰ float32s over a few bytes of data."""
+    import io
+    import zipfile
+
+    buf = io.BytesIO()
+    np.lib.format.write_array_header_1_0(
+        buf, {"descr": "<f4", "fortran_order": False, "shape": (10**10,)}
+    )
+    with zipfile.ZipFile(path, "w") as z:
+        z.writestr("w.npy", buf.getvalue() + b"\0" * 16)
+
+
+def _npz_with_twin_members(path: Path) -> None:
+    import io
+    import warnings
+    import zipfile
+
+    buf = io.BytesIO()
+    np.save(buf, np.zeros(3, np.float32))
+    with warnings.catch_warnings(), zipfile.ZipFile(path, "w") as z:
+        warnings.simplefilter("ignore")  # zipfile warns about the duplicate name itself
+        z.writestr("w.npy", buf.getvalue())
+        z.writestr("w.npy", buf.getvalue())
+
+
+@pytest.mark.parametrize(
+    "make,needle",
+    [
+        (lambda p: os.mkfifo(p), "regular file"),  # a FIFO blocked the loader forever
+        (_npz_lying_about_its_shape, "claims 40,000,000,000 bytes"),
+        (_npz_with_twin_members, "two members of the same name"),
+    ],
+)
+def test_weights_are_checked_before_anything_is_read(tmp_path: Path, make, needle: str) -> None:  # type: ignore[no-untyped-def]
+    from policies.checkpoint import read_npz
+
+    path = tmp_path / "policy.npz"
+    make(path)
+    with pytest.raises(InputError, match=needle):
+        read_npz(path, "checkpoint")

@@ -152,3 +152,17 @@ def test_flat_or_empty_models_are_refused(tmp_path: Path) -> None:
 def _write(p: Path, data: bytes) -> Path:
     p.write_bytes(data)
     return p
+
+
+def test_models_over_the_triangle_budget_or_without_area_are_refused(tmp_path: Path) -> None:
+    from scenario_gen.models import MAX_MODEL_TRIANGLES
+
+    n = MAX_MODEL_TRIANGLES + 1  # identical triangles: an 800 kB file, minutes per frame
+    many = tmp_path / "many.obj"
+    many.write_text("v 0 0 0\nv 1 0 0\nv 0 1 1\n" + "f 1 2 3\n" * n)
+    with pytest.raises(ScenarioError, match=f"{n:,} triangles"):
+        inspect_model(many)
+    line = tmp_path / "line.obj"  # collinear vertices: tall but no surface
+    line.write_text("v 0 0 0\nv 0 0 1\nv 0 0 2\nf 1 2 3\n")
+    with pytest.raises(ScenarioError, match="no surface area"):
+        inspect_model(line)
