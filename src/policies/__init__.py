@@ -53,6 +53,25 @@ def shipped_model(env_id: str) -> Path:
     return folder
 
 
+#: Controllers that take a parameter file (``rpp:best.yaml``, as ``agrinav tune`` writes).
+TUNABLE = ("rpp", "stanley")
+
+
+def param_file(path: str | Path, name: str) -> dict[str, Any]:
+    """A parameter file: a YAML mapping of numbers (or null); the policy rejects unknown
+    names itself."""
+    import math
+
+    from scenario_gen.schema import load_yaml
+
+    data = load_yaml(path, f"policy {name}")
+    for k, v in data.items():
+        ok = v is None or (isinstance(v, (int, float)) and not isinstance(v, bool))
+        if not ok or (isinstance(v, float) and not math.isfinite(v)):
+            raise InputError(f"policy {name}: {k}", v, "allowed: a finite number or null")
+    return data
+
+
 def check_policy_spec(spec: Any) -> tuple[str, str]:
     """(name, argument) of a policy spec, checked without an env: the CLI calls this before it
     builds anything, so a typo costs no simulator start-up and leaves nothing behind."""
@@ -73,6 +92,11 @@ def check_policy_spec(spec: Any) -> tuple[str, str]:
     elif name == "dwb":
         if path and path not in ("nav2", "furrow") and not path.endswith((".yaml", ".yml")):
             raise InputError("policy", spec, "allowed: dwb, dwb:nav2, dwb:furrow, dwb:PATH.yaml")
+    elif name in TUNABLE:
+        if path and not (path.endswith((".yaml", ".yml")) and Path(path).is_file()):
+            raise InputError(
+                "policy", spec, f"allowed: {name} or {name}:PATH.yaml (a parameter file)"
+            )
     elif path:
         raise InputError("policy", spec, f"{name} takes no ':' argument")
     return name, path
@@ -95,4 +119,6 @@ def make_policy(spec: str, env: Any, **params: Any) -> Policy:
     elif name == "dwb":
         # dwb = dwb:furrow (the furrow-tuned changes); dwb:nav2 = Nav2 Humble's defaults
         kwargs.setdefault("params", path or "furrow")
+    elif name in TUNABLE and path:
+        kwargs = {**param_file(path, name), **kwargs}
     return POLICIES[name](u.observation_space, u.action_space, u.interface, **kwargs)

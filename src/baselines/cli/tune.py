@@ -1,0 +1,45 @@
+"""``agrinav tune``: a classical controller's parameters searched on the training split."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import Any
+
+from .args import episodes_type, int_at_least, seed_type
+
+
+def add(sub: Any) -> None:
+    from baselines.tune import SEARCH
+
+    tu = sub.add_parser(
+        "tune",
+        help="search a classical controller's parameters on training fields (Optuna)",
+        description="An Optuna TPE search of the controller's parameters on FieldRoute training "
+        "fields (the same fields and reset seeds for every trial and controller); writes "
+        "best.yaml (run it with --policies NAME:best.yaml), trials.csv, search.png.",
+    )
+    tu.add_argument("--policy", required=True, choices=sorted(SEARCH))
+    tu.add_argument("--trials", type=int_at_least(1, 10_000), default=40)
+    tu.add_argument("--episodes", type=episodes_type, default=8, help="training fields a trial")
+    tu.add_argument("--seed", type=seed_type, default=0)
+    tu.add_argument("--out", required=True)
+    tu.add_argument("--force", action="store_true", help="replace an earlier tune's --out")
+    tu.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from baselines.report import command_line
+    from baselines.tune import tune
+
+    best = tune(
+        args.policy,
+        args.trials,
+        args.episodes,
+        args.seed,
+        args.out,
+        command_line(["agrinav", *sys.argv[1:]]),
+        args.force,
+    )
+    print(f"best trial {best['trial']}: score {best['score']} -> {args.out}/best.yaml")
+    return 0
