@@ -171,6 +171,7 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         self.metrics = EpisodeMetrics(self.route.xy, self.route.furrow)
         self._cmd, self._prev_action, self._steps = (0.0, 0.0), (0.0, 0.0), 0
         self._ended = False
+        self._hit_base = 0  # crops touched before the last intervention (resume_on_route)
         self._hit: set[int] = set()
         self.state = self.world.state()
         self._anchor = (*self._xy(), 0.0)  # progress checker: where and when it last moved
@@ -245,6 +246,46 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
             "speed_limit": f"{self.cfg.robot.v_max:g} m/s",
         }
 
+    @property
+    def arc(self) -> float:
+        """How far along the route the robot is (m, ground truth: evaluation only)."""
+        return float(self._s)
+
+    def resume_on_route(self, ahead: float = 0.5) -> tuple[Obs, dict[str, Any]]:
+        """An intervention: after a termination other than success, the operator puts the
+        robot back on the route ``ahead`` metres past where it was, at rest and heading along
+        it, and the episode goes on. The metrics keep counting (no path is weighed across the
+        jump); the crop-contact and progress checks start afresh; sensors and their noise run
+        on, the estimator restarts at the new pose as a re-initialised EKF would."""
+        self._check_open("resume_on_route")
+        if self.route is None:
+            raise InputError("resume_on_route", "before reset()", "allowed: call reset() first")
+        if not 0.0 <= ahead <= 10.0:
+            raise InputError("ahead", ahead, "allowed: 0 to 10 m")
+        end = self.route.length - self.cfg.task.success_tolerance - 0.05
+        s = float(min(self._s + ahead, max(end, 0.0)))
+        ((x, y),) = self.route.sample(np.array([s]))
+        h = float(np.interp(s, self.route.arc, np.unwrap(self.route.heading)))
+        self.world.follow(float(x), float(y), h)
+        self.world.place_robot(float(x), float(y), h, self.scenario.terrain)
+        self.world.step(1)
+        self.state = self.world.state()
+        self._cmd, self._prev_action = (0.0, 0.0), (0.0, 0.0)
+        self.readings = self.sensors.step(self.state, self.np_random)
+        self.estimator.reset(float(x), float(y), h, self.np_random)
+        self.estimator.update(self.readings, self.dt)
+        self.tracker.reset_at(s, *self._xy())
+        self._cte, self._s, self._k = self.tracker.update(*self._xy())
+        self.metrics.break_path()
+        self.metrics.update(*self._xy(), self._s)
+        self._hit_base = len(self._hit)
+        self._anchor = (*self._xy(), self._steps * self.dt)
+        self._ended = False
+        snap = self._snapshot()
+        for m in self.obs_models.values():
+            m.reset(snap)
+        return self._observe(snap), self._info(None, {})
+
     def episode_metrics(self) -> dict[str, Any]:
         return self.metrics.result(len(self._hit))
 
@@ -279,7 +320,7 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
             heading_error=_wrap(float(self.state.rpy[2]) - float(self.route.heading[k])),
             tilt=max(abs(float(self.state.rpy[0])), abs(float(self.state.rpy[1]))),
             new_crops=len(new),
-            crops_hit=len(self._hit),
+            crops_hit=len(self._hit) - self._hit_base,
             action=a,
             prev_action=self._prev_action,
             off_terrain=not bool(self.scenario.terrain.contains(x, y)),

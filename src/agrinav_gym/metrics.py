@@ -140,6 +140,11 @@ class EpisodeMetrics:
         self._last = (x, y, d, cat)
         self.reached = max(self.reached, s)
 
+    def break_path(self) -> None:
+        """The next pose does not continue the driven path (the robot was put back on the
+        route): no path is weighed between the two."""
+        self._last = None
+
     def result(self, crops_hit: int) -> dict[str, Any]:
         def rmse(key: str) -> float | None:
             n, sq = self.sums[key][0], self.sums[key][1]

@@ -107,6 +107,14 @@ class Tracker:
         self.k = int(np.argmin(d[: max(2, len(d) // 2)]))  # starts belong to the first half
         self.update(x, y)
 
+    def reset_at(self, s: float, x: float, y: float) -> None:
+        """Restart the search at the segment holding arc length ``s`` (a robot put back on the
+        route, anywhere along it)."""
+        self.k = int(
+            np.clip(np.searchsorted(self.route.arc, s, side="right") - 1, 0, len(self._xy) - 2)
+        )
+        self.update(x, y)
+
     def _seg(self, k: int, x: float, y: float) -> tuple[float, float, float]:
         ax, ay = self._xy[k]
         bx, by = self._xy[k + 1]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from collections import Counter
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -13,7 +14,13 @@ from policies import check_policy_spec
 from scenario_gen.atomic import atomic_write_text, check_output_dir, output_dir
 from scenario_gen.errors import InputError
 
-from .episodes import Episode, VideoWriter, run_episode, trajectory_figure
+from .episodes import (
+    Episode,
+    VideoWriter,
+    run_episode,
+    run_with_interventions,
+    trajectory_figure,
+)
 from .report import METRICS, bar_chart, command_line, policy_labels, table
 from .suites import EVAL_SEED, Case, suite
 
@@ -35,6 +42,15 @@ def _record(ep: Episode, suite_name: str, scenario: str, env: Any = None) -> dic
         "seconds": round(ep.seconds, 3),
         **ep.conditions,
         **({"geometry": geometry(env.unwrapped.scenario)} if env is not None else {}),
+        **(
+            {
+                "interventions": len(ep.interventions),
+                "intervention_kinds": dict(Counter(i["kind"] for i in ep.interventions)),
+                "autonomous_m": round(float(ep.autonomous_m or 0.0), 2),
+            }
+            if ep.interventions is not None
+            else {}
+        ),
     }
 
 
@@ -169,7 +185,8 @@ def bench(
                     for k in range(seeds):
                         # each case its own sensor-noise draws: groups that differ only in
                         # what a policy cannot see are still independent samples
-                        ep = run_episode(env, pi, EVAL_SEED + CASE_SEEDS * ci + k, name)
+                        run = run_with_interventions if case.interventions else run_episode
+                        ep = run(env, pi, EVAL_SEED + CASE_SEEDS * ci + k, name)
                         records.append(_record(ep, suite_name, case.group, env))
                         if k == 0:
                             trajectory_figure(

@@ -28,12 +28,12 @@ def demo(out: str | Path, seeds: int = 2) -> Path:
     scn = generate(preset("default"), seed=0)
     save(scn, out / "scenario", overwrite=True)
     print(f"scenario: {out / 'scenario'} ({scn.summary()['plants']} plants; preview.png)")
-    policies = ["dwb"]
+    policies = ["blind", "dwb"]  # blind: what the field steers by itself, the reference row
     try:
         shipped_model("AgriNav/FieldRoute-v2")
         policies.append("ppo:shipped")
     except InputError as exc:  # a checkout without the trained model still runs the demo
-        print(f"note: {exc}; benchmarking DWB only")
+        print(f"note: {exc}; benchmarking DWB and the blind reference only")
     cmd = (
         f"agrinav bench --suite paper --policies {','.join(policies)} --seeds {seeds} "
         f"--out {out / 'paper'} --force"

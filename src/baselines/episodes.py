@@ -28,6 +28,49 @@ class Episode:
     conditions: dict[str, str] = field(
         default_factory=dict
     )  # localisation, camera, speed, controller
+    # with interventions (run_with_interventions): what ended each stretch, and where
+    interventions: list[dict[str, Any]] | None = None
+    autonomous_m: float | None = None  # route metres the robot drove by itself
+
+
+#: Terminations an operator answers by putting the robot back on the route.
+INTERVENTIONS = ("corridor", "crops_hit", "progress", "tip_over", "off_terrain")
+MAX_INTERVENTIONS = 200
+RESUME_AHEAD = 0.5  # m past the point reached: past the obstacle, not over a lane
+
+
+def run_with_interventions(env: Any, policy: Any, seed: int, policy_name: str) -> Episode:
+    """One long run in which every stall, corridor exit or stalk contact is an intervention
+    (``INTERVENTIONS``) after which the run resumes from the route, as field trials count
+    them; ends at the route's end or the step limit. Mean distance between interventions is
+    ``autonomous_m / len(interventions)``."""
+    u = env.unwrapped
+    u_cfg = u.cfg.task
+    if u_cfg.max_crops_hit != 0:
+        raise ValueError("an intervention run needs task.max_crops_hit = 0 (every contact)")
+    obs, _ = env.reset(seed=seed)
+    policy.reset()
+    info: dict[str, Any] = {}
+    steps, t0 = 0, time.perf_counter()
+    stops: list[dict[str, Any]] = []
+    autonomous, since = 0.0, u.arc
+    while True:
+        obs, _, term, trunc, info = env.step(policy.act(obs))
+        steps += 1
+        kind = info.get("termination")
+        if term and kind in INTERVENTIONS and len(stops) < MAX_INTERVENTIONS:
+            autonomous += max(u.arc - since, 0.0)
+            stops.append({"kind": kind, "at_m": round(u.arc, 2), "step": steps})
+            obs, info = u.resume_on_route(RESUME_AHEAD)
+            policy.reset()
+            since = u.arc
+            continue
+        if term or trunc:
+            break
+    autonomous += max(u.arc - since, 0.0)
+    ep = _episode(env, policy, seed, policy_name, info, steps, t0)
+    ep.interventions, ep.autonomous_m = stops, autonomous
+    return ep
 
 
 def run_episode(
@@ -46,6 +89,12 @@ def run_episode(
             video(env)
         if term or trunc:
             break
+    return _episode(env, policy, seed, policy_name, info, steps, t0)
+
+
+def _episode(
+    env: Any, policy: Any, seed: int, policy_name: str, info: dict[str, Any], steps: int, t0: float
+) -> Episode:
     u = env.unwrapped
     p = u.scenario.plants
     crops = np.column_stack([p.x, p.y])

@@ -111,6 +111,7 @@ def table(records: list[dict[str, Any]], suite_name: str, command: str) -> str:
     lines += ["", *conditions(records, groups, pols)]
     lines += held_out(records)
     lines += ["", *failures(records, groups, pols)]
+    lines += interventions(records, groups, pols)
     lines += [
         "",
         "Source paper (Gazebo, Nav2 DWB, zigzag over two rows): RMSE 0.177, MAE 0.109,"
@@ -177,6 +178,40 @@ def conditions(records: list[dict[str, Any]], groups: list[str], pols: list[str]
                     " / ".join(dict.fromkeys(str(r.get(c, "—")) for r in rows)) for c in CONDITIONS
                 ]
                 lines.append(f"| {g} | {p} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def interventions(records: list[dict[str, Any]], groups: list[str], pols: list[str]) -> list[str]:
+    """Long runs with interventions: how far each policy drives by itself between them."""
+    if not any("interventions" in r for r in records):
+        return []
+    lines = [
+        "",
+        "Interventions (every stall, corridor exit or stalk contact; the run resumes from the "
+        "route). Mean distance between interventions is the route distance driven by the robot "
+        "itself over all episodes of the cell, divided by their interventions; the rate per "
+        "100 m has a 95 % bootstrap interval over episodes. Field reports for comparison (LiDAR "
+        "+ IMU row following on a compact robot): 386.9 m in fields without gaps, 56.1 m in "
+        "production fields, 47.5 m with 1 m gaps.",
+        "",
+        "| scenario | policy | driven (m) | interventions | mean distance between (m) | "
+        "per 100 m | kinds |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for g in groups:
+        for p in pols:
+            rows = [r for r in records if r["scenario"] == g and r["policy"] == p]
+            if not rows or "interventions" not in rows[0]:
+                continue
+            metres = sum(float(r["autonomous_m"]) for r in rows)
+            n = sum(int(r["interventions"]) for r in rows)
+            mdbi = f"{metres / n:.1f}" if n else f"> {metres:.0f} (none)"
+            rate = _cell([100.0 * r["interventions"] / max(r["autonomous_m"], 1e-9) for r in rows])
+            kinds: Counter[str] = Counter()
+            for r in rows:
+                kinds.update(r.get("intervention_kinds", {}))
+            kind_text = ", ".join(f"{k} {v}" for k, v in sorted(kinds.items())) or "—"
+            lines.append(f"| {g} | {p} | {metres:.0f} | {n} | {mdbi} | {rate} | {kind_text} |")
     return lines
 
 

@@ -26,6 +26,9 @@ class Case:
     # Scenario keys drawn afresh each episode (from the episode's reset seed), generated with
     # seeds from the eval range: geometries no training run drew.
     randomize: dict[str, Any] = field(default_factory=dict)
+    # One long run per episode in which every stall, corridor exit or stalk contact is an
+    # intervention after which the run resumes from the route (episodes.run_with_interventions)
+    interventions: bool = False
 
     def env_kwargs(self) -> dict[str, Any]:
         kw: dict[str, Any] = {
@@ -49,10 +52,11 @@ PAPER_FIELD = {"field": {"width": 12.5, "length": 30.0}, "route": {"lanes": 2}}
 #: The paper's localisation: RTK through the EKF (robot_localization + navsat_transform), and
 #: Nav2 Humble's progress checker (SimpleProgressChecker: 0.5 m within 10 s, else the goal
 #: fails), so a stall is a failure after 10 s, not a run to the step limit.
-RTK_EKF = {
+NAV2_PROGRESS: dict[str, Any] = {"progress_time": 10.0, "progress_radius": 0.5}
+RTK_EKF: dict[str, Any] = {
     "localisation": {"kind": "ekf"},
     "gnss": {"mode": "rtk_fixed"},
-    "task": {"progress_time": 10.0, "progress_radius": 0.5},
+    "task": NAV2_PROGRESS,
 }
 
 #: Each ``ood`` case holds one axis out of the FieldRoute training ranges (envs.yml): the
@@ -113,6 +117,28 @@ def _ood() -> list[Case]:
     return cases
 
 
+def _long() -> list[Case]:
+    """Eight lanes of 30 m (≈ 260 m of route) with interventions, as field trials report
+    row following: mean distance between interventions, sparse (P1) and real maize spacing."""
+    over = {**PAPER_FIELD, "field": {"width": 10.5, "length": 30.0}, "route": {"lanes": 8}}
+    config = {**RTK_EKF, "task": {**NAV2_PROGRESS, "max_crops_hit": 0}}
+    return [
+        Case(
+            g,
+            "AgriNav/FieldRoute-v2",
+            "paper-p1",
+            {**over, **o},
+            config,
+            12_000,
+            interventions=True,
+        )
+        for g, o in (
+            ("8 lanes, flat", {}),
+            ("8 lanes, maize 0.18 m in-row", {"layout": {"plant_spacing": 0.18}}),
+        )
+    ]
+
+
 def _localisation() -> list[Case]:
     """The paper run under each localisation: ideal (debug), RTK fixed / float without
     canopy effects, and the canopy-driven fix modes under 2.5 m maize over the antenna."""
@@ -162,6 +188,8 @@ def suite(name: str) -> list[Case]:
         return _localisation()
     if name == "ood":
         return _ood()
+    if name == "long":
+        return _long()
     if name in ("growth", "growth-proxy"):
         # Dense maize (0.18 m in the row) on the paper's 1 m rows: in 0.75 m rows a 0.62 m
         # Summit-XL touches stalks at 2 cm of error, and crop contact, not perception, would end
@@ -203,6 +231,7 @@ SUITES = (
     "paper",
     "unseen",
     "ood",
+    "long",
     "localisation",
     "growth",
     "growth-proxy",

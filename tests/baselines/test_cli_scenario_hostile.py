@@ -193,7 +193,8 @@ CASES: list[Case] = [
         lambda d: _file(
             d,
             "w.yaml",
-            "waypoints: [{latitude: 36.55, longitude: -84.14}, {latitude: 37.5, longitude: -84.14}]\n",
+            "waypoints: [{latitude: 36.55, longitude: -84.14},"
+            " {latitude: 37.5, longitude: -84.14}]\n",
             "--waypoints",
         ),
         "out",

@@ -22,7 +22,7 @@ from scenario_gen.errors import InputError
 from .session import Session, field_file
 
 #: Policies the page offers: names ``policies.make_policy`` takes.
-POLICIES = ("dwb", "rpp", "ppo:shipped")
+POLICIES = ("dwb", "rpp", "stanley", "blind", "ppo:shipped")
 RUN_ENV = "AgriNav/FieldRoute-v2"
 
 
