@@ -33,6 +33,19 @@ class DepthProjector:
         return out
 
 
+def regulated_speed(
+    v: float, curvature: float, min_radius: float, remaining: float, approach: float, v_min: float
+) -> float:
+    """Nav2 RPP's speed regulation: slow down in turns tighter than ``min_radius`` and within
+    ``approach`` metres of the route's end (never below ``v_min`` there)."""
+    radius = 1.0 / max(abs(curvature), 1e-9)
+    if radius < min_radius:
+        v *= radius / min_radius
+    if remaining < approach:
+        v = max(v * remaining / approach, v_min)
+    return v
+
+
 def local_plan(
     route_obs: NDArray[np.float32], step: float = 0.05
 ) -> tuple[FloatArray, NDArray[np.bool_]]:

@@ -12,7 +12,7 @@ from numpy.typing import NDArray
 from agrinav_gym.interface import RobotInterface, decode_odom
 
 from .base import Obs, Policy
-from .geometry import local_plan
+from .geometry import local_plan, regulated_speed
 
 
 class RegulatedPurePursuit(Policy):
@@ -67,12 +67,9 @@ class RegulatedPurePursuit(Policy):
             return self._twist(0.0, math.copysign(self.rot_vel, angle))
         l2 = float(carrot @ carrot)
         curvature = 2.0 * float(carrot[1]) / max(l2, 1e-6)
-        v = self.v_des
-        radius = 1.0 / max(abs(curvature), 1e-9)
-        if radius < self.r_min:  # curvature heuristic: slow down in tight turns
-            v *= radius / self.r_min
         remaining = float(np.hypot(*plan[-1]))
-        if remaining < self.approach:  # approach the route's end gently
-            v = max(v * remaining / self.approach, self.v_approach_min)
+        v = regulated_speed(
+            self.v_des, curvature, self.r_min, remaining, self.approach, self.v_approach_min
+        )
         w = float(np.clip(v * curvature, -self.robot.w_max, self.robot.w_max))
         return self._twist(v, w)

@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 from agrinav_gym.interface import RobotInterface
 
 from .base import Obs, Policy
-from .geometry import local_plan
+from .geometry import local_plan, regulated_speed
 
 
 class Stanley(Policy):
@@ -93,15 +93,12 @@ class Stanley(Policy):
             self.integral = 0.0
         elif abs(e) < self.near:  # near the line only: no windup from a large transient
             self.integral = float(np.clip(self.integral + e * self.dt, -self.i_max, self.i_max))
-        v = self.v_des
         ahead = plan[min(i + 16, len(plan) - 1)]  # 0.8 m on: the curvature to feed forward
-        l2 = float(ahead @ ahead)
-        kappa = 2.0 * float(ahead[1]) / max(l2, 1e-6)
-        if abs(kappa) > 1.0 / self.r_min:  # slow down in tight turns, as RPP does
-            v *= 1.0 / (abs(kappa) * self.r_min)
+        kappa = 2.0 * float(ahead[1]) / max(float(ahead @ ahead), 1e-6)
         remaining = float(np.hypot(*plan[-1]))
-        if remaining < self.approach:
-            v = max(v * remaining / self.approach, self.v_approach_min)
+        v = regulated_speed(
+            self.v_des, kappa, self.r_min, remaining, self.approach, self.v_approach_min
+        )
         delta = heading_err + math.atan2(self.k * e + self.k_i * self.integral, self.k_soft + v)
         w = float(np.clip(v * kappa + self.k_heading * delta, -self.robot.w_max, self.robot.w_max))
         return self._twist(v, w)
