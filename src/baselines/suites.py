@@ -49,6 +49,17 @@ class Case:
 #: Held-out scenario seeds, the range every envs.yml entry evaluates on.
 EVAL_SCENARIO_SEEDS = (1_000_000_000, 1_001_000_000)
 PAPER_FIELD = {"field": {"width": 12.5, "length": 30.0}, "route": {"lanes": 2}}
+#: The field the seed robot's four waypoints lie on (31 m lanes; benchmarks/paper_waypoints.py).
+PAPER_WAYPOINT_FIELD: dict[str, Any] = {"field": {"width": 12.5, "length": 39.0}}
+
+
+def paper_waypoints() -> str:
+    """The shipped waypoint file of the `paper` suite (Nav2's GPS waypoint format)."""
+    from importlib import resources
+
+    return str(resources.files("baselines.hyperparams").joinpath("paper_waypoints.yml"))
+
+
 #: The paper's localisation: RTK through the EKF (robot_localization + navsat_transform), and
 #: Nav2 Humble's progress checker (SimpleProgressChecker: 0.5 m within 10 s, else the goal
 #: fails), so a stall is a failure after 10 s, not a run to the step limit.
@@ -168,10 +179,25 @@ def suite(name: str) -> list[Case]:
         }
         return [Case("tiny", "AgriNav/FurrowFollow-v2", "default", tiny, max_steps=800)]
     if name == "paper":
-        # The source paper's run: a zigzag over two lanes with a headland U-turn of the row
-        # spacing's diameter, RTK GNSS through the EKF, depth camera, early and intermediate
-        # corn, on the paper's P1 density (1 m rows). Every pose of the 20 Hz control loop is
-        # scored (the paper scored 607); the pose count is in every row.
+        # The source paper's experiment as it ran: four Nav2 GPS waypoints (33 m along a lane,
+        # across the headland, 31 m back) read through the datum, the straight-leg plan between
+        # them, RTK GNSS through the EKF, Nav2's progress checker, early and intermediate corn
+        # on the P1 density (1 m rows).
+        route = {"waypoints": paper_waypoints()}
+        return [
+            Case(
+                f"corn-{label}",
+                "AgriNav/FieldRoute-v2",
+                "paper-p1",
+                {**PAPER_WAYPOINT_FIELD, "route": route, "crop": {"stage": stage}},
+                RTK_EKF,
+            )
+            for label, stage in (("early", 1), ("intermediate", 3))
+        ]
+    if name == "zigzag":
+        # The v1 `paper` run: a zigzag over two lanes with a headland U-turn of the row
+        # spacing's diameter (not what the paper drove), RTK through the EKF, early and
+        # intermediate corn on P1.
         return [
             Case(
                 f"corn-{label}",
@@ -229,6 +255,7 @@ def suite(name: str) -> list[Case]:
 SUITES = (
     "smoke",
     "paper",
+    "zigzag",
     "unseen",
     "ood",
     "long",

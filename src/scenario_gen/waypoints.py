@@ -8,9 +8,8 @@ writes (``config/gps_waypoints.yaml``)::
 
 Each waypoint goes through the scenario's datum (WGS84 → ENU, ``GeoFrame``) and the route is
 the global plan Nav2's planner makes between them on an empty map: straight legs, resampled at
-the route spacing. A leg is ``furrow`` where it runs along the rows inside the planted area
-(within ``FURROW_ALIGN_DEG`` of the row direction, its midpoint in the field) and ``headland``
-otherwise.
+the route spacing. A point is ``furrow`` where its leg runs along the rows (within
+``FURROW_ALIGN_DEG`` of the row direction) inside the planted area, ``headland`` elsewhere.
 """
 
 from __future__ import annotations
@@ -110,26 +109,30 @@ def waypoint_route(
         raise InputError(
             what, f"{length.sum():.0f} m of route", f"allowed: at most {MAX_ROUTE_WAYPOINTS} points"
         )
-    pts, tags = [xy[:1]], [_tag(xy[0], xy[1], row_angle, field)]
+    pts, along = [xy[:1]], [_along(xy[0], xy[1], row_angle)]
     for k in range(len(legs)):
         n = max(math.ceil(length[k] / spacing), 1)
         t = np.arange(1, n + 1) / n
         pts.append(xy[k] + t[:, None] * legs[k])
-        tags += [_tag(xy[k], xy[k + 1], row_angle, field)] * n
+        along += [_along(xy[k], xy[k + 1], row_angle)] * n
     p = np.vstack(pts)
     z = terrain.height_at(p[:, 0], p[:, 1])
-    seg = np.array(tags)
+    inside = (
+        shapely.contains_xy(field, p[:, 0], p[:, 1])
+        if field is not None
+        else np.zeros(len(p), bool)
+    )
+    seg = np.where(np.asarray(along) & inside, FURROW, HEADLAND)
     return Route(np.column_stack([p, z]), seg, np.full(len(p), -1, np.int64))
 
 
-def _tag(a: FloatArray, b: FloatArray, row_angle: float | None, field: Any) -> str:
-    if row_angle is None or field is None:
-        return HEADLAND
+def _along(a: FloatArray, b: FloatArray, row_angle: float | None) -> bool:
+    """Whether the leg a → b runs along the rows (either direction)."""
+    if row_angle is None:
+        return False
     d = math.atan2(b[1] - a[1], b[0] - a[0]) - row_angle
-    off = abs((d + 0.5 * math.pi) % math.pi - 0.5 * math.pi)  # either direction along the rows
-    mid = 0.5 * (a + b)
-    along = off <= math.radians(FURROW_ALIGN_DEG)
-    return FURROW if along and bool(shapely.contains_xy(field, mid[0], mid[1])) else HEADLAND
+    off = abs((d + 0.5 * math.pi) % math.pi - 0.5 * math.pi)
+    return off <= math.radians(FURROW_ALIGN_DEG)
 
 
 def route_to_gps(route: Route, geo: GeoFrame) -> FloatArray:
