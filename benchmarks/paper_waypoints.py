@@ -36,7 +36,7 @@ def main() -> None:
     w3 = w2 + across * LEGS[1]
     w4 = w3 - along * LEGS[2]
     pts = np.array([w1, w2, w3, w4])
-    lat, lon, _ = scn.geo.enu_to_geodetic(pts[:, 0], pts[:, 1], 0.0)
+    lat, lon, _ = scn.geo.enu_to_geodetic(pts[:, 0], pts[:, 1], 0.0)  # on the tangent plane
     heading = [np.arctan2(*along[::-1])] * 2 + [np.arctan2(*(-along)[::-1])] * 2
     data = {
         "waypoints": [

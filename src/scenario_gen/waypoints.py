@@ -88,7 +88,9 @@ def waypoint_route(
 ) -> Route:
     """The straight-leg plan through ``wps`` (read by ``read_gps_waypoints``) in ENU, on the
     terrain, every ``spacing`` metres; a waypoint off the terrain is refused by number."""
-    x, y, _ = geo.geodetic_to_enu(wps[:, 0], wps[:, 1], 0.0)
+    # Nav2's GPS waypoints carry no altitude: take the datum's, not 0 (a point hundreds of
+    # metres below the tangent plane lies millimetres off sideways at tens of metres).
+    x, y, _ = geo.geodetic_to_enu(wps[:, 0], wps[:, 1], geo.alt)
     xy = np.column_stack([x, y])
     inside = terrain.contains(xy[:, 0], xy[:, 1])
     if not np.all(inside):

@@ -117,3 +117,24 @@ def test_every_ood_case_lies_outside_the_training_ranges() -> None:
     assert cases["RTK float"].config["gnss"]["mode"] == "rtk_float"
     for case in cases.values():  # every other axis drawn as in training, from the eval seeds
         assert case.env_kwargs()["scenario_seeds"] == list(EVAL_SCENARIO_SEEDS)
+
+
+def test_the_paper_suite_drives_the_seed_robots_four_waypoints() -> None:
+    """33 m along a lane, across the headland, 31 m back: the legs of the shipped waypoint
+    file, through the datum, as the route every policy is scored on."""
+    import numpy as np
+
+    case = suite("paper")[0]
+    env = gym.make(case.env_id, **case.env_kwargs())
+    try:
+        env.reset(seed=EVAL_SEED)
+        route = env.unwrapped.scenario.route
+        turn = np.flatnonzero(
+            np.abs(np.diff(np.unwrap(np.arctan2(*np.diff(route.xy, axis=0).T[::-1])))) > 0.5
+        )
+        corners = route.xy[np.r_[0, turn + 1, len(route.xy) - 1]]
+        legs = np.hypot(*np.diff(corners, axis=0).T)
+        np.testing.assert_allclose(legs, [33.0, 6.0, 31.0], atol=1e-3)
+        assert {"furrow", "headland"} == set(route.segment)
+    finally:
+        env.close()
