@@ -163,6 +163,13 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         self._apply_env_values(env_values)
         self._build_world()
         self.route = self.task.make_route(self.scenario, rng, opts)
+        shortest = self.cfg.task.success_tolerance + 1.0
+        if self.route.length < shortest:  # "success" would be reported without driving
+            raise InputError(
+                "route",
+                f"{self.route.length:.2f} m",
+                f"allowed: a route of at least {shortest:g} m (success tolerance + 1 m)",
+            )
         self.start = self.task.start_pose(self.route, rng, self._clearance())
         self.world.place_robot(*self.start, self.scenario.terrain)
         self.world.step(1)

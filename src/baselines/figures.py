@@ -16,7 +16,7 @@ def learning_curve(history: list[dict[str, float]], path: Path, title: str) -> N
     ax = fig.subplots(1, 2)
     ax[0].plot(t, [h["return"] for h in history], "o-")
     ax[0].set_xlabel("training time (min, this machine)")
-    ax[0].set_ylabel("eval return (held-out seeds)")
+    ax[0].set_ylabel("eval return (validation seeds)")
     ax[1].plot(t, [h["rmse"] for h in history], "o-", color="tab:red", label="RMSE")
     ax[1].plot(
         t, [h["in_furrow_rmse"] for h in history], "^-", color="tab:purple", label="in-furrow"

@@ -145,3 +145,25 @@ def test_use_after_close(env: Any) -> None:
     for call in (lambda: env.reset(seed=0), lambda: env.step(np.zeros(2, np.float32)), env.render):
         with pytest.raises(InputError, match="close"):
             call()
+
+
+def test_a_route_too_short_to_drive_is_refused_not_a_success(tmp_path: Any) -> None:
+    """A degenerate route used to end at once as a success at 0 % completion."""
+    import yaml
+
+    from scenario_gen import generate, preset
+
+    scn = generate(preset("default", **TINY), 0)
+    (a, _b) = scn.lanes[0]
+    lat, lon, _ = scn.geo.enu_to_geodetic([a[0], a[0] + 0.5], [a[1], a[1]], 0.0)
+    wps = [{"latitude": float(la), "longitude": float(lo)} for la, lo in zip(lat, lon, strict=True)]
+    path = tmp_path / "w.yaml"
+    path.write_text(yaml.safe_dump({"waypoints": wps}))
+    env = gym.make(
+        "AgriNav/FieldRoute-v2", scenario_overrides={**TINY, "route": {"waypoints": str(path)}}
+    )
+    try:
+        with pytest.raises(InputError, match="route of at least 1.3 m"):
+            env.reset(seed=0)
+    finally:
+        env.close()
