@@ -1,4 +1,4 @@
-"""Export benchmarks (issue 12): seconds for the default field, bounded for 100k plants.
+"""Export benchmarks: seconds for the default field, bounded for 100k plants.
 
 Each export runs as ``agrinav export`` in a fresh process (wall time and peak RSS of that
 process, median of ``--repeat`` runs):

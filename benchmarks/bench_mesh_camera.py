@@ -1,4 +1,4 @@
-"""Mesh camera benchmarks (issue 9 performance targets), ratios measured side by side.
+"""Mesh camera benchmarks, ratios measured side by side.
 
 1. env step cost with the camera against the state-only step (gps, imu, odom, route), on the
    paper's P1 field, driving the same S-curve, blocks interleaved so drift cancels:

@@ -1,4 +1,4 @@
-"""Drive physics and localisation benchmarks (issue 10 §1, §3, §6), side by side in one run.
+"""Drive physics and localisation benchmarks, side by side in one run.
 
 "legacy" is the drive before the tyre model — pybullet's own sphere-wheel contact with friction
 1.0 and the old fixed track multiplier 3 — rebuilt here from the same URDF and world.

@@ -1,4 +1,4 @@
-"""CPU ray-casting backends on the same scene and rays (issue 9: measure before choosing).
+"""CPU ray-casting backends on the same scene and rays.
 
 The scene is what the mesh camera loads at one robot pose: the terrain tiles and plants of its
 view, (a) on the paper's P1 field (1 × 1 m, 1.2 m maize) and (b) in mature maize (2.5 m, 1 m

@@ -1,4 +1,4 @@
-"""Field-studio benchmarks (issue 13): live-preview cost and change-to-redraw latency.
+"""Field-studio benchmarks: live-preview cost and change-to-redraw latency.
 
 1. Server side, in one process, median of ``--repeat`` runs: one parameter change on the
    ``default`` preset (≈2,200 plants): the session update, the layout preview and its JSON,

@@ -1,4 +1,4 @@
-"""Fit the analytic proxy's parameters to the crop meshes (issue 9) and draw the figure.
+"""Fit the analytic proxy's parameters to the crop meshes and draw the figure.
 
 For every species and catalog stage, ``agrinav_gym.sim.proxy_fit.fit_stage`` renders lanes with
 the mesh camera and searches (fill, base, reach) minimising the proxy's per-pixel depth

@@ -1,4 +1,4 @@
-"""The lane as the mesh camera sees it at the growth suite's stages (issue 9, item 5).
+"""The lane as the mesh camera sees it at the growth suite's stages.
 
 Maize at 0.3 / 0.6 / 1.2 / 1.8 / 2.5 m (the catalog's five stages) in 1 m rows, 0.18 m in the row
 (the growth suite's fields). From 24 lane-centre poses (4 along the lane × heading −5°, 0°,

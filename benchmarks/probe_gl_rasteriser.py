@@ -1,4 +1,4 @@
-"""Probe (issue 9, not a camera): would rasterising primary rays reach 20× TinyRenderer?
+"""Probe: would rasterising primary rays reach 20× TinyRenderer?
 
 Renders the paper's P1 field from the lane centre at 848 × 480 with OpenGL 3.3 through EGL
 (``moderngl``; on a machine without a GPU, Mesa's llvmpipe on the CPU): the same plant

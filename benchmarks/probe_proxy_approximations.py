@@ -1,4 +1,4 @@
-"""Probe (issue 9, not shipped): what would the proxy's step cost with its exact parts approximated?
+"""Probe: what would the proxy's step cost with its exact parts approximated?
 
 The proxy depth camera is exact in two places that cost time: terrain hits are moved by
 Newton onto the bilinear surface the tyres and plants stand on (``refine_ground``), and plants

@@ -1,4 +1,4 @@
-"""`agrinav scenario` against hostile input (issue 14): exit 2, one line, no traceback, nothing
+"""`agrinav scenario` against hostile input: exit 2, one line, no traceback, nothing
 written. Most cases run in-process (cheap); the memory cases run in a subprocess whose address
 space is capped, so a bound that failed to hold would end in MemoryError, not a slow pass."""
 

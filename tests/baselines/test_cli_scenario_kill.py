@@ -1,4 +1,4 @@
-"""`agrinav scenario` killed at several moments (issue 14): ``--out`` is afterwards absent, the
+"""`agrinav scenario` killed at several moments: ``--out`` is afterwards absent, the
 complete old folder, or the complete new one — never partial — and the next run to the same
 ``--out`` removes whatever the dead run left. Two concurrent runs: one is refused."""
 

@@ -1,5 +1,5 @@
 """Output folders: whole or absent, one writer at a time, stale temporaries cleaned, the umask
-honoured (issue 14). Kill tests of the real CLI are in tests/baselines/test_cli_scenario_kill.py.
+honoured. Kill tests of the real CLI are in tests/baselines/test_cli_scenario_kill.py.
 """
 
 import os

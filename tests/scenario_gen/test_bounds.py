@@ -1,4 +1,4 @@
-"""Memory bounds checked before allocating, and DEMs that lie about themselves (issue 14)."""
+"""Memory bounds checked before allocating, and DEMs that lie about themselves."""
 
 import re
 from pathlib import Path

@@ -176,7 +176,7 @@ def test_model_zip_loads_and_scales(tmp_path: Path) -> None:
         load_model(_zip(tmp_path / "empty.zip", {"readme.txt": b"hi"}), 1.0)
 
 
-# ----------------------------------------------------------------------------- issue 14
+# ----------------------------------------------------------------------------- hostile input
 @pytest.mark.parametrize(
     "layout,field,bound",
     [

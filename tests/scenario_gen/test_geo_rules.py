@@ -1,5 +1,4 @@
-"""The LoD rule, the datum rules and a field that must lie on its terrain (issue 8 §2.5-2.6,
-issue 14 "geographic garbage")."""
+"""The LoD rule, the datum rules and a field that must lie on its terrain."""
 
 import json
 from pathlib import Path

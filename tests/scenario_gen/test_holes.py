@@ -1,5 +1,5 @@
 """Holes and MultiPolygon gaps: lanes end at them, the route crosses them as headland, the
-preview draws them (issue 8 §2.7)."""
+preview draws them."""
 
 import json
 from pathlib import Path

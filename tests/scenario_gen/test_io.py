@@ -123,7 +123,7 @@ def test_load_refuses_non_scenarios(tmp_path: Path) -> None:
         load(tmp_path)
 
 
-# ----------------------------------------------------------------------------- issue 8 §2.8
+# ----------------------------------------------------------------------------- loading
 def test_scenario_json_stores_resolved_paths_and_regenerates_from_anywhere(
     tmp_path: Path, monkeypatch
 ) -> None:

@@ -95,7 +95,7 @@ def run_policy(
 
 
 def export_api() -> Any | None:
-    """``scenario_gen.export`` (``agrinav export``, issue 12) when this install has it."""
+    """``scenario_gen.export`` (``agrinav export``) when this install has it."""
     try:
         return importlib.import_module("scenario_gen.export")
     except ImportError:

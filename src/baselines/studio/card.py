@@ -64,7 +64,7 @@ class ScenarioCard:
                 if not formats:
                     self.fmt.disable()
                     b.disable()
-                    b.tooltip("this install has no exporter (agrinav export, issue 12)")
+                    b.tooltip("this install has no exporter (agrinav export)")
             self.form.widgets["export"] = self.fmt
             ui.separator()
             with ui.row().classes("items-center"):

@@ -132,7 +132,7 @@ def test_run_and_export_need_a_saved_scenario(tmp_path: Path) -> None:
 def test_export_calls_the_exporters_api_like_the_cli(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """The contract with ``scenario_gen.export`` (issue 12): export(dir, to, out, options,
+    """The contract with ``scenario_gen.export``: export(dir, to, out, options,
     overwrite=...), the robot URDF passed for nav2 as ``agrinav export`` does."""
     import sys
     import types
@@ -174,8 +174,8 @@ def test_export_calls_the_exporters_api_like_the_cli(
 
 
 def test_export_with_the_real_exporter(tmp_path: Path) -> None:
-    """Runs once ``agrinav export`` (issue 12) is in this tree: the button's call end to end."""
-    pytest.importorskip("scenario_gen.export", reason="agrinav export (issue 12) not merged yet")
+    """Runs once ``agrinav export`` is in this tree: the button's call end to end."""
+    pytest.importorskip("scenario_gen.export", reason="agrinav export not merged yet")
     s = _small(False)
     actions.generate_and_save(s, str(tmp_path / "scn"))
     info = actions.export(str(tmp_path / "scn"), "mesh", str(tmp_path / "scn-mesh"))
