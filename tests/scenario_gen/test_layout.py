@@ -143,7 +143,7 @@ def test_weed_density() -> None:
     assert (scn.plants.species[scn.plants.is_weed] == "weed").all()
 
 
-# ----------------------------------------------------------------------------- issue 8 §2.9
+# ----------------------------------------------------------------------------- counts
 @pytest.mark.parametrize("rows,per_row", [(20, 50), (7, 12), (2, 2)])
 def test_row_and_plant_counts_are_honoured_and_centred(rows: int, per_row: int) -> None:
     # the source paper's maizes.world: 20 rows x 50 plants, 0.75 x 0.18 m

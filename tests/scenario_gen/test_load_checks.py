@@ -1,5 +1,5 @@
-"""``load`` on damaged, edited or crafted folders: one InputError naming the file and field
-(issue 14); and the API's other hostile inputs (a one-point route, ``save`` under a file)."""
+"""``load`` on damaged, edited or crafted folders: one InputError naming the file and field;
+and the API's other hostile inputs (a one-point route, ``save`` under a file)."""
 
 import io
 import json

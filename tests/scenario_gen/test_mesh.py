@@ -71,7 +71,7 @@ def test_mesh_needs_a_datum_and_a_mesh(tmp_path: Path) -> None:
         )
 
 
-# ----------------------------------------------------------------------------- issue 8 §2.4
+# ----------------------------------------------------------------------------- mesh terrain
 def _unmerged(terrain, path: Path) -> None:
     """The terrain as an STL: every triangle has its own three vertices (nothing shared)."""
     mesh = terrain.to_trimesh()

@@ -1,5 +1,5 @@
-"""crop.model is part of the scenario: recorded, copied, loaded from the copy, previewed
-(issue 8 §2.3); a zip with two meshes is refused."""
+"""crop.model is part of the scenario: recorded, copied, loaded from the copy, previewed; a zip
+with two meshes is refused."""
 
 import hashlib
 import json
