@@ -77,7 +77,9 @@ def check_policy_spec(spec: Any) -> tuple[str, str]:
     builds anything, so a typo costs no simulator start-up and leaves nothing behind."""
     if not isinstance(spec, str):
         raise InputError("policy", spec, f"allowed: {', '.join(POLICIES)} or ppo:PATH")
-    name, _, path = spec.partition(":")
+    name, sep, path = spec.partition(":")
+    if sep and not path:
+        raise InputError("policy", spec, f"an empty ':' argument; allowed: {name} or {name}:ARG")
     if name not in POLICIES:
         raise InputError("policy", spec, f"allowed: {', '.join(POLICIES)} (ppo:PATH, ppo:shipped)")
     if name == "ppo":

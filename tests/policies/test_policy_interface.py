@@ -36,6 +36,8 @@ def test_missing_observation_and_unknown_policy_are_clear_errors() -> None:
             make_policy("rpp", env)
         with pytest.raises(ValueError, match="allowed"):
             make_policy("mpc", env)
+        with pytest.raises(ValueError, match="empty ':' argument"):
+            make_policy("dwb:", env)
         with pytest.raises(ValueError, match="checkpoint"):
             make_policy("ppo", env)
     finally:
