@@ -35,6 +35,7 @@ META = "checkpoint.json"
 WEIGHTS = "policy.npz"
 OPTIMIZER = "optimizer.npz"
 MAX_META_BYTES = 1 << 20
+MAX_LAYER = 4096  # units in one hidden layer: 160 GB networks are typos, not checkpoints
 ACTIVATIONS = ("Tanh", "ReLU", "ELU", "LeakyReLU")
 POLICY_KWARGS = {
     "net_arch",
@@ -104,6 +105,8 @@ def space_from_json(d: Any, where: str) -> spaces.Space[Any]:
         raise InputError(where, "low/high", f"allowed: {size} numbers each") from None
     if d.get("dtype") not in ("float32", "float64"):
         raise InputError(where, d.get("dtype"), "allowed: float32 or float64")
+    if np.isnan(low).any() or np.isnan(high).any() or (low > high).any():
+        raise InputError(where, "low/high", "allowed: bounds without NaN, low <= high")
     dtype = np.dtype(d["dtype"])
     return spaces.Box(low.astype(dtype), high.astype(dtype), dtype=dtype)
 
@@ -131,6 +134,16 @@ def policy_kwargs_from_json(d: Any) -> dict[str, Any]:
             "checkpoint policy_kwargs", d, f"allowed keys: {', '.join(sorted(POLICY_KWARGS))}"
         )
     out = dict(d)
+    arch = out.get("net_arch")
+    if arch is not None:
+        layers = list(arch.values()) if isinstance(arch, dict) else [arch]
+        sizes = [n for group in layers for n in (group if isinstance(group, list) else [group])]
+        if not sizes or not all(
+            isinstance(n, int) and not isinstance(n, bool) and 1 <= n <= MAX_LAYER for n in sizes
+        ):
+            raise InputError(
+                "checkpoint net_arch", arch, f"allowed: layer sizes from 1 to {MAX_LAYER}"
+            )
     if "activation_fn" in out:
         if out["activation_fn"] not in ACTIVATIONS:
             raise InputError(
@@ -338,6 +351,13 @@ def _normalizer(meta: dict[str, Any], obs_space: spaces.Dict, folder: Path) -> N
     if any((v < 0).any() or not np.isfinite(v).all() for v in var.values()):
         raise InputError(
             "checkpoint normalization", str(folder), "variances must be finite and >= 0"
+        )
+    if any(not np.isfinite(m).all() for m in mean.values()):
+        raise InputError("checkpoint normalization", str(folder), "means must be finite")
+    if not (math.isfinite(clip) and clip > 0 and math.isfinite(eps) and eps > 0):
+        # clip <= 0 made every observation 0: a blind policy that still "ran"
+        raise InputError(
+            "checkpoint normalization", [clip, eps], "allowed: clip > 0 and epsilon > 0, finite"
         )
     return Normalizer(mean, var, clip, eps)
 

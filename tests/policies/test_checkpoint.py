@@ -89,6 +89,8 @@ def _edit(d: Path, **changes: object) -> None:
         ({"policy_kwargs": {"activation_fn": "Sigmoid"}}, "activation_fn"),
         ({"policy_kwargs": {"net_arch": [64, 64]}}, r"needs \(64"),
         ({"format": "pickle"}, "format"),
+        ({"policy_kwargs": {"net_arch": [64, -3]}}, "net_arch"),
+        ({"policy_kwargs": {"net_arch": {"pi": [10**6], "vf": [64]}}}, "net_arch"),
     ],
 )
 def test_bad_checkpoints_give_one_clear_error(tmp_path: Path, change: dict, needle: str) -> None:
@@ -221,3 +223,33 @@ def test_weights_are_checked_before_anything_is_read(tmp_path: Path, make, needl
     make(path)
     with pytest.raises(InputError, match=needle):
         read_npz(path, "checkpoint")
+
+
+def _edit_meta(d: Path, edit) -> None:  # type: ignore[no-untyped-def]
+    meta = json.loads((d / "checkpoint.json").read_text())
+    edit(meta)
+    (d / "checkpoint.json").write_text(json.dumps(meta))
+
+
+def _swap_bounds(m: dict) -> None:
+    box = m["action_space"]
+    box["low"], box["high"] = box["high"], box["low"]
+
+
+@pytest.mark.parametrize(
+    "edit,needle",
+    [
+        (_swap_bounds, "low <= high"),
+        (lambda m: m["normalization"].update(clip=-1.0), "clip > 0"),
+        (lambda m: m["normalization"].update(epsilon=0.0), "epsilon > 0"),
+    ],
+)
+def test_checkpoint_json_is_checked_like_a_config(tmp_path: Path, edit, needle: str) -> None:  # type: ignore[no-untyped-def]
+    d = _shipped_copy(tmp_path)
+    _edit_meta(d, edit)
+    env = _env()
+    try:
+        with pytest.raises(InputError, match=needle):
+            make_policy(f"ppo:{d}", env)
+    finally:
+        env.close()
