@@ -41,6 +41,14 @@ MAX_TERRAIN_SAMPLES = 10_000_000
 MAX_ROUTE_WAYPOINTS = 2_000_000
 MAX_DEM_PIXELS = 16_000_000
 MAX_GROUND_SPACING = 10.0  # m: Bullet's triangle-size guidance
+#: What a loaded scenario may hold (generation never writes outside these): a grid at least as
+#: fine as LoD 22 allows (≈ 0.04 m) but not finer than a millimetre, an origin within 100 km
+#: of the datum (a field is local: the ENU tangent plane is ~0.8 m off the ellipsoid there),
+#: heights within 10 km of the datum, and plants under 30 m (the catalog's tallest is 2.5 m).
+MIN_GROUND_SPACING = 0.001
+MAX_ENU_OFFSET_M = 100_000.0
+MAX_ENU_HEIGHT_M = 10_000.0
+MAX_PLANT_HEIGHT_M = 30.0
 RIDGE_SAMPLES = 4  # per row period: worst-case ridge kept cos(pi/4) = 71 %
 #: A plane is the tangent plane at its datum; at distance d it lies d²/2R above the ellipsoid
 #: (2.0 m at 5 km) and its vertical is tilted by d/R (0.045° at 5 km). Rectangles reach 3.6 km.

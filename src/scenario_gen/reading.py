@@ -22,7 +22,16 @@ from shapely import wkt
 from shapely.errors import ShapelyError
 from shapely.geometry import MultiPolygon, Polygon
 
-from .bounds import MAX_PLANTS, MAX_ROUTE_WAYPOINTS, MAX_TERRAIN_SAMPLES
+from .bounds import (
+    MAX_ENU_HEIGHT_M,
+    MAX_ENU_OFFSET_M,
+    MAX_GROUND_SPACING,
+    MAX_PLANT_HEIGHT_M,
+    MAX_PLANTS,
+    MAX_ROUTE_WAYPOINTS,
+    MAX_TERRAIN_SAMPLES,
+    MIN_GROUND_SPACING,
+)
 from .crops import CATALOG
 from .errors import InputError
 from .geodesy import GeoFrame
@@ -75,6 +84,8 @@ def load(directory: str | Path) -> Scenario:
     field = _field(meta)
     plants = _plants(_member(d, "plants.csv", MAX_PLANTS * MAX_CSV_ROW_BYTES), rows, version)
     route = _route(_member(d, "route.csv", MAX_ROUTE_WAYPOINTS * MAX_CSV_ROW_BYTES), rows)
+    _on_terrain(terrain, plants.x, plants.y, "plants.csv")
+    _on_terrain(terrain, route.xy[:, 0], route.xy[:, 1], "route.csv")
     info = meta.get("info", {})
     if not isinstance(info, dict):
         raise InputError("scenario.json: info", type(info).__name__, "allowed: a mapping")
@@ -82,6 +93,18 @@ def load(directory: str | Path) -> Scenario:
     if user_model is not None:  # the folder's copy, wherever the folder now is
         spec = spec.replace({"crop.model": str(user_model.path)})
     return Scenario(spec, seed, geo, terrain, field, rows, plants, route, dict(info), user_model)
+
+
+def _on_terrain(terrain: Terrain, x: np.ndarray, y: np.ndarray, name: str) -> None:
+    """Every point on the terrain grid (generation never places one off it)."""
+    inside = terrain.contains(np.asarray(x), np.asarray(y))
+    if not np.all(inside):
+        i = int(np.argmin(inside))
+        raise InputError(
+            f"{name}: line {i + 2}",
+            f"({float(x[i]):.6g}, {float(y[i]):.6g})",
+            "allowed: points on the scenario's terrain (terrain.npz)",
+        )
 
 
 # ----------------------------------------------------------------------------- files
@@ -266,8 +289,25 @@ def _terrain(path: Path, meta: dict[str, Any]) -> Terrain:
         if v.shape != () or v.dtype.kind not in "fi" or not np.isfinite(v):
             raise InputError(f"{name}: {key}", repr(v)[:40], "allowed: one finite number")
         scalars[key] = float(v)
-    if scalars["spacing"] <= 0:
-        raise InputError(f"{name}: spacing", scalars["spacing"], "allowed: a grid spacing > 0 m")
+    if not MIN_GROUND_SPACING <= scalars["spacing"] <= MAX_GROUND_SPACING:
+        raise InputError(
+            f"{name}: spacing",
+            scalars["spacing"],
+            f"allowed: a grid spacing of {MIN_GROUND_SPACING} to {MAX_GROUND_SPACING:g} m",
+        )
+    for key in ("x0", "y0"):
+        if abs(scalars[key]) > MAX_ENU_OFFSET_M:
+            raise InputError(
+                f"{name}: {key}",
+                scalars[key],
+                f"allowed: within {MAX_ENU_OFFSET_M:,.0f} m of the datum",
+            )
+    if np.abs(heights).max() > MAX_ENU_HEIGHT_M:
+        raise InputError(
+            f"{name}: heights",
+            float(np.abs(heights).max()),
+            f"allowed: within {MAX_ENU_HEIGHT_M:,.0f} m of the datum's height",
+        )
     lod_v = scalars["lod"]
     if lod_v != int(lod_v) or not -1 <= lod_v <= 22:
         raise InputError(f"{name}: lod", lod_v, "allowed: an integer -1 (none) .. 22")
@@ -374,13 +414,19 @@ def _plants(path: Path, rows: RowFrame, version: int) -> Plants:
             f"allowed: one of {', '.join(CATALOG)}",
         )
     stages = np.array([CATALOG[s].stages for s in species], dtype=np.float64)
-    bad = (f["height"] <= 0) | (f["stage"] < 1) | (f["stage"] > stages)
+    bad = (
+        (f["height"] <= 0)
+        | (f["height"] > MAX_PLANT_HEIGHT_M)
+        | (f["stage"] < 1)
+        | (f["stage"] > stages)
+    )
     if bad.any():
         i = int(np.argmax(bad))
         raise InputError(
             f"{path.name}: line {i + 2}",
             f"height {f['height'][i]}, stage {f['stage'][i]}",
-            f"allowed: height > 0 and stage 1..{int(stages[i])} for {species[i]}",
+            f"allowed: height in (0, {MAX_PLANT_HEIGHT_M:g}] m and stage 1..{int(stages[i])} "
+            f"for {species[i]}",
         )
     weed = species == "weed"
     if "row" in head:

@@ -104,6 +104,14 @@ def _huge_npz_header(d: Path) -> None:
         zf.writestr("heights.npy", buf.getvalue())
 
 
+def _huge_height(d: Path) -> None:
+    with np.load(d / "terrain.npz") as z:
+        arrays = {k: z[k] for k in z.files}
+    arrays["heights"] = arrays["heights"].copy()
+    arrays["heights"][0, 0] = 1e300
+    np.savez_compressed(d / "terrain.npz", **arrays)
+
+
 def _deep_json(d: Path) -> None:
     (d / "scenario.json").write_text("[" * 100_000 + "]" * 100_000)
 
@@ -206,6 +214,14 @@ CASES: list[tuple[str, Callable[[Path], None], str]] = [
         "route.csv: line 2, column segment",
     ),
     ("inf route z", _csv_cell("route.csv", 9, "z", "inf"), "route.csv: line 9, column z"),
+    # values generation never writes: accepted once, they crashed or ran for ever later
+    ("grid spacing 1e-300", _npz(spacing=np.float64(1e-300)), "terrain.npz: spacing"),
+    ("grid spacing 1e6", _npz(spacing=np.float64(1e6)), "terrain.npz: spacing"),
+    ("origin 1e300", _npz(x0=np.float64(1e300)), "terrain.npz: x0"),
+    ("a height of 1e300", _huge_height, "terrain.npz: heights"),
+    ("plant 1e300 m tall", _csv_cell("plants.csv", 4, "height", "1e300"), "plants.csv: line 4"),
+    ("plant at 1e15 m", _csv_cell("plants.csv", 3, "x", "1e15"), "plants.csv: line 3"),
+    ("route point at 1e12 m", _csv_cell("route.csv", 5, "x", "1e12"), "route.csv: line 5"),
 ]
 
 
