@@ -24,7 +24,7 @@ import scenario_gen as sg
 from scenario_gen import Scenario
 from scenario_gen.errors import InputError
 from scenario_gen.generate import COUPLED_FIELDS, check_spec
-from scenario_gen.schema import field_info, is_integer_field, parse_yaml, to_mapping
+from scenario_gen.schema import field_info, is_integer_field, load_yaml, to_mapping
 from scenario_gen.spec import ScenarioSpec
 
 from .sensors.gnss import MODES
@@ -246,10 +246,13 @@ class Bank:
         root = Path(directory)
         listing = root / "bank.yaml"
         if listing.is_file():
-            data = parse_yaml(listing.read_text(), "bank.yaml")
-            names = data.get("scenarios") if isinstance(data, dict) else None
+            data = load_yaml(listing, "bank.yaml")  # its size is checked before it is read
+            names = data.get("scenarios")
             if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
                 raise InputError("bank", str(listing), "allowed: a bank.yaml listing 'scenarios'")
+            outside = [n for n in names if Path(n).is_absolute() or ".." in Path(n).parts]
+            if outside:
+                raise InputError("bank.yaml", outside[0], "allowed: folders inside the bank")
             self.dirs = [root / n for n in names]
             missing = [str(d) for d in self.dirs if not (d / "scenario.json").is_file()]
             if missing:

@@ -93,6 +93,8 @@ def safe_extract(archive: str | Path, dest: str | Path) -> list[Path]:
                 or p.is_absolute()
             ):
                 raise InputError(where, name, "absolute paths are not allowed in an archive")
+            if not p.parts or name.replace("\\", "/").rstrip("/").split("/")[-1] == ".":
+                raise InputError(where, name, "a member must name a file or folder (not '.')")
             if ".." in p.parts:
                 raise InputError(where, name, "'..' path components are not allowed (zip-slip)")
             mode = info.external_attr >> 16

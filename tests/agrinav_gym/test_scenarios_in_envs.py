@@ -185,3 +185,20 @@ def test_coupled_fields_cover_every_cross_field_check() -> None:
         with pytest.raises(InputError) as exc:
             check_spec(sg.ScenarioSpec().replace(over))
         assert exc.value.field in grouped and set(over) <= grouped
+
+
+@pytest.mark.parametrize(
+    "listing,needle",
+    [
+        ("scenarios: [a]\n" + "#" * (2 << 20) + "\n", "at most"),  # sized before it is read
+        ("scenarios: [../../elsewhere]\n", "inside the bank"),
+        ("scenarios: [/etc]\n", "inside the bank"),
+        ("- a\n", "mapping"),
+    ],
+)
+def test_a_bad_bank_listing_is_one_clear_error(tmp_path: Path, listing: str, needle: str) -> None:
+    from agrinav_gym.scenarios import Bank
+
+    (tmp_path / "bank.yaml").write_text(listing)
+    with pytest.raises(ScenarioError, match=needle):
+        Bank(tmp_path)

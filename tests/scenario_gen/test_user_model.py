@@ -166,3 +166,13 @@ def test_models_over_the_triangle_budget_or_without_area_are_refused(tmp_path: P
     line.write_text("v 0 0 0\nv 0 0 1\nv 0 0 2\nf 1 2 3\n")
     with pytest.raises(ScenarioError, match="no surface area"):
         inspect_model(line)
+
+
+@pytest.mark.parametrize("member", [".", "./", "plant/."])
+def test_a_zip_member_named_dot_is_refused(tmp_path: Path, member: str) -> None:
+    z = tmp_path / "m.zip"
+    with zipfile.ZipFile(z, "w") as f:
+        f.writestr("plant.obj", _plant_obj())
+        f.writestr(member, b"")
+    with pytest.raises(ScenarioError, match="not '.'"):
+        inspect_model(z)
