@@ -331,7 +331,7 @@ class ScenarioSource:
         if self.bank is not None:
             self.first = self.bank.sample(np.random.default_rng(seed))
         elif isinstance(scenario, Scenario):
-            self.first = scenario
+            self.first = check_scenario(scenario, "scenario")
         elif self.kind == "fixed":
             self.first = sg.load(Path(scenario))
         else:
@@ -348,7 +348,11 @@ class ScenarioSource:
         """
         scn = current
         if option is not None:
-            scn = option if isinstance(option, Scenario) else _load_option(option)
+            scn = (
+                check_scenario(option, "options.scenario")
+                if isinstance(option, Scenario)
+                else _load_option(option)
+            )
         elif self.bank is not None:
             scn = self.bank.sample(rng)
         over, env = self.randomization.sample(rng)
@@ -359,6 +363,26 @@ class ScenarioSource:
 
     def describe(self) -> dict[str, Any]:
         return {"kind": self.kind, "preset": self.preset, "overrides": self.overrides}
+
+
+def check_scenario(scn: Scenario, where: str) -> Scenario:
+    """A ``Scenario`` built in Python rather than loaded: the checks ``load`` makes of a folder
+    that an object skips (finite plants and route, known species, heights > 0)."""
+    from scenario_gen import CATALOG
+
+    p = scn.plants
+    arrays = {"x": p.x, "y": p.y, "z": p.z, "height": p.height}
+    for name, a in arrays.items():
+        if not np.isfinite(np.asarray(a, np.float64)).all():
+            raise InputError(f"{where}.plants.{name}", "NaN or inf", "allowed: finite values")
+    if (np.asarray(p.height) <= 0).any():
+        raise InputError(f"{where}.plants.height", "<= 0", "allowed: heights > 0 m")
+    unknown = sorted(set(map(str, p.species)) - set(CATALOG))
+    if unknown:
+        raise InputError(f"{where}.plants.species", unknown[0], f"allowed: {', '.join(CATALOG)}")
+    if not np.isfinite(scn.route.xyz).all():
+        raise InputError(f"{where}.route", "NaN or inf", "allowed: finite waypoints")
+    return scn
 
 
 def _is_fixed(scenario: Any) -> bool:

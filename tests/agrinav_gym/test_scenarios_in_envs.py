@@ -202,3 +202,25 @@ def test_a_bad_bank_listing_is_one_clear_error(tmp_path: Path, listing: str, nee
     (tmp_path / "bank.yaml").write_text(listing)
     with pytest.raises(ScenarioError, match=needle):
         Bank(tmp_path)
+
+
+@pytest.mark.parametrize(
+    "edit,field",
+    [
+        (lambda p: p.x.__setitem__(0, np.nan), "scenario.plants.x"),
+        (lambda p: p.species.__setitem__(0, "banana"), "scenario.plants.species"),
+        (lambda p: p.height.__setitem__(0, -1.0), "scenario.plants.height"),
+    ],
+)
+def test_a_scenario_object_is_checked_as_load_checks_a_folder(edit, field: str) -> None:  # type: ignore[no-untyped-def]
+    import dataclasses
+
+    scn = sg.generate(sg.preset("default", **TINY), 0)
+    p = scn.plants
+    plants = dataclasses.replace(
+        p, x=p.x.copy(), height=p.height.copy(), species=p.species.astype(object).copy()
+    )
+    edit(plants)
+    with pytest.raises(ScenarioError) as e:
+        gym.make("AgriNav/FurrowFollow-v2", scenario=dataclasses.replace(scn, plants=plants))
+    assert e.value.field == field
