@@ -98,6 +98,13 @@ COUPLED_FIELDS: tuple[frozenset[str], ...] = (
 def check_spec(spec: ScenarioSpec) -> None:
     """Cross-field checks that need no terrain or files (each field alone was checked when the
     spec was built): an env validates randomization ranges with this before any reset."""
+    name = spec.name
+    if not (0 < len(name) <= 100 and name.isprintable() and "--" not in name):
+        # the name goes into XML comments (where "--" is illegal), YAML comments and file
+        # headers: one printable line keeps every export well-formed
+        raise InputError(
+            "name", name, "allowed: 1-100 printable characters on one line, without '--'"
+        )
     sp = crops.species(spec.crop.species)
     if spec.crop.stage > sp.stages:
         raise InputError(

@@ -171,8 +171,12 @@ def _numbers(obj: dict[str, Any], key: str, n: int | None = None) -> np.ndarray:
 
 # ----------------------------------------------------------------------------- scenario.json
 def _spec(meta: dict[str, Any]) -> ScenarioSpec:
+    from .generate import check_spec
+
     try:
-        return ScenarioSpec.from_dict(_get(meta, "spec", dict))
+        spec = ScenarioSpec.from_dict(_get(meta, "spec", dict))
+        check_spec(spec)  # the cross-field rules generation applied (an edited file skipped them)
+        return spec
     except InputError as exc:
         raise InputError(f"scenario.json: spec.{exc.field}", exc.value, exc.allowed) from None
 

@@ -169,6 +169,8 @@ CASES: list[Case] = [
     ),
     ("bank with bad input", lambda d: ["--count", "3", "--lod", "12"], "out", "terrain.lod"),
     ("huge integer in --set", lambda d: ["--set", f"layout.rows={HUGE}"], "out", "4300 digits"),
+    ("a name with '--' (XML comments)", lambda d: ["--set", "name=a--b"], "out", "name"),
+    ("a name over two lines (YAML)", lambda d: ["--set", 'name="a\\nb: 1"'], "out", "name"),
     (
         "huge integer in a config",
         lambda d: _file(d, "c.yaml", f"layout: {{rows: {HUGE}}}\n", "--config"),

@@ -222,6 +222,11 @@ CASES: list[tuple[str, Callable[[Path], None], str]] = [
     ("plant 1e300 m tall", _csv_cell("plants.csv", 4, "height", "1e300"), "plants.csv: line 4"),
     ("plant at 1e15 m", _csv_cell("plants.csv", 3, "x", "1e15"), "plants.csv: line 3"),
     ("route point at 1e12 m", _csv_cell("route.csv", 5, "x", "1e12"), "route.csv: line 5"),
+    (
+        "a name that breaks exports",
+        _meta(lambda m: m["spec"].update(name="x\nwaypoints: []")),
+        "scenario.json: spec.name",
+    ),
 ]
 
 
