@@ -41,8 +41,10 @@ def _check_latlon(lat: float, lon: float, alt: float, where: str) -> None:
         raise InputError(f"{where}.lat", lat, "allowed: degrees in -90..90")
     if not (math.isfinite(lon) and -180.0 <= lon <= 180.0):
         raise InputError(f"{where}.lon", lon, "allowed: degrees in -180..180")
-    if not math.isfinite(alt):
-        raise InputError(f"{where}.alt", alt, "allowed: a finite height in metres")
+    # Ellipsoidal heights of the ground: the Dead Sea shore is ≈ −430 m (geoid −20 m), Everest
+    # ≈ 8,850 m; beyond -1,000..10,000 m a datum is a typo (10¹² m was accepted).
+    if not (math.isfinite(alt) and -1000.0 <= alt <= 10_000.0):
+        raise InputError(f"{where}.alt", alt, "allowed: a ground height in metres, -1000..10000")
 
 
 @dataclass(frozen=True)

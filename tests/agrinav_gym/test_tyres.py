@@ -14,7 +14,7 @@ import pytest
 
 from agrinav_gym.config import RobotConfig, SoilConfig
 from agrinav_gym.sim.tyres import in_place_turn_ratio
-from agrinav_gym.sim.world import World
+from agrinav_gym.sim.world import RobotGeometry, World
 from scenario_gen import Terrain
 
 A, B = 0.229, 0.235  # half wheelbase, half track (DESIGN §5)
@@ -146,3 +146,40 @@ def test_vertical_stiffness_beyond_the_stable_step_is_refused() -> None:
 
     with pytest.raises(InputError, match="vertical_stiffness"):
         EnvConfig.from_dict({"robot": {"physics_hz": 60, "control_hz": 20}})
+
+
+@pytest.mark.parametrize("stiffness,damping", [(6e4, 0.0), (6e4, 0.1), (3e5, 0.3), (3e5, 2.0)])
+def test_corner_damping_the_step_cannot_integrate_is_refused(
+    stiffness: float, damping: float
+) -> None:
+    """These values rocked the robot over standing still (ζ = 0 is inside the old range)."""
+    from agrinav_gym.config import SoilConfig
+    from scenario_gen.errors import InputError
+
+    soil = SoilConfig(vertical_stiffness=stiffness, damping_ratio=damping)
+    with pytest.raises(InputError, match="soil.damping_ratio"):
+        World(RobotConfig(), soil)
+
+
+@pytest.mark.parametrize("stiffness", [5e3, 6e4, 3e5])
+def test_the_least_damping_allowed_stands_still(stiffness: float) -> None:
+    import math
+
+    from agrinav_gym.config import SoilConfig
+    from agrinav_gym.sim.tyres import MIN_DAMPING_PER_OMEGA_DT
+
+    corner = 0.25 * RobotGeometry.from_urdf().mass
+    zeta = 1.001 * MIN_DAMPING_PER_OMEGA_DT * math.sqrt(stiffness / corner) / 240.0
+    w = World(RobotConfig(), SoilConfig(vertical_stiffness=stiffness, damping_ratio=zeta))
+    try:
+        w.load(plane(0.0))
+        w.place_robot(0.0, 0.0, 0.0, plane(0.0))
+        tilt = 0.0
+        for _ in range(10 * 20):  # 10 s at 20 Hz control, standing
+            w.drive(0.0, 0.0)
+            w.step(12)
+            s = w.state()
+            tilt = max(tilt, abs(float(s.rpy[0])), abs(float(s.rpy[1])))
+        assert math.degrees(tilt) < 2.0, math.degrees(tilt)
+    finally:
+        w.close()

@@ -169,6 +169,18 @@ CASES: list[Case] = [
     ),
     ("bank with bad input", lambda d: ["--count", "3", "--lod", "12"], "out", "terrain.lod"),
     ("huge integer in --set", lambda d: ["--set", f"layout.rows={HUGE}"], "out", "4300 digits"),
+    (
+        "an empty --datum",
+        lambda d: ["--set", "terrain.source=plane", "--datum", ""],
+        "out",
+        "--datum",
+    ),
+    (
+        "altitude 1e12 m",
+        lambda d: ["--set", "terrain.source=plane", "--datum", "36.5,-84.1,1e12"],
+        "out",
+        "alt",
+    ),
     ("a name with '--' (XML comments)", lambda d: ["--set", "name=a--b"], "out", "name"),
     ("a name over two lines (YAML)", lambda d: ["--set", 'name="a\\nb: 1"'], "out", "name"),
     (

@@ -40,6 +40,31 @@ SHEAR_CAP = 4.0
 RR_SPEED = 0.01
 
 
+#: Stable corner damping, as fractions of ω·dt (ω = √(k_z / corner mass), dt the physics
+#: step): the rigid chassis on four explicitly integrated spring–dampers rocks itself over
+#: below ζ ≈ 0.5-0.65·ω·dt (measured at 240 Hz, 10 s standing still: k_z 6·10⁴ N/m ζ 0.10
+#: tips over; 1.5·10⁵ ζ 0.23 rocks 4°, 0.30 holds within 0.7°; 3·10⁵ ζ 0.32 rocks 15°, 0.45
+#: holds), and an explicit damper overshoots once ζ·ω·dt approaches 1 (3·10⁵ with ζ 2 tips
+#: over; ζ·ω·dt 0.8 holds).
+MIN_DAMPING_PER_OMEGA_DT = 0.65
+MAX_DAMPING_OMEGA_DT = 0.8
+
+
+def check_corner_stability(soil: SoilConfig, corner_mass: float, dt: float) -> None:
+    """Refuse soil values whose vertical spring-damper the physics step cannot integrate."""
+    from scenario_gen.errors import InputError
+
+    r = math.sqrt(soil.vertical_stiffness / corner_mass) * dt
+    lo, hi = MIN_DAMPING_PER_OMEGA_DT * r, MAX_DAMPING_OMEGA_DT / r
+    if not lo <= soil.damping_ratio <= hi:
+        raise InputError(
+            "config.soil.damping_ratio",
+            soil.damping_ratio,
+            f"allowed with vertical_stiffness {soil.vertical_stiffness:g} N/m at this physics "
+            f"rate: {lo:.2f}..{hi:.2f} (outside it the robot rocks itself over standing still)",
+        )
+
+
 class TyreModel:
     """Per-wheel normal, shear and rolling-resistance forces from the soil parameters."""
 

@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 from scenario_gen import Terrain
 
 from ..config import RobotConfig, SoilConfig
-from .tyres import TyreModel, in_place_turn_ratio
+from .tyres import TyreModel, check_corner_stability, in_place_turn_ratio
 
 FloatArray = NDArray[np.float64]
 
@@ -143,9 +143,10 @@ class World:
                 "human",
                 "needs a display (DISPLAY is unset); use render_mode='rgb_array' headless",
             )
-        self.client = p.connect(p.GUI if gui else p.DIRECT)
         self.geometry = RobotGeometry.from_urdf()
         g = self.geometry
+        check_corner_stability(self.soil, 0.25 * g.mass, 1.0 / robot.physics_hz)
+        self.client = p.connect(p.GUI if gui else p.DIRECT)
         self.tyres = TyreModel(self.soil, g.wheel_radius, 0.25 * g.mass, 1.0 / robot.physics_hz)
         self.skid_factor = (
             robot.skid_factor

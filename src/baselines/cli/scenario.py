@@ -85,7 +85,7 @@ def spec_from_args(args: argparse.Namespace) -> Any:
         if not args.datum:
             raise InputError("--datum", None, "--mesh needs --datum LAT,LON,ALT of the mesh origin")
         flags.update({"terrain.source": "mesh", "terrain.path": args.mesh})
-    if args.datum:
+    if args.datum is not None:  # '' is a bad datum, not an absent one
         flags["terrain.datum"] = _parse_datum(args.datum)
     if args.field:
         flags["field.geojson"] = args.field
