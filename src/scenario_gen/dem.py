@@ -368,6 +368,14 @@ def load_geotiff(
                     str(path),
                     "has no geotransform; allowed: a georeferenced GeoTIFF",
                 )
+            if ds.count != 1:  # an RGB image or a multi-band product is not an elevation
+                raise InputError(
+                    "terrain.path", str(path), f"has {ds.count} bands; allowed: one elevation band"
+                )
+            if np.dtype(ds.dtypes[0]).kind not in "iuf":
+                raise InputError(
+                    "terrain.path", str(path), f"holds {ds.dtypes[0]} values; allowed: real numbers"
+                )
             crs = CRS.from_wkt(ds.crs.to_wkt())
             shape = (ds.height, ds.width)
             check_georeference(ds.transform, crs, shape, str(path))

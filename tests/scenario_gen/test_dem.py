@@ -179,3 +179,26 @@ def test_site_selection_flattest_and_steepest() -> None:
 
     assert slope(steep) > 5.0 > 1.0 > slope(generate(small(furrows={"enabled": False}), 0))
     assert flat.geo.alt < steep.geo.alt
+
+
+@pytest.mark.parametrize("bands,dtype,needle", [(3, "uint8", "3 bands"), (1, "complex64", "real")])
+def test_a_raster_that_is_not_one_elevation_band_is_refused(
+    tmp_path: Path, bands: int, dtype: str, needle: str
+) -> None:
+    """An RGB image or a complex product used to be read as elevation without a word."""
+    path = tmp_path / "not_a_dem.tif"
+    with rasterio.open(
+        path,
+        "w",
+        driver="GTiff",
+        height=20,
+        width=20,
+        count=bands,
+        dtype=dtype,
+        crs="EPSG:4326",
+        transform=from_origin(-84.15, 36.56, 0.001, 0.001),
+    ) as ds:
+        for b in range(1, bands + 1):
+            ds.write(np.ones((20, 20), dtype), b)
+    with pytest.raises(ScenarioError, match=needle):
+        generate(small(terrain={"source": "dem", "path": str(path)}), seed=0)
