@@ -224,3 +224,15 @@ def test_driving_check_scores_a_policy_by_the_labels_of_its_frames(tmp_path: Pat
     # RPP on an RTK fix keeps to the lane: 0.62 m across the wheels clears rows 0.9 m apart
     # (the narrowest the spec draws) only within ±0.14 m of the centre
     assert r.mae < 0.14
+
+
+def test_a_second_dataset_run_on_the_same_out_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from scenario_gen.atomic import lock_output
+
+    out = tmp_path / "ds"
+    with lock_output(out.absolute(), "--out"):  # what a running `agrinav dataset` holds
+        assert main(["dataset", "perception", "--out", str(out), "--frames", "1"]) == 2
+    assert "being written by another run" in capsys.readouterr().err
+    assert not out.exists()

@@ -12,6 +12,7 @@ from typing import Any
 
 from tqdm import tqdm
 
+from scenario_gen.atomic import lock_output
 from scenario_gen.errors import InputError
 from scenario_gen.schema import parse_json, to_mapping
 
@@ -110,6 +111,22 @@ def generate(
 
         check_address(ray)
     out = Path(out)
+    out.absolute().parent.mkdir(parents=True, exist_ok=True)
+    # A second run on the same --out is refused while this one holds it (two used to race
+    # and both fail, advising to "free the space").
+    with lock_output(out.absolute(), "--out"):
+        return _generate(spec, out, seed, frames, workers, card, ray)
+
+
+def _generate(
+    spec: PerceptionSpec,
+    out: Path,
+    seed: int,
+    frames: int,
+    workers: int,
+    card: Callable[[Path], None] | None,
+    ray: str | None,
+) -> int:
     fresh = not out.exists()
     shards, todo = prepare(spec, out, seed, frames)
     procs = max(1, min(workers, len(todo)))
