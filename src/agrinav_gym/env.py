@@ -186,7 +186,7 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         self.estimator.reset(*self.start, rng)
         self.estimator.update(self.readings, self.dt)
         self._cte, self._s, self._k = self.tracker.update(*self._xy())
-        self._s0 = self._s
+        self._s0 = self._start_arc = self._s
         self.metrics.update(*self._xy(), self._s)
         snap = self._snapshot()
         for m in self.obs_models.values():
@@ -262,8 +262,8 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         """An intervention: after a termination other than success, the operator puts the
         robot back on the route ``ahead`` metres past where it was, at rest and heading along
         it, and the episode goes on. The metrics keep counting (no path is weighed across the
-        jump); the crop-contact and progress checks start afresh; sensors and their noise run
-        on, the estimator restarts at the new pose as a re-initialised EKF would."""
+        jump); the crop-contact and progress checks start afresh; the sensors and the estimator
+        restart at the new pose as at a reset."""
         self._check_open("resume_on_route")
         if self.route is None:
             raise InputError("resume_on_route", "before reset()", "allowed: call reset() first")
@@ -278,11 +278,15 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         self.world.step(1)
         self.state = self.world.state()
         self._cmd, self._prev_action = (0.0, 0.0), (0.0, 0.0)
-        self.readings = self.sensors.step(self.state, self.np_random)
+        # Sensors and estimator restart as at a reset: a fix still in the receiver's latency
+        # queue is of the place the robot was carried from, and fused it would pull the
+        # estimate back there (every intervention then led to the next).
+        self.readings = self.sensors.reset(self.state, self.np_random)
         self.estimator.reset(float(x), float(y), h, self.np_random)
         self.estimator.update(self.readings, self.dt)
         self.tracker.reset_at(s, *self._xy())
         self._cte, self._s, self._k = self.tracker.update(*self._xy())
+        self.start, self._start_arc = (float(x), float(y), h), self._s
         self.metrics.break_path()
         self.metrics.update(*self._xy(), self._s)
         self._hit_base = len(self._hit)
@@ -357,6 +361,7 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
             self.np_random,
             self._steps,
             self.start,
+            self._start_arc,
         )
 
     def _observe(self, snap: Snapshot) -> Obs:

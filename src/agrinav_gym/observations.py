@@ -46,7 +46,9 @@ class Snapshot:
     plants: PlantField
     rng: np.random.Generator
     step: int  # control steps since reset (0 at reset)
-    start: tuple[float, float, float]  # the episode's start pose (x, y, yaw)
+    start: tuple[float, float, float]  # where the robot was put down (x, y, yaw): the
+    # episode's start, or where an intervention put it back on the route
+    start_arc: float  # that pose's arc length along the route
 
 
 class ObservationModel(ABC):
@@ -156,7 +158,7 @@ class RouteObservation(ObservationModel):
 
     def reset(self, snap: Snapshot) -> None:
         self.tracker = Tracker(snap.route)
-        self.tracker.reset(snap.start[0], snap.start[1])
+        self.tracker.reset_at(snap.start_arc, snap.start[0], snap.start[1])
 
     def encode(self, snap: Snapshot) -> F32:
         assert self.tracker is not None

@@ -96,3 +96,45 @@ def test_the_table_reports_distance_between_interventions() -> None:
     md = table([rec, none], "long", "")
     row = next(line for line in md.splitlines() if line.startswith("| long | p | 200 |"))
     assert "| 2 | 100.0 |" in row and "crops_hit 1, progress 1" in row
+
+
+class _StallsLate:
+    """RPP that stands still for 81 steps (4 s + 1) once past 75 % of the route: an intervention in
+    the route's second lane, where a search from the route's start finds the wrong lane."""
+
+    def __init__(self, env: Any) -> None:
+        self.env, self.rpp, self.still = env.unwrapped, make_policy("rpp", env), 0
+
+    def reset(self) -> None:
+        self.rpp.reset()
+
+    def act(self, obs: Any) -> Any:
+        u = self.env
+        if self.still < 81 and u.arc > 0.75 * u.route.length:
+            self.still += 1
+            return np.zeros(2, np.float32)
+        return self.rpp.act(obs)
+
+    def describe(self) -> str:
+        return "rpp with a late stall"
+
+
+def test_after_an_intervention_in_the_second_lane_the_route_observation_is_right() -> None:
+    env = gym.make(
+        "AgriNav/FieldRoute-v2",
+        scenario_overrides={**SHORT, "field": {"width": 5.0, "length": 10.0}},
+        # 4 s: RPP slows to a crawl in the 0.5 m-radius U-turn, 2 s would stop it there
+        config={"task": {"progress_time": 4.0, "max_crops_hit": 0}},
+        observations=["route"],
+    )
+    try:
+        ep = run_with_interventions(env, _StallsLate(env), 0, "stall late")
+        stops = ep.interventions or []
+        # the scripted stall is the last intervention: once put back on the second lane the
+        # robot drives on to the end (a route observation searched from the route's start
+        # sent it to the first lane, and every intervention led to the next)
+        length = env.unwrapped.route.length
+        assert stops[-1]["kind"] == "progress" and stops[-1]["at_m"] > 0.75 * length
+        assert ep.termination == "success"
+    finally:
+        env.close()
