@@ -114,7 +114,7 @@ def table(records: list[dict[str, Any]], suite_name: str, command: str) -> str:
     lines += interventions(records, groups, pols)
     lines += [
         "",
-        "Source paper (Gazebo, Nav2 DWB, zigzag over two rows): RMSE 0.177, MAE 0.109,"
+        "Source paper (Gazebo, Nav2 DWB, four GPS waypoints over two lanes): RMSE 0.177, MAE 0.109,"
         " in-furrow 0.200, headland 0.170, max 0.472 m.",
         "",
         "Reproduce:",
