@@ -10,7 +10,7 @@ Layout of the export::
 The world frame is the scenario's ENU frame (x east, y north, z up) at the datum, so every
 pose is the scenario's own number. Gazebo Sim's NavSat (``PositionTransform`` from
 ``LOCAL2``) reads ENU with ``heading_deg`` 0. Gazebo Classic 11's GPS sensor uses
-``SphericalFromLocal``, whose LOCAL frame is rotated by 180° (gazebo-classic issue 2022,
+``SphericalFromLocal``, whose LOCAL frame is rotated by 180° (gazebo-classic bug report 2022,
 kept for backward compatibility), so the Classic world says ``heading_deg`` 180 — the same
 compensation as Nav2's GPS demo world. Both then report the lat/lon of plants.csv.
 """
@@ -81,7 +81,7 @@ def world_xml(scn: Scenario, body: list[str], flavour: str) -> str:
     classic = flavour == "classic"
     note = (
         "heading_deg 180: Gazebo Classic's SphericalFromLocal turns its local frame by 180 "
-        "degrees (gazebo-classic issue 2022); with it the GPS sensor reports ENU lat/lon"
+        "degrees (gazebo-classic bug report 2022); with it the GPS sensor reports ENU lat/lon"
         if classic
         else "heading_deg 0: Gazebo Sim's NavSat reads the world frame as ENU"
     )

@@ -40,7 +40,7 @@ def gazebo_section(g: GazeboSummary) -> str:
   Fortress names, which Harmonic still accepts; for Ionic and later replace
   `ignition-gazebo-` by `gz-sim-` and `ignition::gazebo` by `gz::sim`).
 - `worlds/field_classic.world` — Gazebo Classic 11 (`heading_deg` 180 compensates Classic's
-  rotated GPS frame, gazebo-classic issue 2022; the poses are identical).
+  rotated GPS frame, gazebo-classic bug report 2022; the poses are identical).
 {hm}- `models/` — `agrinav_terrain` (textured COLLADA mesh, also the collision) and {plants}.
   Triangles in the plants: {g.triangles:,}.
 
