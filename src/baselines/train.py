@@ -102,6 +102,10 @@ def prepare(run: TrainRun) -> tuple[hpmod.PPOHyperparams, hpmod.EnvSetup, dict[s
                 str(run.resume),
                 f"allowed: a training checkpoint of {run.env_id} (with optimizer.npz)",
             )
+        # every file of the checkpoint read now, before --out exists: a truncated optimizer
+        # state used to fail after the run folder was made
+        checkpoint.load(run.resume)
+        checkpoint.read_npz(run.resume / checkpoint.OPTIMIZER, "--resume")
         done = int(meta.get("num_timesteps", 0))
         if hp.n_timesteps <= done:
             raise InputError(

@@ -96,6 +96,16 @@ def test_training_saves_safe_checkpoints_logs_and_resumes(
     finally:
         env.close()
 
+    # a truncated optimizer state is refused before the new run's folder exists
+    import shutil
+
+    broken = tmp_path / "broken"
+    shutil.copytree(out / "checkpoints" / "step_0000000128", broken)
+    (broken / "optimizer.npz").write_bytes((broken / "optimizer.npz").read_bytes()[:200])
+    bad = tmp_path / "never"
+    proc = _train([*common, "--timesteps", "384", "--out", str(bad), "--resume", str(broken)])
+    assert proc.returncode == 2 and "--resume" in proc.stderr and not bad.exists()
+
 
 @pytest.mark.parametrize(
     "args,needle",
