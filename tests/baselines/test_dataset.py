@@ -236,3 +236,35 @@ def test_a_second_dataset_run_on_the_same_out_is_refused(
         assert main(["dataset", "perception", "--out", str(out), "--frames", "1"]) == 2
     assert "being written by another run" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_a_killed_trajectory_recording_leaves_nothing_outside_its_output(tmp_path: Path) -> None:
+    """Minari's buffer lives in the output's temporary folder (a kill -9 left it in
+    ~/.minari/datasets for ever); the next run on the same --out removes it."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    pytest.importorskip("minari")
+    root = Path(__file__).resolve().parents[2]
+    minari_home = tmp_path / "minari"
+    minari_home.mkdir()
+    env = {**os.environ, "PYTHONPATH": str(root / "src"), "MINARI_DATASETS_PATH": str(minari_home)}
+    out = tmp_path / "work" / "traj"
+    out.parent.mkdir()
+    argv = [sys.executable, "-m", "baselines.cli", "dataset", "trajectories", "--policy", "rpp"]
+    proc = subprocess.Popen([*argv, "--episodes", "50", "--out", str(out)], env=env)
+    deadline = time.monotonic() + 60
+    while not list(out.parent.glob(".traj.tmp-*/tmp*")) and time.monotonic() < deadline:
+        time.sleep(0.2)  # until the collector's buffer exists
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    assert list(out.parent.glob(".traj.tmp-*/tmp*")), "the buffer was not inside the output"
+    assert list(minari_home.iterdir()) == []
+    done = subprocess.run(
+        [*argv, "--episodes", "1", "--out", str(out)], env=env, capture_output=True, timeout=300
+    )
+    assert done.returncode == 0, done.stderr[-500:]
+    assert sorted(p.name for p in out.parent.iterdir()) == ["traj"]

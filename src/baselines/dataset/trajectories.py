@@ -97,7 +97,9 @@ def record(
             data["info"] = fixed_info(info, parts)
             return data
 
-    with output_dir(out, force) as tmp:
+    with output_dir(out, force) as tmp, _datasets_root(tmp):
+        # the collector's buffer folder goes inside the output's temporary folder, which the
+        # next run on the same --out removes if this one is killed (it was ~/.minari/...)
         collector = minari.DataCollector(env, step_data_callback=FixedInfo, record_infos=True)
         try:
             pi = make_policy(policy, collector)
@@ -108,14 +110,13 @@ def record(
                     obs, _, term, trunc, _ = collector.step(pi.act(obs))
                     if term or trunc:
                         break
-            with _datasets_root(tmp):
-                collector.create_dataset(
-                    dataset_id,
-                    eval_env=env.spec,
-                    algorithm_name=f"agrinav {policy}",
-                    description=f"{policy} on {env_id}, reset seeds {seed}..{seed + episodes - 1}",
-                    author="AgriNav Gym",
-                )
+            collector.create_dataset(
+                dataset_id,
+                eval_env=env.spec,
+                algorithm_name=f"agrinav {policy}",
+                description=f"{policy} on {env_id}, reset seeds {seed}..{seed + episodes - 1}",
+                author="AgriNav Gym",
+            )
         finally:
             collector.close()
     return Path(out) / dataset_id
