@@ -22,6 +22,7 @@ from tqdm import tqdm
 
 import agrinav_gym  # noqa: F401  (registers the envs)
 from agrinav_gym.sim.ridge_guidance import soil_variants, turn_ratio
+from baselines.episodes import run_episode
 from policies import make_policy
 
 IMG = Path(__file__).resolve().parents[1] / "docs" / "img"
@@ -32,13 +33,9 @@ def blind_completion(depth: float, seed: int) -> float:
     over = {"furrows": {"enabled": depth > 0, "depth": max(depth, 1e-3)}}
     env = gym.make("AgriNav/FurrowFollow-v2", scenario_overrides=over)
     try:
-        obs, info = env.reset(seed=seed)
-        pi = make_policy("blind", env)
-        done = False
-        while not done:
-            obs, _, term, trunc, info = env.step(pi.act(obs))
-            done = term or trunc
-        return float(info["metrics"]["completion"])
+        return float(
+            run_episode(env, make_policy("blind", env), seed, "blind").metrics["completion"]
+        )
     finally:
         env.close()
 

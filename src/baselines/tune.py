@@ -14,6 +14,7 @@ them), ``trials.csv`` (every trial), ``search.png`` and ``command.txt``.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 from pathlib import Path
 from typing import Any
@@ -55,14 +56,12 @@ def score(records: list[dict[str, Any]]) -> float:
     return float(np.mean(parts))
 
 
-def run_trial(
-    policy: str, params: dict[str, float], episodes: int, seed: int
-) -> list[dict[str, Any]]:
-    """``episodes`` FieldRoute episodes on training fields with ``params``."""
+def training_env() -> Any:
+    """FieldRoute on the training split under the benchmark's conditions (built once a search:
+    every trial drives the same fields)."""
     import gymnasium as gym
 
     import agrinav_gym  # noqa: F401  (registers the ids)
-    from policies import make_policy
 
     from .hyperparams import load
     from .suites import RTK_EKF
@@ -71,29 +70,30 @@ def run_trial(
     kw = dict(setup.env_kwargs)
     config = {**kw.pop("config", {}), **RTK_EKF}
     kw["observations"] = OBSERVATIONS
-    env = gym.make(ENV_ID, **kw, config=config, scenario_seeds=list(setup.train_seeds))
-    try:
-        pi = make_policy(policy, env, **params)
-        out = []
-        for k in range(episodes):
-            obs, info = env.reset(seed=seed + k)
-            pi.reset()
-            done = False
-            while not done:
-                obs, _, term, trunc, info = env.step(pi.act(obs))
-                done = term or trunc
-            m = info["metrics"]
-            out.append(
-                {
-                    "finished": info.get("termination") == "success",
-                    "path_rmse": m["path_rmse"],
-                    "completion": m["completion"],
-                    "crops_hit": m["crops_hit"],
-                }
-            )
-        return out
-    finally:
-        env.close()
+    return gym.make(ENV_ID, **kw, config=config, scenario_seeds=list(setup.train_seeds))
+
+
+def run_trial(
+    env: Any, policy: str, params: dict[str, float], episodes: int, seed: int
+) -> list[dict[str, Any]]:
+    """``episodes`` episodes (reset seeds ``seed``, ``seed + 1``, ...) with ``params``."""
+    from policies import make_policy
+
+    from .episodes import run_episode
+
+    pi = make_policy(policy, env, **params)
+    out = []
+    for k in range(episodes):
+        ep = run_episode(env, pi, seed + k, policy)
+        out.append(
+            {
+                "finished": ep.termination == "success",
+                "path_rmse": ep.metrics["path_rmse"],
+                "completion": ep.metrics["completion"],
+                "crops_hit": ep.metrics["crops_hit"],
+            }
+        )
+    return out
 
 
 def tune(
@@ -125,27 +125,28 @@ def tune(
     # The published defaults are trial 0: the search can only match or beat them.
     study.enqueue_trial(default_params(policy))
     rows: list[dict[str, Any]] = []
-    for _ in tqdm(range(trials), desc=f"tune {policy}", unit="trial"):
-        trial = study.ask()
-        params = {name: trial.suggest_float(name, lo, hi) for name, (lo, hi) in space.items()}
-        if policy == "rpp" and params["min_lookahead"] > params["max_lookahead"]:
-            params["min_lookahead"], params["max_lookahead"] = (
-                params["max_lookahead"],
-                params["min_lookahead"],
+    with contextlib.closing(training_env()) as env:
+        for _ in tqdm(range(trials), desc=f"tune {policy}", unit="trial"):
+            trial = study.ask()
+            params = {name: trial.suggest_float(name, lo, hi) for name, (lo, hi) in space.items()}
+            if policy == "rpp" and params["min_lookahead"] > params["max_lookahead"]:
+                params["min_lookahead"], params["max_lookahead"] = (
+                    params["max_lookahead"],
+                    params["min_lookahead"],
+                )
+            records = run_trial(env, policy, params, episodes, seed)
+            value = score(records)
+            study.tell(trial, value)
+            rows.append(
+                {
+                    "trial": trial.number,
+                    **{k: round(v, 4) for k, v in params.items()},
+                    "score": round(value, 5),
+                    "finished": sum(r["finished"] for r in records),
+                    "episodes": len(records),
+                    "crops_hit": sum(int(r["crops_hit"]) for r in records),
+                }
             )
-        records = run_trial(policy, params, episodes, seed)
-        value = score(records)
-        study.tell(trial, value)
-        rows.append(
-            {
-                "trial": trial.number,
-                **{k: round(v, 4) for k, v in params.items()},
-                "score": round(value, 5),
-                "finished": sum(r["finished"] for r in records),
-                "episodes": len(records),
-                "crops_hit": sum(int(r["crops_hit"]) for r in records),
-            }
-        )
     best = min(rows, key=lambda r: (r["score"], r["trial"]))
     with output_dir(out, force, "--out") as tmp:
         with open(tmp / "trials.csv", "w", newline="") as f:
