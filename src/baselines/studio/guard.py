@@ -75,28 +75,29 @@ class Guard:
             await self.app(scope, receive, send)  # lifespan
             return
         headers = {k.decode("latin-1").lower(): v.decode("latin-1") for k, v in scope["headers"]}
-        why = self.refusal(scope, headers)
+        query = parse_qs(scope.get("query_string", b"").decode("latin-1"))
+        why = self.refusal(scope, headers, query)
         if why is not None:
             await _refuse(kind, receive, send, *why)
             return
         if kind == "websocket":
             await self.app(scope, receive, send)
             return
-        query = parse_qs(scope.get("query_string", b"").decode("latin-1"))
         extra = list(SECURITY_HEADERS)
         if _matches(query.get("token", []), self.token):
             # The tokened visit: later requests (assets, socket.io) carry the cookie instead.
             extra.append(_hdr(f"{COOKIE}={self.token}; Path=/; HttpOnly; SameSite=Strict"))
         await self.app(scope, receive, _with_headers(send, extra))
 
-    def refusal(self, scope: Scope, headers: dict[str, str]) -> tuple[int, str] | None:
+    def refusal(
+        self, scope: Scope, headers: dict[str, str], query: dict[str, list[str]]
+    ) -> tuple[int, str] | None:
         """(status, reason) for a request that must not reach the app, else None."""
         if headers.get("host", "").lower() not in self.hosts:
             return 403, "unknown Host: the studio answers only on the address it printed"
         origin = headers.get("origin")
         if origin is not None and origin.lower() not in self.origins:
             return 403, "cross-origin request refused"
-        query = parse_qs(scope.get("query_string", b"").decode("latin-1"))
         if not (
             _matches(query.get("token", []), self.token)
             or _matches(_cookies(headers.get("cookie", "")).get(COOKIE, []), self.token)
