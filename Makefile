@@ -11,9 +11,9 @@ $(BIN)/python:
 	$(BIN)/python -m pip install --quiet --upgrade pip
 
 # torch first and pinned: a plain `torch` pulled in by stable-baselines3 would fetch GBs of CUDA wheels.
-# The install also compiles the sensor kernels (setup.py, src/agrinav_gym/csrc): a change there
+# The install also compiles the sensor kernels (setup.py, src/agrinav_gym/render/csrc): a change there
 # reinstalls.
-NATIVE := setup.py $(wildcard src/agrinav_gym/csrc/*.c src/agrinav_gym/csrc/*.h)
+NATIVE := setup.py $(wildcard src/agrinav_gym/render/csrc/*.c src/agrinav_gym/render/csrc/*.h)
 $(STAMP): pyproject.toml $(NATIVE) | $(BIN)/python
 	$(BIN)/pip install --quiet torch==2.13.0
 	$(BIN)/pip install --quiet -e ".[dev]"

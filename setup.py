@@ -1,4 +1,4 @@
-"""The compiled sensor kernels (src/agrinav_gym/csrc); everything else is in pyproject.toml.
+"""The compiled sensor kernels (src/agrinav_gym/render/csrc); everything else is in pyproject.toml.
 
 The extension is optional: where it cannot be built the sensors fall back to numpy and Embree
 (the same images, slower). Flags: -O3 and no errno from math calls (sqrt inlines); no
@@ -10,7 +10,7 @@ from pathlib import Path
 
 from setuptools import Extension, setup
 
-CSRC = Path(__file__).parent / "src" / "agrinav_gym" / "csrc"
+CSRC = Path(__file__).parent / "src" / "agrinav_gym" / "render" / "csrc"
 
 
 def source_hash() -> str:
@@ -25,15 +25,15 @@ def source_hash() -> str:
 setup(
     ext_modules=[
         Extension(
-            "agrinav_gym._native",
+            "agrinav_gym.render._native",
             sources=[
-                "src/agrinav_gym/csrc/module.c",
-                "src/agrinav_gym/csrc/proxycast.c",
-                "src/agrinav_gym/csrc/raster.c",
-                "src/agrinav_gym/csrc/frame.c",
-                "src/agrinav_gym/csrc/packets.c",
+                "src/agrinav_gym/render/csrc/module.c",
+                "src/agrinav_gym/render/csrc/proxycast.c",
+                "src/agrinav_gym/render/csrc/raster.c",
+                "src/agrinav_gym/render/csrc/frame.c",
+                "src/agrinav_gym/render/csrc/packets.c",
             ],
-            depends=["src/agrinav_gym/csrc/native.h", "src/agrinav_gym/csrc/batch.h"],
+            depends=["src/agrinav_gym/render/csrc/native.h", "src/agrinav_gym/render/csrc/batch.h"],
             define_macros=[("AGRINAV_SOURCE_HASH", f'"{source_hash()}"')],
             extra_compile_args=["-O3", "-fno-math-errno", "-fno-trapping-math", "-std=c99"],
             optional=True,

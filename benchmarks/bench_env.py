@@ -78,7 +78,7 @@ def step_cost_ratio(repeat: int) -> tuple[float, float, float]:
     p.createMultiBody(
         0, p.createCollisionShape(p.GEOM_PLANE, physicsClientId=cid), physicsClientId=cid
     )
-    from agrinav_gym.sim.world import urdf_path
+    from agrinav_gym.robot import urdf_path
 
     rob = p.loadURDF(
         urdf_path(), [0, 0, 0.115], flags=p.URDF_MERGE_FIXED_LINKS, physicsClientId=cid

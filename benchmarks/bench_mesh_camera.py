@@ -152,10 +152,9 @@ def dataset_frames(name: str, over: dict[str, Any], repeat: int, threads: int) -
     import pybullet as p
 
     from agrinav_gym.config import EnvConfig
-    from agrinav_gym.env import robot_interface
+    from agrinav_gym.render.mesh_scene import MeshScene
+    from agrinav_gym.robot import RobotGeometry, robot_interface
     from agrinav_gym.sensors.mesh_camera import MeshCamera
-    from agrinav_gym.sim.mesh_scene import MeshScene
-    from agrinav_gym.sim.world import RobotGeometry
 
     scn = sg.generate(sg.preset(name, **over), 0)
     scene = MeshScene.from_scenario(scn)
@@ -170,7 +169,7 @@ def dataset_frames(name: str, over: dict[str, Any], repeat: int, threads: int) -
     rng = np.random.default_rng(0)
     for cam in cams.values():  # first frames: tiles, prototypes, the split between threads
         for _ in range(3):
-            cam.render(rot, pos, scene, rng, rgb=True, labels=True)
+            cam.draw(rot, pos, scene, rng, rgb=True, labels=True)
     times: dict[str, list[float]] = {"tiny": [], "raster": [], "raycast": []}
     for _ in range(repeat):  # blocks of BLOCK frames each, interleaved: drift cancels, and
         # each renderer runs frame after frame as a dataset loop runs it
@@ -181,7 +180,7 @@ def dataset_frames(name: str, over: dict[str, Any], repeat: int, threads: int) -
         for k, cam in cams.items():
             for i in range(BLOCK):
                 t0 = time.perf_counter()
-                cam.render(rot, pos, scene, rng, rgb=True, labels=True)
+                cam.draw(rot, pos, scene, rng, rgb=True, labels=True)
                 times[k].append(time.perf_counter() - t0)
                 if i == 0:  # after the other renderers' frames: caches and threads cold
                     times.setdefault(f"{k} first", []).append(times[k][-1])
@@ -198,11 +197,11 @@ def rss():
         return int(f.read().split()[1]) * 4096
 preset, over, cam_over = sys.argv[1], json.loads(sys.argv[2]), json.loads(sys.argv[3])
 from agrinav_gym.config import EnvConfig
-from agrinav_gym.env import robot_interface
-from agrinav_gym.sensors.embree import device
+from agrinav_gym.robot import robot_interface
+from agrinav_gym.render.embree import device
 from agrinav_gym.sensors.mesh_camera import MeshCamera
-from agrinav_gym.sim.mesh_scene import MeshScene
-from agrinav_gym.sim.world import RobotGeometry
+from agrinav_gym.render.mesh_scene import MeshScene
+from agrinav_gym.robot import RobotGeometry
 device()
 t0 = time.perf_counter()
 scn = sg.generate(sg.preset(preset, **over), 0)
@@ -222,12 +221,12 @@ before = rss()
 tracemalloc.start()
 t0 = time.perf_counter()
 scene = MeshScene.from_scenario(scn)
-cam.render(rot, pose(0), scene, np.random.default_rng(0), rgb=cfg.camera.rgb, labels=True)
+cam.draw(rot, pose(0), scene, np.random.default_rng(0), rgb=cfg.camera.rgb, labels=True)
 first = time.perf_counter() - t0
 frames = []
 for k in range(1, 200):
     t1 = time.perf_counter()
-    cam.render(rot, pose(k), scene, np.random.default_rng(k), rgb=cfg.camera.rgb, labels=True)
+    cam.draw(rot, pose(k), scene, np.random.default_rng(k), rgb=cfg.camera.rgb, labels=True)
     frames.append(time.perf_counter() - t1)
 traced, _ = tracemalloc.get_traced_memory()
 print(json.dumps({
@@ -263,7 +262,7 @@ def main() -> None:
     sections = {x.strip() for x in args.sections.split(",")}
     if not sections <= {"1", "2", "3"}:
         ap.error(f"--sections: {args.sections!r}; allowed: a comma list of 1, 2, 3")
-    from agrinav_gym.sensors import native
+    from agrinav_gym.render import native
 
     py = platform.python_version()
     print(f"machine: {platform.platform()}, {os.cpu_count()} cores, Python {py}")

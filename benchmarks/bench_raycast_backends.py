@@ -4,7 +4,7 @@ The scene is what the mesh camera loads at one robot pose: the terrain tiles and
 view, (a) on the paper's P1 field (1 × 1 m, 1.2 m maize) and (b) in mature maize (2.5 m, 1 m
 rows, 0.18 m in the row). The rays are the D455 depth camera's at 64 × 48 and 848 × 480.
 
-* ``embree-ctypes`` (chosen): Embree 4 from the ``embreex`` wheel through ``sensors/embree.py``,
+* ``embree-ctypes`` (chosen): Embree 4 from the ``embreex`` wheel through ``render/embree.py``,
   plants as instances of shared prototypes, 8-ray packets;
 * ``embreex``: the same Embree through the ``embreex`` Python API (flat copied mesh, no
   instancing, one ray at a time in C);
@@ -28,10 +28,9 @@ import numpy as np
 
 import scenario_gen as sg
 from agrinav_gym.config import EnvConfig
-from agrinav_gym.env import robot_interface
+from agrinav_gym.render.mesh_scene import MeshScene
+from agrinav_gym.robot import RobotGeometry, robot_interface
 from agrinav_gym.sensors.mesh_camera import MeshCamera
-from agrinav_gym.sim.mesh_scene import MeshScene
-from agrinav_gym.sim.world import RobotGeometry
 from common import lane_centre_pose
 
 SCENES = {

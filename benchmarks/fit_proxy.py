@@ -1,9 +1,9 @@
 """Fit the analytic proxy's parameters to the crop meshes and draw the figure.
 
-For every species and catalog stage, ``agrinav_gym.sim.proxy_fit.fit_stage`` renders lanes with
+For every species and catalog stage, ``agrinav_gym.tools.proxy_fit.fit_stage`` renders lanes with
 the mesh camera and searches (fill, base, reach) minimising the proxy's per-pixel depth
-difference. This script runs all fits, rewrites the ``FITTED`` table in
-``src/agrinav_gym/sim/proxy_fit.py`` and draws ``docs/img/proxy_fit.png``:
+difference. This script runs all fits, rewrites the table
+``src/agrinav_gym/render/proxy_fit.json`` and draws ``docs/img/proxy_fit.png``:
 
 * fitted parameters against growth, per species;
 * per-pixel depth difference, fitted against the former hand-tuned constants (0.2, 0.2, 0.9);
@@ -15,7 +15,6 @@ Run: ``python benchmarks/fit_proxy.py`` (a few minutes on 2 cores).
 from __future__ import annotations
 
 import argparse
-import re
 import time
 from pathlib import Path
 
@@ -24,7 +23,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from tqdm import tqdm
 
-from agrinav_gym.sim.proxy_fit import FitResult, fit_stage
+from agrinav_gym.tools.proxy_fit import FitResult, fit_stage, write_table
 from scenario_gen import CATALOG
 from scenario_gen.crops import crop_mesh
 
@@ -45,28 +44,6 @@ def reach_by_height(growth: float, bins: int = 20) -> tuple[np.ndarray, np.ndarr
     reach = np.zeros(bins)
     np.maximum.at(reach, band, np.abs(pts[:, 0]) / half)
     return (np.arange(bins) + 0.5) / bins, reach
-
-
-def write_table(results: dict[str, list[tuple[float, FitResult]]]) -> None:
-    path = ROOT / "src/agrinav_gym/sim/proxy_fit.py"
-    lines = []
-    for name in SPECIES:
-        lines.append(f'    "{name}": (')
-        lines += [
-            f"        ({g:.4g}, {r.params.fill:.3g}, {r.params.base:.3g}, {r.params.reach:.3g}, "
-            f"{r.depth[0]:.4f}, {r.depth[1]:.4f}, {r.lane[0]:.4f}, {r.lane[1]:.4f}),"
-            for g, r in results[name]
-        ]
-        lines.append("    ),")
-    text = path.read_text()
-    new = re.sub(
-        r"(# fmt: off\nFITTED: dict\[str, tuple\[tuple\[float, \.\.\.\], \.\.\.\]\] = \{\n)"
-        r".*?(\n\}\n# fmt: on)",
-        lambda m: m.group(1) + "\n".join(lines) + m.group(2),
-        text,
-        flags=re.S,
-    )
-    path.write_text(new)
 
 
 def figure(results: dict[str, list[tuple[float, FitResult]]], out: Path) -> None:
@@ -137,9 +114,9 @@ def main() -> None:
         )
     print(f"fits took {time.perf_counter() - t0:.0f} s")
     if not args.no_write and set(args.species) == set(SPECIES):
-        write_table(results)
+        table = write_table(results)
         figure(results, ROOT / "docs/img/proxy_fit.png")
-        print("wrote src/agrinav_gym/sim/proxy_fit.py FITTED and docs/img/proxy_fit.png")
+        print(f"wrote {table} and docs/img/proxy_fit.png")
 
 
 if __name__ == "__main__":

@@ -19,7 +19,7 @@ import trimesh
 from scipy.spatial import cKDTree
 from tqdm import tqdm
 
-from agrinav_gym.sim.plant_meshes import GROWTH_INTERVALS
+from agrinav_gym.render.plant_meshes import GROWTH_INTERVALS
 from scenario_gen import CATALOG
 from scenario_gen.crops import crop_mesh
 

@@ -5,8 +5,8 @@ Maize at 0.3 / 0.6 / 1.2 / 1.8 / 2.5 m (the catalog's five stages) in 1 m rows, 
 +5° × lateral −0.1, +0.1 m), the mesh camera's 64 × 48 depth (the RL mode, with the D455 stereo
 model, noise-free) gives:
 
-* the lane's visible width at the camera's height (``proxy_fit.lane_width``: free width between
-  the nearest points left and right within 0.15 m of the camera's height, 0.2-3 m ahead; 2 m
+* the lane's visible width at the camera's height (``tools.proxy_fit.lane_width``: free width
+  between the nearest points left and right within 0.15 m of the camera's height, 0.2-3 m ahead; 2 m
   when nothing is seen on either side);
 * the fraction of valid depth pixels, and of those nearer than 1 m (leaves in the lane);
 
@@ -29,14 +29,13 @@ from tqdm import tqdm
 
 import scenario_gen as sg
 from agrinav_gym.config import EnvConfig
-from agrinav_gym.env import robot_interface
+from agrinav_gym.render.mesh_scene import MeshScene
+from agrinav_gym.render.plant_meshes import PlantMeshes
+from agrinav_gym.render.proxy_plants import PlantField
+from agrinav_gym.robot import RobotGeometry, robot_interface
 from agrinav_gym.sensors.depth import DepthCamera
 from agrinav_gym.sensors.mesh_camera import MeshCamera
-from agrinav_gym.sim.mesh_scene import MeshScene
-from agrinav_gym.sim.plant_meshes import PlantMeshes
-from agrinav_gym.sim.plants import PlantField
-from agrinav_gym.sim.proxy_fit import lane_width
-from agrinav_gym.sim.world import RobotGeometry
+from agrinav_gym.tools.proxy_fit import lane_width
 
 ROOT = Path(__file__).resolve().parents[1]
 VARIANTS = {
@@ -83,7 +82,7 @@ def main() -> None:
         proxy[h] = float(
             np.mean(
                 [
-                    lane_width(proxy_cam.render(r, p, scn.terrain, field, None).depth, model)
+                    lane_width(proxy_cam.draw(r, p, scn.terrain, field, None).depth, model)
                     for r, p in ps
                 ]
             )
@@ -93,7 +92,7 @@ def main() -> None:
             scene = MeshScene(scn.terrain, plants, seed=scn.seed)
             w, valid, near = [], [], []
             for r, p in ps:
-                d = mesh_cam.render(r, p, scene, None).depth
+                d = mesh_cam.draw(r, p, scene, None).depth
                 w.append(lane_width(d, model))
                 valid.append(float((d > 0).mean()))
                 near.append(float(((d > 0) & (d < 1.0)).mean()))

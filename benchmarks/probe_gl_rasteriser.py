@@ -26,9 +26,8 @@ import numpy as np
 
 import scenario_gen as sg
 from agrinav_gym.config import EnvConfig
-from agrinav_gym.env import robot_interface
-from agrinav_gym.sim.mesh_scene import MeshScene
-from agrinav_gym.sim.world import RobotGeometry
+from agrinav_gym.render.mesh_scene import MeshScene
+from agrinav_gym.robot import RobotGeometry, robot_interface
 from bench_mesh_camera import load_pybullet
 from common import lane_centre_pose, pybullet_camera
 

@@ -27,8 +27,8 @@ import gymnasium as gym
 import numpy as np
 
 import agrinav_gym  # noqa: F401  (registers the envs)
-from agrinav_gym.sensors.embree import Scene
-from agrinav_gym.sim.mesh_scene import MeshScene
+from agrinav_gym.render.embree import Scene
+from agrinav_gym.render.mesh_scene import MeshScene
 from common import drive, s_curve
 
 STATE = ("gps", "imu", "odom", "route")
@@ -141,10 +141,10 @@ def main() -> None:
     for i in range(300):
         exact.step(s_curve(i))
         s = env.state
-        ref = cams["exact (shipped)"].render(s.rot, s.pos, env.scenario.terrain, env.plants, None)
+        ref = cams["exact (shipped)"].draw(s.rot, s.pos, env.scenario.terrain, env.plants, None)
         for k in diffs:
             own = envs[k].unwrapped  # the same field, generated in that env: its own scene
-            z = cams[k].render(s.rot, s.pos, own.scenario.terrain, own.plants, None).depth
+            z = cams[k].draw(s.rot, s.pos, own.scenario.terrain, own.plants, None).depth
             both = (z > 0) & (ref.depth > 0)
             diffs[k].append(np.abs(z - ref.depth)[both])
     print("\n|depth − exact| over 300 frames (valid in both)")

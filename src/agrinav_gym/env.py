@@ -26,20 +26,21 @@ from scenario_gen import Scenario
 from scenario_gen.errors import InputError
 
 from . import rewards
+from .chase_view import ChaseView
 from .config import EnvConfig
 from .estimation import Readings, make_estimator
-from .interface import CameraModel, RobotInterface
 from .metrics import EpisodeMetrics
-from .observations import OBSERVATION_MODELS, DepthObservation, Snapshot
+from .observations import OBSERVATION_MODELS, Snapshot
+from .render.mesh_scene import SceneCache
+from .render.proxy_plants import PlantField
+from .robot import robot_interface
 from .routes import RoutePath, Tracker
 from .scenarios import ScenarioSource
+from .sensors.camera import FieldView
 from .sensors.fixmode import Canopy
 from .sensors.suite import SensorSuite
 from .sim.contact import CropContact
-from .sim.mesh_scene import SceneCache
-from .sim.plants import PlantField
-from .sim.render import ChaseView
-from .sim.world import RobotGeometry, RobotState, World
+from .sim.world import World
 from .tasks import TASKS
 
 Obs = dict[str, NDArray[np.float32]]
@@ -47,36 +48,6 @@ Obs = dict[str, NDArray[np.float32]]
 
 def _display() -> bool:
     return not sys.platform.startswith("linux") or bool(os.environ.get("DISPLAY"))
-
-
-def robot_interface(cfg: EnvConfig, geo: RobotGeometry) -> RobotInterface:
-    r, c, g = cfg.robot, cfg.camera, cfg.gnss
-    camera = CameraModel.from_fov(
-        c.width,
-        c.height,
-        math.radians(c.hfov_deg),
-        math.radians(c.vfov_deg),
-        (r.camera_x, 0.0, r.camera_height),
-        math.radians(r.camera_pitch_deg),
-        c.min_range,
-        c.max_range,
-    )
-    return RobotInterface(
-        geo.footprint,
-        geo.wheel_radius,
-        geo.track,
-        geo.wheelbase,
-        geo.wheel_radius,
-        r.v_max,
-        r.w_max,
-        r.a_max,
-        r.alpha_max,
-        1.0 / r.control_hz,
-        camera,
-        cfg.task.route_points,
-        cfg.task.route_spacing,
-        (g.antenna_x, 0.0, g.antenna_height),
-    )
 
 
 def _wrap(a: float) -> float:
@@ -145,6 +116,7 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         self._fields_of: Scenario | None = None
         self._chase: ChaseView | None = None
         self._chase_scenes = SceneCache()
+        self._camera_scenes = SceneCache()  # the mesh camera's, built on first use
         self._lighting: tuple[Any, float, float] = (None, 33.7, 68.4)
 
     # ------------------------------------------------------------------ gym API
@@ -357,7 +329,7 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
             self.estimator.pose,
             self.route,
             self.scenario,
-            self.plants,
+            self.field,
             self.np_random,
             self._steps,
             self.start,
@@ -389,9 +361,8 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         }
         if ctx is not None and ctx.termination is not None:
             info["termination"] = ctx.termination
-        depth = self.obs_models.get("depth")
-        if isinstance(depth, DepthObservation):
-            info.update(depth.extras())
+        for model in self.obs_models.values():
+            info.update(model.extras())
         return info
 
     def _localisation_label(self) -> str:
@@ -422,6 +393,7 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         self.world.load(scn.terrain, scn.rows.angle)
         if self._fields_of is not scn:
             self.plants = PlantField.from_scenario(scn)
+            self.field = FieldView(scn, self.plants, self._camera_scenes)
             self.contact = CropContact.from_scenario(scn, self.world.geometry)
             self.sensors.set_canopy(Canopy(scn))
             self._fields_of = scn
@@ -438,9 +410,8 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
             values.get("light_azimuth_deg", 33.7),
             values.get("light_elevation_deg", 68.4),
         )
-        depth = self.obs_models.get("depth")
-        if isinstance(depth, DepthObservation):
-            depth.camera.set_lighting(*self._lighting)
+        for model in self.obs_models.values():
+            model.set_lighting(*self._lighting)
 
     def _check_open(self, what: str) -> None:
         if self._closed:
@@ -497,4 +468,4 @@ def _check_observations(obs: Any, default: tuple[str, ...]) -> tuple[str, ...]:
 
 
 # the estimator's readings are part of the public step data
-__all__ = ["AgriNavEnv", "RobotState", "robot_interface"]
+__all__ = ["AgriNavEnv"]

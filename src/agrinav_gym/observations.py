@@ -23,12 +23,10 @@ from scenario_gen import Scenario
 from .config import EnvConfig
 from .estimation import Readings
 from .interface import FIX_CODES, GPS_FIELDS, IMU_FIELDS, ODOM_FIELDS, RobotInterface
+from .robot import RobotState
 from .routes import RoutePath, Tracker
-from .sensors.depth import DepthCamera, DepthFrame
-from .sensors.mesh_camera import MeshCamera
-from .sim.mesh_scene import SceneCache
-from .sim.plants import PlantField
-from .sim.world import RobotState
+from .sensors import make_camera
+from .sensors.camera import Camera, DepthFrame, FieldView
 
 F32 = NDArray[np.float32]
 G20, RATE = 20 * 9.81, math.radians(450.0)  # MTi-300 ranges: ±20 g, ±450 °/s
@@ -43,7 +41,7 @@ class Snapshot:
     estimate: tuple[float, float, float]  # estimated x, y, yaw
     route: RoutePath
     scenario: Scenario
-    plants: PlantField
+    field: FieldView  # what the cameras see
     rng: np.random.Generator
     step: int  # control steps since reset (0 at reset)
     start: tuple[float, float, float]  # where the robot was put down (x, y, yaw): the
@@ -66,6 +64,15 @@ class ObservationModel(ABC):
 
     @abstractmethod
     def encode(self, snap: Snapshot) -> F32: ...
+
+    def extras(self) -> dict[str, Any]:
+        """What this model adds to ``info`` beside the observation (images, for a camera)."""
+        return {}
+
+    def set_lighting(  # noqa: B027  (only a camera is lit)
+        self, soil_rgb: Any | None, azimuth_deg: float, elevation_deg: float
+    ) -> None:
+        """The episode's soil colour and sun, for models that render."""
 
 
 class VectorObservation(ObservationModel):
@@ -187,12 +194,7 @@ class DepthObservation(ObservationModel):
     def __init__(self, cfg: EnvConfig, robot: RobotInterface) -> None:
         super().__init__(cfg, robot)
         c = cfg.camera
-        self.camera: DepthCamera | MeshCamera = (
-            MeshCamera(c, robot.camera, c.threads)
-            if c.model == "mesh"
-            else DepthCamera(c, robot.camera)
-        )
-        self.scenes = SceneCache()
+        self.camera: Camera = make_camera(c, robot.camera)
         self.every = max(1, round(cfg.robot.control_hz / cfg.camera.rate_hz))
         self.frame: DepthFrame | None = None
 
@@ -203,29 +205,16 @@ class DepthObservation(ObservationModel):
     def reset(self, snap: Snapshot) -> None:
         self.frame = None
 
+    def set_lighting(self, soil_rgb: Any | None, azimuth_deg: float, elevation_deg: float) -> None:
+        self.camera.set_lighting(soil_rgb, azimuth_deg, elevation_deg)
+
     def encode(self, snap: Snapshot) -> F32:
         if self.frame is None or snap.step % self.every == 0:
             c = self.cfg.camera
             s = snap.state
-            if isinstance(self.camera, MeshCamera):
-                self.frame = self.camera.render(
-                    s.rot,
-                    s.pos,
-                    self.scenes.get(snap.scenario),
-                    snap.rng,
-                    rgb=c.rgb,
-                    labels=c.segmentation,
-                )
-            else:
-                self.frame = self.camera.render(
-                    s.rot,
-                    s.pos,
-                    snap.scenario.terrain,
-                    snap.plants,
-                    snap.rng,
-                    rgb=c.rgb,
-                    labels=c.segmentation,
-                )
+            self.frame = self.camera.render(
+                s.rot, s.pos, snap.field, snap.rng, rgb=c.rgb, labels=c.segmentation
+            )
         return self.frame.depth[None].copy()
 
     def extras(self) -> dict[str, Any]:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from agrinav_gym.sensors import native
+from agrinav_gym.render import native
 
 
 @pytest.fixture(params=["compiled", "reference"])

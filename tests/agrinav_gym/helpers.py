@@ -30,9 +30,8 @@ def make(env_id: str = "AgriNav/FurrowFollow-v2", **kwargs: Any) -> gym.Env:
 def make_camera(robot: dict[str, Any] | None = None, camera: dict[str, Any] | None = None) -> Any:
     """The env's depth camera for the given config sections, built as the env builds it."""
     from agrinav_gym.config import EnvConfig
-    from agrinav_gym.env import robot_interface
+    from agrinav_gym.robot import RobotGeometry, robot_interface
     from agrinav_gym.sensors.depth import DepthCamera
-    from agrinav_gym.sim.world import RobotGeometry
 
     cfg = EnvConfig.from_dict({"robot": robot or {}, "camera": camera or {}})
     return DepthCamera(cfg.camera, robot_interface(cfg, RobotGeometry.from_urdf()).camera)
@@ -41,9 +40,8 @@ def make_camera(robot: dict[str, Any] | None = None, camera: dict[str, Any] | No
 def mesh_camera(width: int, height: int, renderer: str, threads: int = 1) -> Any:
     """The mesh camera of the default robot at width x height with ``renderer``."""
     from agrinav_gym.config import EnvConfig
-    from agrinav_gym.env import robot_interface
+    from agrinav_gym.robot import RobotGeometry, robot_interface
     from agrinav_gym.sensors.mesh_camera import MeshCamera
-    from agrinav_gym.sim.world import RobotGeometry
 
     cfg = EnvConfig.from_dict({"camera": {"width": width, "height": height, "renderer": renderer}})
     return MeshCamera(cfg.camera, robot_interface(cfg, RobotGeometry.from_urdf()).camera, threads)

@@ -20,9 +20,9 @@ from agrinav_gym.config import (
     OdomConfig,
 )
 from agrinav_gym.estimation import Readings, StateEstimator, make_estimator
+from agrinav_gym.robot import RobotState
 from agrinav_gym.sensors.gnss import Gnss
 from agrinav_gym.sensors.imu import Imu, WheelOdometry
-from agrinav_gym.sim.world import RobotState
 
 DT, CHI, RADIUS, TRACK = 0.05, 2.1, 0.11, 0.47
 SLIP = 0.04  # wheel speed reads this much above the ground speed

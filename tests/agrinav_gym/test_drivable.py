@@ -8,8 +8,8 @@ import pytest
 
 import agrinav_gym
 import scenario_gen as sg
+from agrinav_gym.robot import RobotGeometry
 from agrinav_gym.sim.contact import CropContact
-from agrinav_gym.sim.world import RobotGeometry
 
 
 @pytest.mark.parametrize("env_id", list(agrinav_gym.ENV_IDS))

@@ -10,12 +10,12 @@ import pytest
 import trimesh
 
 from agrinav_gym.config import EnvConfig
-from agrinav_gym.env import robot_interface
+from agrinav_gym.render.classes import CROP, SOIL
+from agrinav_gym.render.mesh_scene import MeshScene
+from agrinav_gym.render.plant_meshes import PlantMeshes, Prototype
+from agrinav_gym.robot import RobotGeometry, robot_interface
 from agrinav_gym.sensors import d455
 from agrinav_gym.sensors.mesh_camera import MeshCamera
-from agrinav_gym.sim.mesh_scene import MeshScene
-from agrinav_gym.sim.plant_meshes import CROP, SOIL, PlantMeshes, Prototype
-from agrinav_gym.sim.world import RobotGeometry
 from scenario_gen import Terrain, generate, preset
 
 from .helpers import TINY
@@ -78,11 +78,11 @@ def test_depth_of_a_box_at_a_known_distance_follows_the_noise_law(renderer: str)
     cam = camera({"camera_pitch_deg": 0.0}, {"width": 16, "height": 12}, renderer)
     x_cam = 0.25  # the camera sits 0.25 m ahead of base_link
     scene = MeshScene(flat(), boxes([(x_cam + 3.05, 0.0, (0.1, 3.0, 2.0))]))
-    truth = cam.render(np.eye(3), BASE, scene, None)
+    truth = cam.draw(np.eye(3), BASE, scene, None)
     z = float(truth.depth[6, 8])
     assert z == pytest.approx(3.0, abs=1e-4)  # the box's near face, along the optical axis
     rng = np.random.default_rng(0)
-    samples = np.array([cam.render(np.eye(3), BASE, scene, rng).depth[6, 8] for _ in range(2500)])
+    samples = np.array([cam.draw(np.eye(3), BASE, scene, rng).depth[6, 8] for _ in range(2500)])
     sigma = z**2 * 0.08 / (cam.fx * 0.095)  # σ_z = z²·s/(f·B), f of this 16-px mode
     assert samples.mean() == pytest.approx(z, abs=4 * sigma / math.sqrt(len(samples)))
     assert samples.std() == pytest.approx(sigma, rel=0.06)
@@ -94,9 +94,9 @@ def test_noisy_frames_are_deterministic_per_seed(renderer: str) -> None:
     cam = camera(renderer=renderer)
     pos = np.array([scn.route.xy[30][0], scn.route.xy[30][1], 0.0])
     pos[2] = float(scn.terrain.height_at(pos[0], pos[1])) + 0.11
-    a = cam.render(np.eye(3), pos, scene, np.random.default_rng(3)).depth
-    b = cam.render(np.eye(3), pos, scene, np.random.default_rng(3)).depth
-    c = cam.render(np.eye(3), pos, scene, np.random.default_rng(4)).depth
+    a = cam.draw(np.eye(3), pos, scene, np.random.default_rng(3)).depth
+    b = cam.draw(np.eye(3), pos, scene, np.random.default_rng(3)).depth
+    c = cam.draw(np.eye(3), pos, scene, np.random.default_rng(4)).depth
     assert np.array_equal(a, b) and not np.array_equal(a, c)
 
 
@@ -109,7 +109,7 @@ def test_instance_ids_name_the_plant_each_ray_hits(renderer: str) -> None:
     pos = np.array([xy[0], xy[1], float(scn.terrain.height_at(*xy)) + 0.11])
     c, s = math.cos(scn.rows.angle), math.sin(scn.rows.angle)
     rot = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
-    f = cam.render(rot, pos, scene, None, labels=True, stereo=False)
+    f = cam.draw(rot, pos, scene, None, labels=True, stereo=False)
     inst = f.instance.ravel()
     on = np.flatnonzero(inst >= 0)
     assert len(on) > 200 and (f.label.ravel()[on] == CROP).all()
@@ -139,8 +139,8 @@ def test_occlusion_shadow_is_left_of_a_foreground_post(renderer: str) -> None:
         flat(),
         boxes([(x_cam + 3.05, 0.0, (0.1, 6.0, 2.0)), (x_cam + 1.05, 0.0, (0.1, 0.12, 2.0))]),
     )
-    geo = cam.render(np.eye(3), BASE, both, None, stereo=False).depth
-    img = cam.render(np.eye(3), BASE, both, None).depth
+    geo = cam.draw(np.eye(3), BASE, both, None, stereo=False).depth
+    img = cam.draw(np.eye(3), BASE, both, None).depth
     row = 20
     cols = np.flatnonzero(np.abs(geo[row] - 1.0) < 0.01)  # the post
     left, right = cols.min(), cols.max()
@@ -180,7 +180,7 @@ def test_a_user_zip_model_appears_in_depth_and_rgb(tmp_path: Path, renderer: str
     pos = np.array([xy[0], xy[1], float(scn.terrain.height_at(*xy)) + 0.11])
     c, s = math.cos(scn.rows.angle + 0.4), math.sin(scn.rows.angle + 0.4)
     rot = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
-    f = cam.render(rot, pos, scene, None, rgb=True, labels=True)
+    f = cam.draw(rot, pos, scene, None, rgb=True, labels=True)
     crop = f.rgb_label == CROP
     assert (f.label == CROP).mean() > 0.02 and crop.mean() > 0.02
     assert (f.depth[f.label == CROP] > 0).sum() > 100  # in depth (nearer than 0.4 m: 0)

@@ -10,16 +10,15 @@ import pytest
 import trimesh
 
 from agrinav_gym.config import EnvConfig
-from agrinav_gym.env import robot_interface
-from agrinav_gym.sensors import native, raster_view
-from agrinav_gym.sensors.depth import ground_hits, plant_hits
+from agrinav_gym.render import native, raster_view
+from agrinav_gym.render.mesh_scene import MeshScene
+from agrinav_gym.render.proxy_plants import PlantField
+from agrinav_gym.robot import RobotGeometry, robot_interface
 from agrinav_gym.sensors.mesh_camera import MeshCamera
-from agrinav_gym.sim.mesh_scene import MeshScene
-from agrinav_gym.sim.plants import PlantField
-from agrinav_gym.sim.world import RobotGeometry
 from scenario_gen import generate, preset
 
 from .helpers import TINY, lane_pose, mesh_camera
+from .oracles import ground_hits, plant_hits
 
 needs_kernels = pytest.mark.skipif(not native.available(), reason="compiled kernels not built")
 #: Embree intersects in float32 around the field's centre (~1 µm), which a ray grazing a
@@ -52,7 +51,7 @@ def test_compiled_kernels_are_built_in_ci() -> None:
 def test_a_build_from_other_sources_is_refused(tmp_path: Path) -> None:
     """An extension left from other sources (an edit or a pull without a rebuild) would be
     called with the wrong arguments and draw wrong images without an error: it is refused."""
-    csrc = Path(native.__file__).resolve().parent.parent / "csrc"
+    csrc = Path(native.__file__).resolve().parent / "csrc"
     here = native.source_hash(csrc)
 
     class Build:
@@ -90,10 +89,10 @@ def test_raster_frame_is_the_ray_cast_frame(maize: MeshScene) -> None:
     precision; the same plant in every pixel but ties at shared edges (where float32 rays and
     double scan conversion may pick the neighbouring triangle); the same colours but rounding."""
     rot, pos = lane_pose(maize_scenario(maize))
-    r = mesh_camera(848, 480, "raster").render(
+    r = mesh_camera(848, 480, "raster").draw(
         rot, pos, maize, None, rgb=True, labels=True, stereo=False
     )
-    e = mesh_camera(848, 480, "raycast").render(
+    e = mesh_camera(848, 480, "raycast").draw(
         rot, pos, maize, None, rgb=True, labels=True, stereo=False
     )
     n = r.depth.size
@@ -119,9 +118,9 @@ def test_stereo_shadow_misses_only_what_the_right_view_cannot_show(maize: MeshSc
     scn = maize_scenario(maize)
     rot, pos = lane_pose(scn)
     cam = mesh_camera(848, 480, "raster")
-    r = cam.render(rot, pos, maize, None, labels=True)
-    e = mesh_camera(848, 480, "raycast").render(rot, pos, maize, None, labels=True)
-    geo = cam.render(rot, pos, maize, None, labels=True, stereo=False)
+    r = cam.draw(rot, pos, maize, None, labels=True)
+    e = mesh_camera(848, 480, "raycast").draw(rot, pos, maize, None, labels=True)
+    geo = cam.draw(rot, pos, maize, None, labels=True, stereo=False)
     occluded = (geo.depth > 0) & (e.depth == 0)
     assert occluded.mean() > 0.05  # a frame with a real shadow
     # Hidden here but seen by the exact ray: only where its float32 segment grazes an
@@ -176,8 +175,8 @@ def test_two_threads_draw_the_same_frame(maize: MeshScene) -> None:
     rot, pos = lane_pose(maize_scenario(maize), turn=0.3)
     one, two = mesh_camera(424, 240, "raster", 1), mesh_camera(424, 240, "raster", 2)
     for k in range(3):  # the split adapts between frames
-        a = one.render(rot, pos, maize, np.random.default_rng(k), rgb=True, labels=True)
-        b = two.render(rot, pos, maize, np.random.default_rng(k), rgb=True, labels=True)
+        a = one.draw(rot, pos, maize, np.random.default_rng(k), rgb=True, labels=True)
+        b = two.draw(rot, pos, maize, np.random.default_rng(k), rgb=True, labels=True)
         for f in ("depth", "label", "instance", "rgb", "rgb_label", "rgb_instance"):
             assert np.array_equal(getattr(a, f), getattr(b, f)), f
 
@@ -195,7 +194,7 @@ def test_vector_and_scalar_kernels_draw_the_same_frame(
     frames = []
     for flag in ("1", "0"):
         monkeypatch.setenv("AGRINAV_AVX2", flag)
-        frames.append(cam.render(rot, pos, maize, np.random.default_rng(3), rgb=True, labels=True))
+        frames.append(cam.draw(rot, pos, maize, np.random.default_rng(3), rgb=True, labels=True))
     for f in ("depth", "label", "instance", "rgb", "rgb_label", "rgb_instance"):
         assert np.array_equal(getattr(frames[0], f), getattr(frames[1], f)), f
     assert (frames[0].label == 1).mean() > 0.05 and (frames[0].instance >= 0).mean() > 0.05
@@ -210,8 +209,8 @@ def test_raster_noise_is_the_ray_cast_noise(maize: MeshScene) -> None:
     cams = {k: mesh_camera(424, 240, k) for k in ("raster", "raycast")}
     draws = {}
     for k, cam in cams.items():
-        noisy = cam.render(rot, pos, maize, np.random.default_rng(7), stereo=False).depth
-        clean = cam.render(rot, pos, maize, None, stereo=False).depth
+        noisy = cam.draw(rot, pos, maize, np.random.default_rng(7), stereo=False).depth
+        clean = cam.draw(rot, pos, maize, None, stereo=False).depth
         ok = (noisy > 0) & (clean > 0)
         z = np.where(ok, clean, 1.0).astype(float)  # σ of the valid pixels only
         draws[k] = (np.where(ok, (noisy - z) / cam.noise_sigma(z), np.nan), ok)
@@ -239,7 +238,7 @@ def test_the_robot_in_its_own_camera_is_the_same_on_both_renderers(maize: MeshSc
             {**cfg.to_dict(), "camera": {**cfg.to_dict()["camera"], "renderer": renderer}}
         )
         cam = MeshCamera(c.camera, model)
-        frames[renderer] = cam.render(rot, pos, maize, None, rgb=True, labels=True, stereo=False)
+        frames[renderer] = cam.draw(rot, pos, maize, None, rgb=True, labels=True, stereo=False)
     r, e = frames["raster"], frames["raycast"]
     robot = e.label == 4
     assert 0.05 < robot.mean() < 0.9 and (e.rgb_label == 4).mean() > 0.05

@@ -92,7 +92,7 @@ def test_climbs_a_12_degree_slope() -> None:
 def test_sensor_mounts_in_the_config_match_the_urdf_frames() -> None:
     # the URDF documents the mounts; the config sets them at run time: they must agree
     from agrinav_gym.config import GnssConfig, RobotConfig
-    from agrinav_gym.sim.world import RobotGeometry
+    from agrinav_gym.robot import RobotGeometry
 
     frames = RobotGeometry.from_urdf().frames
     r, g = RobotConfig(), GnssConfig()

@@ -1,4 +1,4 @@
-"""The stereo noise's per-pixel draws (sensors/pixel_noise.py): a standard normal, the kernels'
+"""The stereo noise's per-pixel draws (render/pixel_noise.py): a standard normal, the kernels'
 and the numpy twin's bits alike, one rng draw a frame whatever the scene."""
 
 import math
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from agrinav_gym.sensors import native, pixel_noise
+from agrinav_gym.render import native, pixel_noise
 from scenario_gen import generate, preset
 
 from .helpers import TINY, lane_pose, make_camera, mesh_camera
@@ -75,8 +75,8 @@ def test_a_frame_takes_one_draw_from_the_rng_whatever_the_scene(renderer: str) -
     """The rng's state after a noisy frame is that after one key, among seedlings as among
     tall maize, at 64 × 48 as at 32 × 24: what the episode's other sensors draw next depends
     neither on what the camera saw nor on its resolution."""
-    from agrinav_gym.sim.mesh_scene import MeshScene
-    from agrinav_gym.sim.plants import PlantField
+    from agrinav_gym.render.mesh_scene import MeshScene
+    from agrinav_gym.render.proxy_plants import PlantField
 
     if renderer == "raster" and not native.available():
         pytest.skip("the rasteriser needs the compiled kernels")
@@ -87,10 +87,10 @@ def test_a_frame_takes_one_draw_from_the_rng_whatever_the_scene(renderer: str) -
         rot, pos = lane_pose(scn)
         if renderer == "proxy":
             cam = make_camera(None, {"width": w, "height": h})
-            frame = cam.render(rot, pos, scn.terrain, PlantField.from_scenario(scn), rng)
+            frame = cam.draw(rot, pos, scn.terrain, PlantField.from_scenario(scn), rng)
         else:
             cam = mesh_camera(w, h, renderer)
-            frame = cam.render(rot, pos, MeshScene.from_scenario(scn), rng)
+            frame = cam.draw(rot, pos, MeshScene.from_scenario(scn), rng)
         valid.append(int((frame.depth > 0).sum()))
         after.append(rng.bit_generator.state)
     assert min(valid) > 0 and valid[0] != valid[1]  # the noise touched different pixels

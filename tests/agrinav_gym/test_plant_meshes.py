@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from agrinav_gym.sensors.embree import Caster, Scene, device
-from agrinav_gym.sim.mesh_scene import MeshScene, convex_hull, refine_ground
-from agrinav_gym.sim.plant_meshes import (
+from agrinav_gym.render.embree import Caster, Scene, device
+from agrinav_gym.render.mesh_scene import MeshScene, convex_hull, refine_ground
+from agrinav_gym.render.plant_meshes import (
     GROWTH_INTERVALS,
     PlantMeshes,
     growth_node,

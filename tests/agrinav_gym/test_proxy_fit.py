@@ -1,19 +1,23 @@
 """The analytic proxy against the mesh camera, with the tolerances its fit states."""
 
 import math
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import pytest
 
-from agrinav_gym.sim.proxy_fit import (
-    FITTED,
-    Comparison,
+from agrinav_gym.render.proxy_params import (
+    COLUMNS,
     ProxyParams,
     fit_residuals,
-    lane_width,
+    fitted,
+    parse_table,
     proxy_params,
 )
+from agrinav_gym.tools.proxy_fit import Comparison, FitResult, lane_width, table_document
 from scenario_gen import CATALOG
+from scenario_gen.errors import InputError
 
 HELD_OUT = 11  # lanes generated with another seed than the fit's
 
@@ -31,7 +35,7 @@ def _check(name: str, growth: float) -> None:
 
 @pytest.mark.parametrize(
     ("name", "stage"),
-    [(n, s) for n in FITTED for s in range(1, CATALOG[n].stages + 1)],
+    [(n, s) for n in fitted() for s in range(1, CATALOG[n].stages + 1)],
 )
 def test_proxy_agrees_with_the_meshes_within_the_fit_on_held_out_lanes(
     name: str, stage: int
@@ -50,18 +54,55 @@ def test_the_fit_beats_the_former_hand_tuned_constants() -> None:
 
 
 def test_fitted_parameters_interpolate_between_stages() -> None:
-    table = np.asarray(FITTED["corn"])
+    table = fitted()["corn"]
     mid = 0.5 * (table[1, 0] + table[2, 0])
     fill, _, reach = proxy_params("corn", mid)
     assert fill == pytest.approx(0.5 * (table[1, 1] + table[2, 1]))
     assert reach == pytest.approx(0.5 * (table[1, 3] + table[2, 3]))
-    assert all(len(row) == 8 for rows in FITTED.values() for row in rows)
+    assert all(t.shape[1] == 8 for t in fitted().values())
+
+
+def test_every_catalog_species_has_fitted_parameters() -> None:
+    assert set(fitted()) == set(CATALOG)
+
+
+def test_the_written_table_is_what_the_runtime_reads() -> None:
+    rows = [
+        (0.0, FitResult(ProxyParams(0.1, 1.0, 0.0), (0.01, 0.001), (0.0, 0.0), 0.2)),
+        (1.0, FitResult(ProxyParams(0.3, 0.5, 1.2), (0.02, 0.002), (0.05, 0.01), 0.3)),
+    ]
+    doc = table_document({"corn": rows})
+    t = parse_table(doc)["corn"]
+    assert t[1].tolist() == [1.0, 0.3, 0.5, 1.2, 0.02, 0.002, 0.05, 0.01]
+
+
+@pytest.mark.parametrize(
+    ("edit", "message"),
+    [
+        (lambda d: d.update(columns=["growth"]), "columns: got"),
+        (lambda d: d["species"]["corn"].reverse(), "rising from 0 to 1"),
+        (lambda d: d["species"]["corn"][0].pop(), "rows of 8 finite numbers"),
+        (lambda d: d.update(species={}), "a mapping of species to rows"),
+    ],
+)
+def test_a_malformed_table_is_refused_naming_what_is_wrong(
+    edit: Callable[[dict[str, Any]], None], message: str
+) -> None:
+    rows = [[0, 0.1, 1, 0, 0, 0, 0, 0], [1, 0.2, 1, 0, 0, 0, 0, 0]]
+    doc = {"columns": list(COLUMNS), "species": {"corn": rows}}
+    edit(doc)
+    with pytest.raises(InputError, match=message):
+        parse_table(doc)
+
+
+def test_a_species_without_a_fit_is_named() -> None:
+    with pytest.raises(InputError, match="got 'lettuce'; fitted: cabbage, corn"):
+        proxy_params("lettuce", 0.5)
 
 
 def test_lane_width_of_an_open_lane_and_of_two_walls() -> None:
     from agrinav_gym.config import EnvConfig
-    from agrinav_gym.env import robot_interface
-    from agrinav_gym.sim.world import RobotGeometry
+    from agrinav_gym.robot import RobotGeometry, robot_interface
 
     cfg = EnvConfig.from_dict({"camera": {"width": 128, "height": 96}})
     m = robot_interface(cfg, RobotGeometry.from_urdf()).camera

@@ -5,9 +5,9 @@ import pytest
 from scipy.spatial import cKDTree
 
 from agrinav_gym.config import GnssConfig, ImuConfig
+from agrinav_gym.render.proxy_plants import PlantField
 from agrinav_gym.sensors.gnss import MODES, Gnss
 from agrinav_gym.sensors.imu import G, Imu
-from agrinav_gym.sim.plants import PlantField
 from scenario_gen import Terrain
 
 from .helpers import make_camera
@@ -92,7 +92,7 @@ def test_depth_pixel_reads_the_true_distance_to_the_ground(kernels: str) -> None
         {"width": 64, "height": 48},
     )
     pos = np.array([0.0, 0.0, 0.11])
-    frame = cam.render(np.eye(3), pos, _flat(), _empty_plants(), rng=None)
+    frame = cam.draw(np.eye(3), pos, _flat(), _empty_plants(), rng=None)
     # analytic: the ray of pixel (row 30, col 20) from the camera origin to z = 0
     o, rays = cam.pose(np.eye(3), pos)
     i = 30 * 64 + 20
@@ -109,9 +109,9 @@ def test_depth_noise_follows_the_stereo_error_law(kernels: str) -> None:
     pos = np.array([0.0, 0.0, 0.11])
     rng = np.random.default_rng(0)
     samples = np.array(
-        [cam.render(np.eye(3), pos, _flat(), plants, rng).depth[12, 16] for _ in range(3000)]
+        [cam.draw(np.eye(3), pos, _flat(), plants, rng).depth[12, 16] for _ in range(3000)]
     )
-    true = float(cam.render(np.eye(3), pos, _flat(), plants, None).depth[12, 16])
+    true = float(cam.draw(np.eye(3), pos, _flat(), plants, None).depth[12, 16])
     sigma = true**2 * 0.08 / (cam.f_native * 0.095)
     assert samples.mean() == pytest.approx(true, abs=4 * sigma / math.sqrt(len(samples)))
     assert samples.std() == pytest.approx(sigma, rel=0.06)
@@ -136,7 +136,7 @@ def _wall_plant(distance: float, radius: float, height: float) -> PlantField:
 def test_depth_sees_a_plant_at_its_distance_and_labels_it(kernels: str) -> None:
     cam = make_camera({"camera_pitch_deg": 0.0}, {"width": 33, "height": 25, "segmentation": True})
     plants = _wall_plant(distance=3.0, radius=0.2, height=2.0)
-    frame = cam.render(np.eye(3), np.array([0.0, 0.0, 0.11]), _flat(), plants, None, labels=True)
+    frame = cam.draw(np.eye(3), np.array([0.0, 0.0, 0.11]), _flat(), plants, None, labels=True)
     # the centre pixel looks straight along the optical axis at the cylinder's near side
     assert frame.depth[12, 16] == pytest.approx(3.0 - 0.2, abs=1e-6)
     assert frame.label[12, 16] == 2  # crop
@@ -146,7 +146,7 @@ def test_depth_sees_a_plant_at_its_distance_and_labels_it(kernels: str) -> None:
 
 def test_depth_out_of_range_is_zero(kernels: str) -> None:
     cam = make_camera(None, {"width": 16, "height": 12, "max_range": 2.0})
-    frame = cam.render(np.eye(3), np.array([0.0, 0.0, 0.11]), _flat(), _empty_plants(), None)
+    frame = cam.draw(np.eye(3), np.array([0.0, 0.0, 0.11]), _flat(), _empty_plants(), None)
     assert (frame.depth == 0).any() and frame.depth.max() <= 2.0
 
 
@@ -170,7 +170,7 @@ def test_a_plant_seen_from_below_its_leaf_band(kernels: str) -> None:
     )
     pos = np.array([0.0, 0.0, 0.11])
     o, rays = cam.pose(np.eye(3), pos)
-    frame = cam.render(np.eye(3), pos, _flat(), plants, None)
+    frame = cam.draw(np.eye(3), pos, _flat(), plants, None)
     i = 12 * 33 + 16  # the optical axis
     t = (1.0 - o[2]) / rays[i, 2]
     x = o[0] + t * rays[i, 0]
@@ -221,7 +221,7 @@ def test_a_band_over_the_camera_is_seen_from_where_the_camera_is(
 def test_maize_proxies_follow_the_fitted_model(stage: int) -> None:
     """Core radius = fill × canopy width, leaf band from base × height to the top reaching
     reach × half the canopy width × |sin(yaw − row)|, all scaled with the plant's height."""
-    from agrinav_gym.sim.proxy_fit import proxy_params
+    from agrinav_gym.render.proxy_params import proxy_params
     from scenario_gen import CATALOG, generate, preset
 
     scn = generate(preset("default", crop={"stage": stage}, layout={"row_spacing": 1.0}), 0)
@@ -253,3 +253,35 @@ def test_only_planar_leaved_crops_grow_leaf_bands() -> None:
     assert len(field.radius) == len(field)  # cores only
     corn = PlantField.from_scenario(generate(preset("default", crop={"stage": 4}), 0))
     assert len(corn.radius) > len(corn)
+
+
+@pytest.mark.parametrize("model", ["proxy", "mesh"])
+def test_both_cameras_render_a_field_through_one_interface(model: str) -> None:
+    """``make_camera`` by config, ``render`` on a ``FieldView``: the same frame the camera's own
+    ``draw`` makes from the scene it would build, and nothing built that it does not use."""
+    import scenario_gen as sg
+    from agrinav_gym.config import EnvConfig
+    from agrinav_gym.render.mesh_scene import MeshScene
+    from agrinav_gym.robot import RobotGeometry, robot_interface
+    from agrinav_gym.sensors import make_camera as camera_for
+    from agrinav_gym.sensors.camera import FieldView
+
+    from .helpers import FLAT, lane_pose
+
+    cfg = EnvConfig.from_dict({"camera": {"model": model, "width": 64, "height": 48}})
+    cam = camera_for(cfg.camera, robot_interface(cfg, RobotGeometry.from_urdf()).camera)
+    scn = sg.generate(sg.preset("default", **FLAT), 3)
+    rot, pos = lane_pose(scn)
+    view = FieldView(scn)
+    frame = cam.render(rot, pos, view, np.random.default_rng(5), rgb=True, labels=True)
+    assert frame.depth.shape == (48, 64) and frame.label is not None and frame.rgb is not None
+    assert (frame.depth > 0).mean() > 0.25  # ground below the horizon, less stereo shadows
+    if model == "proxy":
+        ref = cam.draw(
+            rot, pos, scn.terrain, PlantField.from_scenario(scn), np.random.default_rng(5)
+        )
+        assert view._scenes._scene is None  # no meshes built
+    else:
+        ref = cam.draw(rot, pos, MeshScene.from_scenario(scn), np.random.default_rng(5))
+        assert view._plants is None  # no proxies built
+    np.testing.assert_array_equal(frame.depth, ref.depth)

@@ -13,8 +13,9 @@ import numpy as np
 import pytest
 
 from agrinav_gym.config import RobotConfig, SoilConfig
+from agrinav_gym.robot import RobotGeometry
 from agrinav_gym.sim.tyres import in_place_turn_ratio
-from agrinav_gym.sim.world import RobotGeometry, World
+from agrinav_gym.sim.world import World
 from scenario_gen import Terrain
 
 A, B = 0.229, 0.235  # half wheelbase, half track (DESIGN §5)

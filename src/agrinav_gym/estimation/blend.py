@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from . import FloatArray, Readings
+from .readings import FloatArray, Readings
 
 
 class GnssInsBlend:

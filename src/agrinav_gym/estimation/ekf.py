@@ -28,7 +28,7 @@ import numpy as np
 from scipy.linalg.lapack import dposv
 
 from ..config import LocalisationConfig
-from . import FloatArray, Readings
+from .readings import FloatArray, Readings
 
 N = 12
 X, Y, PSI, VX, VY, W, AX, AY, BIAS, EE, EN, SCALE = range(N)

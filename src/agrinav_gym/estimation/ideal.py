@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import FloatArray, Readings
+from .readings import FloatArray, Readings
 
 
 class IdealEstimator:

@@ -36,7 +36,7 @@ from ..config import GnssFixConfig
 FloatArray = NDArray[np.float64]
 
 LEVELS = ("none", "standalone", "rtk_float", "rtk_fixed")
-#: the lower stalk bears no green leaves (as sim.plants.LEAF_BASE for the camera)
+#: the lower stalk bears no green leaves (as the proxy camera's leaf band starts above it)
 LEAF_BASE = 0.2
 #: canopy farther than this from the antenna is ignored: a low ray that crossed this much
 #: foliage is far past every tracking threshold anyway

@@ -25,14 +25,15 @@ from numpy.typing import NDArray
 
 from ..config import CameraConfig
 from ..interface import CameraModel
-from ..sim.mesh_scene import MeshScene, SceneHits, bilinear
-from ..sim.plant_meshes import OTHER, ROBOT, SOIL, Prototype, rotation_rpy, sample_texture
-from ..sim.robot_mesh import robot_prototype
-from ..sim.world import SOIL_RGB
-from . import d455, native, pixel_noise, raster_view, shading
-from .depth import DepthFrame, corner_pixels
-from .embree import Caster, Scene, device
-from .shading import Lighting
+from ..render import native, pixel_noise, raster_view, shading
+from ..render.classes import OTHER, ROBOT, SOIL
+from ..render.embree import Caster, Scene, device
+from ..render.mesh_scene import MeshScene, SceneHits, bilinear
+from ..render.plant_meshes import Prototype, rotation_rpy, sample_texture
+from ..render.robot_mesh import robot_prototype
+from ..render.shading import SOIL_RGB, Lighting
+from . import d455
+from .camera import DepthFrame, FieldView, corner_pixels
 
 FloatArray = NDArray[np.float64]
 RGB_FAR = 2.0  # × max_range: how far the colour camera sees geometry before the haze
@@ -107,6 +108,18 @@ class MeshCamera(Lighting):
         self,
         rot: FloatArray,
         pos: FloatArray,
+        field: FieldView,
+        rng: np.random.Generator | None,
+        *,
+        rgb: bool = False,
+        labels: bool = False,
+    ) -> DepthFrame:
+        return self.draw(rot, pos, field.meshes, rng, rgb, labels)
+
+    def draw(
+        self,
+        rot: FloatArray,
+        pos: FloatArray,
         scene: MeshScene,
         rng: np.random.Generator | None,
         rgb: bool = False,
@@ -114,7 +127,7 @@ class MeshCamera(Lighting):
         view: bool = True,
         stereo: bool = True,
     ) -> DepthFrame:
-        """One frame with the base at ``pos`` and orientation ``rot`` (body -> world);
+        """``render`` on a mesh scene the caller holds;
         ``view=False`` when the caller has already made the scene cover this camera's view;
         ``stereo=False`` skips the stereo pair's invalid pixels (the geometry's own depth)."""
         if self.rasterises:

@@ -8,7 +8,7 @@ import numpy as np
 
 from ..config import EnvConfig
 from ..estimation import Readings
-from ..sim.world import RobotGeometry, RobotState
+from ..robot import RobotGeometry, RobotState
 from .fixmode import Canopy
 from .gnss import Gnss
 from .imu import Imu, WheelOdometry

@@ -19,7 +19,7 @@ from scipy.spatial import cKDTree
 from scenario_gen import Scenario
 from scenario_gen.crops import scaled_by_height
 
-from .world import RobotGeometry
+from ..robot import RobotGeometry
 
 FloatArray = NDArray[np.float64]
 

@@ -14,7 +14,7 @@ import pybullet as p
 
 from scenario_gen import CATALOG, Scenario, Terrain
 
-from .world import SOIL_RGB
+from ..render.shading import SOIL_RGB
 
 MAX_VERTICES = 100_000  # below pybullet's ≈130k per-mesh cap
 _CROSS_X = np.array(

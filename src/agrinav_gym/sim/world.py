@@ -10,10 +10,7 @@ import contextlib
 import math
 import os
 import sys
-import xml.etree.ElementTree as ET
 from collections.abc import Iterator
-from dataclasses import dataclass
-from importlib import resources
 from typing import Any
 
 import numpy as np
@@ -23,85 +20,17 @@ from numpy.typing import NDArray
 from scenario_gen import Terrain
 
 from ..config import RobotConfig, SoilConfig
+from ..robot import RobotGeometry, RobotState, urdf_path
 from .tyres import TyreModel, check_corner_stability, in_place_turn_ratio
 
 FloatArray = NDArray[np.float64]
 
-URDF_PACKAGE = "agrinav_gym.assets"
-SOIL_RGB = (0.45, 0.33, 0.22)  # default soil colour of renders and the depth camera's RGB
-URDF_NAME = "summit_xl.urdf"
 WHEEL_JOINTS = (
     "front_left_wheel_joint",
     "front_right_wheel_joint",
     "back_left_wheel_joint",
     "back_right_wheel_joint",
 )
-
-
-@dataclass(frozen=True)
-class RobotGeometry:
-    """Facts read from the packaged URDF, so Python and the model cannot disagree."""
-
-    wheel_radius: float
-    wheel_width: float
-    track: float
-    wheelbase: float
-    footprint: tuple[float, float]  # length, width (DESIGN §5: 0.724 x 0.616 m nav footprint)
-    chassis: tuple[float, float, float]  # collision box size (x, y, z), m
-    frames: dict[str, tuple[float, float, float]]  # sensor link origins in base_link
-    mass: float  # total, kg (every link's inertial mass)
-
-    @property
-    def contact_rects(self) -> tuple[tuple[float, float, float, float], ...]:
-        """The chassis box and the four wheels seen from above: (cx, cy, half_x, half_y)."""
-        hx, hy = 0.5 * self.wheelbase, 0.5 * self.track
-        wheels = tuple(
-            (sx * hx, sy * hy, self.wheel_radius, 0.5 * self.wheel_width)
-            for sx in (1, -1)
-            for sy in (1, -1)
-        )
-        return ((0.0, 0.0, 0.5 * self.chassis[0], 0.5 * self.chassis[1]), *wheels)
-
-    @classmethod
-    def from_urdf(cls) -> RobotGeometry:
-        root = ET.fromstring(resources.files(URDF_PACKAGE).joinpath(URDF_NAME).read_text())
-        joints = {str(j.get("name")): j for j in root.iter("joint")}
-
-        def xyz(name: str) -> tuple[float, float, float]:
-            o = joints[name].find("origin")
-            assert o is not None
-            a, b, c = (float(v) for v in o.get("xyz", "0 0 0").split())
-            return a, b, c
-
-        fl, br = xyz("front_left_wheel_joint"), xyz("back_right_wheel_joint")
-        cyl = root.find(".//link[@name='front_left_wheel']/visual//cylinder")
-        box = root.find(".//link[@name='base_link']/collision//box")
-        assert cyl is not None and box is not None
-        chassis = tuple(float(v) for v in str(box.get("size")).split())
-        frames = {n[: -len("_joint")]: xyz(n) for n in joints if n.endswith("link_joint")}
-        mass = sum(float(str(m.get("value"))) for m in root.iter("mass"))
-        return cls(
-            float(str(cyl.get("radius"))),
-            float(str(cyl.get("length"))),
-            fl[1] - br[1],
-            fl[0] - br[0],
-            (0.724, 0.616),
-            (chassis[0], chassis[1], chassis[2]),
-            frames,
-            mass,
-        )
-
-
-@dataclass(frozen=True)
-class RobotState:
-    """Ground truth of the robot after a physics step (for sensors, rewards, metrics only)."""
-
-    pos: FloatArray  # (3,) base_link in ENU, m
-    rot: FloatArray  # (3, 3) base_link -> world
-    rpy: FloatArray  # (3,) roll, pitch, yaw, rad
-    vel: FloatArray  # (3,) world-frame linear velocity, m/s
-    ang: FloatArray  # (3,) world-frame angular velocity, rad/s
-    wheels: list[float]  # wheel speeds, rad/s (fl, fr, bl, br)
 
 
 @contextlib.contextmanager
@@ -120,10 +49,6 @@ def _quiet_stdout() -> Iterator[None]:
         finally:
             os.dup2(saved, fd)
             os.close(saved)
-
-
-def urdf_path() -> str:
-    return str(resources.files(URDF_PACKAGE).joinpath(URDF_NAME))
 
 
 class World:

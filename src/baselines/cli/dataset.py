@@ -5,7 +5,8 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from .args import episodes_type, int_at_least, parse_set, seed_type
+from ..scenario_spec import parse_set
+from .args import episodes_type, int_at_least, seed_type
 
 
 def add(sub: Any) -> None:

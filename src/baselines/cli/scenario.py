@@ -9,42 +9,20 @@ from typing import Any
 
 from scenario_gen.errors import InputError
 
-from .args import MAX_SEED, int_at_least, parse_set, seed_type
+from ..scenario_spec import add_spec_arguments, spec_from_args
+from .args import MAX_SEED, int_at_least, seed_type
 
 
 def add(sub: Any) -> None:
-    from scenario_gen import preset_names
-
     sc = sub.add_parser(
         "scenario",
         help="generate a crop-field scenario on real terrain",
         description="Generate a scenario directory (scenario.json, terrain.npz, "
         "plants.csv, route.csv, field.geojson, preview.png), or a bank with --count.",
     )
-    sc.add_argument("--preset", default="default", choices=preset_names())
+    add_spec_arguments(sc)
     sc.add_argument("--seed", type=seed_type, default=0)
     sc.add_argument("--out", required=True, help="output directory (must not exist, or --force)")
-    sc.add_argument(
-        "--set",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="override a spec field, e.g. --set layout.row_spacing=0.76 (repeatable)",
-    )
-    sc.add_argument("--config", help="YAML file of spec overrides")
-    sc.add_argument("--dem", help="GeoTIFF DEM (any CRS)")
-    sc.add_argument("--mesh", help="terrain mesh (glTF/GLB, OBJ, PLY, DAE, STL)")
-    sc.add_argument(
-        "--datum",
-        help="LAT,LON,ALT of the mesh or plane origin (a DEM sets its own: refused with one)",
-    )
-    sc.add_argument("--field", help="GeoJSON polygon of the field (WGS84 lon/lat)")
-    sc.add_argument(
-        "--waypoints",
-        help="Nav2 GPS waypoint YAML (as `agrinav export --to nav2` writes): the route is the "
-        "plan through them instead of the zigzag",
-    )
-    sc.add_argument("--lod", type=int, help="level of detail (Web-Mercator zoom 0-22)")
     sc.add_argument(
         "--count",
         type=int_at_least(1, 100_000),
@@ -54,48 +32,6 @@ def add(sub: Any) -> None:
     sc.add_argument("--force", action="store_true", help="replace an existing output directory")
     sc.add_argument("--no-preview", action="store_true", help="skip preview.png")
     sc.set_defaults(func=run)
-
-
-def _parse_datum(text: str) -> list[float]:
-    try:
-        vals = [float(v) for v in text.split(",")]
-    except ValueError:
-        vals = []
-    if len(vals) != 3:
-        raise InputError("--datum", text, "allowed: LAT,LON,ALT in degrees and metres")
-    return vals
-
-
-def spec_from_args(args: argparse.Namespace) -> Any:
-    """preset < --config file < --dem/--mesh/--field/--lod flags < --set overrides."""
-    from scenario_gen import preset
-    from scenario_gen.generate import check_spec, resolve_paths
-    from scenario_gen.schema import load_yaml, merge
-    from scenario_gen.spec import ScenarioSpec
-
-    base = preset(args.preset).to_dict()
-    if args.config:
-        base = merge(base, load_yaml(args.config))
-    flags: dict[str, Any] = {}
-    if args.dem and args.mesh:
-        raise InputError("--dem/--mesh", (args.dem, args.mesh), "allowed: one terrain source")
-    if args.dem:
-        flags.update({"terrain.source": "dem", "terrain.path": args.dem})
-    if args.mesh:
-        if not args.datum:
-            raise InputError("--datum", None, "--mesh needs --datum LAT,LON,ALT of the mesh origin")
-        flags.update({"terrain.source": "mesh", "terrain.path": args.mesh})
-    if args.datum is not None:  # '' is a bad datum, not an absent one
-        flags["terrain.datum"] = _parse_datum(args.datum)
-    if args.field:
-        flags["field.geojson"] = args.field
-    if args.waypoints:
-        flags["route.waypoints"] = args.waypoints
-    if args.lod is not None:
-        flags["terrain.lod"] = args.lod
-    spec = ScenarioSpec.from_dict(merge(merge(base, flags), parse_set(args.set)))
-    check_spec(spec)
-    return resolve_paths(spec)  # absolute input paths in scenario.json and bank.yaml
 
 
 def run(args: argparse.Namespace) -> int:

@@ -45,7 +45,8 @@ def run(args: argparse.Namespace) -> int:
     from baselines.studio.layers import elevation_source
 
     elevation_source(spec.terrain)  # an unreadable DEM or mesh is refused here, in one line
-    from baselines.studio.app import Studio, serve
+    from baselines.studio.app import serve
+    from baselines.studio.shared import Studio
 
     serve(Studio(args.preset, terrain, Path(args.workspace)), args.port)
     return 0

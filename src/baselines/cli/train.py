@@ -6,7 +6,8 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from .args import int_at_least, parse_set, seed_type
+from ..scenario_spec import parse_set
+from .args import int_at_least, seed_type
 
 
 def add(sub: Any) -> None:

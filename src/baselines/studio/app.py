@@ -9,10 +9,8 @@ added when the user ticks it.
 from __future__ import annotations
 
 import asyncio
-import hashlib
 import json
 import tempfile
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -26,44 +24,13 @@ from scenario_gen.schema import parse_json
 
 from . import actions, fields, guard, layers
 from .card import ScenarioCard
-from .preview import Preview, SiteCache, layout_preview
-from .session import Session, Terrain
+from .preview import Preview, layout_preview
+from .shared import Studio
 from .widgets import SECTIONS, Form
 
 STATIC = Path(__file__).parent / "static"
 OSM = "https://tile.openstreetmap.org/{z}/{x}/{y}.png"
 DETAIL_PAD_M = 60.0  # terrain shown in detail around the field
-
-
-@dataclass
-class Studio:
-    """What every tab shares: the start-up choices, the terrain layers and the site cache."""
-
-    preset: str
-    terrain: Terrain
-    workspace: Path
-    sites: SiteCache = field(default_factory=SiteCache)
-    images: dict[str, bytes] = field(default_factory=dict)
-    elevations: dict[Any, layers.Elevation] = field(default_factory=dict)
-
-    def new_session(self) -> Session:
-        return Session(preset=self.preset, terrain=self.terrain)
-
-    def elevation(self, s: Session) -> layers.Elevation:
-        t = s.spec().terrain
-        key = (t.source, t.path, t.datum, t.up_axis, t.slope_deg, t.aspect_deg, t.fill_max_pixels)
-        if key not in self.elevations:
-            self.elevations[key] = layers.elevation_source(t)
-        return self.elevations[key]
-
-    def image_url(self, layer: layers.Layer) -> str:
-        key = hashlib.sha1(layer.png).hexdigest()[:16]
-        self.images[key] = layer.png
-        return f"/studio/layer/{key}.png"
-
-    @property
-    def models_dir(self) -> Path:
-        return self.workspace / "models"
 
 
 class Page:

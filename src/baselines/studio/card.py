@@ -4,22 +4,34 @@ run a policy) with the equivalent ``agrinav scenario`` command."""
 from __future__ import annotations
 
 import copy
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 from nicegui import run, ui
 
 from scenario_gen.errors import InputError
 
 from . import actions
+from .session import Session
+from .shared import Studio
+from .widgets import Form
 
-if TYPE_CHECKING:
-    from .app import Page
+
+class Host(Protocol):
+    """What the card needs from its page (``app.Page``)."""
+
+    s: Session
+    form: Form
+    studio: Studio
+
+    def on_seed(self, e: Any) -> None: ...
+
+    def error_label(self, where: str) -> Any: ...
 
 
 class ScenarioCard:
     """The lower part of the side panel; it reads the page's session and shows its errors."""
 
-    def __init__(self, page: Page, values: dict[str, Any]) -> None:
+    def __init__(self, page: Host, values: dict[str, Any]) -> None:
         self.page, self.s, self.form, self.studio = page, page.s, page.form, page.studio
         self.saved: str | None = None
         with ui.card().classes("w-full"):

@@ -1,14 +1,13 @@
 """The studio's state, kept as the ``agrinav scenario`` command line that reproduces it.
 
 The page never builds a spec its own way: its state is a preset, the terrain flags it was
-started with, the drawn field, a seed and ``--set`` overrides, and the spec is what the CLI's
-own ``spec_from_args`` makes of that command line. The command the page shows (and copies) is
-therefore the scenario it generates, by construction.
+started with, the drawn field, a seed and ``--set`` overrides, and the spec is what
+``baselines.scenario_spec`` — the CLI's own spec builder — makes of that command line. The
+command the page shows (and copies) is therefore the scenario it generates, by construction.
 """
 
 from __future__ import annotations
 
-import functools
 import math
 import shlex
 from dataclasses import dataclass, field
@@ -22,6 +21,7 @@ from scenario_gen.generate import check_spec
 from scenario_gen.schema import coerce, field_info, parse_yaml, plain
 from scenario_gen.spec import ScenarioSpec
 
+from ..scenario_spec import spec_from_argv
 from . import fields
 
 
@@ -55,11 +55,11 @@ class Session:
     # ------------------------------------------------------------------ the spec
     def base(self) -> ScenarioSpec:
         """The spec without ``--set`` overrides and without a drawn field."""
-        return spec_from_cli(self.args(None, None, with_overrides=False))
+        return spec_from_argv(self.args(None, None, with_overrides=False))
 
     def spec(self, field_path: str | None = None) -> ScenarioSpec:
         """The spec the command line gives (``field_path`` names the drawn field's file)."""
-        return spec_from_cli(self.args(None, field_path))
+        return spec_from_argv(self.args(None, field_path))
 
     def set(self, key: str, value: Any) -> None:
         """Set one dotted spec field; bad values raise ``InputError`` naming ``key``."""
@@ -92,7 +92,7 @@ class Session:
 
     def set_preset(self, name: str) -> None:
         """Switch preset; overrides are dropped (they were relative to the old one)."""
-        spec_from_cli(["--preset", name, *self.terrain.args()])
+        spec_from_argv(["--preset", name, *self.terrain.args()])
         self.preset, self.overrides = name, {}
 
     # ------------------------------------------------------------------ the command line
@@ -127,35 +127,6 @@ def field_file(out: str | Path) -> Path:
     """Where the drawn field is written: next to the scenario folder, not inside it."""
     p = Path(out)
     return p.with_name(p.name + ".field.geojson")
-
-
-def spec_from_cli(args: list[str]) -> ScenarioSpec:
-    """The spec ``agrinav scenario ARGS`` would generate (``--out`` may be omitted)."""
-    return _spec_from_cli(tuple(args))
-
-
-@functools.lru_cache(maxsize=512)
-def _spec_from_cli(args: tuple[str, ...]) -> ScenarioSpec:
-    # Cached: argparse and the preset's YAML cost ≈15 ms a time, a third of a live redraw.
-    # Specs are frozen and these arguments name no file that is read here, so it is exact.
-    from baselines.cli.scenario import spec_from_args
-
-    argv = ["scenario", *args]
-    if "--out" not in args:
-        argv += ["--out", "-"]
-    try:
-        ns = _parser().parse_args(argv)
-    except SystemExit:
-        raise InputError("command", shlex.join(argv), "is not a valid agrinav command") from None
-    spec: ScenarioSpec = spec_from_args(ns)
-    return spec
-
-
-@functools.lru_cache(maxsize=1)
-def _parser() -> Any:
-    from baselines.cli import build_parser
-
-    return build_parser()
 
 
 def yaml_value(v: Any) -> str:

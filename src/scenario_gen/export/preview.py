@@ -42,7 +42,7 @@ def _gpkg_plants(scn: Scenario, gpkg: Path) -> tuple[np.ndarray, np.ndarray]:
     import shapely
     from pyproj import Transformer
 
-    from .gis import local_crs
+    from .crs import local_crs
     from .gpkg import read_geometries
 
     lonlat = shapely.get_coordinates(np.array(read_geometries(gpkg, "plants"), dtype=object))

@@ -8,7 +8,7 @@ import pytest
 from shapely.geometry import Polygon
 
 from baselines.cli import build_parser
-from baselines.cli.scenario import spec_from_args
+from baselines.scenario_spec import spec_from_args
 from baselines.studio.session import Session, field_file, yaml_value
 from scenario_gen.errors import InputError
 from scenario_gen.schema import field_rows, parse_yaml

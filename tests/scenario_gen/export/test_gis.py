@@ -14,7 +14,7 @@ from pyproj import Transformer
 
 from scenario_gen import GeoFrame, Scenario, load
 from scenario_gen.export import ExportOptions, export
-from scenario_gen.export.gis import local_crs
+from scenario_gen.export.crs import local_crs
 
 from .tools import gdal
 

@@ -26,9 +26,10 @@ from numpy.typing import NDArray
 
 from scenario_gen import Scenario, Terrain
 
-from ..sensors import native
-from ..sensors.embree import Caster, Scene, device
-from .plant_meshes import OTHER, SOIL, PlantMeshes
+from . import native
+from .classes import OTHER, SOIL
+from .embree import Caster, Scene, device
+from .plant_meshes import PlantMeshes
 
 FloatArray = NDArray[np.float64]
 F32 = NDArray[np.float32]

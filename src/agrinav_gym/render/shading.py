@@ -20,6 +20,7 @@ from numpy.typing import NDArray
 FloatArray = NDArray[np.float64]
 U8 = NDArray[np.uint8]
 
+SOIL_RGB = (0.45, 0.33, 0.22)  # default soil colour of renders and the cameras' RGB
 AMBIENT = 0.35
 SKY_HORIZON = np.array([0.80, 0.86, 0.93])
 SKY_ZENITH = np.array([0.42, 0.62, 0.88])

@@ -24,9 +24,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..interface import CameraModel
-from ..sim.mesh_scene import MeshScene
-from ..sim.plant_meshes import Prototype
 from . import native, pixel_noise, shading
+from .mesh_scene import MeshScene
+from .plant_meshes import Prototype
 
 FloatArray = NDArray[np.float64]
 ZNEAR = 1e-3  # m: the ray casts start at the camera; nothing of the scene comes this close

@@ -1,6 +1,6 @@
-"""The compiled sensor kernels (``src/agrinav_gym/csrc``) through ctypes.
+"""The compiled sensor kernels (``src/agrinav_gym/render/csrc``) through ctypes.
 
-The kernels are plain C functions in the optional extension ``agrinav_gym._native`` (built by
+The kernels are plain C functions in the optional extension ``agrinav_gym.render._native`` (built by
 ``pip install``/``make`` where a C compiler exists). ctypes releases the GIL during each call,
 so two threads can render two views at once. Where the extension is missing, or the
 environment sets ``AGRINAV_NATIVE=0``, ``lib()`` returns None and the sensors use their numpy
@@ -67,7 +67,7 @@ def stale(handle: Any) -> str | None:
         return "it predates the source check"
     fn.restype = ctypes.c_char_p
     built = fn().decode()
-    csrc = Path(__file__).resolve().parent.parent / "csrc"
+    csrc = Path(__file__).resolve().parent / "csrc"
     if not any(csrc.glob("*.c")):
         return None
     here = source_hash(csrc)
@@ -85,7 +85,7 @@ def lib() -> Any:
         return None
     if not _TRIED:
         _TRIED = True
-        spec = importlib.util.find_spec("agrinav_gym._native")
+        spec = importlib.util.find_spec("agrinav_gym.render._native")
         if spec is not None and spec.origin is not None:
             try:
                 handle = ctypes.CDLL(spec.origin)
@@ -96,7 +96,7 @@ def lib() -> Any:
                 global _STALE
                 _STALE = why
                 warnings.warn(
-                    f"agrinav_gym._native is stale ({why}); the sensors use their numpy and "
+                    f"agrinav_gym.render._native is stale ({why}); the sensors use their numpy and "
                     "Embree paths until it is rebuilt (pip install -e . or make test)",
                     RuntimeWarning,
                     stacklevel=2,
@@ -123,7 +123,9 @@ def require(what: str) -> Any:
             why = f"stale, {_STALE} (rebuild: pip install -e . or make test)"
         else:
             why = "not built (reinstall with a C compiler: pip install -e . or make test)"
-        raise NativeUnavailable(f"{what} needs the compiled kernels agrinav_gym._native: {why}")
+        raise NativeUnavailable(
+            f"{what} needs the compiled kernels agrinav_gym.render._native: {why}"
+        )
     return handle
 
 

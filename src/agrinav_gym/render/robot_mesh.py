@@ -8,13 +8,13 @@ from __future__ import annotations
 
 import xml.etree.ElementTree as ET
 from functools import lru_cache
-from importlib import resources
 from typing import Any
 
 import numpy as np
 
-from .plant_meshes import ROBOT, Prototype, rotation_rpy
-from .world import URDF_NAME, URDF_PACKAGE
+from ..robot import urdf_text
+from .classes import ROBOT
+from .plant_meshes import Prototype, rotation_rpy
 
 
 def _floats(text: str | None, n: int) -> list[float]:
@@ -36,7 +36,7 @@ def robot_prototype(camera_housing: bool = True) -> Prototype:
     itself, which its own rays would start inside) is left out."""
     import trimesh
 
-    root = ET.fromstring(resources.files(URDF_PACKAGE).joinpath(URDF_NAME).read_text())
+    root = ET.fromstring(urdf_text())
     colours = {}
     for m in root.iter("material"):
         c = m.find("color")

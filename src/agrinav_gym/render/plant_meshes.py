@@ -25,12 +25,13 @@ from numpy.typing import NDArray
 from scenario_gen import CATALOG, Scenario
 from scenario_gen.crops import crop_mesh
 
+from .classes import CROP, WEED
+
 F32 = NDArray[np.float32]
 FloatArray = NDArray[np.float64]
 
 #: growth steps per species (nodes 0, 1/n, ..., 1); see the module docstring and docs/sensors.md
 GROWTH_INTERVALS = {"corn": 48, "sunflower": 24, "tomato": 12, "cabbage": 6, "weed": 6}
-OTHER, SOIL, CROP, WEED, ROBOT = 0, 1, 2, 3, 4  # semantic classes (OTHER: sky / nothing)
 
 
 def growth_node(name: str, growth: Any) -> NDArray[np.int64]:

@@ -19,7 +19,7 @@ from scipy.spatial import cKDTree
 
 from scenario_gen import CATALOG, Scenario
 
-from .proxy_fit import ParamsFn, proxy_params
+from .proxy_params import ParamsFn, proxy_params
 
 FloatArray = NDArray[np.float64]
 

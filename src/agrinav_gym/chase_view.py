@@ -14,14 +14,14 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from ..config import CameraConfig, RenderConfig
-from ..interface import CameraModel
-from ..sensors.embree import Caster
-from ..sensors.mesh_camera import MeshCamera, robot_scene, rotate
-from ..sensors.shading import to_u8
-from .mesh_scene import MeshScene
-from .plant_meshes import ROBOT
-from .world import RobotState
+from .config import CameraConfig, RenderConfig
+from .interface import CameraModel
+from .render.classes import ROBOT
+from .render.embree import Caster
+from .render.mesh_scene import MeshScene
+from .render.shading import to_u8
+from .robot import RobotState
+from .sensors.mesh_camera import MeshCamera, robot_scene, rotate
 
 VFOV_DEG = 60.0
 FAR = 30.0  # m the chase camera sees geometry before the haze
@@ -73,7 +73,7 @@ class ChaseView:
         hits.prim[closer] = bot.prim[closer]
         rgb = self.chase.shade(scene, o, d, hits, s.rot, FAR, robot=(s.rot, s.pos))
         frame = to_u8(rgb).reshape(self.cfg.height, self.cfg.width, 3)
-        small = self.inset.render(s.rot, s.pos, scene, None, rgb=True, view=False).rgb
+        small = self.inset.draw(s.rot, s.pos, scene, None, rgb=True, view=False).rgb
         assert small is not None
         ih, iw = small.shape[:2]
         frame[:ih, -iw:] = small
