@@ -178,8 +178,8 @@ def randomized_reset(repeat: int) -> float:
             "layout.jitter_lateral": [0.0, 0.03],
             "layout.row_angle_deg": [-20.0, 20.0],
             "terrain.site": {"choices": ["flattest", "steepest"]},
-            "gnss_mode": {"choices": ["rtk_fixed", "rtk_float"]},
-            "soil_colour": [[0.3, 0.2, 0.1], [0.6, 0.45, 0.3]],
+            "gnss.mode": {"choices": ["rtk_fixed", "rtk_float"]},
+            "lighting.soil_rgb": [[0.3, 0.2, 0.1], [0.6, 0.45, 0.3]],
         },
     )
     env.reset(seed=0)

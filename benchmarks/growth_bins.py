@@ -6,8 +6,8 @@ is a node), this measures the symmetric mean surface distance between ``crop_mes
 node's model scaled to the same height, over 97 growths evenly spaced in [0, 1], and picks the
 smallest n whose mean over g is at most 6 mm (the D455's depth RMS at 1.8 m in the 848 × 480
 mode). The largest single distance is a leaf that appears up to half a step early or late; it
-does not shrink with n, so it is reported, not used. Prints a markdown table (docs/sensors.md)
-and checks it against ``GROWTH_INTERVALS``.
+does not shrink with n, so it is reported, not used. Prints a markdown table (docs/camera.md)
+and checks it against each catalog entry's ``mesh_intervals``.
 
 Run: ``python benchmarks/growth_bins.py`` (about a minute).
 """
@@ -19,7 +19,6 @@ import trimesh
 from scipy.spatial import cKDTree
 from tqdm import tqdm
 
-from agrinav_gym.render.plant_meshes import GROWTH_INTERVALS
 from scenario_gen import CATALOG
 from scenario_gen.crops import crop_mesh
 
@@ -40,7 +39,7 @@ def main() -> None:
     growths = np.linspace(0.0, 1.0, 97)
     rows = []
     chosen = {}
-    for name in tqdm(list(GROWTH_INTERVALS), desc="species"):
+    for name in tqdm(list(CATALOG), desc="species"):
         sp = CATALOG[name]
         step = sp.stages - 1
         for n in (c for c in CANDIDATES if c % step == 0):
@@ -61,8 +60,9 @@ def main() -> None:
         mark = " ← chosen" if chosen.get(name) == n else ""
         print(f"| {name} | {n}{mark} | {mean * 1e3:.1f} | {worst * 1e3:.0f} |")
     print("chosen:", chosen)
-    if chosen != GROWTH_INTERVALS:
-        print("WARNING: GROWTH_INTERVALS differs:", GROWTH_INTERVALS)
+    shipped = {name: sp.mesh_intervals for name, sp in CATALOG.items()}
+    if chosen != shipped:
+        print("WARNING: the catalog's mesh_intervals differ:", shipped)
 
 
 if __name__ == "__main__":

@@ -15,6 +15,8 @@ from scenario_gen.errors import InputError
 from scenario_gen.schema import from_mapping, merge, to_mapping
 from scenario_gen.schema import param as _f
 
+from .interface import GNSS_RTK_FIXED, RECEIVER_MODES
+
 
 @dataclass(frozen=True)
 class RobotConfig:
@@ -138,9 +140,9 @@ class GnssFixConfig:
 @dataclass(frozen=True)
 class GnssConfig:
     mode: str = _f(
-        "rtk_fixed",
+        GNSS_RTK_FIXED,
         "best fix mode of the receiver setup (rtk_*: with base-station corrections)",
-        choices=("rtk_fixed", "rtk_float", "standalone"),
+        choices=RECEIVER_MODES,
     )
     rate_hz: int = _f(10, "update rate, Hz (ZED-F9P up to 20; a divisor of control_hz)", 1, 20)
     latency_s: float = _f(
@@ -258,11 +260,23 @@ class RenderConfig:
 
 
 @dataclass(frozen=True)
+class LightingConfig:
+    """The soil colour and the sun the cameras and the chase view shade with."""
+
+    soil_rgb: tuple[float, float, float] | None = _f(
+        None, "soil colour, RGB in [0, 1] (null: the default soil, 0.45 0.33 0.22)", 0.0, 1.0
+    )
+    sun_azimuth_deg: float = _f(33.7, "sun azimuth, degrees counter-clockwise from east", -360, 360)
+    sun_elevation_deg: float = _f(68.4, "sun elevation above the horizon, degrees", 0, 90)
+
+
+@dataclass(frozen=True)
 class EnvConfig:
     robot: RobotConfig = dc_field(default_factory=RobotConfig)
     soil: SoilConfig = dc_field(default_factory=SoilConfig)
     camera: CameraConfig = dc_field(default_factory=CameraConfig)
     render: RenderConfig = dc_field(default_factory=RenderConfig)
+    lighting: LightingConfig = dc_field(default_factory=LightingConfig)
     gnss: GnssConfig = dc_field(default_factory=GnssConfig)
     imu: ImuConfig = dc_field(default_factory=ImuConfig)
     odom: OdomConfig = dc_field(default_factory=OdomConfig)

@@ -29,6 +29,7 @@ from . import rewards
 from .chase_view import ChaseView
 from .config import EnvConfig
 from .estimation import Readings, make_estimator
+from .interface import OBS_DEPTH, OBS_GPS, OBS_IMU, OBS_ODOM, OBS_ROUTE
 from .metrics import EpisodeMetrics
 from .observations import OBSERVATION_MODELS, Snapshot
 from .render.mesh_scene import SceneCache
@@ -62,7 +63,7 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         "render_fps": 20,
     }
     task_name: ClassVar[str]
-    default_observations: ClassVar[tuple[str, ...]] = ("gps", "imu", "odom", "route")
+    default_observations: ClassVar[tuple[str, ...]] = (OBS_GPS, OBS_IMU, OBS_ODOM, OBS_ROUTE)
 
     def __init__(
         self,
@@ -117,7 +118,12 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         self._chase: ChaseView | None = None
         self._chase_scenes = SceneCache()
         self._camera_scenes = SceneCache()  # the mesh camera's, built on first use
-        self._lighting: tuple[Any, float, float] = (None, 33.7, 68.4)
+        light = self.cfg.lighting
+        self._lighting: tuple[Any, float, float] = (
+            light.soil_rgb,
+            light.sun_azimuth_deg,
+            light.sun_elevation_deg,
+        )
 
     # ------------------------------------------------------------------ gym API
     def reset(
@@ -218,7 +224,7 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         """What produced this episode's numbers: localisation, camera model, speed limit."""
         c = self.cfg.camera
         kind = "crop meshes (Embree)" if c.model == "mesh" else "analytic proxy"
-        cam = f"{c.width}x{c.height} {kind}" if "depth" in self.obs_models else "none"
+        cam = f"{c.width}x{c.height} {kind}" if OBS_DEPTH in self.obs_models else "none"
         return {
             "localisation": self._localisation_label(),
             "camera": cam,
@@ -403,12 +409,15 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         return 0.5 * self.scenario.rows.spacing - self.contact.half_width - self.contact.max_radius
 
     def _apply_env_values(self, values: dict[str, Any]) -> None:
-        if "gnss_mode" in values:
-            self.sensors.set_gnss_mode(str(values["gnss_mode"]))
+        """This reset's draws of the env-side ``randomize`` keys (``scenarios.ENV_KEYS``); the
+        config's values where a key is not randomized."""
+        if "gnss.mode" in values:
+            self.sensors.set_gnss_mode(str(values["gnss.mode"]))
+        light = self.cfg.lighting
         self._lighting = (
-            values.get("soil_colour"),
-            values.get("light_azimuth_deg", 33.7),
-            values.get("light_elevation_deg", 68.4),
+            values.get("lighting.soil_rgb", light.soil_rgb),
+            values.get("lighting.sun_azimuth_deg", light.sun_azimuth_deg),
+            values.get("lighting.sun_elevation_deg", light.sun_elevation_deg),
         )
         for model in self.obs_models.values():
             model.set_lighting(*self._lighting)

@@ -22,10 +22,21 @@ GPS_FIELDS = ("east", "north", "up", "fix_code", "fix_age")  # antenna fix (ENU 
 IMU_FIELDS = ("fx", "fy", "fz", "wx", "wy", "wz", "roll", "pitch", "sin_yaw", "cos_yaw")
 ODOM_FIELDS = ("v", "w")  # wheel-odometry forward speed m/s, yaw rate rad/s
 ROUTE_POINT_FIELDS = ("x", "y", "furrow")  # robot-frame route point (m) and its furrow flag
+
+#: The observation keys an env can offer (``observations=[...]``), each one ``ObservationModel``.
+OBS_GPS, OBS_IMU, OBS_ODOM, OBS_ROUTE, OBS_DEPTH = "gps", "imu", "odom", "route", "depth"
+OBSERVATION_KEYS = (OBS_GPS, OBS_IMU, OBS_ODOM, OBS_ROUTE, OBS_DEPTH)
+
+#: GNSS fix modes, worst to best: a receiver's current fix (``info["gnss_mode"]``) is one of
+#: these; its best mode (``gnss.mode``: what its corrections allow) one of ``RECEIVER_MODES``.
+GNSS_NONE, GNSS_STANDALONE = "none", "standalone"
+GNSS_RTK_FLOAT, GNSS_RTK_FIXED = "rtk_float", "rtk_fixed"
+FIX_LEVELS = (GNSS_NONE, GNSS_STANDALONE, GNSS_RTK_FLOAT, GNSS_RTK_FIXED)
+RECEIVER_MODES = (GNSS_RTK_FIXED, GNSS_RTK_FLOAT, GNSS_STANDALONE)
 #: GNSS fix codes in the ``gps`` observation (NMEA GGA-like: higher is better). With no fix the
 #: last position is held and reads as the lowest quality; its growing fix age tells it apart
 #: (a code of its own would change the space the shipped checkpoints were trained on).
-FIX_CODES = {"none": 0, "standalone": 0, "rtk_float": 1, "rtk_fixed": 2}
+FIX_CODES = {GNSS_NONE: 0, GNSS_STANDALONE: 0, GNSS_RTK_FLOAT: 1, GNSS_RTK_FIXED: 2}
 
 
 @dataclass(frozen=True)

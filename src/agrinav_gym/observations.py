@@ -22,7 +22,18 @@ from scenario_gen import Scenario
 
 from .config import EnvConfig
 from .estimation import Readings
-from .interface import FIX_CODES, GPS_FIELDS, IMU_FIELDS, ODOM_FIELDS, RobotInterface
+from .interface import (
+    FIX_CODES,
+    GPS_FIELDS,
+    IMU_FIELDS,
+    OBS_DEPTH,
+    OBS_GPS,
+    OBS_IMU,
+    OBS_ODOM,
+    OBS_ROUTE,
+    ODOM_FIELDS,
+    RobotInterface,
+)
 from .robot import RobotState
 from .routes import RoutePath, Tracker
 from .sensors import make_camera
@@ -102,7 +113,7 @@ def observation(cls: T) -> T:
 class GpsObservation(VectorObservation):
     """ENU antenna fix (m, ±10 km), fix code (FIX_CODES), fix age (s, up to 60)."""
 
-    key: ClassVar[str] = "gps"
+    key: ClassVar[str] = OBS_GPS
     low = (-1e4, -1e4, -1e4, min(FIX_CODES.values()), 0.0)
     high = (1e4, 1e4, 1e4, max(FIX_CODES.values()), 60.0)
 
@@ -119,7 +130,7 @@ class GpsObservation(VectorObservation):
 class ImuObservation(VectorObservation):
     """Body specific force (m/s²), angular rate (rad/s), roll, pitch, sin/cos heading."""
 
-    key: ClassVar[str] = "imu"
+    key: ClassVar[str] = OBS_IMU
     low = (-G20,) * 3 + (-RATE,) * 3 + (-math.pi, -math.pi, -1.0, -1.0)
     high = (G20,) * 3 + (RATE,) * 3 + (math.pi, math.pi, 1.0, 1.0)
 
@@ -135,7 +146,7 @@ class ImuObservation(VectorObservation):
 class OdomObservation(VectorObservation):
     """Wheel-odometry forward speed (m/s, ±10) and yaw rate (rad/s, ±20)."""
 
-    key: ClassVar[str] = "odom"
+    key: ClassVar[str] = OBS_ODOM
     low = (-10.0, -20.0)
     high = (10.0, 20.0)
 
@@ -150,7 +161,7 @@ class RouteObservation(ObservationModel):
     """The next K route points, ``route_spacing`` apart along the route from the *estimated*
     pose's projection, in the estimated robot frame (±100 m), each with a furrow flag."""
 
-    key: ClassVar[str] = "route"
+    key: ClassVar[str] = OBS_ROUTE
 
     def __init__(self, cfg: EnvConfig, robot: RobotInterface) -> None:
         super().__init__(cfg, robot)
@@ -189,7 +200,7 @@ class DepthObservation(ObservationModel):
     ``camera.model`` picks the fidelity: the analytic proxy (``DepthCamera``) or the crop meshes
     (``MeshCamera`` over the scenario's ``MeshScene``)."""
 
-    key: ClassVar[str] = "depth"
+    key: ClassVar[str] = OBS_DEPTH
 
     def __init__(self, cfg: EnvConfig, robot: RobotInterface) -> None:
         super().__init__(cfg, robot)

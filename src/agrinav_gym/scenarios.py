@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import itertools
 import json
+import warnings
 from collections import OrderedDict
 from dataclasses import dataclass
 from pathlib import Path
@@ -24,28 +25,26 @@ import scenario_gen as sg
 from scenario_gen import Scenario
 from scenario_gen.errors import InputError
 from scenario_gen.generate import COUPLED_FIELDS, check_spec
-from scenario_gen.schema import field_info, is_integer_field, load_yaml, to_mapping
+from scenario_gen.schema import coerce, field_info, is_integer_field, load_yaml, plain, to_mapping
 from scenario_gen.spec import ScenarioSpec
 
-from .sensors.gnss import MODES
+from .config import EnvConfig
 
-
-@dataclass(frozen=True)
-class EnvKey:
-    """An env-side randomization key: its kind and bounds."""
-
-    kind: str  # "choice" | "float" | "rgb"
-    lo: float = 0.0
-    hi: float = 0.0
-    choices: tuple[str, ...] = ()
-
-
-#: Keys of ``randomize`` handled by the env rather than the scenario spec.
-ENV_KEYS: dict[str, EnvKey] = {
-    "gnss_mode": EnvKey("choice", choices=tuple(MODES)),
-    "soil_colour": EnvKey("rgb", 0.0, 1.0),
-    "light_azimuth_deg": EnvKey("float", -360.0, 360.0),
-    "light_elevation_deg": EnvKey("float", 0.0, 90.0),
+#: Keys of ``randomize`` handled by the env rather than the scenario spec: the ``EnvConfig``
+#: fields a reset can change without rebuilding the env, named as those fields (their bounds
+#: and choices are the config's).
+ENV_KEYS = (
+    "gnss.mode",
+    "lighting.soil_rgb",
+    "lighting.sun_azimuth_deg",
+    "lighting.sun_elevation_deg",
+)
+#: Former names of env keys, still accepted with a warning.
+RENAMED_KEYS = {
+    "gnss_mode": "gnss.mode",
+    "soil_colour": "lighting.soil_rgb",
+    "light_azimuth_deg": "lighting.sun_azimuth_deg",
+    "light_elevation_deg": "lighting.sun_elevation_deg",
 }
 
 
@@ -113,9 +112,8 @@ class Randomization:
             self.scenario_keys: tuple[str, ...] = known[1]
             return
         scenario_draws: list[Draw] = []
+        ranges = _renamed(ranges)
         for key in sorted(ranges):
-            if not isinstance(key, str):
-                raise InputError("randomize", key, "allowed: string keys")
             lo, hi, choices = _parse(key, ranges[key])
             if key in ENV_KEYS:
                 draw = _env_draw(key, lo, hi, choices)
@@ -143,38 +141,48 @@ class Randomization:
         return scn, env
 
 
+def _renamed(ranges: dict[Any, Any]) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for key, value in ranges.items():
+        if not isinstance(key, str):
+            raise InputError("randomize", key, "allowed: string keys")
+        if key in RENAMED_KEYS:
+            new = RENAMED_KEYS[key]
+            warnings.warn(
+                f"randomize.{key} is now randomize.{new} (the config field it sets)",
+                DeprecationWarning,
+                stacklevel=4,
+            )
+            if new in ranges:
+                raise InputError(f"randomize.{key}", key, f"given twice, as {key} and {new}")
+            key = new
+        out[key] = value
+    return out
+
+
 def _env_draw(key: str, lo: Any, hi: Any, choices: tuple[Any, ...] | None) -> Draw:
-    k, where = ENV_KEYS[key], f"randomize.{key}"
-    if k.kind == "choice":
-        if choices is None or any(c not in k.choices for c in choices):
-            raise InputError(
-                where, choices or [lo, hi], f"allowed: {{choices: [...]}} of {', '.join(k.choices)}"
-            )
-        return Draw(key, choices=choices)
-    if k.kind == "rgb":
-        values = list(choices) if choices is not None else [lo, hi]
-        for v in values:
-            ok = (
-                isinstance(v, (list, tuple))
-                and len(v) == 3
-                and all(_number(c) and k.lo <= float(c) <= k.hi for c in v)
-            )
-            if not ok:
-                raise InputError(where, v, "allowed: RGB triplets [r, g, b] with values in [0, 1]")
-        if choices is not None:
-            return Draw(key, choices=tuple(list(map(float, c)) for c in choices))
-        lo_v, hi_v = [float(c) for c in lo], [float(c) for c in hi]
+    where = f"randomize.{key}"
+    info = field_info(EnvConfig, key)
+    assert info is not None and info[0] is not None
+    tp, meta = info
+    values = list(choices) if choices is not None else [lo, hi]
+    checked = [coerce(v, tp, meta, where) for v in values]
+    if choices is not None:
+        return Draw(key, choices=tuple(plain(v) for v in checked))
+    if meta.get("choices") is not None:
+        raise InputError(
+            where, [lo, hi], f"allowed: {{choices: [...]}} of {', '.join(meta['choices'])}"
+        )
+    if any(v is None for v in checked):
+        raise InputError(where, [lo, hi], "allowed: [low, high] bounds, not null")
+    if isinstance(checked[0], tuple):  # e.g. soil colour: uniform per channel
+        lo_v, hi_v = list(checked[0]), list(checked[1])
         if any(a > b for a, b in zip(lo_v, hi_v, strict=True)):
             raise InputError(where, [lo, hi], "allowed: low <= high in every channel")
         return Draw(key, lo_v, hi_v)
-    values = list(choices) if choices is not None else [lo, hi]
-    if not all(_number(v) and k.lo <= float(v) <= k.hi for v in values):
-        raise InputError(where, values, f"allowed: numbers in [{k.lo:g}, {k.hi:g}]")
-    if choices is not None:
-        return Draw(key, choices=tuple(float(v) for v in choices))
-    if float(lo) > float(hi):
+    if checked[0] > checked[1]:
         raise InputError(where, [lo, hi], "allowed: [low, high] with low <= high")
-    return Draw(key, float(lo), float(hi))
+    return Draw(key, float(checked[0]), float(checked[1]))
 
 
 def _number(v: Any) -> bool:

@@ -10,7 +10,9 @@ from typing import Any
 
 from tqdm import tqdm
 
+from agrinav_gym.interface import OBSERVATION_KEYS
 from policies import check_policy_spec
+from policies.spec import PolicySpec
 from scenario_gen.atomic import atomic_write_text, check_output_dir, output_dir
 from scenario_gen.errors import InputError
 
@@ -87,7 +89,7 @@ def _make_env(
         env_id = case_or_id.env_id
     else:
         env_id = case_or_id
-        kw = {"observations": ["gps", "imu", "odom", "route", "depth"]}
+        kw = {"observations": list(OBSERVATION_KEYS)}
         if scenario is not None:
             kw["scenario"] = scenario
         if max_steps is not None:
@@ -101,7 +103,7 @@ def _make_env(
 def _policy(spec: str, env: Any, trust: bool) -> Any:
     from policies import make_policy
 
-    extra = {"trust_checkpoint": True} if trust and spec.startswith("ppo:") else {}
+    extra = {"trust_checkpoint": True} if trust and PolicySpec.parse(spec).name == "ppo" else {}
     return make_policy(spec, env, **extra)
 
 

@@ -93,6 +93,10 @@ def reference() -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """``python -m baselines.configdoc [PATH]``: write the reference (default docs/config.md)."""
+    if argv and (argv[0].startswith("-") or len(argv) > 1):
+        print("usage: python -m baselines.configdoc [PATH]  (default: docs/config.md)")
+        return 0 if argv[0] in ("-h", "--help") else 2
     path = Path(argv[0] if argv else "docs/config.md")
     path.write_text(reference())
     print(f"wrote {path}")

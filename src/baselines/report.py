@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from policies.spec import PolicySpec
 from scenario_gen.errors import InputError
 
 #: Cross-track errors: path-weighted (the headline) and the paper's per-pose (time-weighted).
@@ -34,10 +35,10 @@ def policy_labels(specs: Sequence[str]) -> list[str]:
     DWB, or ``ppo:FOLDER`` when several PPO checkpoints compete."""
     from policies.dwb import config_label
 
-    names = [spec.split(":")[0] for spec in specs]
+    parsed = [PolicySpec.parse(spec) for spec in specs]
+    names = [p.name for p in parsed]
     labels = []
-    for spec, name in zip(specs, names, strict=True):
-        path = spec.partition(":")[2]
+    for name, path in parsed:
         if name == "dwb":
             labels.append(f"dwb:{config_label(path or None)}")
         elif names.count(name) > 1 and path:

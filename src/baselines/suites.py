@@ -9,10 +9,11 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
+from agrinav_gym.interface import GNSS_RTK_FIXED, GNSS_RTK_FLOAT, OBSERVATION_KEYS
 from scenario_gen import ScenarioError
 
 EVAL_SEED = 1_000_000_000
-ALL_OBS = ["gps", "imu", "odom", "route", "depth"]  # every policy finds its inputs
+ALL_OBS = list(OBSERVATION_KEYS)  # every policy finds its inputs
 
 
 @dataclass(frozen=True)
@@ -66,7 +67,7 @@ def paper_waypoints() -> str:
 NAV2_PROGRESS: dict[str, Any] = {"progress_time": 10.0, "progress_radius": 0.5}
 RTK_EKF: dict[str, Any] = {
     "localisation": {"kind": "ekf"},
-    "gnss": {"mode": "rtk_fixed"},
+    "gnss": {"mode": GNSS_RTK_FIXED},
     "task": NAV2_PROGRESS,
 }
 
@@ -88,7 +89,7 @@ OOD_AXES: tuple[tuple[str, tuple[str, ...], dict[str, Any], dict[str, Any]], ...
         {},
         {"randomize": {"terrain.max_slope_deg": [9.0, 12.0]}},
     ),
-    ("RTK float", (), {}, {"gnss": {"mode": "rtk_float", "fix": {"model": "constant"}}}),
+    ("RTK float", (), {}, {"gnss": {"mode": GNSS_RTK_FLOAT, "fix": {"model": "constant"}}}),
 )
 
 
@@ -156,8 +157,16 @@ def _localisation() -> list[Case]:
     const = {"fix": {"model": "constant"}}
     rows = (
         ("ideal", 3, {"localisation": {"kind": "ideal"}}),
-        ("RTK fixed", 3, {"localisation": {"kind": "ekf"}, "gnss": {"mode": "rtk_fixed", **const}}),
-        ("RTK float", 3, {"localisation": {"kind": "ekf"}, "gnss": {"mode": "rtk_float", **const}}),
+        (
+            "RTK fixed",
+            3,
+            {"localisation": {"kind": "ekf"}, "gnss": {"mode": GNSS_RTK_FIXED, **const}},
+        ),
+        (
+            "RTK float",
+            3,
+            {"localisation": {"kind": "ekf"}, "gnss": {"mode": GNSS_RTK_FLOAT, **const}},
+        ),
         ("canopy 2.5 m", 5, RTK_EKF),
     )
     return [

@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from agrinav_gym.interface import OBS_GPS, OBS_IMU, OBS_ODOM, OBS_ROUTE
 from scenario_gen.atomic import check_output_dir, output_dir
 from scenario_gen.errors import InputError
 
@@ -44,7 +45,7 @@ FAIL_SCORE = 1.0  # m: an unfinished route scores like a metre of cross-track er
 CROP_PENALTY = 0.05  # m per stalk touched
 ENV_ID = "AgriNav/FieldRoute-v2"
 #: The benchmark's conditions (suites.RTK_EKF) without the depth camera the trackers ignore.
-OBSERVATIONS = ["gps", "imu", "odom", "route"]
+OBSERVATIONS = [OBS_GPS, OBS_IMU, OBS_ODOM, OBS_ROUTE]
 
 
 def score(records: list[dict[str, Any]]) -> float:

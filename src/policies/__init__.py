@@ -21,6 +21,7 @@ from .depth_follower import DepthFurrowFollower
 from .dwb import DWB
 from .ppo import PPOPolicy
 from .rpp import RegulatedPurePursuit
+from .spec import SEPARATOR, SHIPPED_ARG, PolicySpec
 from .stanley import Stanley
 
 POLICIES: dict[str, type[Policy]] = {
@@ -77,15 +78,15 @@ def check_policy_spec(spec: Any) -> tuple[str, str]:
     builds anything, so a typo costs no simulator start-up and leaves nothing behind."""
     if not isinstance(spec, str):
         raise InputError("policy", spec, f"allowed: {', '.join(POLICIES)} or ppo:PATH")
-    name, sep, path = spec.partition(":")
-    if sep and not path:
+    name, path = PolicySpec.parse(spec)
+    if spec.endswith(SEPARATOR) and not path:
         raise InputError("policy", spec, f"an empty ':' argument; allowed: {name} or {name}:ARG")
     if name not in POLICIES:
         raise InputError("policy", spec, f"allowed: {', '.join(POLICIES)} (ppo:PATH, ppo:shipped)")
     if name == "ppo":
         if not path:
             raise InputError("policy", spec, "ppo needs a checkpoint: ppo:PATH or ppo:shipped")
-        if path != "shipped" and not Path(path).exists():
+        if path != SHIPPED_ARG and not Path(path).exists():
             raise InputError(
                 "policy",
                 spec,
@@ -113,7 +114,7 @@ def make_policy(spec: str, env: Any, **params: Any) -> Policy:
     u = env.unwrapped
     kwargs: dict[str, Any] = dict(params)
     if name == "ppo":
-        if path == "shipped":
+        if path == SHIPPED_ARG:
             if u.spec is None:
                 raise InputError("policy", spec, "ppo:shipped needs an env made with gym.make")
             path = str(shipped_model(u.spec.id))

@@ -15,7 +15,7 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
-from agrinav_gym.interface import RobotInterface
+from agrinav_gym.interface import OBS_DEPTH, RobotInterface
 
 from .base import Obs, Policy
 from .geometry import DepthProjector
@@ -23,7 +23,7 @@ from .geometry import DepthProjector
 
 class DepthFurrowFollower(Policy):
     name = "depth"
-    requires = ("depth",)
+    requires = (OBS_DEPTH,)
 
     def __init__(
         self,
@@ -90,7 +90,7 @@ class DepthFurrowFollower(Policy):
         return None
 
     def act(self, obs: Obs) -> NDArray[np.float32]:
-        est = self.lane(obs["depth"])
+        est = self.lane(obs[OBS_DEPTH])
         if est is None:  # no rows in view (headland, or taller crops than the view): go slow
             self.lost += 1
             return self._twist(0.3 * self.speed, 0.0)

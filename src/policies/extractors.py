@@ -10,6 +10,8 @@ from stable_baselines3.common.policies import MultiInputActorCriticPolicy
 from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
 from torch import nn
 
+from agrinav_gym.interface import OBS_DEPTH
+
 
 class DepthAndVector(BaseFeaturesExtractor):
     """Depth (1, H, W) in metres -> 3 conv layers -> 128; vectors concatenated through."""
@@ -17,15 +19,15 @@ class DepthAndVector(BaseFeaturesExtractor):
     def __init__(
         self, observation_space: gym.spaces.Dict, cnn_dim: int = 128, max_range: float = 6.0
     ) -> None:
-        vec_keys = [k for k in sorted(observation_space.spaces) if k != "depth"]
+        vec_keys = [k for k in sorted(observation_space.spaces) if k != OBS_DEPTH]
         vec_dim = sum(int(observation_space.spaces[k].shape[0]) for k in vec_keys)  # type: ignore[index,misc]
-        has_depth = "depth" in observation_space.spaces
+        has_depth = OBS_DEPTH in observation_space.spaces
         super().__init__(observation_space, features_dim=vec_dim + (cnn_dim if has_depth else 0))
         self.vec_keys = vec_keys
         self.max_range = max_range
         self.cnn: nn.Module | None = None
         if has_depth:
-            shape = observation_space.spaces["depth"].shape
+            shape = observation_space.spaces[OBS_DEPTH].shape
             assert shape is not None
             conv = nn.Sequential(
                 nn.Conv2d(1, 16, 5, stride=2),
@@ -43,7 +45,7 @@ class DepthAndVector(BaseFeaturesExtractor):
     def forward(self, obs: dict[str, torch.Tensor]) -> torch.Tensor:
         parts = [obs[k] for k in self.vec_keys]
         if self.cnn is not None:
-            parts.append(self.cnn(obs["depth"] / self.max_range))
+            parts.append(self.cnn(obs[OBS_DEPTH] / self.max_range))
         return torch.cat(parts, dim=1)
 
 

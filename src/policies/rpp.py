@@ -9,7 +9,7 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
-from agrinav_gym.interface import RobotInterface, decode_odom
+from agrinav_gym.interface import OBS_ODOM, OBS_ROUTE, RobotInterface, decode_odom
 
 from .base import Obs, Policy
 from .geometry import local_plan, regulated_speed
@@ -19,7 +19,7 @@ class RegulatedPurePursuit(Policy):
     """Nav2 defaults, with lookahead scaled by speed (0.3-0.9 m at 1.5 s of travel)."""
 
     name = "rpp"
-    requires = ("route",)
+    requires = (OBS_ROUTE,)
 
     def __init__(
         self,
@@ -55,9 +55,9 @@ class RegulatedPurePursuit(Policy):
         )
 
     def act(self, obs: Obs) -> NDArray[np.float32]:
-        if "odom" in obs:
-            self.v = decode_odom(obs["odom"]).v
-        plan, _ = local_plan(obs["route"])
+        if OBS_ODOM in obs:
+            self.v = decode_odom(obs[OBS_ODOM]).v
+        plan, _ = local_plan(obs[OBS_ROUTE])
         look = float(np.clip(abs(self.v) * self.t_look, self.l_min, self.l_max))
         d = np.hypot(plan[:, 0], plan[:, 1])
         ahead = np.flatnonzero((d >= look) & (plan[:, 0] > -0.2))

@@ -20,7 +20,7 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
-from agrinav_gym.interface import RobotInterface
+from agrinav_gym.interface import OBS_ROUTE, RobotInterface
 
 from .base import Obs, Policy
 from .geometry import local_plan, regulated_speed
@@ -30,7 +30,7 @@ class Stanley(Policy):
     """Stanley with integral action on the cross-track error (see the module docstring)."""
 
     name = "stanley"
-    requires = ("route",)
+    requires = (OBS_ROUTE,)
 
     def __init__(
         self,
@@ -74,7 +74,7 @@ class Stanley(Policy):
         )
 
     def act(self, obs: Obs) -> NDArray[np.float32]:
-        plan, tags = local_plan(obs["route"])
+        plan, tags = local_plan(obs[OBS_ROUTE])
         if len(plan) < 2:
             return self._twist(0.0, 0.0)
         # nearest plan point to the front axle (x = wheelbase / 2 ahead of base_link)

@@ -22,6 +22,14 @@ from numpy.typing import NDArray
 from .errors import InputError
 
 FloatArray = NDArray[np.float64]
+Colour = tuple[int, int, int]
+#: the species every field's weeds are (``layout.weed_density``)
+WEED_SPECIES = "weed"
+Parts = list[tuple[Any, Colour]]
+LeafFn = Callable[
+    [FloatArray, float, float, float, float, float], tuple[FloatArray, NDArray[np.int64]]
+]
+ModelFn = Callable[["Species", float, float, float, LeafFn], Parts]
 
 
 @dataclass(frozen=True)
@@ -35,6 +43,12 @@ class Species:
     # 1.5 cm; a cabbage's wheel-height obstacle is its head, to ≈ 20 cm across.
     stem_diameter: tuple[float, ...]
     colour: tuple[int, int, int]
+    # The procedural model: the parts (mesh, colour) of a plant of height h, canopy width w at
+    # ``growth``; ``leaf`` draws one leaf ribbon (``crop_mesh`` scales its length and droop).
+    model: ModelFn
+    # Growth steps the mesh camera keeps models for (nodes 0, 1/n, ..., 1: every stage a node),
+    # measured by benchmarks/growth_bins.py (the smallest count within the D455's depth noise).
+    mesh_intervals: int
     # Grass crops (maize) carry their leaves in one vertical plane, which can cross the lane.
     planar_leaves: bool = False
 
@@ -64,48 +78,6 @@ class Species:
     def proxy_radius(self) -> float:
         """Largest stem radius over the stages: a growth-independent collision proxy."""
         return 0.5 * max(self.stem_diameter)
-
-
-CATALOG: dict[str, Species] = {
-    s.name: s
-    for s in (
-        # Maize: DESIGN §5 stages ≈ 0.3 (early), 1.2 (intermediate), 2.5 m (mature).
-        Species(
-            "corn",
-            ("V3", "V6", "V10", "V14", "R1"),
-            (0.3, 0.6, 1.2, 1.8, 2.5),
-            (0.35, 0.55, 0.8, 0.95, 1.0),
-            (0.008, 0.015, 0.020, 0.023, 0.025),
-            (70, 140, 50),
-            planar_leaves=True,
-        ),
-        Species(
-            "tomato",
-            ("seedling", "vegetative", "flowering", "fruiting"),
-            (0.15, 0.4, 0.8, 1.2),
-            (0.2, 0.4, 0.6, 0.7),
-            (0.004, 0.008, 0.012, 0.015),
-            (60, 120, 45),
-        ),
-        Species(
-            "cabbage",
-            ("seedling", "rosette", "heading", "mature"),
-            (0.1, 0.2, 0.3, 0.35),
-            (0.2, 0.4, 0.6, 0.7),
-            (0.03, 0.08, 0.15, 0.20),
-            (120, 170, 110),
-        ),
-        Species(
-            "sunflower",
-            ("V4", "V10", "R1", "R5"),
-            (0.3, 0.8, 1.5, 2.0),
-            (0.3, 0.5, 0.7, 0.8),
-            (0.008, 0.015, 0.025, 0.030),
-            (80, 130, 40),
-        ),
-        Species("weed", ("small", "large"), (0.05, 0.3), (0.08, 0.35), (0.0, 0.0), (150, 160, 60)),
-    )
-}
 
 
 def scaled_by_height(
@@ -223,8 +195,6 @@ def crop_mesh(name: str, growth: float, leaf_length: float = 1.0, leaf_droop: fl
 
 @lru_cache(maxsize=256)
 def _crop_mesh(name: str, growth: float, leaf_length: float = 1.0, leaf_droop: float = 1.0) -> Any:
-    import trimesh
-
     if not 0.0 <= growth <= 1.0:
         raise InputError("crop.growth", growth, "allowed: a number in [0, 1]")
     for field, value in (("leaf_length", leaf_length), ("leaf_droop", leaf_droop)):
@@ -238,112 +208,207 @@ def _crop_mesh(name: str, growth: float, leaf_length: float = 1.0, leaf_droop: f
 
     sp = species(name)
     h, w = float(sp.height(growth)), float(sp.canopy_width(growth))
-    parts: list[tuple[Any, tuple[int, int, int]]] = []
-    if name == "corn":
-        parts.append(
-            (
-                _stalk(h * (0.85 if growth > 0.75 else 0.7), float(sp.stem_radius(growth)), 0.006),
-                DARK,
-            )
-        )
-        n = round(3 + 11 * growth)
-        for i in range(n):
-            f = (i + 1) / (n + 1)
-            az = math.pi * i + 0.25 * math.sin(1.7 * i)  # distichous: leaves alternate sides
-            length = w * (0.55 + 0.45 * math.sin(math.pi * min(f + 0.15, 1.0)))
-            parts.append(
-                (
-                    _leaf(
-                        np.array([0, 0, h * 0.75 * f]),
-                        az,
-                        length,
-                        0.04 + 0.05 * growth,
-                        0.9 - 0.4 * growth,
-                        0.6 + 0.3 * growth,
-                    ),
-                    GREEN,
-                )
-            )
-        if growth > 0.75:  # tassel
-            tassel = trimesh.creation.cone(radius=0.04, height=h * 0.15, sections=6)
-            tassel.apply_translation([0, 0, h * 0.85])
-            parts.append((tassel, (190, 170, 90)))
-        if growth > 0.6:  # ear
-            ear = trimesh.creation.capsule(radius=0.025, height=0.15, count=[6, 6])
-            ear.apply_translation([0.03, 0, h * 0.45])
-            parts.append((ear, (200, 190, 110)))
-    elif name == "sunflower":
-        head_h = h * 0.92
-        r0 = float(sp.stem_radius(growth))
-        parts.append((_stalk(head_h, r0, min(0.01, r0)), DARK))
-        n = round(4 + 10 * growth)
-        for i in range(n):
-            f = (i + 1) / (n + 1)
-            parts.append(
-                (
-                    _leaf(
-                        np.array([0, 0, head_h * 0.85 * f]), 2.4 * i, w * 0.45, w * 0.3, 0.4, 0.5
-                    ),
-                    GREEN,
-                )
-            )
-        if growth > 0.5:
-            head = trimesh.creation.cylinder(radius=0.06 + 0.1 * growth, height=0.04, sections=16)
-            head.apply_transform(trimesh.transformations.rotation_matrix(0.8, [0, 1, 0]))
-            head.apply_translation([0.05, 0, head_h])
-            parts.append((head, (230, 190, 30)))
-    elif name == "tomato":
-        r0 = float(sp.stem_radius(growth))
-        parts.append((_stalk(h * 0.8, r0, min(0.005, r0)), DARK))
-        n = round(3 + 7 * growth)
-        for i in range(n):
-            f = (i + 1) / (n + 1)
-            blob = trimesh.creation.icosphere(subdivisions=1, radius=1.0)
-            blob.apply_scale([w * 0.3, w * 0.3, h * 0.18])
-            az = 2.4 * i
-            blob.apply_translation(
-                [w * 0.2 * math.cos(az), w * 0.2 * math.sin(az), h * (0.2 + 0.7 * f)]
-            )
-            parts.append((blob, GREEN))
-        if growth > 0.6:
-            for i in range(int(2 + 6 * growth)):
-                fruit = trimesh.creation.icosphere(subdivisions=1, radius=0.03)
-                az = 1.3 * i + 0.5
-                fruit.apply_translation(
-                    [w * 0.3 * math.cos(az), w * 0.3 * math.sin(az), h * (0.25 + 0.06 * i)]
-                )
-                parts.append((fruit, (210, 40, 30)))
-    elif name == "cabbage":
-        head = trimesh.creation.icosphere(subdivisions=2, radius=1.0)
-        head.apply_scale([w * 0.25, w * 0.25, h * 0.45])
-        head.apply_translation([0, 0, h * 0.5])
-        parts.append((head, (150, 195, 130)))
-        n = round(5 + 5 * growth)
-        for i in range(n):
-            parts.append(
-                (
-                    _leaf(np.array([0, 0, h * 0.15]), 2.4 * i, w * 0.5, w * 0.35, 0.5, 0.6),
-                    (110, 165, 100),
-                )
-            )
-    else:  # weed: a low rosette
-        n = 5 + round(4 * growth)
-        for i in range(n):
-            parts.append(
-                (
-                    _leaf(
-                        np.array([0, 0, 0.005]),
-                        2 * math.pi * i / n,
-                        w * 0.5,
-                        w * 0.2,
-                        h / max(w * 0.5, 1e-3) * 0.8,
-                        0.4,
-                    ),
-                    sp.colour,
-                )
-            )
+    parts = sp.model(sp, growth, h, w, _leaf)
     mesh = _mesh(parts)
     mesh.apply_translation([0, 0, -mesh.bounds[0, 2]])
     # Parts are laid out by eye; stretch vertically so the model is exactly its nominal height.
     mesh.apply_scale([1.0, 1.0, h / float(mesh.bounds[1, 2])])
     return mesh
+
+
+# ----------------------------------------------------------------------------- the models
+def _corn(sp: Species, growth: float, h: float, w: float, _leaf: LeafFn) -> Parts:
+    """Maize: a stalk, distichous leaves along it, a tassel and an ear late in the season."""
+    import trimesh
+
+    parts: Parts = []
+    parts.append(
+        (
+            _stalk(h * (0.85 if growth > 0.75 else 0.7), float(sp.stem_radius(growth)), 0.006),
+            DARK,
+        )
+    )
+    n = round(3 + 11 * growth)
+    for i in range(n):
+        f = (i + 1) / (n + 1)
+        az = math.pi * i + 0.25 * math.sin(1.7 * i)  # distichous: leaves alternate sides
+        length = w * (0.55 + 0.45 * math.sin(math.pi * min(f + 0.15, 1.0)))
+        parts.append(
+            (
+                _leaf(
+                    np.array([0, 0, h * 0.75 * f]),
+                    az,
+                    length,
+                    0.04 + 0.05 * growth,
+                    0.9 - 0.4 * growth,
+                    0.6 + 0.3 * growth,
+                ),
+                GREEN,
+            )
+        )
+    if growth > 0.75:  # tassel
+        tassel = trimesh.creation.cone(radius=0.04, height=h * 0.15, sections=6)
+        tassel.apply_translation([0, 0, h * 0.85])
+        parts.append((tassel, (190, 170, 90)))
+    if growth > 0.6:  # ear
+        ear = trimesh.creation.capsule(radius=0.025, height=0.15, count=[6, 6])
+        ear.apply_translation([0.03, 0, h * 0.45])
+        parts.append((ear, (200, 190, 110)))
+    return parts
+
+
+def _sunflower(sp: Species, growth: float, h: float, w: float, _leaf: LeafFn) -> Parts:
+    """A stalk with spiralled leaves and, from mid-season, the tilted head."""
+    import trimesh
+
+    parts: Parts = []
+    head_h = h * 0.92
+    r0 = float(sp.stem_radius(growth))
+    parts.append((_stalk(head_h, r0, min(0.01, r0)), DARK))
+    n = round(4 + 10 * growth)
+    for i in range(n):
+        f = (i + 1) / (n + 1)
+        parts.append(
+            (
+                _leaf(np.array([0, 0, head_h * 0.85 * f]), 2.4 * i, w * 0.45, w * 0.3, 0.4, 0.5),
+                GREEN,
+            )
+        )
+    if growth > 0.5:
+        head = trimesh.creation.cylinder(radius=0.06 + 0.1 * growth, height=0.04, sections=16)
+        head.apply_transform(trimesh.transformations.rotation_matrix(0.8, [0, 1, 0]))
+        head.apply_translation([0.05, 0, head_h])
+        parts.append((head, (230, 190, 30)))
+    return parts
+
+
+def _tomato(sp: Species, growth: float, h: float, w: float, _leaf: LeafFn) -> Parts:
+    """A stalk with foliage blobs around it and, from flowering, fruit."""
+    import trimesh
+
+    parts: Parts = []
+    r0 = float(sp.stem_radius(growth))
+    parts.append((_stalk(h * 0.8, r0, min(0.005, r0)), DARK))
+    n = round(3 + 7 * growth)
+    for i in range(n):
+        f = (i + 1) / (n + 1)
+        blob = trimesh.creation.icosphere(subdivisions=1, radius=1.0)
+        blob.apply_scale([w * 0.3, w * 0.3, h * 0.18])
+        az = 2.4 * i
+        blob.apply_translation(
+            [w * 0.2 * math.cos(az), w * 0.2 * math.sin(az), h * (0.2 + 0.7 * f)]
+        )
+        parts.append((blob, GREEN))
+    if growth > 0.6:
+        for i in range(int(2 + 6 * growth)):
+            fruit = trimesh.creation.icosphere(subdivisions=1, radius=0.03)
+            az = 1.3 * i + 0.5
+            fruit.apply_translation(
+                [w * 0.3 * math.cos(az), w * 0.3 * math.sin(az), h * (0.25 + 0.06 * i)]
+            )
+            parts.append((fruit, (210, 40, 30)))
+    return parts
+
+
+def _cabbage(sp: Species, growth: float, h: float, w: float, _leaf: LeafFn) -> Parts:
+    """A head on a rosette of broad leaves."""
+    import trimesh
+
+    parts: Parts = []
+    head = trimesh.creation.icosphere(subdivisions=2, radius=1.0)
+    head.apply_scale([w * 0.25, w * 0.25, h * 0.45])
+    head.apply_translation([0, 0, h * 0.5])
+    parts.append((head, (150, 195, 130)))
+    n = round(5 + 5 * growth)
+    for i in range(n):
+        parts.append(
+            (
+                _leaf(np.array([0, 0, h * 0.15]), 2.4 * i, w * 0.5, w * 0.35, 0.5, 0.6),
+                (110, 165, 100),
+            )
+        )
+    return parts
+
+
+def _weed(sp: Species, growth: float, h: float, w: float, _leaf: LeafFn) -> Parts:
+    """A low rosette."""
+    parts: Parts = []
+    n = 5 + round(4 * growth)
+    for i in range(n):
+        parts.append(
+            (
+                _leaf(
+                    np.array([0, 0, 0.005]),
+                    2 * math.pi * i / n,
+                    w * 0.5,
+                    w * 0.2,
+                    h / max(w * 0.5, 1e-3) * 0.8,
+                    0.4,
+                ),
+                sp.colour,
+            )
+        )
+    return parts
+
+
+# ----------------------------------------------------------------------------- the catalog
+CATALOG: dict[str, Species] = {
+    s.name: s
+    for s in (
+        # Maize: DESIGN §5 stages ≈ 0.3 (early), 1.2 (intermediate), 2.5 m (mature).
+        Species(
+            "corn",
+            ("V3", "V6", "V10", "V14", "R1"),
+            (0.3, 0.6, 1.2, 1.8, 2.5),
+            (0.35, 0.55, 0.8, 0.95, 1.0),
+            (0.008, 0.015, 0.020, 0.023, 0.025),
+            (70, 140, 50),
+            model=_corn,
+            mesh_intervals=48,
+            planar_leaves=True,
+        ),
+        Species(
+            "tomato",
+            ("seedling", "vegetative", "flowering", "fruiting"),
+            (0.15, 0.4, 0.8, 1.2),
+            (0.2, 0.4, 0.6, 0.7),
+            (0.004, 0.008, 0.012, 0.015),
+            (60, 120, 45),
+            model=_tomato,
+            mesh_intervals=12,
+        ),
+        Species(
+            "cabbage",
+            ("seedling", "rosette", "heading", "mature"),
+            (0.1, 0.2, 0.3, 0.35),
+            (0.2, 0.4, 0.6, 0.7),
+            (0.03, 0.08, 0.15, 0.20),
+            (120, 170, 110),
+            model=_cabbage,
+            mesh_intervals=6,
+        ),
+        Species(
+            "sunflower",
+            ("V4", "V10", "R1", "R5"),
+            (0.3, 0.8, 1.5, 2.0),
+            (0.3, 0.5, 0.7, 0.8),
+            (0.008, 0.015, 0.025, 0.030),
+            (80, 130, 40),
+            model=_sunflower,
+            mesh_intervals=24,
+        ),
+        Species(
+            WEED_SPECIES,
+            ("small", "large"),
+            (0.05, 0.3),
+            (0.08, 0.35),
+            (0.0, 0.0),
+            (150, 160, 60),
+            model=_weed,
+            mesh_intervals=6,
+        ),
+    )
+}
+
+#: The species a field can be planted with (``crop.species``): every catalog entry but weeds.
+CROP_SPECIES: tuple[str, ...] = tuple(n for n in CATALOG if n != WEED_SPECIES)

@@ -65,7 +65,7 @@ def place_plants(
     sp = crops.species(crop.species)
     n, weed = len(lay.x), lay.is_weed
     spread = np.clip(rng.standard_normal(n), -3.0, 3.0) * crop.height_std
-    weed_sp = crops.CATALOG["weed"]
+    weed_sp = crops.CATALOG[crops.WEED_SPECIES]
     weed_growth = rng.random(n)
     yaw = rng.uniform(-math.pi, math.pi, n)
     height = np.where(weed, weed_sp.height(weed_growth), float(sp.height(growth)) * (1 + spread))
@@ -79,7 +79,7 @@ def place_plants(
         pitch,
         yaw,
         height,
-        np.where(weed, "weed", sp.name).astype(str),
+        np.where(weed, crops.WEED_SPECIES, sp.name).astype(str),
         stage,
         lay.row,
     )

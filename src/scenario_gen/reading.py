@@ -32,7 +32,7 @@ from .bounds import (
     MAX_TERRAIN_SAMPLES,
     MIN_GROUND_SPACING,
 )
-from .crops import CATALOG
+from .crops import CATALOG, WEED_SPECIES
 from .errors import InputError
 from .geodesy import GeoFrame
 from .io import (
@@ -432,7 +432,7 @@ def _plants(path: Path, rows: RowFrame, version: int) -> Plants:
             f"allowed: height in (0, {MAX_PLANT_HEIGHT_M:g}] m and stage 1..{int(stages[i])} "
             f"for {species[i]}",
         )
-    weed = species == "weed"
+    weed = species == WEED_SPECIES
     if "row" in head:
         row = _floats(path, c, "row")
         bad = (row != np.round(row)) | (row < -1) | (row >= len(rows.offsets)) | ((row < 0) != weed)

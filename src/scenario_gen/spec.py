@@ -13,6 +13,7 @@ from typing import Any
 
 import yaml
 
+from .crops import CROP_SPECIES
 from .schema import from_mapping, merge, plain
 from .schema import param as _f
 
@@ -114,7 +115,7 @@ class LayoutSpec:
 
 @dataclass(frozen=True)
 class CropSpec:
-    species: str = _f("corn", "crop species", choices=("corn", "tomato", "cabbage", "sunflower"))
+    species: str = _f("corn", "crop species", choices=CROP_SPECIES)
     stage: int = _f(3, "growth stage, 1 (early) .. the species' last stage", 1, 10)
     growth: float | None = _f(None, "continuous growth 0..1 (overrides stage)", 0, 1)
     height_std: float = _f(0.08, "relative std of plant height between plants", 0, 0.5)

@@ -26,11 +26,17 @@ ID = "AgriNav/FurrowFollow-v2"
         ({"randomize": {"crop.stage": [1, 6]}}, "randomize.crop.stage"),
         ({"randomize": {"crop.stage": [1.5, 3]}}, "randomize.crop.stage"),
         ({"randomize": {"crop": [1, 2]}}, "randomize.crop"),
-        ({"randomize": {"gnss_mode": {"choices": ["rtk_fixed", "dgps"]}}}, "randomize.gnss_mode"),
-        ({"randomize": {"gnss_mode": [0, 1]}}, "randomize.gnss_mode"),
-        ({"randomize": {"soil_colour": [0.5, 0.6]}}, "randomize.soil_colour"),
-        ({"randomize": {"soil_colour": [[0.5, 0.4], [0.6, 0.5, 0.4]]}}, "randomize.soil_colour"),
-        ({"randomize": {"light_elevation_deg": [10, 400]}}, "randomize.light_elevation_deg"),
+        ({"randomize": {"gnss.mode": {"choices": ["rtk_fixed", "dgps"]}}}, "randomize.gnss.mode"),
+        ({"randomize": {"gnss.mode": [0, 1]}}, "randomize.gnss.mode"),
+        ({"randomize": {"lighting.soil_rgb": [0.5, 0.6]}}, "randomize.lighting.soil_rgb"),
+        (
+            {"randomize": {"lighting.soil_rgb": [[0.5, 0.4], [0.6, 0.5, 0.4]]}},
+            "randomize.lighting.soil_rgb",
+        ),
+        (
+            {"randomize": {"lighting.sun_elevation_deg": [10, 400]}},
+            "randomize.lighting.sun_elevation_deg",
+        ),
         (
             {"randomize": {"crop.species": {"choices": ["cabbage"]}, "crop.stage": [1, 5]}},
             "randomize",

@@ -9,7 +9,6 @@ from scipy.spatial.transform import Rotation
 from agrinav_gym.render.embree import Caster, Scene, device
 from agrinav_gym.render.mesh_scene import MeshScene, convex_hull, refine_ground
 from agrinav_gym.render.plant_meshes import (
-    GROWTH_INTERVALS,
     PlantMeshes,
     growth_node,
     node_growth,
@@ -29,8 +28,8 @@ def test_rotation_is_urdf_rpy() -> None:
 
 
 def test_every_catalog_stage_is_a_growth_node() -> None:
-    for name, n in GROWTH_INTERVALS.items():
-        sp = CATALOG[name]
+    for name, sp in CATALOG.items():
+        n = sp.mesh_intervals
         growth = sp.growth_of_stage(np.arange(1, sp.stages + 1))
         nodes = growth_node(name, growth)
         assert np.allclose([node_growth(name, int(k)) for k in nodes], growth), name
@@ -45,7 +44,7 @@ def test_plants_share_prototypes_and_cost_bytes_per_plant() -> None:
     crops = ~scn.plants.is_weed
     # all crops share one growth: one prototype; weeds (random growth) at most 7 nodes
     assert len(np.unique(pm.proto[crops])) == 1
-    assert len(pm.prototypes) <= 1 + GROWTH_INTERVALS["weed"] + 1
+    assert len(pm.prototypes) <= 1 + CATALOG["weed"].mesh_intervals + 1
     assert pm.per_plant_bytes() == 6
     # a plant's transform puts its prototype where the scenario says, at its height
     i = int(np.flatnonzero(crops)[3])

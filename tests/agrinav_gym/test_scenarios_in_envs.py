@@ -92,7 +92,7 @@ def test_scenario_bank_samples_every_scenario(tmp_path: Path) -> None:
 
 def test_randomize_draws_new_scenarios_and_env_params() -> None:
     env = make(
-        randomize={"crop.stage": [1, 5], "gnss_mode": {"choices": ["rtk_fixed", "standalone"]}}
+        randomize={"crop.stage": [1, 5], "gnss.mode": {"choices": ["rtk_fixed", "standalone"]}}
     )
     try:
         stages, modes = set(), set()
@@ -103,6 +103,35 @@ def test_randomize_draws_new_scenarios_and_env_params() -> None:
         assert len(stages) >= 3 and modes == {"rtk_fixed", "standalone"}
     finally:
         env.close()
+
+
+def test_former_randomize_key_names_still_work_with_a_warning() -> None:
+    with pytest.warns(DeprecationWarning, match="randomize.gnss_mode is now randomize.gnss.mode"):
+        env = make(randomize={"gnss_mode": {"choices": ["standalone"]}})
+    try:
+        env.reset(seed=0)
+        assert env.unwrapped.sensors.gnss.cfg.mode == "standalone"
+    finally:
+        env.close()
+    with pytest.raises(ScenarioError, match="given twice"):
+        make(randomize={"gnss_mode": {"choices": ["standalone"]}, "gnss.mode": [0, 1]})
+
+
+def test_lighting_is_a_config_section_the_cameras_use() -> None:
+    """``config.lighting`` sets the sun the RGB is shaded with; randomizing it overrides it."""
+    rgb = {"camera": {"rgb": True, "width": 32, "height": 24}}
+    frames = []
+    for elevation in (15.0, 85.0):
+        env = make(
+            observations=["depth"],
+            config={**rgb, "lighting": {"sun_elevation_deg": elevation}},
+        )
+        try:
+            _, info = env.reset(seed=0)
+            frames.append(info["rgb"].astype(float).mean())
+        finally:
+            env.close()
+    assert frames[1] > frames[0] + 5  # a high sun lights the ground more (Lambert: sin el)
 
 
 def test_reset_options_switch_scenario_and_lane() -> None:

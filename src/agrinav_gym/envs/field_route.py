@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import ClassVar
 
 from ..env import AgriNavEnv
+from ..interface import OBSERVATION_KEYS
 
 
 class FieldRouteEnv(AgriNavEnv):
@@ -47,4 +48,4 @@ class FieldRouteEnv(AgriNavEnv):
     """
 
     task_name: ClassVar[str] = "FieldRoute"
-    default_observations: ClassVar[tuple[str, ...]] = ("gps", "imu", "odom", "route", "depth")
+    default_observations: ClassVar[tuple[str, ...]] = OBSERVATION_KEYS

@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import ClassVar
 
 from ..env import AgriNavEnv
+from ..interface import OBS_DEPTH, OBS_IMU, OBS_ODOM
 
 
 class FurrowFollowEnv(AgriNavEnv):
@@ -58,7 +59,7 @@ class FurrowFollowEnv(AgriNavEnv):
     ## Arguments
     ``scenario`` (Scenario, scenario directory or preset name; default ``"default"``),
     ``scenario_overrides`` (spec overrides for a preset), ``scenario_seed``, ``randomize``
-    (ranges re-drawn each reset, e.g. ``{"crop.stage": [1, 5], "gnss_mode": {"choices":
+    (ranges re-drawn each reset, e.g. ``{"crop.stage": [1, 5], "gnss.mode": {"choices":
     ["rtk_fixed", "rtk_float"]}}``), ``scenario_seeds`` (the ``[low, high)`` range randomized
     scenarios draw their seed from: disjoint ranges make disjoint train/test splits),
     ``bank`` (a directory of saved scenarios sampled each reset), ``observations``,
@@ -115,4 +116,4 @@ class FurrowFollowDepthEnv(FurrowFollowEnv):
     * v0: initial version.
     """
 
-    default_observations: ClassVar[tuple[str, ...]] = ("depth", "imu", "odom")
+    default_observations: ClassVar[tuple[str, ...]] = (OBS_DEPTH, OBS_IMU, OBS_ODOM)

@@ -28,6 +28,7 @@ import numpy as np
 from scipy.linalg.lapack import dposv
 
 from ..config import LocalisationConfig
+from ..interface import GNSS_NONE, GNSS_RTK_FIXED, GNSS_RTK_FLOAT, GNSS_STANDALONE
 from .readings import FloatArray, Readings
 
 N = 12
@@ -50,9 +51,9 @@ class Ekf:
         self.chi = skid_factor
         self.dt = dt
         self.tau = {
-            "rtk_fixed": cfg.gnss_tau_rtk_fixed_s,
-            "rtk_float": cfg.gnss_tau_rtk_float_s,
-            "standalone": cfg.gnss_tau_standalone_s,
+            GNSS_RTK_FIXED: cfg.gnss_tau_rtk_fixed_s,
+            GNSS_RTK_FLOAT: cfg.gnss_tau_rtk_float_s,
+            GNSS_STANDALONE: cfg.gnss_tau_standalone_s,
         }
         self.sb = math.radians(cfg.heading_bias_deg)
         self.phi_b = math.exp(-dt / cfg.heading_bias_tau_s)
@@ -104,14 +105,14 @@ class Ekf:
         self.k += 1
         if self.k > 0:
             self._predict(dt)
-        elif r.gnss_new and r.gnss_mode != "none":
+        elif r.gnss_new and r.gnss_mode != GNSS_NONE:
             # navsat_transform's way: the first fix places the robot; the start prior only
             # stands in when the receiver has no fix yet
             self.P[X, :] = self.P[:, X] = self.P[Y, :] = self.P[:, Y] = 0.0
             self.P[X, X] = self.P[Y, Y] = DIFFUSE
         self._fuse_step(r)
         self._remember(r)
-        if r.gnss_new and r.gnss_mode != "none":
+        if r.gnss_new and r.gnss_mode != GNSS_NONE:
             self._fuse_lagged_fix(r, dt)
 
     @property

@@ -18,7 +18,7 @@ class Readings:
 
     gnss_enu: FloatArray  # (3,) antenna fix, ENU m (last fix, held between updates)
     gnss_new: bool  # a new fix arrived this control step (after latency)
-    gnss_mode: str  # "rtk_fixed" | "rtk_float" | "standalone" | "none"
+    gnss_mode: str  # the current fix: one of interface.FIX_LEVELS
     gnss_sigma: FloatArray  # (3,) the receiver's reported 1-sigma (ENU), m
     gnss_age: float  # s since the fix was taken
     accel: FloatArray  # (3,) body specific force, m/s²

@@ -5,11 +5,11 @@ or the user's model) placed with the plant's x, y, z, roll, pitch, yaw (URDF rpy
 R = Rz·Ry·Rx) and a uniform scale (plant height / prototype height). Plants share prototypes;
 per plant this keeps a prototype index and a scale next to the scenario's own arrays (6 bytes).
 
-Growth is quantized per species into ``GROWTH_INTERVALS[name]`` equal steps (nodes at
+Growth is quantized per species into ``Species.mesh_intervals`` equal steps (nodes at
 k / n, so every catalog stage is a node): the counts are the smallest, among multiples of the
 species' stage intervals, whose mean surface distance between a model at a random growth and its
 node's model (scaled to the same height) is at most 6 mm — the D455's depth RMS at 1.8 m in the
-848×480 mode. ``benchmarks/growth_bins.py`` measures it (table in docs/sensors.md).
+848×480 mode. ``benchmarks/growth_bins.py`` measures it (table in docs/camera.md).
 """
 
 from __future__ import annotations
@@ -23,25 +23,28 @@ import numpy as np
 from numpy.typing import NDArray
 
 from scenario_gen import CATALOG, Scenario
-from scenario_gen.crops import crop_mesh
+from scenario_gen.crops import WEED_SPECIES, crop_mesh
 
 from .classes import CROP, WEED
 
 F32 = NDArray[np.float32]
 FloatArray = NDArray[np.float64]
 
-#: growth steps per species (nodes 0, 1/n, ..., 1); see the module docstring and docs/sensors.md
-GROWTH_INTERVALS = {"corn": 48, "sunflower": 24, "tomato": 12, "cabbage": 6, "weed": 6}
+
+def growth_intervals(name: str) -> int:
+    """Growth steps kept for species ``name`` (nodes 0, 1/n, ..., 1): its catalog entry's
+    ``mesh_intervals`` (see the module docstring)."""
+    return CATALOG[name].mesh_intervals
 
 
 def growth_node(name: str, growth: Any) -> NDArray[np.int64]:
     """Index of the growth node nearest to ``growth`` (array or scalar) for species ``name``."""
-    n = GROWTH_INTERVALS[name]
+    n = growth_intervals(name)
     return np.rint(np.clip(np.asarray(growth, np.float64), 0.0, 1.0) * n).astype(np.int64)
 
 
 def node_growth(name: str, node: int) -> float:
-    return node / GROWTH_INTERVALS[name]
+    return node / growth_intervals(name)
 
 
 def rotation_rpy(roll: Any, pitch: Any, yaw: Any) -> FloatArray:
@@ -140,9 +143,9 @@ def catalog_prototype(
     ``leaf_length``/``leaf_droop`` scale its leaves (``crop_mesh``)."""
     g = node_growth(name, node)
     mesh = crop_mesh(name, g, leaf_length, leaf_droop)
-    label = WEED if name == "weed" else CROP
+    label = WEED if name == WEED_SPECIES else CROP
     tag = "" if (leaf_length, leaf_droop) == (1.0, 1.0) else f" L{leaf_length:g} D{leaf_droop:g}"
-    return Prototype.from_trimesh(mesh, f"{name}@{node}/{GROWTH_INTERVALS[name]}{tag}", label)
+    return Prototype.from_trimesh(mesh, f"{name}@{node}/{growth_intervals(name)}{tag}", label)
 
 
 @lru_cache(maxsize=8)
@@ -193,7 +196,7 @@ class PlantMeshes:
         for name in np.unique(p.species):
             sel = np.flatnonzero(p.species == name)
             sp = CATALOG[str(name)]
-            if model is not None and name != "weed":
+            if model is not None and name != WEED_SPECIES:
                 growth = float(sp.growth_of_stage(float(np.median(p.stage[sel]))))
                 k = add(user_prototype(model, float(sp.height(growth))))
                 proto[sel] = k

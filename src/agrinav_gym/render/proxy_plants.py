@@ -1,11 +1,11 @@
-"""Plants as analytic proxies: no pybullet body per plant (DESIGN §8).
+"""Plants as analytic proxies: no pybullet body per plant.
 
 The depth camera intersects vertical cylinders: every plant has a core from the ground to its
 top, and species with planar leaves (maize) add a leaf band above the bare lower stalk whose
 reach into the inter-row follows the leaf plane's azimuth (the plant's yaw) against the row, so
 a tall crop's leaves close over the lane at the camera's height, as in the field. The core's
 radius, the band's base and its reach are fitted to the crop meshes per species and growth
-stage (``proxy_fit``; docs/sensors.md), not chosen by hand.
+stage (``proxy_params``; docs/camera.md), not chosen by hand.
 Per plant this holds a handful of floats plus its KD-tree node: a few hundred bytes.
 """
 

@@ -32,10 +32,11 @@ from scenario_gen import Scenario
 from scenario_gen.crops import scaled_by_height
 
 from ..config import GnssFixConfig
+from ..interface import FIX_LEVELS
 
 FloatArray = NDArray[np.float64]
 
-LEVELS = ("none", "standalone", "rtk_float", "rtk_fixed")
+LEVELS = FIX_LEVELS  # the chain's states, worst to best
 #: the lower stalk bears no green leaves (as the proxy camera's leaf band starts above it)
 LEAF_BASE = 0.2
 #: canopy farther than this from the antenna is ignored: a low ray that crossed this much

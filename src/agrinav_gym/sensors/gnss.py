@@ -18,6 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..config import GnssConfig
+from ..interface import GNSS_NONE, GNSS_RTK_FIXED, GNSS_RTK_FLOAT, GNSS_STANDALONE
 from .fixmode import Canopy, FixModeChain, SkyModel
 from .noise import GaussMarkov
 
@@ -26,16 +27,15 @@ CEP_TO_SIGMA = 1.0 / 1.1774  # CEP = 1.1774 σ for a circular bivariate normal
 
 @dataclass(frozen=True)
 class FixMode:
-    code: int
     cep: float  # horizontal CEP, m (before the ppm term)
     vertical: float  # vertical error, same convention
     tau: float  # correlation time, s
 
 
 MODES = {
-    "rtk_fixed": FixMode(2, 0.01, 0.01, 5.0),
-    "rtk_float": FixMode(1, 0.25, 0.5, 30.0),
-    "standalone": FixMode(0, 1.5, 2.5, 60.0),
+    GNSS_RTK_FIXED: FixMode(0.01, 0.01, 5.0),
+    GNSS_RTK_FLOAT: FixMode(0.25, 0.5, 30.0),
+    GNSS_STANDALONE: FixMode(1.5, 2.5, 60.0),
 }
 
 
@@ -43,7 +43,7 @@ def error_sigma(cfg: GnssConfig, mode: str | None = None) -> NDArray[np.float64]
     """Per-axis (east, north, up) error std of ``mode`` (default: the configured best mode)."""
     mode = cfg.mode if mode is None else mode
     m = MODES[mode]
-    ppm = 1e-6 * cfg.baseline_km * 1000.0 if mode != "standalone" else 0.0
+    ppm = 1e-6 * cfg.baseline_km * 1000.0 if mode != GNSS_STANDALONE else 0.0
     h = (m.cep + ppm) * CEP_TO_SIGMA
     v = (m.vertical + ppm) * CEP_TO_SIGMA
     return np.array([h, h, v])
@@ -103,7 +103,7 @@ class Gnss:
         # one latency ago) is the start position
         self._k, self._taken = 0, -self.delay
         self.age = self.delay * self.dt
-        if self.mode == "none":  # no fix yet: the reading is unknown (held at the origin)
+        if self.mode == GNSS_NONE:  # no fix yet: the reading is unknown (held at the origin)
             self.reading = np.zeros(3)
             self.sigma = np.full(3, np.inf)
             self.updated = False
@@ -129,7 +129,7 @@ class Gnss:
         before = self.chain.level
         mode = self.chain.step(*self.usable_sky(true_enu), rng)
         fix = None
-        if mode != "none":
+        if mode != GNSS_NONE:
             gm = self.errors[mode]
             err = gm.reset(rng) if self.chain.level != before else gm.step(rng)
             fix = true_enu + err

@@ -33,6 +33,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from scenario_gen import CATALOG, Scenario
+from scenario_gen.crops import WEED_SPECIES
 
 from ..config import EnvConfig
 from ..render.mesh_scene import MeshScene
@@ -75,24 +76,24 @@ def fit_scenes(name: str, growth: float, seed: int = 0) -> list[FitScene]:
 
     out = []
     for k, spacing in enumerate(ROW_SPACINGS):
-        crop = "corn" if name == "weed" else name
+        crop = "corn" if name == WEED_SPECIES else name
         sp = CATALOG[crop]
         spec = sg.preset(
             "ridged",  # the terrain the table was made on; flat fields are not refitted yet
             terrain={"margin": 4.0},
             field={"width": 4.5 * spacing, "length": 14.0},
             layout={"row_spacing": spacing, "headland": 2.0, "weed_density": 0.0},
-            crop={"species": crop, "growth": float(growth) if name != "weed" else 0.5},
+            crop={"species": crop, "growth": float(growth) if name != WEED_SPECIES else 0.5},
         )
         scn = sg.generate(spec, seed + k)
-        if name == "weed":  # the same rows, planted with weeds
+        if name == WEED_SPECIES:  # the same rows, planted with weeds
             p = scn.plants
-            w = CATALOG["weed"]
+            w = CATALOG[WEED_SPECIES]
             height = p.height / float(sp.height(0.5)) * float(w.height(growth))
             stage = np.full(len(p), float(w.stage_of_growth(growth)))
             plants = dataclasses.replace(
                 p,
-                species=np.full(len(p), "weed"),
+                species=np.full(len(p), WEED_SPECIES),
                 stage=stage,
                 height=height,
                 row=np.full(len(p), -1, np.int64),
@@ -195,7 +196,7 @@ def fit_stage(name: str, growth: float, sweeps: int = 2) -> FitResult:
             cache[par] = float(dz.mean() + dl.mean())
         return cache[par]
 
-    planar = name != "weed" and CATALOG[name].planar_leaves
+    planar = name != WEED_SPECIES and CATALOG[name].planar_leaves
     start = error(ProxyParams(0.2, 0.2 if planar else 1.0, 0.9 if planar else 0.0))
     if planar:
         coarse = [ProxyParams(f, b, r) for f in COARSE[0] for b in COARSE[1] for r in COARSE[2]]

@@ -23,6 +23,7 @@ from typing import Any, BinaryIO
 import numpy as np
 from numpy.typing import NDArray
 
+from agrinav_gym.interface import OBS_DEPTH, OBS_GPS, OBS_IMU, OBS_ODOM, OBSERVATION_KEYS
 from scenario_gen.atomic import atomic_write
 from scenario_gen.errors import InputError
 
@@ -31,7 +32,7 @@ from .spec import SCHEMA_VERSION, PerceptionSpec
 
 #: Scenario seeds of dataset fields: disjoint from every train [0, 1e6) and eval [1e9, +1e6) range.
 DATASET_SCENARIO_SEEDS = (2_000_000_000, 3_000_000_000)
-OBSERVATIONS = ["gps", "imu", "odom", "route", "depth"]
+OBSERVATIONS = list(OBSERVATION_KEYS)
 
 
 @dataclass
@@ -165,9 +166,9 @@ def _frame(
             "lon": round(float(np.asarray(lon)), 9),
             "alt": round(float(np.asarray(alt)), 4),
         },
-        "gnss": np.round(np.asarray(obs["gps"], np.float64), 5).tolist(),
-        "imu": np.round(np.asarray(obs["imu"], np.float64), 5).tolist(),
-        "odom": np.round(np.asarray(obs["odom"], np.float64), 5).tolist(),
+        "gnss": np.round(np.asarray(obs[OBS_GPS], np.float64), 5).tolist(),
+        "imu": np.round(np.asarray(obs[OBS_IMU], np.float64), 5).tolist(),
+        "odom": np.round(np.asarray(obs[OBS_ODOM], np.float64), 5).tolist(),
         "cameras": {name: camera_dict(c) for name, c in cams.items()},
         "lane": lane_offset(scn, pos[:2], yaw),
         "route_cte": round(float(info["cte"]), 4),  # the env's own cross-track error, m
@@ -175,7 +176,7 @@ def _frame(
         "plants": plants(scn, pos, rot, cams, instance, spec.label_range),
     }
     # the env hands out copies (observations.Depth), so a frame may be encoded while it steps on
-    depth = np.asarray(obs["depth"], np.float32).reshape(spec.height, spec.width)
+    depth = np.asarray(obs[OBS_DEPTH], np.float32).reshape(spec.height, spec.width)
     return Frame(
         key,
         np.asarray(info["rgb"], np.uint8),

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from scenario_gen.crops import CROP_SPECIES
 from scenario_gen.errors import InputError
 from scenario_gen.schema import from_mapping, load_yaml, param, to_mapping
 
@@ -21,7 +22,7 @@ SCHEMA_VERSION = 1
 
 #: Every scenario and env randomization key the issue names, over ranges the generator accepts.
 DEFAULT_RANDOMIZE: dict[str, Any] = {
-    "crop.species": {"choices": ["corn", "sunflower", "tomato", "cabbage"]},
+    "crop.species": {"choices": list(CROP_SPECIES)},
     "crop.stage": [1, 3],
     "layout.row_spacing": [0.9, 1.2],
     "layout.plant_spacing": [0.15, 0.35],
@@ -33,9 +34,9 @@ DEFAULT_RANDOMIZE: dict[str, Any] = {
     "terrain.max_slope_deg": [2.0, 10.0],
     "furrows.enabled": {"choices": [False, True]},
     "furrows.depth": [0.0, 0.15],
-    "soil_colour": [[0.25, 0.18, 0.1], [0.6, 0.48, 0.35]],
-    "light_azimuth_deg": [0.0, 360.0],
-    "light_elevation_deg": [20.0, 80.0],
+    "lighting.soil_rgb": [[0.25, 0.18, 0.1], [0.6, 0.48, 0.35]],
+    "lighting.sun_azimuth_deg": [0.0, 360.0],
+    "lighting.sun_elevation_deg": [20.0, 80.0],
 }
 
 

@@ -16,7 +16,16 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
-from agrinav_gym.interface import RobotInterface, decode_imu, decode_odom, decode_route
+from agrinav_gym.interface import (
+    OBS_DEPTH,
+    OBS_IMU,
+    OBS_ODOM,
+    OBS_ROUTE,
+    RobotInterface,
+    decode_imu,
+    decode_odom,
+    decode_route,
+)
 
 from ..base import Obs, Policy
 from ..geometry import DepthProjector, local_plan
@@ -69,7 +78,7 @@ class DWB(Policy):
     """
 
     name = "dwb"
-    requires = ("route", "odom")
+    requires = (OBS_ROUTE, OBS_ODOM)
 
     def __init__(
         self,
@@ -95,7 +104,7 @@ class DWB(Policy):
         self.size = (int(cm.width / cm.resolution), int(cm.height / cm.resolution))
         self.project = (
             DepthProjector(robot.camera, robot.base_height)
-            if "depth" in observation_space.spaces
+            if OBS_DEPTH in observation_space.spaces
             else None
         )
         self.camera = np.array(
@@ -103,7 +112,7 @@ class DWB(Policy):
         )
         self.dt = robot.control_dt
         self.update_every = max(1, round(1.0 / (cm.update_frequency * self.dt)))
-        self.use_imu = self.p.yaw_rate_source == "imu" and "imu" in observation_space.spaces
+        self.use_imu = self.p.yaw_rate_source == "imu" and OBS_IMU in observation_space.spaces
         self.last: Evaluation | None = None
         self.reset()
 
@@ -125,9 +134,9 @@ class DWB(Policy):
 
     # ------------------------------------------------------------------ odometry and costmap
     def _odometry(self, obs: Obs) -> None:
-        v, w = decode_odom(obs["odom"])
+        v, w = decode_odom(obs[OBS_ODOM])
         if self.use_imu:
-            w = float(decode_imu(obs["imu"]).rate[2])
+            w = float(decode_imu(obs[OBS_IMU]).rate[2])
         if self.steps:  # the robot moved for one control period since the last call
             x, y, th = self.pose
             mid = th + 0.5 * w * self.dt
@@ -203,13 +212,13 @@ class DWB(Policy):
         """Odometry, costmap (at update_frequency), plan: the inputs of one DWB cycle."""
         self._odometry(obs)
         if self.steps % self.update_every == 0:
-            depth = obs["depth"][0] if "depth" in obs and self.project is not None else None
+            depth = obs[OBS_DEPTH][0] if OBS_DEPTH in obs and self.project is not None else None
             attitude = (0.0, 0.0)
-            if not self.p.two_d_mode and "imu" in obs:
-                imu = decode_imu(obs["imu"])
+            if not self.p.two_d_mode and OBS_IMU in obs:
+                imu = decode_imu(obs[OBS_IMU])
                 attitude = (imu.roll, imu.pitch)
             self.update_costmap(depth, attitude)
-        plan, goal = self._plan(obs["route"])
+        plan, goal = self._plan(obs[OBS_ROUTE])
         half = max(self.size) * self.grid.resolution / 2.0
         transformed, self.trail = transform_global_plan(plan, self.pose, half, self.p.FollowPath)
         return Cycle(

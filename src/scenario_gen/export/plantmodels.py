@@ -24,7 +24,7 @@ from xml.sax.saxutils import escape
 import numpy as np
 from numpy.typing import NDArray
 
-from ..crops import CATALOG, crop_mesh
+from ..crops import CATALOG, WEED_SPECIES, crop_mesh
 from ..errors import InputError
 from ..model import Scenario
 from .meshes import face_colours, flat_colour_mesh, save_png, textured_mesh, write_dae
@@ -115,7 +115,7 @@ def assign(scn: Scenario) -> Assignment:
         for g, members in ((float(g), idx[which.ravel() == i]) for i, g in enumerate(keys)):
             nominal = float(sp.height(g))
             base = f"agrinav_{name}_g{round(g * 1000):04d}"
-            if user is not None and name != "weed":
+            if user is not None and name != WEED_SPECIES:
                 from ..models import load_model
 
                 mesh = load_model(user, nominal)

@@ -1,0 +1,27 @@
+"""A policy as the command line and the benchmarks name it: ``NAME`` or ``NAME:ARG``.
+
+``rpp``, ``dwb:nav2``, ``ppo:runs/fr/best``, ``rpp:tuned.yaml``: the name picks the controller
+(``policies.POLICIES``), the argument its configuration or checkpoint. Parsed here only; what
+each argument may be is checked by ``policies.check_policy_spec``.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+SEPARATOR = ":"
+#: the shipped checkpoint for the env's id (``ppo:shipped``)
+SHIPPED_ARG = "shipped"
+
+
+class PolicySpec(NamedTuple):
+    name: str
+    arg: str  # "" when there is none
+
+    @classmethod
+    def parse(cls, text: str) -> PolicySpec:
+        name, _, arg = text.partition(SEPARATOR)
+        return cls(name, arg)
+
+    def __str__(self) -> str:
+        return f"{self.name}{SEPARATOR}{self.arg}" if self.arg else self.name
