@@ -1,4 +1,4 @@
-"""Environment benchmarks (issue: env-suite performance targets), on the paper-p1 field.
+"""Environment benchmarks (the env suite's performance targets), on the paper-p1 field.
 
 1. env steps/s with gps/imu/odom/route observations (target ≥ 1,500);
 2. env steps/s with 64 x 48 depth added (target ≥ 300);

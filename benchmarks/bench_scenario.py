@@ -1,4 +1,4 @@
-"""Scenario-generator benchmarks (issue: scenario_gen performance targets).
+"""Scenario-generator benchmarks (the scenario generator's performance targets).
 
 Measures, as the median of several runs in one process:
 

@@ -1,7 +1,7 @@
 """Environment configuration: frozen, typed, validated dataclasses (unknown keys are errors).
 
 Units are SI; ``*_deg`` fields are degrees, as their names say. Every default is a physical
-fact from DESIGN §5 or a documented choice.
+fact from design.md "Physical facts" or a documented choice.
 """
 
 from __future__ import annotations
@@ -22,8 +22,10 @@ from .interface import GNSS_RTK_FIXED, RECEIVER_MODES
 class RobotConfig:
     v_max: float = _f(1.0, "forward speed at action +1, m/s (controller limit 1.5)", 0.05, 1.5)
     w_max: float = _f(1.5, "yaw rate at action +1, rad/s (controller limit 3)", 0.05, 3.0)
-    a_max: float = _f(0.6, "linear acceleration limit, m/s² (DESIGN §5)", 0.01, 10)
-    alpha_max: float = _f(1.5, "angular acceleration limit, rad/s² (DESIGN §5)", 0.01, 50)
+    a_max: float = _f(0.6, "linear acceleration limit, m/s² (Summit-XL controller)", 0.01, 10)
+    alpha_max: float = _f(
+        1.5, "angular acceleration limit, rad/s² (Summit-XL controller)", 0.01, 50
+    )
     # A skid-steer's controller widens the track by χ so commanded yaw rates are met (ROS
     # diff_drive_controller's wheel_separation_multiplier); null: χ derived from the soil model
     # (sim.tyres.in_place_turn_ratio), as if calibrated on this soil.

@@ -1,4 +1,5 @@
-"""Cross-track metrics exactly as the source paper defines them (DESIGN §6), in one place.
+"""Cross-track metrics exactly as the source paper defines them (design.md, "Metrics"), in one
+place.
 
 Cross-track error = perpendicular distance from each recorded pose (the ground projection of
 base_link) to the nearest segment of the reference path — the globally nearest one, found

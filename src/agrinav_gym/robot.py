@@ -39,7 +39,8 @@ class RobotGeometry:
     wheel_width: float
     track: float
     wheelbase: float
-    footprint: tuple[float, float]  # length, width (DESIGN §5: 0.724 x 0.616 m nav footprint)
+    # length, width: the 0.724 x 0.616 m nav footprint (design.md, "Physical facts")
+    footprint: tuple[float, float]
     chassis: tuple[float, float, float]  # collision box size (x, y, z), m
     frames: dict[str, tuple[float, float, float]]  # sensor link origins in base_link
     mass: float  # total, kg (every link's inertial mass)

@@ -355,7 +355,8 @@ def _weed(sp: Species, growth: float, h: float, w: float, _leaf: LeafFn) -> Part
 CATALOG: dict[str, Species] = {
     s.name: s
     for s in (
-        # Maize: DESIGN §5 stages ≈ 0.3 (early), 1.2 (intermediate), 2.5 m (mature).
+        # Maize stages ≈ 0.3 (early), 1.2 (intermediate), 2.5 m (mature): design.md, "Physical
+        # facts".
         Species(
             "corn",
             ("V3", "V6", "V10", "V14", "R1"),

@@ -1,4 +1,5 @@
-"""Ridge/furrow micro-relief along the crop rows, plus optional soil roughness (DESIGN §4.6).
+"""Ridge/furrow micro-relief along the crop rows, plus optional soil roughness (design.md,
+"The scenario pipeline").
 
 Rows sit on the ridges and lanes in the furrows between them, as in ridge-tilled maize. Relief
 is full over the planting area and fades to zero over ``taper`` metres outside it.

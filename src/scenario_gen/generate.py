@@ -1,4 +1,5 @@
-"""Generation: a spec and a seed in, a ``Scenario`` out (DESIGN §4), deterministic to the bit."""
+"""Generation: a spec and a seed in, a ``Scenario`` out, deterministic to the bit (design.md,
+"The scenario pipeline")."""
 
 from __future__ import annotations
 
@@ -60,7 +61,8 @@ def orientation(zx: FloatArray, zy: FloatArray, yaw: FloatArray) -> tuple[FloatA
 def place_plants(
     lay: Layout, terrain: Terrain, crop: CropSpec, growth: float, rng: np.random.Generator
 ) -> Plants:
-    """Heights, orientation, size and species for a layout (DESIGN §4.4-4.5), vectorized."""
+    """Heights, orientation, size and species for a layout, vectorized (design.md, "The
+    scenario pipeline")."""
     z, zx, zy = terrain.idw(lay.x, lay.y)
     sp = crops.species(crop.species)
     n, weed = len(lay.x), lay.is_weed

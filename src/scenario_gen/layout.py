@@ -1,4 +1,4 @@
-"""Rotated-grid crop layout (DESIGN §4.3), fully vectorized.
+"""Rotated-grid crop layout, fully vectorized (design.md, "The scenario pipeline").
 
 Candidates sit on a grid rotated by the row angle; rows are centred on the planting area so a
 rectangle is planted symmetrically. A candidate is kept when it, and the points one headland

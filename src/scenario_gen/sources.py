@@ -29,7 +29,8 @@ FloatArray = NDArray[np.float64]
 HeightFn = Callable[[FloatArray, FloatArray], FloatArray]
 
 #: Datum used for a plane when the spec gives none: a crop field near León, Spain (42.6° N),
-#: the latitude DESIGN §3's LoD example uses. Any datum works; GPS needs one.
+#: the latitude of design.md's LoD example ("Frames, units, randomness"). Any datum works; GPS
+#: needs one.
 DEFAULT_PLANE_DATUM = (42.6, -5.57, 830.0)
 MESH_SUFFIXES = (".glb", ".gltf", ".obj", ".ply", ".dae", ".stl")
 MAX_MESH_BYTES = 512 * 2**20  # a terrain mesh this large holds ~10 M triangles

@@ -7,7 +7,8 @@ Two height functions live here, on purpose:
   robot drives on;
 * ``idw`` — the source paper's k-nearest-neighbour (k = 3) inverse-squared-distance weighting
   over the terrain samples, one vectorized ``cKDTree`` query, with central differences of the
-  same function for the slope. It is what plants are placed with (DESIGN §4).
+  same function for the slope. It is what plants are placed with (design.md, "The scenario
+  pipeline").
 
 On a regular grid the central difference of the IDW function one grid step either side of a
 point reuses that point's neighbour set shifted by one node, so slope comes from the same single
@@ -112,7 +113,7 @@ class Terrain:
         n = np.stack([-zx, -zy, np.ones_like(zx)], axis=-1)
         return n / np.linalg.norm(n, axis=-1, keepdims=True)
 
-    # ------------------------------------------------------------------ k-NN IDW (DESIGN §4)
+    # ------------------------------------------------------------------ k-NN IDW
     @property
     def tree(self) -> cKDTree:
         """KD-tree over the grid nodes' (x, y), built once per terrain."""

@@ -14,7 +14,7 @@ from agrinav_gym.sensors.gnss import Gnss, error_sigma
 
 from .helpers import make
 
-ANTENNA_AGL = 0.11 + 0.60  # base_link above ground + mast (DESIGN §5, GnssConfig)
+ANTENNA_AGL = 0.11 + 0.60  # base_link above ground + mast (design.md "Physical facts", GnssConfig)
 
 
 def field(stage: int, rows: float = 1.0) -> sg.Scenario:

@@ -18,7 +18,7 @@ from agrinav_gym.sim.tyres import in_place_turn_ratio
 from agrinav_gym.sim.world import World
 from scenario_gen import Terrain
 
-A, B = 0.229, 0.235  # half wheelbase, half track (DESIGN §5)
+A, B = 0.229, 0.235  # half wheelbase, half track (design.md "Physical facts")
 
 
 def plane(slope_deg: float = 0.0) -> Terrain:

@@ -9,7 +9,8 @@ from scenario_gen.errors import ScenarioError
 
 
 def test_gsd_matches_web_mercator_formula() -> None:
-    assert ground_sample_distance(20, 42.6) == pytest.approx(0.11, abs=1e-3)  # DESIGN §3
+    # design.md, "Frames, units, randomness"
+    assert ground_sample_distance(20, 42.6) == pytest.approx(0.11, abs=1e-3)
     assert ground_sample_distance(0, 0.0) == pytest.approx(156543.03392)
     assert ground_sample_distance(21, 42.6) == pytest.approx(ground_sample_distance(20, 42.6) / 2)
 

@@ -1,14 +1,14 @@
 """The analytic depth camera (the fast proxy of the D455): terrain and plant cylinders.
 
-Rendering a pybullet image costs 6-42 ms here (DESIGN §8); this casts one ray per pixel
-against the terrain's bilinear height surface and against the plants as vertical capped
-cylinders (``PlantField``). Where the compiled kernels are built (render/native.py) one call
-per frame intersects both exactly in double precision (csrc/proxycast.c: the bilinear surface
-cell by cell as a quadratic in t, the cylinders through a grid of cells); elsewhere both go
-through Embree in one query (``MeshScene``): the terrain's triangles bracket each crossing and
-Newton puts it on the bilinear surface, the cylinders are Embree's capped cones of equal
-radii. The tests hold the same geometry in plain numpy (``tests/agrinav_gym/oracles.py``) as the
-reference both fast paths are checked against.
+pybullet's own camera costs 6-42 ms a frame (design.md, "Measured facts to design around"); this
+casts one ray per pixel against the terrain's bilinear height surface and against the plants as
+vertical capped cylinders (``PlantField``). Where the compiled kernels are built
+(render/native.py) one call per frame intersects both exactly in double precision
+(csrc/proxycast.c: the bilinear surface cell by cell as a quadratic in t, the cylinders through
+a grid of cells); elsewhere both go through Embree in one query (``MeshScene``): the terrain's
+triangles bracket each crossing and Newton puts it on the bilinear surface, the cylinders are
+Embree's capped cones of equal radii. The tests hold the same geometry in plain numpy
+(``tests/agrinav_gym/oracles.py``) as the reference both fast paths are checked against.
 
 Depth is z-depth along the optical axis, as the D455 reports it. Noise follows the stereo
 error law σ_z = z²·s / (f·B) with the native sensor's focal length; pixels outside

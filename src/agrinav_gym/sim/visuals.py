@@ -2,7 +2,8 @@
 
 Each plant is a low-poly cross (two vertical quads, canopy-wide and plant-tall); plants are
 merged into one static visual mesh per tile and species so a whole field costs a few bodies,
-never one per plant (DESIGN §8). Tiles stay under pybullet's per-mesh vertex cap.
+never one per plant (design.md, "Measured facts to design around"). Tiles stay under
+pybullet's per-mesh vertex cap.
 """
 
 from __future__ import annotations

@@ -20,7 +20,7 @@ from scenario_gen.schema import from_mapping, load_yaml, param, to_mapping
 #: Bumped when a frame's files or label fields change meaning (docs/datasets.md).
 SCHEMA_VERSION = 1
 
-#: Every scenario and env randomization key the issue names, over ranges the generator accepts.
+#: The default domain randomization: scenario and env keys, over ranges the generator accepts.
 DEFAULT_RANDOMIZE: dict[str, Any] = {
     "crop.species": {"choices": list(CROP_SPECIES)},
     "crop.stage": [1, 3],

@@ -171,7 +171,7 @@ class DWB(Policy):
             if attitude != (0.0, 0.0):
                 cr, sr = math.cos(attitude[0]), math.sin(attitude[0])
                 cp, sp = math.cos(attitude[1]), math.sin(attitude[1])
-                # Ry(pitch) · Rx(roll): body -> yaw-aligned level frame (DESIGN §5)
+                # Ry(pitch) · Rx(roll): body -> yaw-aligned level frame (URDF rpy order)
                 rot = np.array([[cp, sp * sr, sp * cr], [0.0, cr, -sr], [-sp, cp * sr, cp * cr]])
                 body = body @ rot.T
             world = self.to_world(body)
