@@ -11,19 +11,15 @@ import pytest
 import agrinav_gym  # noqa: F401
 from policies import make_policy
 
+from ..fields import drive
+
 FLAT = {"furrows": {"enabled": False}}
 
 
 def _drive_blind(overrides: dict[str, object], seed: int) -> dict[str, object]:
     env = gym.make("AgriNav/FurrowFollow-v2", scenario_overrides=overrides)
     try:
-        obs, info = env.reset(seed=seed)
-        pi = make_policy("blind", env)
-        done = False
-        while not done:
-            obs, _, term, trunc, info = env.step(pi.act(obs))
-            done = term or trunc
-        return dict(info)
+        return dict(drive(env, make_policy("blind", env), seed).info)
     finally:
         env.close()
 

@@ -12,7 +12,7 @@ from agrinav_gym.config import GnssConfig, GnssFixConfig
 from agrinav_gym.sensors.fixmode import LEVELS, Canopy, FixModeChain, SkyModel
 from agrinav_gym.sensors.gnss import Gnss, error_sigma
 
-from .helpers import make
+from .helpers import TINY, make
 
 ANTENNA_AGL = 0.11 + 0.60  # base_link above ground + mast (design.md "Physical facts", GnssConfig)
 
@@ -179,9 +179,8 @@ def test_no_fix_holds_the_last_reading() -> None:
 def test_env_reports_the_canopy_fix_mode(stage: int, fixed: bool) -> None:
     env = make(
         scenario_overrides={
-            "field": {"width": 6.0, "length": 14.0},
+            **TINY,
             "layout": {"headland": 2.0, "row_spacing": 1.0},
-            "terrain": {"margin": 4.0},
             "crop": {"stage": stage},
         },
         config={"task": {"corridor": 5.0, "max_crops_hit": 10**6}},

@@ -14,11 +14,8 @@ from baselines.episodes import RESUME_AHEAD, run_with_interventions
 from baselines.report import table
 from policies import make_policy
 
-SHORT = {
-    "field": {"width": 6.0, "length": 14.0},
-    "layout": {"headland": 2.0},
-    "terrain": {"margin": 4.0},
-}
+from ..fields import TINY as SHORT
+
 CONFIG = {"task": {"progress_time": 2.0, "max_crops_hit": 0}}
 
 

@@ -17,11 +17,8 @@ import agrinav_gym  # noqa: F401
 from policies import checkpoint, make_policy, shipped_model
 from scenario_gen import InputError
 
-TINY = {
-    "field": {"width": 6.0, "length": 14.0},
-    "layout": {"headland": 2.0},
-    "terrain": {"margin": 4.0},
-}
+from ..fields import TINY
+
 FR = "AgriNav/FieldRoute-v2"
 OBS = ["imu", "odom", "route"]
 

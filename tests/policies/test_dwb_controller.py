@@ -15,6 +15,8 @@ from policies.dwb.params import DWBParams, _shipped
 from scenario_gen.errors import InputError
 from scenario_gen.schema import to_mapping
 
+from ..fields import drive
+
 ALL = ["gps", "imu", "odom", "route", "depth"]
 
 
@@ -173,13 +175,7 @@ def test_dwb_drives_a_straight_lane_without_touching_crops(
         observations=ALL,
     )
     try:
-        pi = make_policy(spec, env)
-        obs, _ = env.reset(seed=1)
-        pi.reset()
-        while True:
-            obs, _, term, trunc, info = env.step(pi.act(obs))
-            if term or trunc:
-                break
+        info = drive(env, make_policy(spec, env), seed=1).info
         m = info["metrics"]
         assert info["is_success"], (info.get("termination"), m)
         assert m["crops_hit"] == 0 and m["max"] < 0.15

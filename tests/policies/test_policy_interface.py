@@ -4,14 +4,12 @@ import gymnasium as gym
 import pytest
 
 import agrinav_gym  # noqa: F401
+from agrinav_gym.interface import OBSERVATION_KEYS
 from policies import POLICIES, make_policy
 
-TINY = {
-    "field": {"width": 6.0, "length": 14.0},
-    "layout": {"headland": 2.0},
-    "terrain": {"margin": 4.0},
-}
-ALL = ["gps", "imu", "odom", "route", "depth"]
+from ..fields import TINY, drive
+
+ALL = list(OBSERVATION_KEYS)
 
 
 @pytest.mark.parametrize("name", [n for n in POLICIES if n != "ppo"])
@@ -69,13 +67,7 @@ def test_classical_controllers_follow_straight_and_curved_paths(
 ) -> None:
     env = gym.make(env_id, scenario_overrides=FLAT_1M, observations=["gps", "imu", "odom", "route"])
     try:
-        pi = make_policy(name, env)
-        obs, _ = env.reset(seed=0)
-        pi.reset()
-        while True:
-            obs, _, term, trunc, info = env.step(pi.act(obs))
-            if term or trunc:
-                break
+        info = drive(env, make_policy(name, env), seed=0).info
         m = info["metrics"]
         assert info["is_success"], info.get("termination")
         assert m["rmse"] < rmse and m["max"] < max_cte and m["crops_hit"] == 0
@@ -112,16 +104,9 @@ def _mean_offset(integral_time: float | None) -> float:
     side["field"] = {"width": 5.0, "length": 20.0}
     env = gym.make("AgriNav/FurrowFollow-v2", scenario_overrides=side, observations=["route"])
     try:
-        pi = make_policy("stanley", env, k=0.5, integral_time=integral_time)
-        obs, _ = env.reset(seed=0)
-        pi.reset()
-        ctes = []
-        while True:
-            obs, _, term, trunc, info = env.step(pi.act(obs))
-            ctes.append(info["cte"])
-            if term or trunc:
-                break
-        assert info["is_success"], info.get("termination")
+        run = drive(env, make_policy("stanley", env, k=0.5, integral_time=integral_time), seed=0)
+        assert run.success, run.info.get("termination")
+        ctes = run.ctes
         return sum(ctes[len(ctes) // 2 :]) / (len(ctes) - len(ctes) // 2)
     finally:
         env.close()

@@ -152,6 +152,7 @@ def test_output_folders_honour_the_umask(tmp_path: Path, umask: int) -> None:
 
 def test_clean_stale_without_a_parent_is_a_no_op(tmp_path: Path) -> None:
     clean_stale(tmp_path / "missing" / "scn")
+    assert list(tmp_path.iterdir()) == []  # nothing made where nothing was
 
 
 def test_force_replaces_only_a_folder_agrinav_wrote(tmp_path: Path) -> None:

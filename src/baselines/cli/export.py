@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import argparse
 import time
-from importlib import resources
 from typing import Any
 
+from agrinav_gym.robot import urdf_path
 from scenario_gen.errors import InputError
 
 
@@ -47,11 +47,6 @@ def add(sub: Any) -> None:
     ex.set_defaults(func=run)
 
 
-def robot_urdf() -> str:
-    """The Summit-XL URDF agrinav_gym simulates; scenario_gen never imports agrinav_gym."""
-    return str(resources.files("agrinav_gym.assets").joinpath("summit_xl.urdf"))
-
-
 def run(args: argparse.Namespace) -> int:
     from scenario_gen.export import ExportOptions, export
 
@@ -66,7 +61,7 @@ def run(args: argparse.Namespace) -> int:
     if args.tile_plants is not None:
         data["tile_plants"] = args.tile_plants
     if args.to == "nav2":
-        data["robot_urdf"] = robot_urdf()
+        data["robot_urdf"] = urdf_path()
     opts = ExportOptions.from_dict(data)
     if args.to != "mesh" and (args.with_plants or args.formats != "glb"):
         raise InputError("--formats/--with-plants", args.to, "allowed only with --to mesh")

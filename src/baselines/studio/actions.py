@@ -8,7 +8,6 @@ it was.
 from __future__ import annotations
 
 import dataclasses
-import importlib
 import json
 import os
 import shutil
@@ -94,40 +93,28 @@ def run_policy(
     return {**records[0], "figure": str(Path(out) / "trajectory_000.png")}
 
 
-def export_api() -> Any | None:
-    """``scenario_gen.export`` (``agrinav export``) when this install has it."""
-    try:
-        return importlib.import_module("scenario_gen.export")
-    except ImportError:
-        return None
-
-
 def export_formats() -> tuple[str, ...]:
-    """The export targets (``gazebo``, ``nav2``, ``gis``, ``mesh``), or none without it."""
-    api = export_api()
-    return tuple(getattr(api, "TARGETS", ())) if api is not None else ()
+    """The export targets (``gazebo``, ``nav2``, ``gis``, ``mesh``)."""
+    from scenario_gen.export import TARGETS
 
-
-def robot_urdf() -> str:
-    """The Summit-XL URDF the envs simulate: what a Nav2 export spawns (as the CLI passes)."""
-    from importlib import resources
-
-    return str(resources.files("agrinav_gym.assets").joinpath("summit_xl.urdf"))
+    return TARGETS
 
 
 def export(scenario: str, fmt: str, out: str, overwrite: bool = False) -> dict[str, Any]:
     """Export a saved scenario through ``scenario_gen.export.export`` with the CLI's defaults
-    (``agrinav export DIR --to FMT --out OUT``); it checks everything before writing."""
-    api = export_api()
-    if api is None:
-        raise InputError("export", fmt, "this install has no exporter (agrinav export)")
-    if fmt not in export_formats():
-        raise InputError("export", fmt, f"allowed: one of {', '.join(export_formats())}")
+    (``agrinav export DIR --to FMT --out OUT``; the Nav2 bundle spawns the simulated robot's
+    URDF); it checks everything before writing."""
+    from agrinav_gym.robot import urdf_path
+    from scenario_gen.export import TARGETS, ExportOptions
+    from scenario_gen.export import export as export_to
+
+    if fmt not in TARGETS:
+        raise InputError("export", fmt, f"allowed: one of {', '.join(TARGETS)}")
     if not (Path(scenario) / "scenario.json").is_file():
         raise InputError("scenario", scenario, "generate and save the scenario first")
-    data: dict[str, Any] = {"robot_urdf": robot_urdf()} if fmt == "nav2" else {}
-    info: dict[str, Any] = api.export(
-        scenario, fmt, out, api.ExportOptions.from_dict(data), overwrite=overwrite
+    data: dict[str, Any] = {"robot_urdf": urdf_path()} if fmt == "nav2" else {}
+    info: dict[str, Any] = export_to(
+        scenario, fmt, out, ExportOptions.from_dict(data), overwrite=overwrite
     )
     return info
 

@@ -9,10 +9,12 @@ from pathlib import Path
 import pytest
 from shapely.geometry import Polygon
 
+from agrinav_gym.robot import urdf_path
 from baselines.cli import main
 from baselines.studio import actions
 from baselines.studio.session import Session, field_file
 from scenario_gen.errors import InputError
+from scenario_gen.export import TARGETS
 
 FILES = ("scenario.json", "plants.csv", "route.csv", "field.geojson", "terrain.npz")
 
@@ -123,59 +125,11 @@ def test_run_and_export_need_a_saved_scenario(tmp_path: Path) -> None:
     with pytest.raises(InputError) as e:
         actions.run_policy(str(tmp_path), "bogus", str(tmp_path / "run"))
     assert e.value.field == "policy"
-    if actions.export_api() is None:
-        with pytest.raises(InputError) as e:
-            actions.export(str(tmp_path), "gazebo", str(tmp_path / "x"))
-        assert e.value.field == "export"
 
 
-def test_export_calls_the_exporters_api_like_the_cli(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    """The contract with ``scenario_gen.export``: export(dir, to, out, options,
-    overwrite=...), the robot URDF passed for nav2 as ``agrinav export`` does."""
-    import sys
-    import types
-    from dataclasses import dataclass
-    from typing import Any
-
-    calls: list[tuple[Any, ...]] = []
-
-    @dataclass(frozen=True)
-    class Options:
-        robot_urdf: str | None = None
-
-        @classmethod
-        def from_dict(cls, data: dict[str, Any]) -> Options:
-            return cls(**data)
-
-    def export(directory: str, to: str, out: str, opts: Options, overwrite: bool) -> dict[str, Any]:
-        calls.append((directory, to, out, opts, overwrite))
-        return {"target": to, "out": out}
-
-    fake = types.ModuleType("scenario_gen.export")
-    fake.TARGETS = ("gazebo", "nav2", "gis", "mesh")  # type: ignore[attr-defined]
-    fake.ExportOptions = Options  # type: ignore[attr-defined]
-    fake.export = export  # type: ignore[attr-defined]
-    monkeypatch.setitem(sys.modules, "scenario_gen.export", fake)
-    scn = tmp_path / "scn"
-    scn.mkdir()
-    (scn / "scenario.json").write_text("{}")
-    assert actions.export_formats() == fake.TARGETS  # type: ignore[attr-defined]
-    assert actions.export(str(scn), "nav2", "o", overwrite=True) == {"target": "nav2", "out": "o"}
-    ((_, to, out, opts, overwrite),) = calls
-    assert (to, out, overwrite) == ("nav2", "o", True)
-    assert opts.robot_urdf is not None and Path(opts.robot_urdf).is_file()
-    actions.export(str(scn), "gis", "g")
-    assert calls[-1][3].robot_urdf is None
-    with pytest.raises(InputError) as e:
-        actions.export(str(scn), "unity", "u")
-    assert e.value.field == "export"
-
-
-def test_export_with_the_real_exporter(tmp_path: Path) -> None:
-    """Runs once ``agrinav export`` is in this tree: the button's call end to end."""
-    pytest.importorskip("scenario_gen.export", reason="agrinav export not merged yet")
+def test_export_runs_the_exporter_like_the_cli(tmp_path: Path) -> None:
+    """The button's call end to end: the CLI's defaults, the simulated robot in a Nav2 bundle,
+    an existing output or an unknown format refused before anything is written."""
     s = _small(False)
     actions.generate_and_save(s, str(tmp_path / "scn"))
     info = actions.export(str(tmp_path / "scn"), "mesh", str(tmp_path / "scn-mesh"))
@@ -183,3 +137,10 @@ def test_export_with_the_real_exporter(tmp_path: Path) -> None:
     with pytest.raises(InputError) as e:  # exists: refused before anything is written
         actions.export(str(tmp_path / "scn"), "mesh", str(tmp_path / "scn-mesh"))
     assert e.value.field == "out"
+    actions.export(str(tmp_path / "scn"), "nav2", str(tmp_path / "scn-nav2"))
+    robot = tmp_path / "scn-nav2" / "robot" / "summit_xl.urdf"
+    assert robot.read_bytes() == Path(urdf_path()).read_bytes()
+    with pytest.raises(InputError) as e:
+        actions.export(str(tmp_path / "scn"), "unity", str(tmp_path / "u"))
+    assert e.value.field == "export" and not (tmp_path / "u").exists()
+    assert actions.export_formats() == TARGETS
