@@ -15,7 +15,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-FloatArray = NDArray[np.float64]
+from scenario_gen.arrays import FloatArray
 
 #: Field order of each vector observation (units: SI, angles rad).
 GPS_FIELDS = ("east", "north", "up", "fix_code", "fix_age")  # antenna fix (ENU m), code, age s

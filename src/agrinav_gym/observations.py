@@ -16,9 +16,9 @@ from typing import Any, ClassVar, TypeVar
 
 import numpy as np
 from gymnasium import spaces
-from numpy.typing import NDArray
 
 from scenario_gen import Scenario
+from scenario_gen.arrays import F32
 
 from .config import EnvConfig
 from .estimation import Readings
@@ -39,7 +39,6 @@ from .routes import RoutePath, Tracker
 from .sensors import make_camera
 from .sensors.camera import Camera, DepthFrame, FieldView
 
-F32 = NDArray[np.float32]
 G20, RATE = 20 * 9.81, math.radians(450.0)  # MTi-300 ranges: ±20 g, ±450 °/s
 
 

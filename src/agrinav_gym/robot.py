@@ -11,13 +11,10 @@ import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from importlib import resources
 
-import numpy as np
-from numpy.typing import NDArray
+from scenario_gen.arrays import FloatArray
 
 from .config import EnvConfig
 from .interface import CameraModel, RobotInterface
-
-FloatArray = NDArray[np.float64]
 
 URDF_PACKAGE = "agrinav_gym.assets"
 URDF_NAME = "summit_xl.urdf"

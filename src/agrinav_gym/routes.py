@@ -10,8 +10,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from scenario_gen import Scenario
+from scenario_gen.arrays import FloatArray
 
-FloatArray = NDArray[np.float64]
 TABLE_STEP = 0.02  # m: route lookup table resolution (waypoints are ≤ 0.1 m apart)
 
 

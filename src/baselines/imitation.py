@@ -20,9 +20,8 @@ import numpy as np
 from numpy.typing import NDArray
 from tqdm import tqdm
 
+from scenario_gen.arrays import FloatArray
 from scenario_gen.schema import param
-
-FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True)

@@ -7,8 +7,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from agrinav_gym.interface import CameraModel, decode_route
-
-FloatArray = NDArray[np.float64]
+from scenario_gen.arrays import FloatArray
 
 
 class DepthProjector:

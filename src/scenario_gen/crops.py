@@ -19,9 +19,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from .arrays import FloatArray
 from .errors import InputError
 
-FloatArray = NDArray[np.float64]
 Colour = tuple[int, int, int]
 #: the species every field's weeds are (``layout.weed_density``)
 WEED_SPECIES = "weed"

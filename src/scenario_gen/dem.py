@@ -29,10 +29,9 @@ from numpy.typing import NDArray
 from pyproj import CRS, Geod, Transformer
 from scipy import ndimage
 
+from .arrays import FloatArray
 from .bounds import MAX_DEM_PIXELS
 from .errors import InputError
-
-FloatArray = NDArray[np.float64]
 
 EMBEDDED_NAME = "jacksboro_fault_dem.npz"
 #: Bicubic spline prefiltering reaches across the whole array, decaying by 0.268 per pixel: a

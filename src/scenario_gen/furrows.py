@@ -9,15 +9,13 @@ from __future__ import annotations
 
 import numpy as np
 import shapely
-from numpy.typing import NDArray
 from scipy import ndimage
 from shapely.geometry.base import BaseGeometry
 
+from .arrays import FloatArray
 from .layout import RowFrame
 from .spec import FurrowSpec
 from .terrain import Terrain
-
-FloatArray = NDArray[np.float64]
 
 
 def ridge_profile(q: FloatArray, profile: str) -> FloatArray:

@@ -11,11 +11,11 @@ from pathlib import Path
 
 import numpy as np
 import shapely
-from numpy.typing import NDArray
 from shapely.geometry import MultiPolygon, Polygon
 from shapely.geometry.base import BaseGeometry
 
 from . import crops
+from .arrays import FloatArray
 from .bounds import MAX_PLANE_RADIUS_M, check_budget, check_lod
 from .errors import InputError
 from .field import (
@@ -35,8 +35,6 @@ from .sources import Site, build_terrain, open_site
 from .spec import CropSpec, ScenarioSpec, TerrainSpec
 from .terrain import Terrain
 from .waypoints import read_gps_waypoints, waypoint_route
-
-FloatArray = NDArray[np.float64]
 
 #: Independent random streams, one per generation step, spawned from the seed so that changing
 #: one parameter (say the weed density) does not reshuffle every other random choice.

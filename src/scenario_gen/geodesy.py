@@ -16,12 +16,11 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 from pyproj import Transformer
 
+from .arrays import FloatArray
 from .errors import InputError
-
-FloatArray = NDArray[np.float64]
 
 #: Web-Mercator ground sample distance at zoom 0 and the equator, metres per 256-px tile pixel.
 GSD_Z0 = 156543.03392

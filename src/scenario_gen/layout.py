@@ -17,12 +17,10 @@ from numpy.typing import NDArray
 from shapely import affinity
 from shapely.geometry.base import BaseGeometry
 
+from .arrays import FloatArray, IntArray
 from .bounds import MAX_CANDIDATES
 from .errors import InputError
 from .spec import LayoutSpec
-
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
 
 
 @dataclass(frozen=True)

@@ -13,8 +13,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
+from .arrays import FloatArray, IntArray
 
 _CHUNK = 1 << 18  # query points per batch: bounds the (point, candidate) pairs held at once
 _EDGE_TOL = 1e-9  # barycentric slack, so points on a shared edge are not lost to rounding

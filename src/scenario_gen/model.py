@@ -13,6 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 from shapely.geometry.base import BaseGeometry
 
+from .arrays import FloatArray
 from .field import enu_to_lonlat
 from .geodesy import GeoFrame
 from .layout import RowFrame
@@ -20,8 +21,6 @@ from .models import UserModel
 from .routes import Route, lane_lines, lane_segments
 from .spec import ScenarioSpec
 from .terrain import Terrain
-
-FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True, eq=False)

@@ -18,14 +18,12 @@ import shapely
 from numpy.typing import NDArray
 from shapely.geometry.base import BaseGeometry
 
+from .arrays import FloatArray, IntArray
 from .bounds import MAX_ROUTE_WAYPOINTS
 from .errors import InputError
 from .layout import RowFrame
 from .spec import RouteSpec
 from .terrain import Terrain
-
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
 
 FURROW, HEADLAND = "furrow", "headland"
 SEGMENTS = (FURROW, HEADLAND)

@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 from shapely.geometry.base import BaseGeometry
 
+from .arrays import FloatArray
 from .bounds import MAX_TERRAIN_SAMPLES
 from .dem import EMBEDDED_CREDIT, Dem, load_embedded, load_geotiff
 from .errors import InputError
@@ -25,7 +26,6 @@ from .meshsurface import TriangleSurface
 from .spec import TerrainSpec
 from .terrain import Terrain, grid_for_bounds
 
-FloatArray = NDArray[np.float64]
 HeightFn = Callable[[FloatArray, FloatArray], FloatArray]
 
 #: Datum used for a plane when the spec gives none: a crop field near León, Spain (42.6° N),

@@ -25,7 +25,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
-FloatArray = NDArray[np.float64]
+from .arrays import FloatArray
+
 IDW_EPS = 1e-12  # m², keeps the weight finite at a sample
 
 

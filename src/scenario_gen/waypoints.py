@@ -20,16 +20,14 @@ from typing import Any
 
 import numpy as np
 import shapely
-from numpy.typing import NDArray
 
+from .arrays import FloatArray
 from .bounds import MAX_ROUTE_WAYPOINTS
 from .errors import InputError
 from .geodesy import GeoFrame
 from .routes import FURROW, HEADLAND, Route
 from .schema import load_yaml
 from .terrain import Terrain
-
-FloatArray = NDArray[np.float64]
 
 #: How far a leg's direction may turn from the rows' and still be a furrow leg.
 FURROW_ALIGN_DEG = 10.0

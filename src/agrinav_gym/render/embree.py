@@ -29,11 +29,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from . import native
+from scenario_gen.arrays import F32, U32, AnyFloat
 
-F32 = NDArray[np.float32]
-U32 = NDArray[np.uint32]
-AnyFloat = NDArray[np.floating[Any]]
+from . import native
 
 GEOMETRY_TRIANGLE, GEOMETRY_CONE, GEOMETRY_INSTANCE = 0, 15, 121
 BUFFER_INDEX, BUFFER_VERTEX = 0, 1

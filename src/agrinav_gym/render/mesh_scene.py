@@ -25,14 +25,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from scenario_gen import Scenario, Terrain
+from scenario_gen.arrays import F32, FloatArray
 
 from . import native
 from .classes import OTHER, SOIL
 from .embree import Caster, Scene, device
 from .plant_meshes import PlantMeshes
-
-FloatArray = NDArray[np.float64]
-F32 = NDArray[np.float32]
 
 TILE = 4.0  # m: a terrain tile is 34 × 34 cells at 0.12 m; a frame touches ≈ 10-15 tiles
 MARGIN = 1.0  # m: the view's hull is grown by this, so small moves reuse the same tiles

@@ -23,12 +23,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from scenario_gen import CATALOG, Scenario
+from scenario_gen.arrays import F32, FloatArray
 from scenario_gen.crops import WEED_SPECIES, crop_mesh
 
 from .classes import CROP, WEED
-
-F32 = NDArray[np.float32]
-FloatArray = NDArray[np.float64]
 
 
 def growth_intervals(name: str) -> int:

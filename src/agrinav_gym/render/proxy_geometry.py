@@ -6,12 +6,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from scenario_gen import Terrain
+from scenario_gen.arrays import FloatArray
 
 from . import native
 from .classes import CROP, OTHER, SOIL, WEED
 from .proxy_plants import PlantField
-
-FloatArray = NDArray[np.float64]
 
 
 class ProxyGeometry:

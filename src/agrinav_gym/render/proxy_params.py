@@ -17,11 +17,10 @@ from importlib import resources
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
+from scenario_gen.arrays import FloatArray
 from scenario_gen.errors import InputError
 
-FloatArray = NDArray[np.float64]
 ParamsFn = Callable[[str, Any], tuple[Any, Any, Any]]
 
 TABLE_FILE = "proxy_fit.json"

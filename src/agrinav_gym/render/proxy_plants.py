@@ -18,10 +18,9 @@ from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from scenario_gen import CATALOG, Scenario
+from scenario_gen.arrays import FloatArray
 
 from .proxy_params import ParamsFn, proxy_params
-
-FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True, eq=False)

@@ -23,12 +23,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from scenario_gen.arrays import FloatArray
+
 from ..interface import CameraModel
 from . import native, pixel_noise, shading
 from .mesh_scene import MeshScene
 from .plant_meshes import Prototype
 
-FloatArray = NDArray[np.float64]
 ZNEAR = 1e-3  # m: the ray casts start at the camera; nothing of the scene comes this close
 
 

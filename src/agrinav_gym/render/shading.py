@@ -17,8 +17,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-FloatArray = NDArray[np.float64]
-U8 = NDArray[np.uint8]
+from scenario_gen.arrays import U8, FloatArray
 
 SOIL_RGB = (0.45, 0.33, 0.22)  # default soil colour of renders and the cameras' RGB
 AMBIENT = 0.35

@@ -12,6 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from scenario_gen import Scenario, Terrain
+from scenario_gen.arrays import FloatArray
 
 from ..config import CameraConfig
 from ..interface import CameraModel
@@ -20,8 +21,6 @@ from ..render.proxy_plants import PlantField
 
 if TYPE_CHECKING:
     from typing import Any
-
-FloatArray = NDArray[np.float64]
 
 
 @dataclass

@@ -26,9 +26,9 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from ..interface import CameraModel
+from scenario_gen.arrays import FloatArray
 
-FloatArray = NDArray[np.float64]
+from ..interface import CameraModel
 
 BASELINE = 0.095  # m
 DEPTH_HFOV_DEG, DEPTH_VFOV_DEG = 87.0, 58.0

@@ -23,6 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from scenario_gen import Terrain
+from scenario_gen.arrays import FloatArray
 
 from ..config import CameraConfig
 from ..interface import CameraModel
@@ -34,8 +35,6 @@ from ..render.proxy_geometry import ProxyGeometry
 from ..render.proxy_plants import PlantField
 from ..render.shading import SOIL_RGB, Lighting
 from .camera import DepthFrame, FieldView, corner_pixels
-
-FloatArray = NDArray[np.float64]
 
 
 class DepthCamera(Lighting):

@@ -25,16 +25,14 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from scenario_gen import Scenario
+from scenario_gen.arrays import FloatArray
 from scenario_gen.crops import scaled_by_height
 
 from ..config import GnssFixConfig
 from ..interface import FIX_LEVELS
-
-FloatArray = NDArray[np.float64]
 
 LEVELS = FIX_LEVELS  # the chain's states, worst to best
 #: the lower stalk bears no green leaves (as the proxy camera's leaf band starts above it)

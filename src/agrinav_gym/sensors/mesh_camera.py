@@ -23,6 +23,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from scenario_gen.arrays import FloatArray
+
 from ..config import CameraConfig
 from ..interface import CameraModel
 from ..render import native, pixel_noise, raster_view, shading
@@ -35,7 +37,6 @@ from ..render.shading import SOIL_RGB, Lighting
 from . import d455
 from .camera import DepthFrame, FieldView, corner_pixels
 
-FloatArray = NDArray[np.float64]
 RGB_FAR = 2.0  # × max_range: how far the colour camera sees geometry before the haze
 #: ``renderer="auto"`` rasterises frames this large: below it a frame's few rays cost less
 #: than drawing every triangle in view (benchmarks/bench_mesh_camera.py, docs/camera.md)

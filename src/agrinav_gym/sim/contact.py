@@ -21,8 +21,6 @@ from scenario_gen.crops import scaled_by_height
 
 from ..robot import RobotGeometry
 
-FloatArray = NDArray[np.float64]
-
 
 @dataclass(frozen=True, eq=False)
 class CropContact:

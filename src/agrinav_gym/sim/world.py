@@ -15,15 +15,12 @@ from typing import Any
 
 import numpy as np
 import pybullet as p
-from numpy.typing import NDArray
 
 from scenario_gen import Terrain
 
 from ..config import RobotConfig, SoilConfig
 from ..robot import RobotGeometry, RobotState, urdf_path
 from .tyres import TyreModel, check_corner_stability, in_place_turn_ratio
-
-FloatArray = NDArray[np.float64]
 
 WHEEL_JOINTS = (
     "front_left_wheel_joint",

@@ -3,6 +3,7 @@
 The proxy (``PlantField``) draws a plant as a vertical capped cylinder of radius
 ``fill × canopy width`` from its base to its top and — for planar-leaved maize — a leaf band
 from ``base × height`` to the top whose radius is ``reach × half the canopy width ×
+from scenario_gen.arrays import FloatArray
 |sin(yaw − row angle)|`` (the leaf plane's extent across the row). The three numbers are fitted
 per species and catalog stage: on lanes of that crop as the v1 envs made them (the ``ridged``
 preset's terrain with its 0.12 m furrows, rows 0.75 and 1 m apart, 0.18 m in the row, random
@@ -33,6 +34,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from scenario_gen import CATALOG, Scenario
+from scenario_gen.arrays import FloatArray
 from scenario_gen.crops import WEED_SPECIES
 
 from ..config import EnvConfig
@@ -42,9 +44,6 @@ from ..render.proxy_plants import PlantField
 from ..robot import RobotGeometry, robot_interface
 from ..sensors.depth import DepthCamera
 from ..sensors.mesh_camera import MeshCamera
-
-FloatArray = NDArray[np.float64]
-
 
 FILL_GRID = np.round(np.arange(0.0, 0.61, 0.02), 3)
 BASE_GRID = np.round(np.arange(0.0, 1.0, 0.05), 3)

@@ -16,8 +16,8 @@ from numpy.typing import NDArray
 
 from agrinav_gym.interface import CameraModel
 from scenario_gen import Scenario
+from scenario_gen.arrays import FloatArray
 
-FloatArray = NDArray[np.float64]
 ROW_STEP = 0.25  # m between labelled points along a row line
 
 

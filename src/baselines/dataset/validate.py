@@ -15,11 +15,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from scenario_gen.arrays import FloatArray
 from scenario_gen.errors import InputError
 
 from .loader import PerceptionDataset
-
-FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True)

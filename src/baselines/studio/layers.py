@@ -15,16 +15,15 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 from scipy import ndimage
 
+from scenario_gen.arrays import FloatArray
 from scenario_gen.dem import Dem, load_embedded, load_geotiff
 from scenario_gen.geodesy import GeoFrame
 from scenario_gen.sources import DEFAULT_PLANE_DATUM, load_mesh_vertices
 from scenario_gen.spec import TerrainSpec
 from scenario_gen.terrain import hillshade
 
-FloatArray = NDArray[np.float64]
 EARTH_R = 6_378_137.0  # WGS84 semi-major axis: Web-Mercator's sphere
 PLANE_HALF_M = 500.0  # a plane has no edge: show this much around its datum
 

@@ -17,10 +17,10 @@ from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 from shapely.geometry.base import BaseGeometry
 
 from scenario_gen import crops
+from scenario_gen.arrays import FloatArray
 from scenario_gen.errors import InputError
 from scenario_gen.generate import FieldPlan, check_spec, growth_of, plan_field, streams
 from scenario_gen.layout import Layout, layout
@@ -28,8 +28,6 @@ from scenario_gen.routes import Route, zigzag
 from scenario_gen.sources import Site, open_site, terrain_grid
 from scenario_gen.spec import ScenarioSpec, TerrainSpec
 from scenario_gen.terrain import Terrain
-
-FloatArray = NDArray[np.float64]
 
 #: Plants drawn at most; larger fields are drawn decimated (every k-th plant) with the true
 #: count shown. A canvas layer draws 20,000 dots in ≈10 ms, so the cap is set by the payload.

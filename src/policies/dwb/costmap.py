@@ -19,9 +19,10 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import ndimage
 
+from scenario_gen.arrays import FloatArray
+
 from .params import InflationLayerParams, VoxelLayerParams
 
-FloatArray = NDArray[np.float64]
 FREE, INSCRIBED, LETHAL, NO_INFORMATION = 0, 253, 254, 255
 
 

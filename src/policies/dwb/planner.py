@@ -17,6 +17,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from scenario_gen.arrays import FloatArray
+
 from .critics import (
     BaseObstacleCritic,
     Critic,
@@ -40,7 +42,6 @@ from .trajectories import (
     step_counts,
 )
 
-FloatArray = NDArray[np.float64]
 CHUNK = 24  # footprint evaluations per round of the branch-and-bound
 
 

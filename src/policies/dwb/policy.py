@@ -26,6 +26,7 @@ from agrinav_gym.interface import (
     decode_odom,
     decode_route,
 )
+from scenario_gen.arrays import FloatArray
 
 from ..base import Obs, Policy
 from ..geometry import DepthProjector, local_plan
@@ -35,7 +36,6 @@ from .params import DWBParams
 from .planner import Evaluation, LocalPlanner, transform_global_plan
 from .trajectories import Kinematics
 
-FloatArray = NDArray[np.float64]
 MIN_X_VELOCITY_THRESHOLD = 0.001  # controller_server: odometry below this reads 0
 MIN_THETA_VELOCITY_THRESHOLD = 0.001
 TRAIL_JOIN = 0.5  # m: a new plan further than this from the kept one starts afresh

@@ -14,7 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-FloatArray = NDArray[np.float64]
+from scenario_gen.arrays import FloatArray
+
 EPSILON = 1e-5  # one_d_velocity_iterator.hpp
 
 

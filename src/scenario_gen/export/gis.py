@@ -16,15 +16,14 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 from pyproj import CRS
 
+from ..arrays import FloatArray
 from ..geojson import collection, field_features, plant_features, route_features, row_features
 from ..model import Scenario
 from .crs import enu_crs_error, local_crs
 from .gpkg import Layer, write_gpkg
 
-FloatArray = NDArray[np.float64]
 LOCAL_SRS_ID = 100000
 
 

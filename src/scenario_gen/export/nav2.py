@@ -15,13 +15,12 @@ from typing import Any
 
 import numpy as np
 import yaml
-from numpy.typing import NDArray
 
+from ..arrays import FloatArray
 from ..model import Scenario
 from .gazebo import export_gazebo
 from .options import ExportOptions
 
-FloatArray = NDArray[np.float64]
 #: base_link sits 0.11 m above the footprint (wheel radius); spawn 2 cm above the ground.
 SPAWN_CLEARANCE = 0.13
 

@@ -22,15 +22,12 @@ from typing import Any
 from xml.sax.saxutils import escape
 
 import numpy as np
-from numpy.typing import NDArray
 
+from ..arrays import FloatArray, IntArray
 from ..crops import CATALOG, WEED_SPECIES, crop_mesh
 from ..errors import InputError
 from ..model import Scenario
 from .meshes import face_colours, flat_colour_mesh, save_png, textured_mesh, write_dae
-
-IntArray = NDArray[np.int64]
-FloatArray = NDArray[np.float64]
 
 SCALE_STEP = 1.02
 GROWTH_STEPS = 16

@@ -12,8 +12,6 @@ from numpy.typing import NDArray
 from ..terrain import Terrain
 from .meshes import MeshData, save_png, write_dae
 
-FloatArray = NDArray[np.float64]
-
 #: Dry loam; the hillshade modulates it so furrows and slopes read in the Gazebo view.
 SOIL_RGB = np.array([120.0, 92.0, 62.0])
 MAX_HEIGHTMAP = 4097  # Gazebo wants a square (2^n + 1)-pixel heightmap

@@ -18,12 +18,11 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from ..arrays import FloatArray, IntArray
 from ..model import Scenario
 from .meshes import face_colours, write_stl
 from .plantmodels import Assignment, fmt, model_config
 
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
 #: Stem proxies of a tile are one collision mesh of prisms: one SDF <collision> per plant costs
 #: libsdformat ≥240 kB of DOM each (a 99k-plant world did not load within 24 GB).
 PRISM_SIDES = 8
