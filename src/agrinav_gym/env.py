@@ -477,4 +477,23 @@ def _check_observations(obs: Any, default: tuple[str, ...]) -> tuple[str, ...]:
 
 
 # the estimator's readings are part of the public step data
-__all__ = ["AgriNavEnv"]
+
+
+def env_creator(cls: type[AgriNavEnv]) -> Any:
+    """What ``gym.make`` calls for ``cls`` (the registered entry point).
+
+    It declares ``human`` even without a display, so ``gym.make(..., render_mode="human")``
+    passes the mode to the env, which refuses it headless in one line; otherwise Gymnasium
+    wraps a headless env in its pygame ``HumanRendering`` and fails at the first reset with an
+    unrelated message. The class itself declares only the modes that work here (the checkers
+    build the env in each)."""
+
+    def make(**kwargs: Any) -> AgriNavEnv:
+        return cls(**kwargs)
+
+    make.metadata = {**cls.metadata, "render_modes": ["rgb_array", "human"]}  # type: ignore[attr-defined]
+    make.__name__ = make.__qualname__ = f"make_{cls.__name__}"
+    return make
+
+
+__all__ = ["AgriNavEnv", "env_creator"]

@@ -39,9 +39,9 @@ class EnvDef:
 #: v1: drivable default fields, tyre–soil physics, the EKF's pose in the route observation,
 #: canopy-driven GNSS fix modes, fitted plant proxies (docs/design.md "Version history").
 ENVS = (
-    EnvDef("FurrowFollow", 2, "agrinav_gym.envs.furrow_follow:FurrowFollowEnv", 1500),
-    EnvDef("FurrowFollowDepth", 2, "agrinav_gym.envs.furrow_follow:FurrowFollowDepthEnv", 1500),
-    EnvDef("FieldRoute", 2, "agrinav_gym.envs.field_route:FieldRouteEnv", 4000),
+    EnvDef("FurrowFollow", 2, "agrinav_gym.envs.furrow_follow:make_furrow_follow", 1500),
+    EnvDef("FurrowFollowDepth", 2, "agrinav_gym.envs.furrow_follow:make_furrow_follow_depth", 1500),
+    EnvDef("FieldRoute", 2, "agrinav_gym.envs.field_route:make_field_route", 4000),
 )
 ENV_IDS = tuple(d.id for d in ENVS)
 _BY_NAME = {d.name: d for d in ENVS}

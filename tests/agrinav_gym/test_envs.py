@@ -45,9 +45,19 @@ def test_human_mode_is_declared_only_with_a_display() -> None:
     if "human" not in modes:
         from agrinav_gym.envs import FurrowFollowEnv
 
-        # (gym.make would wrap the env in Gymnasium's HumanRendering instead)
         with pytest.raises(agrinav_gym.InputError, match="display"):
             FurrowFollowEnv(scenario_overrides=TINY, render_mode="human")
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_gym_make_human_headless_is_refused_in_one_line(
+    env_id: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Not wrapped in Gymnasium's pygame HumanRendering (which fails at the first reset)."""
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.setattr("sys.platform", "linux")
+    with pytest.raises(agrinav_gym.InputError, match="needs a display"):
+        gym.make(env_id, render_mode="human", scenario_overrides=TINY)
 
 
 @pytest.mark.parametrize("env_id", ["AgriNav/FurrowFollowDepth-v2", "AgriNav/FieldRoute-v2"])

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import ClassVar
 
-from ..env import AgriNavEnv
+from ..env import AgriNavEnv, env_creator
 from ..interface import OBSERVATION_KEYS
 
 
@@ -49,3 +49,6 @@ class FieldRouteEnv(AgriNavEnv):
 
     task_name: ClassVar[str] = "FieldRoute"
     default_observations: ClassVar[tuple[str, ...]] = OBSERVATION_KEYS
+
+
+make_field_route = env_creator(FieldRouteEnv)

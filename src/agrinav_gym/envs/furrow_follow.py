@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import ClassVar
 
-from ..env import AgriNavEnv
+from ..env import AgriNavEnv, env_creator
 from ..interface import OBS_DEPTH, OBS_IMU, OBS_ODOM
 
 
@@ -117,3 +117,7 @@ class FurrowFollowDepthEnv(FurrowFollowEnv):
     """
 
     default_observations: ClassVar[tuple[str, ...]] = (OBS_DEPTH, OBS_IMU, OBS_ODOM)
+
+
+make_furrow_follow = env_creator(FurrowFollowEnv)
+make_furrow_follow_depth = env_creator(FurrowFollowDepthEnv)
