@@ -62,9 +62,20 @@ def run(args: argparse.Namespace) -> int:
         data["tile_plants"] = args.tile_plants
     if args.to == "nav2":
         data["robot_urdf"] = urdf_path()
-    opts = ExportOptions.from_dict(data)
     if args.to != "mesh" and (args.with_plants or args.formats != "glb"):
         raise InputError("--formats/--with-plants", args.to, "allowed only with --to mesh")
+    world_only = {
+        "--plants": args.plants != "auto",
+        "--include-limit": args.include_limit is not None,
+        "--tile-plants": args.tile_plants is not None,
+        "--heightmap": args.heightmap,
+    }
+    given = [flag for flag, used in world_only.items() if used]
+    if args.to not in ("gazebo", "nav2") and given:
+        raise InputError(
+            "/".join(given), args.to, "allowed only with --to gazebo or nav2 (a Gazebo world)"
+        )
+    opts = ExportOptions.from_dict(data)
     t0 = time.perf_counter()
     info = export(args.dir, args.to, args.out, opts, overwrite=args.force)
     info["seconds"] = round(time.perf_counter() - t0, 2)
