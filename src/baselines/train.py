@@ -301,9 +301,13 @@ class _Saver:
         tmp = folder.with_name(f".{folder.name}.tmp-{os.getpid()}")
         shutil.rmtree(tmp, ignore_errors=True)
         name = "DepthMultiInputPolicy" if self.hp.policy != "MultiInputPolicy" else self.hp.policy
-        checkpoint.save(
-            tmp, model.policy, name, self.hp.policy_kwargs, norm, self._meta(model), optimizer=True
-        )
+        try:
+            checkpoint.save(
+                tmp, model.policy, name, self.hp.policy_kwargs, norm, self._meta(model), True
+            )
+        except BaseException:  # a full disk, a kill: no half-written checkpoint stays behind
+            shutil.rmtree(tmp, ignore_errors=True)
+            raise
         shutil.rmtree(folder, ignore_errors=True)
         tmp.rename(folder)
 

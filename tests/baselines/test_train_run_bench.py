@@ -380,3 +380,29 @@ def test_a_second_train_on_the_same_out_is_refused(
         assert main([*argv, "--out", str(out)]) == 2
     assert "being written by another run" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_a_checkpoint_that_cannot_be_written_leaves_nothing(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A full disk while a checkpoint is written: the error reaches the user and the
+    half-written ``.step_N.tmp-PID`` folder is gone (the last complete checkpoint stays)."""
+    import errno
+
+    from baselines import train
+
+    def full_disk(folder: Path, *args: object, **kwargs: object) -> None:
+        folder.mkdir(parents=True)
+        (folder / "policy.npz").write_bytes(b"partial")
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(train.checkpoint, "save", full_disk)
+    saver = train._Saver.__new__(train._Saver)
+    saver.out = tmp_path
+    saver.hp = type("HP", (), {"policy": "MultiInputPolicy", "policy_kwargs": {}})()
+    monkeypatch.setattr(saver, "_meta", lambda model: {}, raising=False)
+    (tmp_path / "checkpoints" / "step_0000000100").mkdir(parents=True)
+    model = type("Model", (), {"policy": None, "num_timesteps": 200})()
+    with pytest.raises(OSError, match="No space left"):
+        saver.periodic(model, None)
+    assert sorted(p.name for p in (tmp_path / "checkpoints").iterdir()) == ["step_0000000100"]
