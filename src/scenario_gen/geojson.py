@@ -6,7 +6,8 @@ lines and points cannot be converted to a Shapefile. Every feature carries a uni
 ``id`` (its index in the file), and plant numbers live in the ``plant_id`` property, so GDAL
 never takes a repeated property for its feature id (``ogr2ogr -f GPKG`` refused the old file).
 Coordinates are lon, lat, ellipsoidal height; ``decimals=None`` keeps full precision (for the
-GeoPackage writer), 8 decimals are ≈1 mm.
+GeoPackage writer), 8 decimals are ≈1 mm. Lines and the field that cross the antimeridian are
+cut there (``antimeridian``), as RFC 7946 asks: their features become Multi- geometries.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from .antimeridian import cut_geometry
 from .model import Scenario
 
 LAYERS = ("field", "route", "plants")
@@ -30,14 +32,20 @@ def _coords(lon: Any, lat: Any, z: Any, decimals: int | None) -> list[list[float
     return out
 
 
+def _line(lon: Any, lat: Any, z: Any, decimals: int | None) -> dict[str, Any]:
+    """A LineString, or a MultiLineString where it crosses the antimeridian."""
+    full = {"type": "LineString", "coordinates": _coords(lon, lat, z, None)}
+    return _round_geom(cut_geometry(full), decimals)
+
+
 def _round_geom(g: Any, decimals: int | None) -> Any:
     if decimals is None:
         return g
     if isinstance(g, dict):
         return {k: _round_geom(v, decimals) for k, v in g.items()}
     if isinstance(g, (list, tuple)):
-        if g and isinstance(g[0], float):
-            return [round(v, decimals) for v in g]
+        if g and isinstance(g[0], float):  # a position: lon, lat (≈1 mm), height (1 mm)
+            return [round(v, decimals if i < 2 else 3) for i, v in enumerate(g)]
         return [_round_geom(v, decimals) for v in g]
     return g
 
@@ -55,7 +63,7 @@ def field_features(scn: Scenario, decimals: int | None = 8) -> list[dict[str, An
         {
             "type": "Feature",
             "properties": {"name": scn.spec.name, "area_m2": round(scn.field.area, 2)},
-            "geometry": _round_geom(_plain(geom), decimals),
+            "geometry": _round_geom(cut_geometry(_plain(geom)), decimals),
         }
     ]
 
@@ -89,10 +97,7 @@ def route_features(
                     "lane": int(r.lane[a]),
                     "length_m": round(length, 3),
                 },
-                "geometry": {
-                    "type": "LineString",
-                    "coordinates": _coords(rlon[a:hi], rlat[a:hi], ralt[a:hi], decimals),
-                },
+                "geometry": _line(rlon[a:hi], rlat[a:hi], ralt[a:hi], decimals),
             }
         )
     return feats
@@ -149,7 +154,7 @@ def row_features(scn: Scenario, decimals: int | None = 8, step: float = 1.0) -> 
             {
                 "type": "Feature",
                 "properties": {"row": i, "length_m": round(float(t1 - t0), 3)},
-                "geometry": {"type": "LineString", "coordinates": _coords(lon, lat, alt, decimals)},
+                "geometry": _line(lon, lat, alt, decimals),
             }
         )
     return feats

@@ -118,12 +118,7 @@ def export_gis(scn: Scenario, out: Path) -> dict[str, Any]:
         "plants": plant_features(scn, lat, lon, alt, None),
         "route": route_features(scn, rlat, rlon, None),
     }
-    kinds = {
-        "field": "MULTIPOLYGON" if scn.field.geom_type == "MultiPolygon" else "POLYGON",
-        "rows": "LINESTRING",
-        "plants": "POINT",
-        "route": "LINESTRING",
-    }
+    kinds = {name: _layer_type(feats) for name, feats in full.items()}
     write_gpkg(
         out / "layers.gpkg",
         [
@@ -144,3 +139,13 @@ def export_gis(scn: Scenario, out: Path) -> dict[str, Any]:
     (out / "README.md").write_text(gis_readme(scn, info))
     render_export_preview(scn, out / "preview.png", geotiff=out / "terrain.tif")
     return info
+
+
+def _layer_type(features: list[dict[str, Any]]) -> str:
+    """The GeoPackage geometry type of a layer: its features' type, promoted to Multi- when any
+    feature is (lines and fields cut at the antimeridian)."""
+    kinds = {f["geometry"]["type"] for f in features}
+    for single in ("Polygon", "LineString"):
+        if f"Multi{single}" in kinds:
+            return f"MULTI{single.upper()}"
+    return next(iter(kinds)).upper() if len(kinds) == 1 else "GEOMETRY"
