@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import json
 import logging
 import shutil
@@ -27,7 +28,7 @@ def dataset(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def test_frames_hold_every_array_and_label(dataset: Path) -> None:
-    ds = PerceptionDataset(dataset)
+    ds = PerceptionDataset(dataset, parse_labels=True)
     assert len(ds) == 4
     s = ds[0]
     assert s["rgb"].shape == (32, 48, 3) and s["rgb"].dtype == np.uint8
@@ -48,9 +49,54 @@ def test_frames_hold_every_array_and_label(dataset: Path) -> None:
 def test_lane_offset_agrees_with_the_envs_cross_track_error(dataset: Path) -> None:
     # FurrowFollow's route is the lane centreline: the label (from the row geometry) and the
     # env's own metric (nearest route segment) are independent computations of one distance.
-    for s in PerceptionDataset(dataset):
+    for s in PerceptionDataset(dataset, parse_labels=True):
         lab = s["labels"]
         assert abs(abs(lab["lane"]["lateral_offset"]) - lab["route_cte"]) < 0.01
+        assert s["lateral_offset"] == lab["lane"]["lateral_offset"]
+
+
+def test_splits_are_disjoint_field_ranges_listed_in_the_manifest_and_card(
+    dataset: Path, tmp_path: Path
+) -> None:
+    """Shards 0, 1, 2 are train, validation, test; each split's fields come from its own
+    scenario seed range; the card's front matter lists the shards per split for the Hub."""
+    import yaml
+
+    from baselines.dataset.perception import SPLIT_SEEDS
+
+    man = json.loads((dataset / "dataset.json").read_text())
+    assert man["splits"]["train"]["shards"] == ["shard-000000.tar"]
+    assert man["splits"]["validation"]["shards"] == ["shard-000001.tar"]
+    assert man["splits"]["test"]["shards"] == []  # 4 frames, 2 per shard: two shards
+    for name in ("train", "validation"):
+        part = PerceptionDataset(dataset, split=name, parse_labels=True)
+        assert len(part) == 2
+        lo, hi = SPLIT_SEEDS[name]
+        for s in part:
+            assert s["split"] == name and lo <= s["labels"]["scenario"]["seed"] < hi
+    ranges = sorted(SPLIT_SEEDS.values())
+    assert all(a[1] <= b[0] for a, b in itertools.pairwise(ranges))
+    with pytest.raises(InputError, match="split"):
+        PerceptionDataset(dataset, split="dev")
+    from baselines.dataset.card import write_card
+
+    shutil.copytree(dataset, tmp_path / "ds")
+    write_card(tmp_path / "ds")
+    text = (tmp_path / "ds" / "README.md").read_text()
+    assert text.startswith("---\n")
+    meta = yaml.safe_load(text.split("---\n")[1])
+    assert meta["license"] == "mit" and meta["size_categories"] == ["n<1K"]
+    files = {d["split"]: d["path"] for d in meta["configs"][0]["data_files"]}
+    assert files == {"train": ["shard-000000.tar"], "validation": ["shard-000001.tar"]}
+
+
+def test_pytorchs_default_collation_batches_frames(dataset: Path) -> None:
+    torch = pytest.importorskip("torch")
+    loader = torch.utils.data.DataLoader(PerceptionDataset(dataset), batch_size=3)
+    batch = next(iter(loader))
+    assert tuple(batch["depth"].shape) == (3, 32, 48) and batch["rgb"].dtype == torch.uint8
+    assert batch["lateral_offset"].shape == (3,) and len(batch["labels"]) == 3
+    assert json.loads(batch["labels"][0])["key"] == batch["key"][0]
 
 
 @pytest.mark.parametrize("overlap", [False, True])
@@ -110,9 +156,12 @@ def test_bad_specs_exit_2_and_write_nothing(
 def test_trajectories_are_a_minari_dataset_that_recovers_its_env(tmp_path: Path) -> None:
     pytest.importorskip("jax", reason="Minari's recorder needs the dataset extra (jax)")
     minari = pytest.importorskip("minari", reason="the dataset extra is not installed")
-    from baselines.dataset.trajectories import INFO_KEYS, _datasets_root, record
+    from baselines.dataset.trajectories import INFO_KEYS, _datasets_root, load, record
 
     path = record("AgriNav/FurrowFollow-v2", "rpp", 2, tmp_path / "m", seed=3)
+    meta = load(tmp_path / "m").storage.metadata
+    assert meta["requirements"][0].startswith("agrinav-gym==")
+    assert meta["ref_min_score"] < meta["ref_max_score"]  # random actions score below RPP
     with _datasets_root(tmp_path / "m"):
         data = minari.load_dataset("agrinav/furrow_follow-v0")
         assert data.total_episodes == 2
@@ -217,7 +266,7 @@ def test_driving_check_scores_a_policy_by_the_labels_of_its_frames(tmp_path: Pat
     from baselines.dataset.validate import driving_check
 
     r = driving_check("rpp", tmp_path / "d", frames=8, overrides={"frames_per_shard": 4})
-    lab = [s["labels"]["lane"] for s in PerceptionDataset(tmp_path / "d")]
+    lab = [s["labels"]["lane"] for s in PerceptionDataset(tmp_path / "d", parse_labels=True)]
     off = np.abs([x["lateral_offset"] for x in lab])
     assert r.frames == r.labelled == 8 and r.mae == pytest.approx(off.mean())
     assert r.p95 <= off.max() + 1e-12 and r.rmse >= r.mae

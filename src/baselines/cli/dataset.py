@@ -56,4 +56,8 @@ def trajectories(args: argparse.Namespace) -> int:
         args.env, args.policy, args.episodes, args.out, args.seed, args.dataset_id, args.force
     )
     print(f"Minari dataset {args.dataset_id} written to {path}")
+    print(
+        f"load it: baselines.dataset.trajectories.load({str(args.out)!r}), or "
+        f"minari.load_dataset({args.dataset_id!r}) with MINARI_DATASETS_PATH={args.out}"
+    )
     return 0

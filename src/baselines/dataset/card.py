@@ -1,5 +1,11 @@
-"""The dataset card: README.md (spec, seeds, counts, label statistics) and a mosaic of frames
-with their labels drawn (rows, stems, the lane offset)."""
+"""The dataset card: README.md and a mosaic of frames with their labels drawn (rows, stems,
+the lane offset).
+
+The card opens with the YAML front matter the Hugging Face Hub reads (licence, task
+categories, size, and one ``data_files`` entry per split, so ``datasets.load_dataset`` with the
+WebDataset builder finds the train, validation and test shards), then the spec, seeds, counts
+and label statistics.
+"""
 
 from __future__ import annotations
 
@@ -14,6 +20,40 @@ from scenario_gen.atomic import atomic_write
 
 from .loader import PerceptionDataset
 from .run import MANIFEST
+
+#: The data's licence: the project's own (pyproject.toml), an SPDX id the Hub understands.
+LICENSE = "mit"
+
+
+def _size_category(n: int) -> str:
+    for hi, name in ((1_000, "n<1K"), (10_000, "1K<n<10K"), (100_000, "10K<n<100K")):
+        if n < hi:
+            return name
+    return "100K<n<1M"
+
+
+def front_matter(man: dict[str, Any], frames: int) -> list[str]:
+    """The card's YAML front matter (Hugging Face dataset card metadata)."""
+    import yaml
+
+    meta = {
+        "license": LICENSE,
+        "pretty_name": "AgriNav perception dataset",
+        "task_categories": ["depth-estimation", "image-segmentation"],
+        "tags": ["agriculture", "robotics", "synthetic", "webdataset", "row-following"],
+        "size_categories": [_size_category(frames)],
+        "configs": [
+            {
+                "config_name": "default",
+                "data_files": [
+                    {"split": name, "path": list(s["shards"])}
+                    for name, s in man.get("splits", {}).items()
+                    if s["shards"]
+                ],
+            }
+        ],
+    }
+    return ["---", yaml.safe_dump(meta, sort_keys=False).rstrip(), "---", ""]
 
 
 def mosaic(ds: PerceptionDataset, path: Path, n: int = 6) -> None:
@@ -60,7 +100,7 @@ def mosaic(ds: PerceptionDataset, path: Path, n: int = 6) -> None:
 def write_card(out: Path) -> None:
     """README.md and mosaic.png for the dataset in ``out``."""
     man = json.loads((out / MANIFEST).read_text())
-    ds = PerceptionDataset(out)
+    ds = PerceptionDataset(out, parse_labels=True)
     lateral: list[float] = []
     heading: list[float] = []
     plants: list[int] = []
@@ -83,6 +123,7 @@ def write_card(out: Path) -> None:
 
     spec = man["spec"]
     lines = [
+        *front_matter(man, len(ds)),
         "# AgriNav perception dataset",
         "",
         f"Schema version {man['schema']} (docs/datasets.md), seed {man['seed']}, spec digest "
@@ -106,7 +147,30 @@ def write_card(out: Path) -> None:
         json.dumps(spec, indent=1, default=list),
         "```",
         "",
-        "Load it: `from baselines.dataset import PerceptionDataset; ds = PerceptionDataset(DIR)`.",
+        "## Splits",
+        "",
+        "Fields of each split come from their own scenario seed range, so validation and test",
+        "frames show fields no training frame shows:",
+        "",
+        "| split | scenario seeds | shards |",
+        "|---|---|---|",
+        *(
+            f"| {name} | [{s['scenario_seeds'][0]}, {s['scenario_seeds'][1]}) | "
+            f"{len(s['shards'])} |"
+            for name, s in man.get("splits", {}).items()
+        ),
+        "",
+        "## Load it",
+        "",
+        "```python",
+        "from baselines.dataset import PerceptionDataset",
+        'train = PerceptionDataset(DIR, split="train")  # PyTorch default collation works',
+        "```",
+        "",
+        "or, without this package, with the Hugging Face `datasets` WebDataset builder:",
+        "`datasets.load_dataset(DIR)` (the splits are this card's `configs`).",
+        "",
+        f"Licence: {LICENSE.upper()} (the generated data, as the code that made it).",
         "",
     ]
     text = "\n".join(lines)

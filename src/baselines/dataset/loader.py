@@ -1,8 +1,9 @@
 """Reading a perception dataset: a map-style PyTorch ``Dataset`` over its tar shards.
 
->>> ds = PerceptionDataset("runs/ds")            # every frame of every shard
->>> sample = ds[0]                                # dict of numpy arrays + "labels"
->>> loader = torch.utils.data.DataLoader(ds, batch_size=8, collate_fn=lambda b: b)
+>>> ds = PerceptionDataset("runs/ds", split="train")  # one split's frames (None: all)
+>>> sample = ds[0]                 # arrays, the lane offsets, the labels as JSON text
+>>> loader = torch.utils.data.DataLoader(ds, batch_size=8)   # PyTorch's default collation
+>>> ds.labels(0)                   # one frame's labels, parsed
 """
 
 from __future__ import annotations
@@ -41,15 +42,29 @@ def _decode(name: str, data: bytes) -> Any:
 
 
 class PerceptionDataset(_Base):
-    """Frames of ``root``'s shards: ``rgb`` (H, W, 3) uint8, ``depth`` (H, W) float32 m,
-    ``semantic`` (H, W) uint8, ``instance`` (H, W) int32 and ``labels`` (the JSON)."""
+    """Frames of ``root``'s shards (of one ``split``, or all): ``rgb`` (H, W, 3) uint8,
+    ``depth`` (H, W) float32 m, ``semantic`` (H, W) uint8, ``instance`` (H, W) int32, the lane
+    label's ``lateral_offset`` (m) and ``heading_offset`` (rad) as floats (NaN where the frame
+    has none), ``split``, ``key`` and ``labels``: the frame's JSON text, so every value has a
+    fixed shape and PyTorch's default collation batches them (``parse_labels=True`` gives the
+    parsed dict instead, for a loop over single frames)."""
 
-    def __init__(self, root: str | Path) -> None:
+    def __init__(
+        self, root: str | Path, split: str | None = None, parse_labels: bool = False
+    ) -> None:
         self.root = Path(root)
+        self.parse_labels = parse_labels
         if not (self.root / MANIFEST).is_file():
             raise InputError("root", str(root), f"allowed: a dataset folder holding {MANIFEST}")
+        splits = json.loads((self.root / MANIFEST).read_text()).get("splits", {})
+        if split is not None and split not in splits:
+            allowed = ", ".join(splits) or "none (a dataset from before splits)"
+            raise InputError("split", split, f"allowed: {allowed}")
+        wanted = set(splits[split]["shards"]) if split is not None else None
         self.index: list[tuple[Path, str, dict[str, tarfile.TarInfo]]] = []
         for shard in sorted(self.root.glob("shard-*.tar")):
+            if wanted is not None and shard.name not in wanted:
+                continue
             with tarfile.open(shard) as tar:
                 members: dict[str, dict[str, tarfile.TarInfo]] = {}
                 for m in tar.getmembers():
@@ -67,8 +82,17 @@ class PerceptionDataset(_Base):
             for part, m in parts.items():
                 f = tar.extractfile(m)
                 assert f is not None
-                value = _decode(m.name, f.read())
-                out["labels" if part == "json" else part.split(".")[0]] = value
+                data = f.read()
+                if part == "json":
+                    labels = json.loads(data)
+                    lane = labels.get("lane") or {}
+                    for name in ("lateral_offset", "heading_offset"):
+                        v = lane.get(name)
+                        out[name] = float("nan") if v is None else float(v)
+                    out["split"] = str(labels.get("split", ""))
+                    out["labels"] = labels if self.parse_labels else data.decode()
+                else:
+                    out[part.split(".")[0]] = _decode(m.name, data)
         return out
 
     def labels(self, i: int) -> dict[str, Any]:

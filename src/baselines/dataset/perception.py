@@ -30,8 +30,23 @@ from scenario_gen.errors import InputError
 from .labels import camera_dict, lane_offset, plants, row_lines
 from .spec import SCHEMA_VERSION, PerceptionSpec
 
-#: Scenario seeds of dataset fields: disjoint from every train [0, 1e6) and eval [1e9, +1e6) range.
+#: Scenario seeds of dataset fields, one range per split: disjoint from each other and from the
+#: RL envs' train [0, 1e6), validation [5e8, +1e6) and test [1e9, +1e6) ranges.
+SPLIT_SEEDS = {
+    "train": (2_000_000_000, 2_800_000_000),
+    "validation": (2_800_000_000, 2_900_000_000),
+    "test": (2_900_000_000, 3_000_000_000),
+}
 DATASET_SCENARIO_SEEDS = (2_000_000_000, 3_000_000_000)
+#: The split of shard i: a cycle of ten shards, 8 train, 1 validation, 1 test (the first three
+#: shards already cover all three, so even a small dataset can be evaluated on unseen fields).
+SPLIT_CYCLE = ("train", "validation", "test", *("train",) * 7)
+
+
+def split_of(index: int) -> str:
+    return SPLIT_CYCLE[index % len(SPLIT_CYCLE)]
+
+
 OBSERVATIONS = list(OBSERVATION_KEYS)
 
 
@@ -45,9 +60,11 @@ class Frame:
     labels: dict[str, Any]
 
 
-def make_env(spec: PerceptionSpec, camera_height: float, pitch_deg: float) -> Any:
+def make_env(
+    spec: PerceptionSpec, camera_height: float, pitch_deg: float, split: str = "train"
+) -> Any:
     """The env a shard's frames come from: mesh camera with RGB and segmentation at the spec's
-    size, rendering only on frame steps."""
+    size, rendering only on frame steps, fields from the split's scenario seeds."""
     import gymnasium as gym
 
     import agrinav_gym
@@ -69,7 +86,7 @@ def make_env(spec: PerceptionSpec, camera_height: float, pitch_deg: float) -> An
         scenario=spec.preset,
         scenario_overrides={"field": {"length": spec.field_length}},
         randomize=spec.randomize,
-        scenario_seeds=list(DATASET_SCENARIO_SEEDS),
+        scenario_seeds=list(SPLIT_SEEDS[split]),
         config=config,
         observations=OBSERVATIONS,
     )
@@ -98,7 +115,8 @@ def shard_frames(spec: PerceptionSpec, seed: int, index: int) -> Iterator[Frame]
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), int(index)]))
     cam_h = float(rng.uniform(*spec.camera_height))
     pitch = float(rng.uniform(*spec.camera_pitch_deg))
-    env = make_env(spec, cam_h, pitch)
+    split = split_of(index)
+    env = make_env(spec, cam_h, pitch, split)
     try:
         u = env.unwrapped
         depth_cam = u.interface.camera
@@ -120,7 +138,7 @@ def shard_frames(spec: PerceptionSpec, seed: int, index: int) -> Iterator[Frame]
                 step += 1
                 if step % spec.frame_every == 0:
                     key = f"{index:06d}_{made:05d}"
-                    yield _frame(key, u, obs, info, cams, spec, episode, reset_seed, step)
+                    yield _frame(key, u, obs, info, cams, spec, (split, episode, reset_seed, step))
                     made += 1
                 if term or trunc:
                     break
@@ -136,10 +154,9 @@ def _frame(
     info: dict[str, Any],
     cams: dict[str, Any],
     spec: PerceptionSpec,
-    episode: int,
-    reset_seed: int,
-    step: int,
+    where: tuple[str, int, int, int],  # split, episode, reset seed, step
 ) -> Frame:
+    split, episode, reset_seed, step = where
     scn, st = u.scenario, u.state
     pos, rot = np.asarray(st.pos, np.float64), np.asarray(st.rot, np.float64)
     yaw = float(st.rpy[2])
@@ -148,6 +165,7 @@ def _frame(
     labels = {
         "schema": SCHEMA_VERSION,
         "key": key,
+        "split": split,
         "scenario": {
             "seed": scn.seed,
             "species": scn.spec.crop.species,

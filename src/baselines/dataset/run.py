@@ -16,7 +16,7 @@ from scenario_gen.atomic import lock_output
 from scenario_gen.errors import InputError
 from scenario_gen.schema import parse_json, to_mapping
 
-from .perception import check, save_shard, shard_frames, write_shard
+from .perception import SPLIT_SEEDS, check, save_shard, shard_frames, split_of, write_shard
 from .spec import SCHEMA_VERSION, PerceptionSpec
 
 MANIFEST = "dataset.json"
@@ -34,6 +34,13 @@ def _manifest(spec: PerceptionSpec, seed: int, shards: int) -> dict[str, Any]:
         "seed": seed,
         "shards": shards,
         "frames_per_shard": spec.frames_per_shard,
+        "splits": {
+            name: {
+                "scenario_seeds": list(seeds),
+                "shards": [shard_name(i) for i in range(shards) if split_of(i) == name],
+            }
+            for name, seeds in SPLIT_SEEDS.items()
+        },
         "spec": to_mapping(spec),
     }
 

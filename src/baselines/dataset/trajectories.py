@@ -12,6 +12,7 @@ import contextlib
 import os
 import re
 from collections.abc import Iterator
+from importlib.metadata import version
 from pathlib import Path
 from typing import Any
 
@@ -103,20 +104,60 @@ def record(
         collector = minari.DataCollector(env, step_data_callback=FixedInfo, record_infos=True)
         try:
             pi = make_policy(policy, collector)
+            returns = []
             for k in range(episodes):
                 obs, _ = collector.reset(seed=seed + k)
                 pi.reset()
+                total = 0.0
                 while True:
-                    obs, _, term, trunc, _ = collector.step(pi.act(obs))
+                    obs, r, term, trunc, _ = collector.step(pi.act(obs))
+                    total += float(r)
                     if term or trunc:
                         break
+                returns.append(total)
             collector.create_dataset(
                 dataset_id,
                 eval_env=env.spec,
                 algorithm_name=f"agrinav {policy}",
                 description=f"{policy} on {env_id}, reset seeds {seed}..{seed + episodes - 1}",
-                author="AgriNav Gym",
+                author="AgriNav Gym developers",
+                requirements=[f"agrinav-gym=={version('agrinav-gym')}"],
+                # the D4RL convention: 0 = uniformly random actions, 1 = the recorded policy
+                ref_min_score=random_return(env_id, seed, episodes),
+                ref_max_score=float(np.mean(returns)),
             )
         finally:
             collector.close()
     return Path(out) / dataset_id
+
+
+def random_return(env_id: str, seed: int, episodes: int) -> float:
+    """Mean return of uniformly random actions on the recorded reset seeds (the reference
+    minimum score); the action space is seeded, so it is the same every time."""
+    import gymnasium as gym
+
+    env = gym.make(env_id)
+    try:
+        env.action_space.seed(seed)
+        returns = []
+        for k in range(episodes):
+            env.reset(seed=seed + k)
+            total, done = 0.0, False
+            while not done:
+                _, r, term, trunc, _ = env.step(env.action_space.sample())
+                total += float(r)
+                done = term or trunc
+            returns.append(total)
+        return float(np.mean(returns))
+    finally:
+        env.close()
+
+
+def load(out: str | Path, dataset_id: str = "agrinav/furrow_follow-v0") -> Any:
+    """The Minari dataset ``record`` wrote under ``out``, without setting
+    ``MINARI_DATASETS_PATH`` by hand (it names the folder Minari reads datasets from)."""
+    minari = _minari()
+    if not (Path(out) / dataset_id).is_dir():
+        raise InputError("dataset", str(Path(out) / dataset_id), "allowed: a folder record wrote")
+    with _datasets_root(Path(out)):
+        return minari.load_dataset(dataset_id)

@@ -44,22 +44,18 @@ def features(depth: NDArray[np.float32], block: int = 4) -> FloatArray:
     return np.concatenate([f, [1.0]])
 
 
-def validate(root: str | Path, held_out: float = 0.25, ridge: float = 1.0) -> Validation:
-    """Train on the first shards, test on the last ``held_out`` of them (other fields)."""
+def validate(root: str | Path, ridge: float = 1.0) -> Validation:
+    """Train on the ``train`` split's frames, test on the ``test`` split's (other fields,
+    scenario seeds of another range)."""
     ds = PerceptionDataset(root)
-    shards = sorted({s for s, _, _ in ds.index})
-    if len(shards) < 2:
-        raise InputError("dataset", str(root), "allowed: at least 2 shards (train and test fields)")
-    n_test = max(1, round(held_out * len(shards)))
-    test_shards = set(shards[-n_test:])
     xs: dict[bool, list[FloatArray]] = {True: [], False: []}
     ys: dict[bool, list[float]] = {True: [], False: []}
-    for i, (shard, _, _) in enumerate(ds.index):
+    for i in range(len(ds)):
         s = ds[i]
-        off = s["labels"]["lane"]["lateral_offset"]
-        if off is None:
+        off = s["lateral_offset"]
+        if s["split"] not in ("train", "test") or not np.isfinite(off):
             continue
-        is_test = shard in test_shards
+        is_test = s["split"] == "test"
         xs[is_test].append(features(s["depth"]))
         ys[is_test].append(float(off))
     if not ys[False] or not ys[True]:
@@ -134,7 +130,7 @@ def depth_follower_check(root: str | Path) -> FollowerCheck:
         obs_space, act_space = env.observation_space, env.action_space
     finally:
         env.close()
-    ds = PerceptionDataset(root)
+    ds = PerceptionDataset(root, parse_labels=True)
     errs: list[float] = []
     for i in range(len(ds)):
         s = ds[i]
