@@ -69,6 +69,105 @@ def test_a_build_from_other_sources_is_refused(tmp_path: Path) -> None:
         assert native.stale(native.lib()) is None
 
 
+@needs_kernels
+def test_the_structs_are_laid_out_as_the_compiler_lays_them_out() -> None:
+    """Every struct of native.h has the size and field offsets native.py declares (a build
+    that differs is refused when loaded), and every declared kernel is exported."""
+    handle = native.lib()
+    assert native.layout_mismatches(handle) == []
+    assert {s.c for s in native.STRUCTS} >= {f"{k}_args_t" for k in native.KERNELS}
+    for name in native.KERNELS:
+        assert hasattr(handle, name), name
+
+
+def test_a_struct_takes_every_field_by_name_and_checks_it() -> None:
+    """Fields are named, all of them given; arrays must have the field's dtype and be
+    C-contiguous (or None: NULL); blocks the field's type; ints their C type's range."""
+    out = np.zeros(4)
+    ok = {"tables": np.zeros(3), "key": 1, "i0": 0, "i1": 4, "out": out}
+    native.PixelNormalsArgs(**ok)
+    with pytest.raises(TypeError, match="no value for i1"):
+        native.PixelNormalsArgs(**{k: v for k, v in ok.items() if k != "i1"})
+    with pytest.raises(AttributeError, match="no field 'n'"):
+        native.PixelNormalsArgs(**ok, n=4)
+    with pytest.raises(TypeError, match=r"PixelNormalsArgs.out: an array of float64, not float32"):
+        native.PixelNormalsArgs(**{**ok, "out": out.astype(np.float32)})
+    with pytest.raises(TypeError, match="an array of float64, not list"):
+        native.PixelNormalsArgs(**{**ok, "out": [0.0] * 4})
+    with pytest.raises(ValueError, match="not C-contiguous"):
+        native.PixelNormalsArgs(**{**ok, "out": np.zeros(8)[::2]})
+    with pytest.raises(OverflowError, match="i1: 2147483648"):
+        native.PixelNormalsArgs(**{**ok, "i1": 2**31})
+    with pytest.raises(TypeError, match="cam: a Camera, not Geometry"):
+        geom = native.grid_geometry(np.zeros((2, 2)), 0.0, 0.0, 1.0)
+        native.RasterViewArgs(
+            cam=geom, geom=geom, terrain=1, hiz=1, iz=None, inst=None, prim=None, row0=0, row1=0
+        )
+    with pytest.raises(ValueError, match="origin: 3 values"):
+        native.RefineRaysArgs(geom=None, n=0, origin=(0.0, 0.0), dirs=None, t=None, ground=None)
+
+
+def _sky_view(soil_n: int, w: int = 4, h: int = 2) -> tuple[native.ShadeViewArgs, np.ndarray]:
+    """shade_view's arguments for a view of nothing but sky, with a soil texture soil_n wide,
+    and the image they shade."""
+    n = w * h
+    cam = native.Camera(
+        origin=(0, 0, 1), rot=np.eye(3).ravel(), fx=2.0, fy=2.0, cx=(w - 1) / 2,
+        cy=(h - 1) / 2, znear=1e-3, zfar=10.0, width=w, height=h,
+    )  # fmt: skip
+    materials = native.Materials(
+        face_offset=np.zeros(1, np.int64), face_rgb=np.zeros((1, 3), np.uint8),
+        face_normal=np.zeros((1, 3), np.float32), tex_image=np.zeros(1, np.int64),
+        tex_uv=np.zeros(1, np.int64), tex_hw=np.zeros(2, np.int32),
+        soil=np.ones((8, 8), np.float32), soil_n=soil_n,
+    )  # fmt: skip
+    light = native.Shading(
+        soil_rgb=(0.4, 0.3, 0.2), light=(0, 0, 1), sky_horizon=(0.8, 0.8, 0.9),
+        sky_zenith=(0.3, 0.4, 0.8), ambient=0.35, far=10.0, origin=(0, 0), texel=0.01,
+    )  # fmt: skip
+    none = np.full(n, -1, np.int32)
+    rgb = np.zeros((n, 3), np.uint8)
+    args = native.ShadeViewArgs(
+        cam=cam, geom=native.grid_geometry(np.zeros((2, 2)), -1.0, -1.0, 2.0),
+        materials=materials, shading=light, forward=np.ones(n), t=np.full(n, np.inf),
+        label=np.zeros(n, np.uint8), vis_inst=none, proto=none, prim=none, robot_rot=None,
+        robot_rgb=None, robot_normal=None, rgb=rgb, row0=0, row1=h,
+    )  # fmt: skip
+    return args, rgb
+
+
+@needs_kernels
+def test_a_kernel_that_refuses_its_arguments_raises_an_error_naming_it(maize: MeshScene) -> None:
+    """A status other than 0 is an error naming the kernel and the status, not an image left
+    unwritten: shade_view with a soil texture that is no power of two (it used to return
+    without a word), a band of rows past the image, a camera without a focal length."""
+    good, rgb = _sky_view(8)
+    native.call(good)
+    assert rgb.all()  # the sky, shaded
+    bad, rgb = _sky_view(6)
+    with pytest.raises(
+        native.KernelError, match=r"kernel shade_view failed with status 2: a count, size"
+    ) as e:
+        native.call(bad)
+    assert e.value.kernel == "shade_view" and e.value.status == 2
+    assert not rgb.any()
+    geo = raster_view.SceneGeometry(maize)
+    cam = mesh_camera(64, 48, "raster")
+    rot, pos = lane_pose(maize_scenario(maize))
+    c = raster_view.camera_params(cam.model, rot, pos, maize.origin, 6.05)
+    vis = raster_view.new_vis(64 * 48)
+    geo.draw(c, vis, 0, 48)
+    with pytest.raises(native.KernelError, match="kernel raster_view failed with status 2"):
+        geo.draw(c, vis, 0, 49)
+    c.set(fx=0.0)
+    with pytest.raises(
+        native.KernelError, match="raster_view failed with status 5: an invalid camera"
+    ):
+        geo.draw(c, vis, 0, 48)
+    with pytest.raises(native.KernelError, match="pixel_normals failed with status 2"):
+        native.call(native.PixelNormalsArgs(tables=np.zeros(3), key=1, i0=2, i1=1, out=np.zeros(1)))
+
+
 def test_raster_without_kernels_is_a_clear_error(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("AGRINAV_NATIVE", "0")
     with pytest.raises(native.NativeUnavailable, match=r"camera.renderer='raster'.*AGRINAV_NATIVE"):
@@ -146,7 +245,7 @@ def test_stereo_shadow_misses_only_what_the_right_view_cannot_show(maize: MeshSc
     geo_r = cam._geometry[1]
     right = raster_view.new_vis(848 * 480)
     cr = raster_view.camera_params(cam.model, rot, pos, maize.origin, 6.05, cam.cfg.baseline)
-    geo_r.draw(cr, right, 848, 480, 0, 480)
+    geo_r.draw(cr, right, 0, 480)
     adj = {
         k: raster_view.face_adjacency(p.vertices, p.faces)
         for k, p in enumerate(maize.plants.prototypes)
