@@ -5,8 +5,9 @@ The kernels are plain C functions in the optional extension ``agrinav_gym.render
 so two threads can render two views at once. Where the extension is missing, or the
 environment sets ``AGRINAV_NATIVE=0``, ``lib()`` returns None and the sensors use their numpy
 and Embree paths, which give the same images more slowly (tests compare the two).
-``AGRINAV_NATIVE_LIB=/path/to/_native.so`` loads that build instead of the installed one; a
-path that does not load is an error, not a fallback.
+``AGRINAV_NATIVE_LIB=/path/to/_native.so`` loads that build instead of the installed one (``make
+sanitize`` points it at a build under AddressSanitizer and UBSan); a path that does not load is
+an error, not a fallback.
 
 The boundary is declared here once, as in ``csrc/native.h``: every kernel takes one argument,
 a pointer to its own struct (an ``Args`` subclass naming the kernel), and returns an int
