@@ -1,23 +1,26 @@
 """The compiled sensor kernels against their references: the rasterised mesh-camera frame
-against Embree's ray casts, the proxy kernel against the numpy marches, and the build itself."""
+against Embree's ray casts, the proxy kernel against the numpy marches, both cameras' whole
+frames with and without the kernels, and the build and its boundary (struct layout, field
+checks, statuses)."""
 
 import math
 import os
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 import trimesh
 
 from agrinav_gym.config import EnvConfig
-from agrinav_gym.render import native, raster_view
+from agrinav_gym.render import native, pixel_noise, raster_view
 from agrinav_gym.render.mesh_scene import MeshScene
 from agrinav_gym.render.proxy_plants import PlantField
 from agrinav_gym.robot import RobotGeometry, robot_interface
 from agrinav_gym.sensors.mesh_camera import MeshCamera
 from scenario_gen import generate, preset
 
-from .helpers import TINY, lane_pose, mesh_camera
+from .helpers import TINY, lane_pose, make_camera, mesh_camera
 from .oracles import ground_hits, plant_hits
 
 needs_kernels = pytest.mark.skipif(not native.available(), reason="compiled kernels not built")
@@ -319,6 +322,131 @@ def test_raster_noise_is_the_ray_cast_noise(maize: MeshScene) -> None:
     assert np.abs(nr[both] - ne[both]).max() < 1e-3
 
 
+FRAME = ("depth", "label", "instance", "rgb", "rgb_label", "rgb_instance")
+
+
+def depth_tolerance(cam: Any, seed: int, z: np.ndarray) -> np.ndarray:
+    """How far two noisy depth images may part per pixel where their ray lengths part by up to
+    EMBREE_DEPTH: the noise σ(z)·n = k·z²·n (the same draw n in both: pixel_noise) follows z
+    by 2·k·z·|n| times that, and float32 rounds each image (< 1e-6 m within 8 m)."""
+    key = pixel_noise.frame_key(np.random.default_rng(seed))
+    n = pixel_noise.normals(key, z.size).reshape(z.shape)
+    zz = np.where(z > 0, z, 1.0)
+    return EMBREE_DEPTH * (1 + 2 * cam.noise_sigma(zz) / zz * np.abs(n)) + 1e-6
+
+
+def with_and_without_kernels(monkeypatch: pytest.MonkeyPatch, draw: Any) -> tuple[Any, Any]:
+    """``draw()`` (a fresh camera each time: cameras keep per-path state) through the compiled
+    kernels, then through the numpy/Embree fallback (AGRINAV_NATIVE=0)."""
+    monkeypatch.delenv("AGRINAV_NATIVE", raising=False)
+    compiled = draw()
+    monkeypatch.setenv("AGRINAV_NATIVE", "0")
+    fallback = draw()
+    monkeypatch.delenv("AGRINAV_NATIVE")
+    return compiled, fallback
+
+
+@needs_kernels
+@pytest.mark.parametrize("turn", [0.0, 0.6, -1.2])
+def test_the_proxy_camera_draws_the_same_frame_without_the_kernels(
+    turn: float, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The proxy camera end to end, compiled (proxycast.c's exact double-precision cast, noise
+    and validity in finish_depth) and without the kernels (Embree's float32 cast refined onto
+    the terrain by numpy's Newton steps, numpy noise): the same scene, pose and noise seed.
+    The noise draws are the same bits (pixel_noise), so depths part only by the casts'
+    precision, EMBREE_DEPTH, and the noise's dependence on depth (``depth_tolerance``). A pixel
+    may change class or validity only at a tie — a silhouette edge, or a depth within that
+    precision of a range limit. RGB: sky and plant colours depend on the class and the ray
+    alone (equal); the soil's on the hit point's normal, which moving the point by 1e-4 m
+    changes by far less than one level: at most a rounding step."""
+    scn = generate(preset("ridged", **TINY, crop={"stage": 4}), 0)
+    plants = PlantField.from_scenario(scn)
+    rot, pos = lane_pose(scn, 30, turn)
+    cam = make_camera(None, {"width": 160, "height": 120})
+
+    def draw() -> Any:
+        fresh = make_camera(None, {"width": 160, "height": 120})
+        rng = np.random.default_rng(8)
+        return fresh.draw(rot, pos, scn.terrain, plants, rng, rgb=True, labels=True)
+
+    a, b = with_and_without_kernels(monkeypatch, draw)
+    cfg = cam.cfg
+    ties = a.label != b.label
+    assert ties.sum() <= 1e-3 * ties.size
+    assert (a.label == 1).mean() > 0.1 and (a.label >= 2).mean() > 0.05  # soil and plants
+    va, vb = a.depth > 0, b.depth > 0
+    z = np.maximum(a.depth, b.depth).astype(float)
+    at_limit = (np.abs(z - cfg.min_range) < EMBREE_DEPTH) | (
+        np.abs(z - cfg.max_range) < EMBREE_DEPTH
+    )
+    assert not ((va != vb) & ~ties & ~at_limit).any()
+    both = va & vb & ~ties
+    assert both.mean() > 0.5
+    gap = np.abs(a.depth.astype(float) - b.depth)
+    assert (gap <= depth_tolerance(cam, 8, z))[both].all()
+    diff = np.abs(a.rgb.astype(int) - b.rgb.astype(int)).max(axis=2)
+    soil = a.label == 1
+    assert (diff[~ties & ~soil] == 0).all() and (diff[~ties & soil] <= 1).all()
+
+
+@needs_kernels
+@pytest.mark.parametrize("turn", [0.0, 0.3])
+def test_the_mesh_camera_draws_the_same_small_frame_without_the_kernels(
+    turn: float, maize: MeshScene, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Small frames go through Embree's rays either way; the kernels only take over its packet
+    loop (packets.c), the terrain's Newton steps (refine_rays: refine_ground step for step)
+    and the noise's draws (the same bits): the frame, noise, stereo pair and colour included,
+    is bit-identical."""
+    rot, pos = lane_pose(maize_scenario(maize), turn=turn)
+
+    def draw() -> Any:
+        cam = mesh_camera(64, 48, "auto")
+        return cam.draw(rot, pos, maize, np.random.default_rng(3), rgb=True, labels=True)
+
+    a, b = with_and_without_kernels(monkeypatch, draw)
+    assert (a.instance >= 0).mean() > 0.3 and (a.depth > 0).mean() > 0.1
+    for f in FRAME:
+        assert np.array_equal(getattr(a, f), getattr(b, f)), f
+
+
+@needs_kernels
+def test_the_mesh_camera_draws_the_same_large_frame_without_the_kernels(
+    maize: MeshScene, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A large frame is rasterised where the kernels are built (auto) and cast ray by ray by
+    Embree and numpy without them: the same frame to the precision the two renderers share
+    (test_raster_frame_is_the_ray_cast_frame), here with the noise and the stereo pair. Depth
+    within ``depth_tolerance`` where both see the same surface (the same noise draw per pixel);
+    the same plant in every pixel but ties at shared edges; validity differing in at most
+    1e-3 of the pixels: ties, and the stereo shadow of occluders narrower than a pixel in the
+    rasterised right view (the rasteriser's stereo test can miss those, docs/camera.md);
+    colours within two levels (float32 normals, rounding)."""
+    rot, pos = lane_pose(maize_scenario(maize), turn=0.3)
+    cam = mesh_camera(424, 240, "auto")
+
+    def draw() -> Any:
+        fresh = mesh_camera(424, 240, "auto")
+        assert fresh.rasterises == native.available()
+        return fresh.draw(rot, pos, maize, np.random.default_rng(3), rgb=True, labels=True)
+
+    a, b = with_and_without_kernels(monkeypatch, draw)
+    n = a.depth.size
+    assert (a.instance >= 0).mean() > 0.3
+    ties = (a.instance != b.instance) | (a.label != b.label)
+    assert ties.sum() <= 1e-4 * n
+    assert ((a.depth > 0) != (b.depth > 0)).sum() <= 1e-3 * n
+    same = (a.depth > 0) & (b.depth > 0) & ~ties
+    assert same.mean() > 0.1
+    gap = np.abs(a.depth.astype(float) - b.depth)
+    assert (gap <= depth_tolerance(cam, 3, np.maximum(a.depth, b.depth)))[same].all()
+    colour_ties = (a.rgb_instance != b.rgb_instance) | (a.rgb_label != b.rgb_label)
+    assert colour_ties.sum() <= 1e-4 * n
+    diff = np.abs(a.rgb.astype(int) - b.rgb.astype(int)).max(axis=2)[~colour_ties]
+    assert (diff > 2).mean() < 1e-4
+
+
 @needs_kernels
 def test_the_robot_in_its_own_camera_is_the_same_on_both_renderers(maize: MeshScene) -> None:
     """A camera on a short mast behind base_link, pitched down, sees the chassis: its pixels
@@ -401,8 +529,6 @@ def test_proxy_kernel_hits_the_first_surface_exactly(
     at the same distance to its float32 precision. The camera stands in the lane under leaf
     bands whose discs reach over it: from below, their undersides are seen."""
     from agrinav_gym.sensors.depth import ProxyGeometry
-
-    from .helpers import make_camera
 
     scn = generate(preset("ridged", **TINY, crop={"stage": 4}), 0)
     plants = PlantField.from_scenario(scn)
