@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test test-all lint type bench clean
+.PHONY: demo test test-all sanitize lint type bench clean
 
 $(BIN)/python:
 	$(PY) -m venv $(VENV)
@@ -33,6 +33,11 @@ test: $(TEST_STAMP)
 
 test-all: $(TEST_STAMP)
 	$(BIN)/python -m pytest -n 2
+
+# The kernels built with AddressSanitizer + UBSan into a temporary folder (the normal build stays)
+# and their test files run against that build; any sanitizer report fails (tools/sanitize_kernels.py).
+sanitize: $(TEST_STAMP)
+	$(BIN)/python tools/sanitize_kernels.py
 
 lint: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks

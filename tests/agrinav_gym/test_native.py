@@ -1,23 +1,26 @@
 """The compiled sensor kernels against their references: the rasterised mesh-camera frame
-against Embree's ray casts, the proxy kernel against the numpy marches, and the build itself."""
+against Embree's ray casts, the proxy kernel against the numpy marches, both cameras' whole
+frames with and without the kernels, and the build and its boundary (struct layout, field
+checks, statuses)."""
 
 import math
 import os
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 import trimesh
 
 from agrinav_gym.config import EnvConfig
-from agrinav_gym.render import native, raster_view
+from agrinav_gym.render import native, pixel_noise, raster_view
 from agrinav_gym.render.mesh_scene import MeshScene
 from agrinav_gym.render.proxy_plants import PlantField
 from agrinav_gym.robot import RobotGeometry, robot_interface
 from agrinav_gym.sensors.mesh_camera import MeshCamera
 from scenario_gen import generate, preset
 
-from .helpers import TINY, lane_pose, mesh_camera
+from .helpers import TINY, lane_pose, make_camera, mesh_camera
 from .oracles import ground_hits, plant_hits
 
 needs_kernels = pytest.mark.skipif(not native.available(), reason="compiled kernels not built")
@@ -67,6 +70,105 @@ def test_a_build_from_other_sources_is_refused(tmp_path: Path) -> None:
     assert native.source_hash(tmp_path) != before
     if native.available():  # the build under test is this tree's
         assert native.stale(native.lib()) is None
+
+
+@needs_kernels
+def test_the_structs_are_laid_out_as_the_compiler_lays_them_out() -> None:
+    """Every struct of native.h has the size and field offsets native.py declares (a build
+    that differs is refused when loaded), and every declared kernel is exported."""
+    handle = native.lib()
+    assert native.layout_mismatches(handle) == []
+    assert {s.c for s in native.STRUCTS} >= {f"{k}_args_t" for k in native.KERNELS}
+    for name in native.KERNELS:
+        assert hasattr(handle, name), name
+
+
+def test_a_struct_takes_every_field_by_name_and_checks_it() -> None:
+    """Fields are named, all of them given; arrays must have the field's dtype and be
+    C-contiguous (or None: NULL); blocks the field's type; ints their C type's range."""
+    out = np.zeros(4)
+    ok = {"tables": np.zeros(3), "key": 1, "i0": 0, "i1": 4, "out": out}
+    native.PixelNormalsArgs(**ok)
+    with pytest.raises(TypeError, match="no value for i1"):
+        native.PixelNormalsArgs(**{k: v for k, v in ok.items() if k != "i1"})
+    with pytest.raises(AttributeError, match="no field 'n'"):
+        native.PixelNormalsArgs(**ok, n=4)
+    with pytest.raises(TypeError, match=r"PixelNormalsArgs.out: an array of float64, not float32"):
+        native.PixelNormalsArgs(**{**ok, "out": out.astype(np.float32)})
+    with pytest.raises(TypeError, match="an array of float64, not list"):
+        native.PixelNormalsArgs(**{**ok, "out": [0.0] * 4})
+    with pytest.raises(ValueError, match="not C-contiguous"):
+        native.PixelNormalsArgs(**{**ok, "out": np.zeros(8)[::2]})
+    with pytest.raises(OverflowError, match="i1: 2147483648"):
+        native.PixelNormalsArgs(**{**ok, "i1": 2**31})
+    with pytest.raises(TypeError, match="cam: a Camera, not Geometry"):
+        geom = native.grid_geometry(np.zeros((2, 2)), 0.0, 0.0, 1.0)
+        native.RasterViewArgs(
+            cam=geom, geom=geom, terrain=1, hiz=1, iz=None, inst=None, prim=None, row0=0, row1=0
+        )
+    with pytest.raises(ValueError, match="origin: 3 values"):
+        native.RefineRaysArgs(geom=None, n=0, origin=(0.0, 0.0), dirs=None, t=None, ground=None)
+
+
+def _sky_view(soil_n: int, w: int = 4, h: int = 2) -> tuple[native.ShadeViewArgs, np.ndarray]:
+    """shade_view's arguments for a view of nothing but sky, with a soil texture soil_n wide,
+    and the image they shade."""
+    n = w * h
+    cam = native.Camera(
+        origin=(0, 0, 1), rot=np.eye(3).ravel(), fx=2.0, fy=2.0, cx=(w - 1) / 2,
+        cy=(h - 1) / 2, znear=1e-3, zfar=10.0, width=w, height=h,
+    )  # fmt: skip
+    materials = native.Materials(
+        face_offset=np.zeros(1, np.int64), face_rgb=np.zeros((1, 3), np.uint8),
+        face_normal=np.zeros((1, 3), np.float32), tex_image=np.zeros(1, np.int64),
+        tex_uv=np.zeros(1, np.int64), tex_hw=np.zeros(2, np.int32),
+        soil=np.ones((8, 8), np.float32), soil_n=soil_n,
+    )  # fmt: skip
+    light = native.Shading(
+        soil_rgb=(0.4, 0.3, 0.2), light=(0, 0, 1), sky_horizon=(0.8, 0.8, 0.9),
+        sky_zenith=(0.3, 0.4, 0.8), ambient=0.35, far=10.0, origin=(0, 0), texel=0.01,
+    )  # fmt: skip
+    none = np.full(n, -1, np.int32)
+    rgb = np.zeros((n, 3), np.uint8)
+    args = native.ShadeViewArgs(
+        cam=cam, geom=native.grid_geometry(np.zeros((2, 2)), -1.0, -1.0, 2.0),
+        materials=materials, shading=light, forward=np.ones(n), t=np.full(n, np.inf),
+        label=np.zeros(n, np.uint8), vis_inst=none, proto=none, prim=none, robot_rot=None,
+        robot_rgb=None, robot_normal=None, rgb=rgb, row0=0, row1=h,
+    )  # fmt: skip
+    return args, rgb
+
+
+@needs_kernels
+def test_a_kernel_that_refuses_its_arguments_raises_an_error_naming_it(maize: MeshScene) -> None:
+    """A status other than 0 is an error naming the kernel and the status, not an image left
+    unwritten: shade_view with a soil texture that is no power of two (it used to return
+    without a word), a band of rows past the image, a camera without a focal length."""
+    good, rgb = _sky_view(8)
+    native.call(good)
+    assert rgb.all()  # the sky, shaded
+    bad, rgb = _sky_view(6)
+    with pytest.raises(
+        native.KernelError, match=r"kernel shade_view failed with status 2: a count, size"
+    ) as e:
+        native.call(bad)
+    assert e.value.kernel == "shade_view" and e.value.status == 2
+    assert not rgb.any()
+    geo = raster_view.SceneGeometry(maize)
+    cam = mesh_camera(64, 48, "raster")
+    rot, pos = lane_pose(maize_scenario(maize))
+    c = raster_view.camera_params(cam.model, rot, pos, maize.origin, 6.05)
+    vis = raster_view.new_vis(64 * 48)
+    geo.draw(c, vis, 0, 48)
+    with pytest.raises(native.KernelError, match="kernel raster_view failed with status 2"):
+        geo.draw(c, vis, 0, 49)
+    c.set(fx=0.0)
+    with pytest.raises(
+        native.KernelError, match="raster_view failed with status 5: an invalid camera"
+    ):
+        geo.draw(c, vis, 0, 48)
+    with pytest.raises(native.KernelError, match="pixel_normals failed with status 2"):
+        native.call(native.PixelNormalsArgs(tables=np.zeros(3), key=1, i0=2, i1=1, out=np.zeros(1)))
 
 
 def test_raster_without_kernels_is_a_clear_error(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -146,7 +248,7 @@ def test_stereo_shadow_misses_only_what_the_right_view_cannot_show(maize: MeshSc
     geo_r = cam._geometry[1]
     right = raster_view.new_vis(848 * 480)
     cr = raster_view.camera_params(cam.model, rot, pos, maize.origin, 6.05, cam.cfg.baseline)
-    geo_r.draw(cr, right, 848, 480, 0, 480)
+    geo_r.draw(cr, right, 0, 480)
     adj = {
         k: raster_view.face_adjacency(p.vertices, p.faces)
         for k, p in enumerate(maize.plants.prototypes)
@@ -218,6 +320,131 @@ def test_raster_noise_is_the_ray_cast_noise(maize: MeshScene) -> None:
     both = okr & oke
     assert both.mean() > 0.5 and np.nanstd(nr) == pytest.approx(1.0, abs=0.05)
     assert np.abs(nr[both] - ne[both]).max() < 1e-3
+
+
+FRAME = ("depth", "label", "instance", "rgb", "rgb_label", "rgb_instance")
+
+
+def depth_tolerance(cam: Any, seed: int, z: np.ndarray) -> np.ndarray:
+    """How far two noisy depth images may part per pixel where their ray lengths part by up to
+    EMBREE_DEPTH: the noise σ(z)·n = k·z²·n (the same draw n in both: pixel_noise) follows z
+    by 2·k·z·|n| times that, and float32 rounds each image (< 1e-6 m within 8 m)."""
+    key = pixel_noise.frame_key(np.random.default_rng(seed))
+    n = pixel_noise.normals(key, z.size).reshape(z.shape)
+    zz = np.where(z > 0, z, 1.0)
+    return EMBREE_DEPTH * (1 + 2 * cam.noise_sigma(zz) / zz * np.abs(n)) + 1e-6
+
+
+def with_and_without_kernels(monkeypatch: pytest.MonkeyPatch, draw: Any) -> tuple[Any, Any]:
+    """``draw()`` (a fresh camera each time: cameras keep per-path state) through the compiled
+    kernels, then through the numpy/Embree fallback (AGRINAV_NATIVE=0)."""
+    monkeypatch.delenv("AGRINAV_NATIVE", raising=False)
+    compiled = draw()
+    monkeypatch.setenv("AGRINAV_NATIVE", "0")
+    fallback = draw()
+    monkeypatch.delenv("AGRINAV_NATIVE")
+    return compiled, fallback
+
+
+@needs_kernels
+@pytest.mark.parametrize("turn", [0.0, 0.6, -1.2])
+def test_the_proxy_camera_draws_the_same_frame_without_the_kernels(
+    turn: float, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The proxy camera end to end, compiled (proxycast.c's exact double-precision cast, noise
+    and validity in finish_depth) and without the kernels (Embree's float32 cast refined onto
+    the terrain by numpy's Newton steps, numpy noise): the same scene, pose and noise seed.
+    The noise draws are the same bits (pixel_noise), so depths part only by the casts'
+    precision, EMBREE_DEPTH, and the noise's dependence on depth (``depth_tolerance``). A pixel
+    may change class or validity only at a tie — a silhouette edge, or a depth within that
+    precision of a range limit. RGB: sky and plant colours depend on the class and the ray
+    alone (equal); the soil's on the hit point's normal, which moving the point by 1e-4 m
+    changes by far less than one level: at most a rounding step."""
+    scn = generate(preset("ridged", **TINY, crop={"stage": 4}), 0)
+    plants = PlantField.from_scenario(scn)
+    rot, pos = lane_pose(scn, 30, turn)
+    cam = make_camera(None, {"width": 160, "height": 120})
+
+    def draw() -> Any:
+        fresh = make_camera(None, {"width": 160, "height": 120})
+        rng = np.random.default_rng(8)
+        return fresh.draw(rot, pos, scn.terrain, plants, rng, rgb=True, labels=True)
+
+    a, b = with_and_without_kernels(monkeypatch, draw)
+    cfg = cam.cfg
+    ties = a.label != b.label
+    assert ties.sum() <= 1e-3 * ties.size
+    assert (a.label == 1).mean() > 0.1 and (a.label >= 2).mean() > 0.05  # soil and plants
+    va, vb = a.depth > 0, b.depth > 0
+    z = np.maximum(a.depth, b.depth).astype(float)
+    at_limit = (np.abs(z - cfg.min_range) < EMBREE_DEPTH) | (
+        np.abs(z - cfg.max_range) < EMBREE_DEPTH
+    )
+    assert not ((va != vb) & ~ties & ~at_limit).any()
+    both = va & vb & ~ties
+    assert both.mean() > 0.5
+    gap = np.abs(a.depth.astype(float) - b.depth)
+    assert (gap <= depth_tolerance(cam, 8, z))[both].all()
+    diff = np.abs(a.rgb.astype(int) - b.rgb.astype(int)).max(axis=2)
+    soil = a.label == 1
+    assert (diff[~ties & ~soil] == 0).all() and (diff[~ties & soil] <= 1).all()
+
+
+@needs_kernels
+@pytest.mark.parametrize("turn", [0.0, 0.3])
+def test_the_mesh_camera_draws_the_same_small_frame_without_the_kernels(
+    turn: float, maize: MeshScene, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Small frames go through Embree's rays either way; the kernels only take over its packet
+    loop (packets.c), the terrain's Newton steps (refine_rays: refine_ground step for step)
+    and the noise's draws (the same bits): the frame, noise, stereo pair and colour included,
+    is bit-identical."""
+    rot, pos = lane_pose(maize_scenario(maize), turn=turn)
+
+    def draw() -> Any:
+        cam = mesh_camera(64, 48, "auto")
+        return cam.draw(rot, pos, maize, np.random.default_rng(3), rgb=True, labels=True)
+
+    a, b = with_and_without_kernels(monkeypatch, draw)
+    assert (a.instance >= 0).mean() > 0.3 and (a.depth > 0).mean() > 0.1
+    for f in FRAME:
+        assert np.array_equal(getattr(a, f), getattr(b, f)), f
+
+
+@needs_kernels
+def test_the_mesh_camera_draws_the_same_large_frame_without_the_kernels(
+    maize: MeshScene, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A large frame is rasterised where the kernels are built (auto) and cast ray by ray by
+    Embree and numpy without them: the same frame to the precision the two renderers share
+    (test_raster_frame_is_the_ray_cast_frame), here with the noise and the stereo pair. Depth
+    within ``depth_tolerance`` where both see the same surface (the same noise draw per pixel);
+    the same plant in every pixel but ties at shared edges; validity differing in at most
+    1e-3 of the pixels: ties, and the stereo shadow of occluders narrower than a pixel in the
+    rasterised right view (the rasteriser's stereo test can miss those, docs/camera.md);
+    colours within two levels (float32 normals, rounding)."""
+    rot, pos = lane_pose(maize_scenario(maize), turn=0.3)
+    cam = mesh_camera(424, 240, "auto")
+
+    def draw() -> Any:
+        fresh = mesh_camera(424, 240, "auto")
+        assert fresh.rasterises == native.available()
+        return fresh.draw(rot, pos, maize, np.random.default_rng(3), rgb=True, labels=True)
+
+    a, b = with_and_without_kernels(monkeypatch, draw)
+    n = a.depth.size
+    assert (a.instance >= 0).mean() > 0.3
+    ties = (a.instance != b.instance) | (a.label != b.label)
+    assert ties.sum() <= 1e-4 * n
+    assert ((a.depth > 0) != (b.depth > 0)).sum() <= 1e-3 * n
+    same = (a.depth > 0) & (b.depth > 0) & ~ties
+    assert same.mean() > 0.1
+    gap = np.abs(a.depth.astype(float) - b.depth)
+    assert (gap <= depth_tolerance(cam, 3, np.maximum(a.depth, b.depth)))[same].all()
+    colour_ties = (a.rgb_instance != b.rgb_instance) | (a.rgb_label != b.rgb_label)
+    assert colour_ties.sum() <= 1e-4 * n
+    diff = np.abs(a.rgb.astype(int) - b.rgb.astype(int)).max(axis=2)[~colour_ties]
+    assert (diff > 2).mean() < 1e-4
 
 
 @needs_kernels
@@ -302,8 +529,6 @@ def test_proxy_kernel_hits_the_first_surface_exactly(
     at the same distance to its float32 precision. The camera stands in the lane under leaf
     bands whose discs reach over it: from below, their undersides are seen."""
     from agrinav_gym.sensors.depth import ProxyGeometry
-
-    from .helpers import make_camera
 
     scn = generate(preset("ridged", **TINY, crop={"stage": 4}), 0)
     plants = PlantField.from_scenario(scn)

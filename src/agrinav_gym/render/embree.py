@@ -327,7 +327,12 @@ class Caster:
 
         def loop(lo: int, hi: int) -> None:
             if kernels is not None:  # one foreign call for the whole range
-                kernels.embree_packets(address, valid, sp, base + lo * STRIDE, hi - lo, STRIDE)
+                native.call(
+                    native.EmbreePacketsArgs(
+                        fn=address, valid=valid, scene=sp, first=base + lo * STRIDE,
+                        count=hi - lo, stride=STRIDE,
+                    )
+                )  # fmt: skip
                 return
             for addr in range(base + lo * STRIDE, base + hi * STRIDE, STRIDE):
                 fn(valid, sp, addr, None)

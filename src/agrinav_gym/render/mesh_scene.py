@@ -105,8 +105,8 @@ class MeshScene:
         self._last_view: tuple[FloatArray, FloatArray] | None = None  # hull edge normals, offsets
         # instances_near's last answer: its tiles, plant ids, transforms and hull edges
         self._near: tuple[frozenset[int], NDArray[np.int32], F32, Any] | None = None
-        # the height grid as the compiled refinement reads it: (heights, pointers, values)
-        self._grid: tuple[FloatArray, NDArray[np.int64], FloatArray] | None = None
+        # the height grid as the compiled refinement (refine_rays) reads it
+        self._grid: native.Geometry | None = None
         self.tiles_built = 0
 
     @classmethod
@@ -293,9 +293,8 @@ class MeshScene:
             label[on_plant] = self._labels[proto[on_plant]]
         if refine and ground.any():
             oo = np.asarray(o, np.float64)
-            kernels = native.lib()
-            if kernels is not None and oo.ndim == 1:  # the same Newton steps, compiled
-                self._refine_native(kernels, oo, d, t, ground)
+            if native.available() and oo.ndim == 1:  # the same Newton steps, compiled
+                self._refine_native(oo, d, t, ground)
             else:
                 t[ground] = refine_ground(
                     self.terrain, oo if oo.ndim == 1 else oo[ground], d[ground], t[ground]
@@ -303,18 +302,17 @@ class MeshScene:
         return SceneHits(t, label, plant, proto, h.prim.copy(), h.u.copy(), h.v.copy(), inst)
 
     def _refine_native(
-        self, kernels: Any, o: FloatArray, d: Any, t: FloatArray, ground: NDArray[np.bool_]
+        self, o: FloatArray, d: Any, t: FloatArray, ground: NDArray[np.bool_]
     ) -> None:
         if self._grid is None:  # world coordinates: the rays are the caller's
             te = self.terrain
             heights = np.ascontiguousarray(te.heights, np.float64)
-            self._grid = (heights, *native.geometry_block(heights, te.x0, te.y0, te.spacing))
-        dd = np.ascontiguousarray(d, np.float32)
-        flags = np.ascontiguousarray(ground, np.uint8)
-        _, ptrs, vals = self._grid
-        kernels.refine_rays(
-            len(t), o.ctypes.data, dd.ctypes.data, t.ctypes.data, flags.ctypes.data,
-            ptrs.ctypes.data, vals.ctypes.data,
+            self._grid = native.grid_geometry(heights, te.x0, te.y0, te.spacing)
+        native.call(
+            native.RefineRaysArgs(
+                geom=self._grid, n=len(t), origin=o, dirs=np.ascontiguousarray(d, np.float32),
+                t=t, ground=np.ascontiguousarray(ground, np.uint8),
+            )
         )  # fmt: skip
 
     def occluded(

@@ -5,6 +5,19 @@ The kernels are plain C functions in the optional extension ``agrinav_gym.render
 so two threads can render two views at once. Where the extension is missing, or the
 environment sets ``AGRINAV_NATIVE=0``, ``lib()`` returns None and the sensors use their numpy
 and Embree paths, which give the same images more slowly (tests compare the two).
+``AGRINAV_NATIVE_LIB=/path/to/_native.so`` loads that build instead of the installed one (``make
+sanitize`` points it at a build under AddressSanitizer and UBSan); a path that does not load is
+an error, not a fallback.
+
+The boundary is declared here once, as in ``csrc/native.h``: every kernel takes one argument,
+a pointer to its own struct (an ``Args`` subclass naming the kernel), and returns an int
+status. A call site fills the struct's fields by name, every one of them, and each value is
+checked on the way in: an array must be C-contiguous and of the field's dtype (or None for
+NULL), a block (``Camera``, ``Geometry``, ...) of the field's type, an int within its C type.
+``call`` raises ``KernelError`` naming the kernel and its status where the kernel refuses
+(out of memory, a size out of bounds, a missing array, ...). A build whose structs are laid
+out otherwise than declared here is refused when loaded (``layout_mismatches``), as is one
+built from other sources (``stale``).
 """
 
 from __future__ import annotations
@@ -15,40 +28,440 @@ import importlib.util
 import os
 import warnings
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
-_vp, _i, _d, _u64 = ctypes.c_void_p, ctypes.c_int, ctypes.c_double, ctypes.c_uint64
-_SIGNATURES: dict[str, tuple[Any, list[Any]]] = {
-    "proxy_cast": (
-        None,
-        [_i, _vp, _vp, _vp, _vp, _d, _vp, _i, _i, _d, _d, _d, _vp, _i, _i, _i, _i, _i, _d, _d, _d]
-        + [_vp] * 5,
-    ),
-    "raster_view": (_i, [_vp, _i, _i, _vp, _vp, _i, _i, _vp, _vp, _vp, _i, _i]),
-    "resolve_view": (
-        _i,
-        [_vp, _i, _i, _vp, _vp, _vp, _vp, _vp, _vp, _vp, _vp, _i] + [_vp] * 7 + [_i, _i],
-    ),
-    "stereo_prepare": (None, [_i, _d, _d, _vp, _vp, _vp, _i, _i, _i]),
-    "stereo_invalid": (_i, [_vp, _i, _i, _d, _d] + [_vp] * 11 + [_i, _i]),
-    "finish_depth": (None, [_i, _i, _vp, _vp, _vp, _u64, _d, _d, _d, _vp, _vp, _vp, _vp]),
-    "pixel_normals": (None, [_vp, _u64, _i, _i, _vp]),
-    "refine_rays": (None, [_i, _vp, _vp, _vp, _vp, _vp, _vp]),
-    "embree_packets": (None, [_vp, _vp, _vp, _vp, ctypes.c_int64, ctypes.c_int64]),
-    "shade_view": (None, [_vp, _i, _i] + [_vp] * 14 + [_i] + [_vp] * 5 + [_i, _i]),
-}
-
 _LIB: Any = None
+_FUNCS: dict[str, Any] = {}
 _TRIED = False
-_STALE: str | None = None  # why a build was refused
+_REFUSED: str | None = None  # why a build was refused
+_ORIGIN: str | None = None  # the file the loaded build came from
 
 
 class NativeUnavailable(RuntimeError):
     """The compiled kernels were asked for but are not built (or disabled)."""
 
 
+class KernelError(RuntimeError):
+    """A kernel refused its arguments or failed (its status is not 0)."""
+
+    def __init__(self, kernel: str, status: int, meaning: str) -> None:
+        super().__init__(f"kernel {kernel} failed with status {status}: {meaning}")
+        self.kernel, self.status = kernel, status
+
+
+# ------------------------------------------------------------------ field types
+class _Array(ctypes.c_void_p):
+    """A pointer field: a C-contiguous numpy array of ``dtype``, or None (NULL)."""
+
+    dtype: ClassVar[np.dtype[Any]]
+
+
+class _Block(ctypes.c_void_p):
+    """A pointer field: a ``Struct`` of type ``struct`` (kept alive by the holder), or None."""
+
+    struct: ClassVar[type[Struct]]
+
+
+class Address(ctypes.c_void_p):
+    """A pointer field given as an address (memory numpy does not own: Embree's), or None."""
+
+
+_ARRAYS: dict[Any, type[_Array]] = {}
+
+
+def array(dtype: Any) -> type[_Array]:
+    """The field type of a pointer to a C-contiguous array of ``dtype``."""
+    dt = np.dtype(dtype)
+    if dt not in _ARRAYS:
+        _ARRAYS[dt] = type(f"{dt.name}_array", (_Array,), {"dtype": dt})
+    return _ARRAYS[dt]
+
+
+def block(struct: type[Struct]) -> type[_Block]:
+    """The field type of a pointer to a ``struct`` block."""
+    return type(f"{struct.__name__}_ptr", (_Block,), {"struct": struct})
+
+
+F64, F32, I64, I32, U8 = (array(t) for t in (np.float64, np.float32, np.int64, np.int32, np.uint8))
+i32, i64, u64, f64 = ctypes.c_int32, ctypes.c_int64, ctypes.c_uint64, ctypes.c_double
+
+
+def vec(n: int) -> Any:
+    """The field type of a fixed array of ``n`` doubles held in the struct."""
+    return ctypes.c_double * n
+
+
+#: Every struct at the boundary, and every kernel: its C name and its one argument (a pointer to
+#: that struct); each kernel returns an int status, 0 when done (``agrinav_status`` says what
+#: the others mean).
+STRUCTS: list[type[Struct]] = []
+KERNELS: dict[str, type[Args]] = {}
+
+
+_SCALAR, _I32, _ARRAY, _BLOCK, _VEC = range(5)
+
+
+def _kind(t: Any) -> tuple[int, Any]:
+    """How a field of C type ``t`` takes its value (``Struct._convert``)."""
+    if isinstance(t, type) and issubclass(t, _Array):
+        return _ARRAY, t.dtype
+    if isinstance(t, type) and issubclass(t, _Block):
+        return _BLOCK, t.struct
+    if isinstance(t, type) and issubclass(t, ctypes.Array):
+        return _VEC, t
+    return (_I32 if t is i32 else _SCALAR), None
+
+
+class Struct(ctypes.Structure):
+    """A struct of csrc/native.h (``c`` names it there), filled by name — every field given to
+    the constructor, any of them later through ``set`` — each value checked against its
+    field's type (assigning attributes directly skips the checks). Arrays and blocks a struct
+    points to are kept alive by it."""
+
+    c: ClassVar[str]
+    _kinds: ClassVar[dict[str, tuple[int, Any]]]
+
+    def __init_subclass__(cls, c: str = "", **kw: Any) -> None:
+        super().__init_subclass__(**kw)
+        cls.c = c
+        cls._kinds = {name: _kind(t) for name, t in cls.__dict__.get("_fields_", ())}
+        if cls._kinds:
+            STRUCTS.append(cls)
+
+    def __init__(self, **fields: Any) -> None:
+        if len(fields) != len(self._kinds) or fields.keys() != self._kinds.keys():
+            missing = self._kinds.keys() - fields.keys()
+            if missing:
+                raise TypeError(f"{type(self).__name__}: no value for {', '.join(sorted(missing))}")
+        super().__init__(**self._convert(fields))
+
+    def set(self, **fields: Any) -> None:
+        """Change some fields (checked as the constructor checks them)."""
+        for name, value in self._convert(fields).items():
+            setattr(self, name, value)
+
+    def _convert(self, fields: dict[str, Any]) -> dict[str, Any]:
+        kinds, out = self._kinds, {}
+        for name, value in fields.items():
+            kind = kinds.get(name)
+            if kind is None:
+                raise AttributeError(f"{type(self).__name__} has no field {name!r}")
+            code, arg = kind
+            if value is None or code == _SCALAR:
+                pass
+            elif code == _ARRAY:
+                if not isinstance(value, np.ndarray) or value.dtype != arg:
+                    got = value.dtype if isinstance(value, np.ndarray) else type(value).__name__
+                    raise TypeError(f"{type(self).__name__}.{name}: an array of {arg}, not {got}")
+                if not value.flags.c_contiguous:
+                    raise ValueError(f"{type(self).__name__}.{name}: not C-contiguous")
+                self._keep(name, value)
+                value = value.ctypes.data
+            elif code == _BLOCK:
+                if not isinstance(value, arg):
+                    got = type(value).__name__
+                    raise TypeError(f"{type(self).__name__}.{name}: a {arg.__name__}, not {got}")
+                self._keep(name, value)
+                value = ctypes.addressof(value)
+            elif code == _VEC:
+                if len(value) != arg._length_:
+                    raise ValueError(f"{type(self).__name__}.{name}: {arg._length_} values")
+                value = arg(*value)
+            elif not -(2**31) <= value < 2**31:
+                raise OverflowError(
+                    f"{type(self).__name__}.{name}: {value} is out of int32's range"
+                )
+            out[name] = value
+        return out
+
+    def _keep(self, name: str, value: Any) -> None:
+        self.__dict__.setdefault("_refs", {})[name] = value
+
+
+class Args(Struct):
+    """The one argument of kernel ``kernel`` (C: ``<kernel>_args_t``); it returns a status."""
+
+    kernel: ClassVar[str]
+
+    def __init_subclass__(cls, kernel: str = "", **kw: Any) -> None:
+        super().__init_subclass__(c=f"{kernel}_args_t", **kw)
+        cls.kernel = kernel
+        if kernel:
+            KERNELS[kernel] = cls
+
+
+# ------------------------------------------------------------------ shared blocks
+class Camera(Struct, c="camera_t"):
+    """A pinhole camera (raster_view.camera_params)."""
+
+    _fields_ = [
+        ("origin", vec(3)),
+        ("rot", vec(9)),
+        ("fx", f64),
+        ("fy", f64),
+        ("cx", f64),
+        ("cy", f64),
+        ("znear", f64),
+        ("zfar", f64),
+        ("width", i32),
+        ("height", i32),
+    ]
+
+
+class Geometry(Struct, c="geometry_t"):
+    """Instance slots, prototypes (tables of addresses) and the terrain's height grid."""
+
+    _fields_ = [
+        ("n_slots", i32),
+        ("n_protos", i32),
+        ("slot_proto", I32),
+        ("xfm", F32),
+        ("proto_vertices", I64),
+        ("proto_faces", I64),
+        ("proto_nv", I32),
+        ("proto_nf", I32),
+        ("proto_sphere", F32),
+        ("proto_adj", I64),
+        ("proto_clusters", I64),
+        ("cluster", i32),
+        ("heights", F64),
+        ("nx", i32),
+        ("ny", i32),
+        ("x0", f64),
+        ("y0", f64),
+        ("spacing", f64),
+    ]
+
+
+def grid_geometry(heights: np.ndarray, x0: float, y0: float, spacing: float) -> Geometry:
+    """The geometry block of a height grid alone (float64, C-contiguous; kept alive by it)."""
+    ny, nx = heights.shape
+    return Geometry(
+        n_slots=0, n_protos=0, slot_proto=None, xfm=None, proto_vertices=None,
+        proto_faces=None, proto_nv=None, proto_nf=None, proto_sphere=None, proto_adj=None,
+        proto_clusters=None, cluster=0, heights=heights, nx=nx, ny=ny, x0=x0, y0=y0,
+        spacing=spacing,
+    )  # fmt: skip
+
+
+class ProxyScene(Struct, c="proxy_scene_t"):
+    """The proxy camera's terrain and plant cylinders (proxy_geometry.ProxyGeometry)."""
+
+    _fields_ = [
+        ("heights", F64),
+        ("nx", i32),
+        ("ny", i32),
+        ("x0", f64),
+        ("y0", f64),
+        ("spacing", f64),
+        ("block_max", F64),
+        ("block", i32),
+        ("bnx", i32),
+        ("bny", i32),
+        ("gnx", i32),
+        ("gny", i32),
+        ("gx", f64),
+        ("gy", f64),
+        ("cell", f64),
+        ("cell_start", I32),
+        ("cell_items", I32),
+        ("cylinders", F64),
+        ("ztop", f64),
+    ]
+
+
+class Materials(Struct, c="materials_t"):
+    """Face colours and normals, textures by address, the tiled soil texture."""
+
+    _fields_ = [
+        ("face_offset", I64),
+        ("face_rgb", U8),
+        ("face_normal", F32),
+        ("tex_image", I64),
+        ("tex_uv", I64),
+        ("tex_hw", I32),
+        ("soil", F32),
+        ("soil_n", i32),
+    ]
+
+
+class Shading(Struct, c="shading_t"):
+    """The light of a colour frame (render/shading.py)."""
+
+    _fields_ = [
+        ("soil_rgb", vec(3)),
+        ("light", vec(3)),
+        ("sky_horizon", vec(3)),
+        ("sky_zenith", vec(3)),
+        ("ambient", f64),
+        ("far", f64),
+        ("origin", vec(2)),
+        ("texel", f64),
+    ]
+
+
+# ------------------------------------------------------------------ the kernels
+class ProxyCastArgs(Args, kernel="proxy_cast"):
+    _fields_ = [
+        ("scene", block(ProxyScene)),
+        ("n", i32),
+        ("origin", vec(3)),
+        ("dirs", F64),
+        ("rot", F64),
+        ("tlim", F64),
+        ("t", F64),
+        ("what", I32),
+    ]
+
+
+class RasterViewArgs(Args, kernel="raster_view"):
+    _fields_ = [
+        ("cam", block(Camera)),
+        ("geom", block(Geometry)),
+        ("terrain", i32),
+        ("hiz", i32),
+        ("iz", F32),
+        ("inst", I32),
+        ("prim", I32),
+        ("row0", i32),
+        ("row1", i32),
+    ]
+
+
+class ResolveViewArgs(Args, kernel="resolve_view"):
+    _fields_ = [
+        ("cam", block(Camera)),
+        ("geom", block(Geometry)),
+        ("forward", F64),
+        ("vis_iz", F32),
+        ("vis_inst", I32),
+        ("vis_prim", I32),
+        ("slot_plant", I32),
+        ("proto_label", U8),
+        ("refine_terrain", i32),
+        ("robot_t", F64),
+        ("robot_prim", I32),
+        ("t", F64),
+        ("label", U8),
+        ("plant", I32),
+        ("proto", I32),
+        ("prim", I32),
+        ("row0", i32),
+        ("row1", i32),
+    ]
+
+
+class StereoPrepareArgs(Args, kernel="stereo_prepare"):
+    _fields_ = [
+        ("width", i32),
+        ("height", i32),
+        ("fx", f64),
+        ("baseline", f64),
+        ("t", F64),
+        ("forward", F64),
+        ("scratch", F64),
+        ("row0", i32),
+        ("row1", i32),
+    ]
+
+
+class StereoInvalidArgs(Args, kernel="stereo_invalid"):
+    _fields_ = [
+        ("cam", block(Camera)),
+        ("geom", block(Geometry)),
+        ("baseline", f64),
+        ("nearest", f64),
+        ("t", F64),
+        ("forward", F64),
+        ("left_inst", I32),
+        ("left_prim", I32),
+        ("right_iz", F32),
+        ("right_inst", I32),
+        ("right_prim", I32),
+        ("scratch", F64),
+        ("bad", U8),
+        ("row0", i32),
+        ("row1", i32),
+    ]
+
+
+class FinishDepthArgs(Args, kernel="finish_depth"):
+    _fields_ = [
+        ("i0", i32),
+        ("i1", i32),
+        ("t", F64),
+        ("forward", F64),
+        ("noise_tables", F64),
+        ("noise_key", u64),
+        ("k_sigma", f64),
+        ("min_range", f64),
+        ("max_range", f64),
+        ("bad", U8),
+        ("depth", F32),
+        ("label", U8),
+        ("plant", I32),
+    ]
+
+
+class PixelNormalsArgs(Args, kernel="pixel_normals"):
+    _fields_ = [("tables", F64), ("key", u64), ("i0", i32), ("i1", i32), ("out", F64)]
+
+
+class RefineRaysArgs(Args, kernel="refine_rays"):
+    _fields_ = [
+        ("geom", block(Geometry)),
+        ("n", i32),
+        ("origin", vec(3)),
+        ("dirs", F32),
+        ("t", F64),
+        ("ground", U8),
+    ]
+
+
+class ShadeViewArgs(Args, kernel="shade_view"):
+    _fields_ = [
+        ("cam", block(Camera)),
+        ("geom", block(Geometry)),
+        ("materials", block(Materials)),
+        ("shading", block(Shading)),
+        ("forward", F64),
+        ("t", F64),
+        ("label", U8),
+        ("vis_inst", I32),
+        ("proto", I32),
+        ("prim", I32),
+        ("robot_rot", F64),
+        ("robot_rgb", U8),
+        ("robot_normal", F32),
+        ("rgb", U8),
+        ("row0", i32),
+        ("row1", i32),
+    ]
+
+
+class EmbreePacketsArgs(Args, kernel="embree_packets"):
+    _fields_ = [
+        ("fn", Address),
+        ("valid", Address),
+        ("scene", Address),
+        ("first", Address),
+        ("count", i64),
+        ("stride", i64),
+    ]
+
+
+def call(args: Args) -> None:
+    """Run ``args``'s kernel; a status other than 0 raises ``KernelError``."""
+    kernel = args.kernel
+    require(f"the kernel {kernel}")
+    status = _FUNCS[kernel](ctypes.byref(args))
+    if status:
+        raise KernelError(kernel, status, _LIB.agrinav_status(status).decode())
+
+
+# ------------------------------------------------------------------ loading
 def source_hash(csrc: Path) -> str:
     """setup.py's hash of the kernels' sources in ``csrc``."""
     h = hashlib.sha256()
@@ -74,38 +487,79 @@ def stale(handle: Any) -> str | None:
     return None if built == here else f"built from sources {built}, these are {here}"
 
 
+def layout_mismatches(handle: Any) -> list[str]:
+    """Where the build lays out a struct otherwise than its declaration here (every size and
+    field offset compared with the compiler's, ``agrinav_layout``); empty when none."""
+    fn = handle.agrinav_layout
+    fn.restype, fn.argtypes = ctypes.c_int64, [ctypes.c_char_p, ctypes.c_char_p]
+    out = []
+    for s in STRUCTS:
+        if not s.c:
+            continue
+        for name, value in [("", ctypes.sizeof(s))] + [(f, getattr(s, f).offset) for f in s._kinds]:
+            built = fn(s.c.encode(), name.encode())
+            if built != value:
+                what = f"{s.c}.{name} at {built}" if name else f"sizeof({s.c}) {built}"
+                out.append(f"{what}, declared {value}")
+    return out
+
+
 def disabled() -> bool:
     return os.environ.get("AGRINAV_NATIVE", "1").strip().lower() in ("0", "false", "no", "off")
 
 
+def origin() -> str | None:
+    """The file the kernels were loaded from (None: not loaded)."""
+    return _ORIGIN if _LIB is not None else None
+
+
+def _find() -> str | None:
+    chosen = os.environ.get("AGRINAV_NATIVE_LIB", "").strip()
+    if chosen:
+        if not Path(chosen).is_file():
+            raise NativeUnavailable(f"AGRINAV_NATIVE_LIB={chosen}: no such file")
+        return chosen
+    spec = importlib.util.find_spec("agrinav_gym.render._native")
+    return spec.origin if spec is not None else None
+
+
 def lib() -> Any:
     """The loaded kernels, or None where the extension is not built or is disabled."""
-    global _LIB, _TRIED
+    global _LIB, _TRIED, _REFUSED, _ORIGIN
     if disabled():
         return None
     if not _TRIED:
         _TRIED = True
-        spec = importlib.util.find_spec("agrinav_gym.render._native")
-        if spec is not None and spec.origin is not None:
+        path = _find()
+        handle = None
+        if path is not None:
             try:
-                handle = ctypes.CDLL(spec.origin)
+                handle = ctypes.CDLL(path)
             except OSError:
-                handle = None
-            why = stale(handle) if handle is not None else None
+                if os.environ.get("AGRINAV_NATIVE_LIB", "").strip():
+                    raise
+        if handle is not None:
+            why = stale(handle)
+            if why is None:
+                bad = layout_mismatches(handle)
+                if bad:
+                    why = "its structs differ from render/native.py's: " + "; ".join(bad[:4])
             if why is not None:
-                global _STALE
-                _STALE = why
+                _REFUSED = why
                 warnings.warn(
-                    f"agrinav_gym.render._native is stale ({why}); the sensors use their numpy and "
-                    "Embree paths until it is rebuilt (pip install -e . or make test)",
+                    f"agrinav_gym.render._native is refused ({why}); the sensors use their numpy "
+                    "and Embree paths until it is rebuilt (pip install -e . or make test)",
                     RuntimeWarning,
                     stacklevel=2,
                 )
-            elif handle is not None:
-                for name, (res, args) in _SIGNATURES.items():
+            else:
+                for name, args in KERNELS.items():
                     f = getattr(handle, name)
-                    f.restype, f.argtypes = res, args
-                _LIB = handle
+                    f.restype, f.argtypes = ctypes.c_int, [ctypes.POINTER(args)]
+                    _FUNCS[name] = f
+                handle.agrinav_status.restype = ctypes.c_char_p
+                handle.agrinav_status.argtypes = [ctypes.c_int]
+                _LIB, _ORIGIN = handle, path
     return _LIB
 
 
@@ -119,33 +573,11 @@ def require(what: str) -> Any:
     if handle is None:
         if disabled():
             why = "disabled by AGRINAV_NATIVE=0"
-        elif _STALE is not None:
-            why = f"stale, {_STALE} (rebuild: pip install -e . or make test)"
+        elif _REFUSED is not None:
+            why = f"refused, {_REFUSED} (rebuild: pip install -e . or make test)"
         else:
             why = "not built (reinstall with a C compiler: pip install -e . or make test)"
         raise NativeUnavailable(
             f"{what} needs the compiled kernels agrinav_gym.render._native: {why}"
         )
     return handle
-
-
-def ptr(a: np.ndarray | None) -> int | None:
-    """The address of a C-contiguous array (None stays None: a NULL pointer)."""
-    if a is None:
-        return None
-    assert a.flags.c_contiguous, "kernels take C-contiguous arrays"
-    return int(a.ctypes.data)
-
-
-def geometry_block(
-    heights: np.ndarray, x0: float, y0: float, spacing: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """The kernels' geometry block (csrc/native.h ``geom_from``) for a height grid alone: ten
-    pointers (slot prototypes, transforms, prototype vertices, faces, vertex and face counts,
-    bounding spheres, heights, face adjacency, face clusters) and eight values (slots,
-    prototypes, nx, ny, x0, y0, spacing, faces per cluster). ``heights`` must stay alive and
-    C-contiguous float64; a caller with plants fills in their pointers and counts."""
-    ny, nx = heights.shape
-    ptrs = np.zeros(10, np.int64)
-    ptrs[7] = heights.ctypes.data
-    return ptrs, np.array([0, 0, nx, ny, x0, y0, spacing, 0], np.float64)

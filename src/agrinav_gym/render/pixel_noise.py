@@ -26,6 +26,7 @@ kernels do).
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -130,10 +131,10 @@ def normals_numpy(key: int, n: int) -> NDArray[np.float64]:
     return out
 
 
-def kernel_args(key: int | None) -> tuple[int | None, int]:
-    """``finish_depth``'s noise arguments for a frame's ``key`` (None: no noise): the tables'
-    address (NULL: none) and the key."""
-    return (None, 0) if key is None else (TABLES.ctypes.data, key)
+def kernel_args(key: int | None) -> dict[str, Any]:
+    """``finish_depth``'s noise fields for a frame's ``key`` (None: no noise): the tables (NULL:
+    none) and the key."""
+    return {"noise_tables": None if key is None else TABLES, "noise_key": key or 0}
 
 
 def normals(key: int, n: int) -> NDArray[np.float64]:
@@ -142,5 +143,5 @@ def normals(key: int, n: int) -> NDArray[np.float64]:
     if kernels is None:
         return normals_numpy(key, n)
     out = np.empty(n, np.float64)
-    kernels.pixel_normals(TABLES.ctypes.data, key, 0, n, out.ctypes.data)
+    native.call(native.PixelNormalsArgs(tables=TABLES, key=key, i0=0, i1=n, out=out))
     return out

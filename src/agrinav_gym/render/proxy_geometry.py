@@ -76,6 +76,12 @@ class ProxyGeometry:
             self.start = np.zeros(2, np.int32)
         # the records in cell order (a cell's cylinders are read one after another)
         self.item_cyl = np.ascontiguousarray(cyl[self.items])
+        self.kernel_scene = native.ProxyScene(
+            heights=h, nx=nx, ny=ny, x0=terrain.x0, y0=terrain.y0, spacing=terrain.spacing,
+            block_max=self.bmax, block=b, bnx=bnx, bny=bny, gnx=self.gnx, gny=self.gny,
+            gx=self.gx, gy=self.gy, cell=self.CELL, cell_start=self.start,
+            cell_items=self.items, cylinders=self.item_cyl, ztop=self.ztop,
+        )  # fmt: skip
 
     def serves(self, terrain: Terrain, plants: PlantField) -> bool:
         return self.terrain is terrain and self.plants is plants
@@ -99,15 +105,11 @@ class ProxyGeometry:
             lim = np.ascontiguousarray(np.broadcast_to(lim, (n,)))
         t = np.empty(n)
         what = np.empty(n, np.int32)
-        te = self.terrain
-        ny, nx = self.h.shape
-        native.require("the proxy camera").proxy_cast(
-            n, o.ctypes.data, d.ctypes.data, native.ptr(r), lim.ctypes.data, self.ztop,
-            self.h.ctypes.data,
-            nx, ny, te.x0, te.y0, te.spacing, self.bmax.ctypes.data, self.BLOCK, self.bnx,
-            self.bny, self.gnx, self.gny, self.gx, self.gy, self.CELL, self.start.ctypes.data,
-            self.items.ctypes.data, self.item_cyl.ctypes.data, t.ctypes.data, what.ctypes.data,
-        )  # fmt: skip
+        native.call(
+            native.ProxyCastArgs(
+                scene=self.kernel_scene, n=n, origin=o, dirs=d, rot=r, tlim=lim, t=t, what=what
+            )
+        )
         return t, what
 
     def labels(self, what: NDArray[np.int32]) -> NDArray[np.uint8]:

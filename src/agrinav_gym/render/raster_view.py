@@ -84,16 +84,15 @@ def camera_params(
     origin: FloatArray,
     zfar: float,
     lateral: float = 0.0,
-) -> NDArray[np.float64]:
-    """The kernels' camera block for ``model`` on a base at ``pos``/``rot``, in scene
-    coordinates (world minus ``origin``); ``lateral`` moves it that far to its right."""
+) -> native.Camera:
+    """The kernels' camera for ``model`` on a base at ``pos``/``rot``, in scene coordinates
+    (world minus ``origin``); ``lateral`` moves it that far to its right."""
     r_wc = rot @ model.rotation  # camera body -> world
     o = pos + rot @ np.asarray(model.position, np.float64) - origin - lateral * r_wc[:, 1]
-    out = np.empty(18)
-    out[0:3] = o
-    out[3:12] = r_wc.T.ravel()
-    out[12:18] = (model.fx, model.fy, model.cx, model.cy, ZNEAR, zfar)
-    return out
+    return native.Camera(
+        origin=o, rot=r_wc.T.ravel(), fx=model.fx, fy=model.fy, cx=model.cx, cy=model.cy,
+        znear=ZNEAR, zfar=zfar, width=model.width, height=model.height,
+    )  # fmt: skip
 
 
 #: Faces per culling cluster (cluster_spheres): measured, see docs/camera.md.
@@ -129,7 +128,7 @@ class SceneGeometry:
         self.labels = np.array([p.label for p in protos] or [0], np.uint8)
         t, o = scene.terrain, scene.origin
         self.heights = np.ascontiguousarray(t.heights, np.float64)
-        self._grid = native.geometry_block(self.heights, t.x0 - o[0], t.y0 - o[1], t.spacing)
+        self._grid = (t.x0 - o[0], t.y0 - o[1], t.spacing)
         # shading: all prototypes' faces in one table, textures by address
         counts = [len(f) for f in self._f]
         self.face_offset = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
@@ -141,15 +140,22 @@ class SceneGeometry:
             np.float32,
         )
         self._tex: list[Any] = []
-        self.tex = np.zeros(2 * max(len(protos), 1), np.int64)
+        self.tex_image = np.zeros(max(len(protos), 1), np.int64)
+        self.tex_uv = np.zeros(max(len(protos), 1), np.int64)
         self.tex_hw = np.zeros(2 * max(len(protos), 1), np.int32)
         for k, p in enumerate(protos):
             if p.texture is not None and p.uv is not None:
                 img = np.ascontiguousarray(p.texture, np.uint8)
                 uv = np.ascontiguousarray(p.uv, np.float32)
                 self._tex += [img, uv]
-                self.tex[2 * k : 2 * k + 2] = (img.ctypes.data, uv.ctypes.data)
+                self.tex_image[k], self.tex_uv[k] = img.ctypes.data, uv.ctypes.data
                 self.tex_hw[2 * k : 2 * k + 2] = img.shape[:2]
+        soil = tiled_texture(scene.seed)
+        self.materials = native.Materials(
+            face_offset=self.face_offset, face_rgb=self.face_rgb, face_normal=self.face_normal,
+            tex_image=self.tex_image, tex_uv=self.tex_uv, tex_hw=self.tex_hw, soil=soil,
+            soil_n=soil.shape[0],
+        )  # fmt: skip
         self._near_ids: NDArray[np.int32] | None = None
         self.use(np.zeros(0, np.int32), np.zeros((0, 12), np.float32))
 
@@ -163,21 +169,28 @@ class SceneGeometry:
         if not len(self.slot_plant):  # the kernels read one slot's worth of pointers
             self.slot_proto = np.zeros(1, np.int32)
             self.xfm = np.zeros((1, 12), np.float32)
-        ptrs, vals = self._grid
-        self.gptr, self.gval = ptrs.copy(), vals.copy()
-        self.gptr[:7] = (
-            self.slot_proto.ctypes.data,
-            self.xfm.ctypes.data,
-            self.vaddr.ctypes.data if len(self.vaddr) else 0,
-            self.faddr.ctypes.data if len(self.faddr) else 0,
-            self.nv.ctypes.data if len(self.nv) else 0,
-            self.nf.ctypes.data if len(self.nf) else 0,
-            self.sphere.ctypes.data,
+        x0, y0, spacing = self._grid
+        ny, nx = self.heights.shape
+        self.geom = native.Geometry(
+            n_slots=len(plant_ids),
+            n_protos=len(self.protos),
+            slot_proto=self.slot_proto,
+            xfm=self.xfm,
+            proto_vertices=self.vaddr if len(self.vaddr) else None,
+            proto_faces=self.faddr if len(self.faddr) else None,
+            proto_nv=self.nv if len(self.nv) else None,
+            proto_nf=self.nf if len(self.nf) else None,
+            proto_sphere=self.sphere,
+            proto_adj=self.adjaddr if len(self.adjaddr) else None,
+            proto_clusters=self.claddr if len(self.claddr) else None,
+            cluster=CLUSTER_FACES,
+            heights=self.heights,
+            nx=nx,
+            ny=ny,
+            x0=x0,
+            y0=y0,
+            spacing=spacing,
         )
-        self.gptr[8] = self.adjaddr.ctypes.data if len(self.adjaddr) else 0
-        self.gptr[9] = self.claddr.ctypes.data if len(self.claddr) else 0
-        self.gval[:2] = (len(plant_ids), len(self.protos))
-        self.gval[7] = CLUSTER_FACES
 
     def near(self, xy: FloatArray) -> None:
         """Slots for the plants of every tile a view spanning world points ``xy`` can reach."""
@@ -187,58 +200,52 @@ class SceneGeometry:
             self._near_ids = ids
 
     # ------------------------------------------------------------------ kernels
-    # Each takes a band of rows [r0, r1): two threads work on one view's two bands at once.
-    def draw(self, cam: FloatArray, vb: VisBuffer, w: int, h: int, r0: int, r1: int) -> None:
-        lib = native.require("the rasteriser")
+    # Each takes a band of rows [r0, r1): two threads work on one view's two bands at once; a
+    # view's size is its camera's.
+    def draw(self, cam: native.Camera, vb: VisBuffer, r0: int, r1: int) -> None:
         t0 = time.perf_counter()
-        ok = lib.raster_view(
-            cam.ctypes.data, w, h, self.gptr.ctypes.data, self.gval.ctypes.data, 1,
-            int(vb.hiz), vb.iz.ctypes.data, vb.inst.ctypes.data, vb.prim.ctypes.data, r0, r1,
+        native.call(
+            native.RasterViewArgs(
+                cam=cam, geom=self.geom, terrain=1, hiz=int(vb.hiz), iz=vb.iz, inst=vb.inst,
+                prim=vb.prim, row0=r0, row1=r1,
+            )
         )  # fmt: skip
-        if ok < 0:
-            raise MemoryError("rasteriser: out of memory")
         with vb.lock:  # both bands, drawn at once: what the view costs the CPU
             vb.seconds += time.perf_counter() - t0
 
     def resolve(
         self,
-        cam: FloatArray,
+        cam: native.Camera,
         forward: FloatArray,
         vb: VisBuffer,
         out: Resolved,
-        w: int,
-        h: int,
         refine: bool,
         robot: tuple[FloatArray, NDArray[np.int32]] | None,
         r0: int,
         r1: int,
     ) -> None:
-        lib = native.require("the rasteriser")
-        ok = lib.resolve_view(
-            cam.ctypes.data,
-            w,
-            h,
-            self.gptr.ctypes.data,
-            self.gval.ctypes.data,
-            forward.ctypes.data,
-            vb.iz.ctypes.data,
-            vb.inst.ctypes.data,
-            vb.prim.ctypes.data,
-            self.slot_plant.ctypes.data if len(self.slot_plant) else None,
-            self.labels.ctypes.data,
-            int(refine),
-            native.ptr(robot[0]) if robot else None,
-            native.ptr(robot[1]) if robot else None,
-            out.t.ctypes.data,
-            out.label.ctypes.data,
-            out.plant.ctypes.data,
-            out.proto.ctypes.data,
-            out.prim.ctypes.data,
-            r0,
-            r1,
+        native.call(
+            native.ResolveViewArgs(
+                cam=cam,
+                geom=self.geom,
+                forward=forward,
+                vis_iz=vb.iz,
+                vis_inst=vb.inst,
+                vis_prim=vb.prim,
+                slot_plant=self.slot_plant if len(self.slot_plant) else None,
+                proto_label=self.labels,
+                refine_terrain=int(refine),
+                robot_t=robot[0] if robot else None,
+                robot_prim=robot[1] if robot else None,
+                t=out.t,
+                label=out.label,
+                plant=out.plant,
+                proto=out.proto,
+                prim=out.prim,
+                row0=r0,
+                row1=r1,
+            )
         )
-        if ok < 0:
-            raise MemoryError("resolve: out of memory")
 
     def stereo_prepare(
         self,
@@ -253,24 +260,17 @@ class SceneGeometry:
         r1: int,
     ) -> None:
         """Rows r0..r1 of ``scratch`` (3 h·w: FrameBuffers.stereo) for ``stereo``."""
-        native.require("the rasteriser").stereo_prepare(
-            w,
-            fx,
-            baseline,
-            left.t.ctypes.data,
-            forward.ctypes.data,
-            scratch.ctypes.data,
-            w * h,
-            r0,
-            r1,
-        )
+        native.call(
+            native.StereoPrepareArgs(
+                width=w, height=h, fx=fx, baseline=baseline, t=left.t, forward=forward,
+                scratch=scratch, row0=r0, row1=r1,
+            )
+        )  # fmt: skip
 
     def stereo(
         self,
-        cam: FloatArray,
+        cam: native.Camera,
         forward: FloatArray,
-        w: int,
-        h: int,
         baseline: float,
         nearest: float,
         left: Resolved,
@@ -283,38 +283,33 @@ class SceneGeometry:
     ) -> None:
         """Rows r0..r1 of ``bad``: 1 where the stereo pair cannot match, else 0 (csrc/frame.c
         ``stereo_invalid``, after ``stereo_prepare`` on every row into ``scratch``)."""
-        ok = native.require("the rasteriser").stereo_invalid(
-            cam.ctypes.data,
-            w,
-            h,
-            baseline,
-            nearest,
-            left.t.ctypes.data,
-            forward.ctypes.data,
-            left_vb.inst.ctypes.data,
-            left_vb.prim.ctypes.data,
-            right.iz.ctypes.data,
-            right.inst.ctypes.data,
-            right.prim.ctypes.data,
-            self.gptr.ctypes.data,
-            self.gval.ctypes.data,
-            scratch.ctypes.data,
-            bad.ctypes.data,
-            r0,
-            r1,
+        native.call(
+            native.StereoInvalidArgs(
+                cam=cam,
+                geom=self.geom,
+                baseline=baseline,
+                nearest=nearest,
+                t=left.t,
+                forward=forward,
+                left_inst=left_vb.inst,
+                left_prim=left_vb.prim,
+                right_iz=right.iz,
+                right_inst=right.inst,
+                right_prim=right.prim,
+                scratch=scratch,
+                bad=bad,
+                row0=r0,
+                row1=r1,
+            )
         )
-        if ok < 0:
-            raise MemoryError("stereo: out of memory")
 
     def shade(
         self,
-        cam: FloatArray,
+        cam: native.Camera,
         forward: FloatArray,
-        w: int,
-        h: int,
         res: Resolved,
         vb: VisBuffer,
-        par: FloatArray,
+        par: native.Shading,
         robot: tuple[FloatArray, NDArray[np.uint8], NDArray[np.float32]] | None,
         rgb: NDArray[np.uint8],
         r0: int,
@@ -322,44 +317,35 @@ class SceneGeometry:
     ) -> None:
         """Rows r0..r1 of the 8-bit RGB (h·w, 3) of a resolved colour view (``MeshCamera.shade``'s
         rules); ``par`` from ``shading_params``."""
-        tex = tiled_texture(self.scene.seed)
-        native.require("the rasteriser").shade_view(
-            cam.ctypes.data,
-            w,
-            h,
-            self.gptr.ctypes.data,
-            self.gval.ctypes.data,
-            forward.ctypes.data,
-            res.t.ctypes.data,
-            res.label.ctypes.data,
-            vb.inst.ctypes.data,
-            res.proto.ctypes.data,
-            res.prim.ctypes.data,
-            self.face_offset.ctypes.data,
-            self.face_rgb.ctypes.data,
-            self.face_normal.ctypes.data,
-            self.tex.ctypes.data,
-            self.tex_hw.ctypes.data,
-            tex.ctypes.data,
-            tex.shape[0],
-            par.ctypes.data,
-            *(native.ptr(a) for a in (robot or (None, None, None))),
-            rgb.ctypes.data,
-            r0,
-            r1,
+        native.call(
+            native.ShadeViewArgs(
+                cam=cam,
+                geom=self.geom,
+                materials=self.materials,
+                shading=par,
+                forward=forward,
+                t=res.t,
+                label=res.label,
+                vis_inst=vb.inst,
+                proto=res.proto,
+                prim=res.prim,
+                robot_rot=robot[0] if robot else None,
+                robot_rgb=robot[1] if robot else None,
+                robot_normal=robot[2] if robot else None,
+                rgb=rgb,
+                row0=r0,
+                row1=r1,
+            )
         )
 
-    def shading_params(self, soil_rgb: FloatArray, light: FloatArray, far: float) -> FloatArray:
+    def shading_params(self, soil_rgb: FloatArray, light: FloatArray, far: float) -> native.Shading:
+        """The kernels' light of a colour frame (render/shading.py's constants)."""
         o = self.scene.origin
-        return np.concatenate(
-            [
-                soil_rgb,
-                light,
-                shading.SKY_HORIZON,
-                shading.SKY_ZENITH,
-                [shading.AMBIENT, far, o[0], o[1], shading.TEXEL],
-            ]
-        ).astype(np.float64)
+        return native.Shading(
+            soil_rgb=soil_rgb, light=light, sky_horizon=shading.SKY_HORIZON,
+            sky_zenith=shading.SKY_ZENITH, ambient=shading.AMBIENT, far=far, origin=o[:2],
+            texel=shading.TEXEL,
+        )  # fmt: skip
 
 
 @lru_cache(maxsize=4)
@@ -427,20 +413,13 @@ def finish_depth(
 ) -> None:
     """Pixels i0..i1 of ``depth``: with the noise of the frame's ``key`` (pixel_noise; None:
     none), 0 where invalid; with ``labels`` cuts ``res``'s labels at the far limit in place."""
-    native.require("the rasteriser").finish_depth(
-        i0,
-        i1,
-        res.t.ctypes.data,
-        forward.ctypes.data,
-        *pixel_noise.kernel_args(key),
-        k_sigma,
-        min_range,
-        max_range,
-        bad.ctypes.data,
-        depth.ctypes.data,
-        res.label.ctypes.data if labels else None,
-        res.plant.ctypes.data if labels else None,
-    )
+    native.call(
+        native.FinishDepthArgs(
+            i0=i0, i1=i1, t=res.t, forward=forward, **pixel_noise.kernel_args(key),
+            k_sigma=k_sigma, min_range=min_range, max_range=max_range, bad=bad, depth=depth,
+            label=res.label if labels else None, plant=res.plant if labels else None,
+        )
+    )  # fmt: skip
 
 
 def new_vis(n: int) -> VisBuffer:

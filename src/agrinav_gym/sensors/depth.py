@@ -99,10 +99,13 @@ class DepthCamera(Lighting):
             g = self._proxy_geometry(terrain, plants)
             t, what = g.cast_raw(o, self.rays_body, self.t_lim, rot)
             depth = np.empty(len(t), np.float32)
-            kernels.finish_depth(
-                0, len(t), t.ctypes.data, self.forward.ctypes.data, *pixel_noise.kernel_args(key),
-                cfg.subpixel / (self.f_native * cfg.baseline), cfg.min_range, cfg.max_range,
-                None, depth.ctypes.data, None, None,
+            native.call(
+                native.FinishDepthArgs(
+                    i0=0, i1=len(t), t=t, forward=self.forward, **pixel_noise.kernel_args(key),
+                    k_sigma=cfg.subpixel / (self.f_native * cfg.baseline),
+                    min_range=cfg.min_range, max_range=cfg.max_range, bad=None, depth=depth,
+                    label=None, plant=None,
+                )
             )  # fmt: skip
         else:
             rays = self.rays_body @ rot.T

@@ -224,21 +224,21 @@ class MeshCamera(Lighting):
                 # a band must sift through all of a view's triangles, so whole views waste less
                 whole = (cam, vl) if r0 == 0 else (cam_r, vr) if stereo else None
                 if whole is not None:
-                    geo.draw(whole[0], whole[1], w, h, 0, h)
-                geo.draw(cam_c, vc, w, h, r0, r1)
+                    geo.draw(whole[0], whole[1], 0, h)
+                geo.draw(cam_c, vc, r0, r1)
                 return
-            geo.draw(cam, vl, w, h, r0, r1)
+            geo.draw(cam, vl, r0, r1)
             if stereo:
-                geo.draw(cam_r, vr, w, h, r0, r1)
+                geo.draw(cam_r, vr, r0, r1)
             if rgb:
-                geo.draw(cam_c, vc, w, h, r0, r1)
+                geo.draw(cam_c, vc, r0, r1)
 
         def resolve(r0: int, r1: int) -> None:
-            geo.resolve(cam, fwd, vl, left, w, h, True, self._robot_hits("depth"), r0, r1)
+            geo.resolve(cam, fwd, vl, left, True, self._robot_hits("depth"), r0, r1)
             if stereo:
                 geo.stereo_prepare(w, h, self.fx, c.baseline, left, fwd, scratch, r0, r1)
             if rgb:
-                geo.resolve(cam_c, fwd_c, vc, col, w, h, False, self._robot_hits("color"), r0, r1)
+                geo.resolve(cam_c, fwd_c, vc, col, False, self._robot_hits("color"), r0, r1)
 
         if not stereo:
             bad[:] = 0
@@ -254,15 +254,15 @@ class MeshCamera(Lighting):
         def finish(r0: int, r1: int) -> None:
             if stereo:
                 geo.stereo(
-                    cam, fwd, w, h, c.baseline, d455.NEAREST_OCCLUDER, left, vl, vr, scratch,
-                    bad, r0, r1,
+                    cam, fwd, c.baseline, d455.NEAREST_OCCLUDER, left, vl, vr, scratch, bad,
+                    r0, r1,
                 )  # fmt: skip
             raster_view.finish_depth(
                 left, fwd, key, k_sigma, c.min_range, c.max_range, bad, labels, depth,
                 r0 * w, r1 * w,
             )  # fmt: skip
             if rgb:
-                geo.shade(cam_c, fwd_c, w, h, col, vc, par, robot, pixels, r0, r1)
+                geo.shade(cam_c, fwd_c, col, vc, par, robot, pixels, r0, r1)
 
         bands.run("draw", draw)
         bands.run("resolve", resolve)

@@ -87,7 +87,7 @@ static int resolve_rows_avx2(const cam_t *c, const geom_t *g, const double *ab, 
     int32_t *lab32 = (int32_t *)malloc(sizeof(int32_t) * np);
     if (!us || !tin || !ok || !lab32) {
         free(us), free(tin), free(ok), free(lab32);
-        return -1;
+        return AGN_NO_MEMORY;
     }
     double *tout = tin + w, *pa = tin + 2 * w, *pf = tin + 3 * w;
     lab32[0] = CLS_OTHER;
@@ -121,28 +121,38 @@ static int resolve_rows_avx2(const cam_t *c, const geom_t *g, const double *ab, 
             }
     }
     free(us), free(tin), free(ok), free(lab32);
-    return 0;
+    return AGN_OK;
 }
 #endif
 
 /* Per pixel of a visibility buffer: ray length t (inf: none), class, plant id (-1), prototype
- * (-1) and triangle. ``refine`` moves terrain hits onto the bilinear surface; the robot's own
- * constant hits (robot_t, robot_prim; NULL: none in view) win where nearer. Returns 0, or -1
- * when out of memory. */
-EXPORT int resolve_view(const double *cam, int w, int h, const int64_t *gptr,
-                         const double *gval, const double *fwd, const float *iz,
-                         const int32_t *inst, const int32_t *vprim, const int32_t *slot_plant,
-                         const uint8_t *proto_label, int refine_terrain, const double *robot_t,
-                         const int32_t *robot_prim, double *t_out, uint8_t *label,
-                         int32_t *plant, int32_t *proto, int32_t *prim, int row0, int row1) {
+ * (-1) and triangle. ``refine_terrain`` moves terrain hits onto the bilinear surface; the
+ * robot's own constant hits (robot_t, robot_prim; NULL: none in view) win where nearer. */
+EXPORT int resolve_view(const resolve_view_args_t *a) {
+    if (!a) return AGN_NULL_ARRAY;
     cam_t c;
-    cam_from(&c, cam, w, h);
     geom_t g;
-    geom_from(&g, gptr, gval);
+    int st = cam_from(&c, a->cam);
+    if (st == AGN_OK) st = geom_from(&g, a->geom);
+    if (st != AGN_OK) return st;
+    const int w = c.w, row0 = a->row0, row1 = a->row1;
+    if (!rows_ok(row0, row1, c.h)) return AGN_BAD_SIZE;
+    if (!a->forward || !a->vis_iz || !a->vis_inst || !a->vis_prim || !a->proto_label || !a->t ||
+        !a->label || !a->plant || !a->proto || !a->prim || (g.n_slots > 0 && !a->slot_plant) ||
+        (!a->robot_t != !a->robot_prim))
+        return AGN_NULL_ARRAY;
+    const double *fwd = a->forward, *robot_t = a->robot_t;
+    const float *iz = a->vis_iz;
+    const int32_t *inst = a->vis_inst, *vprim = a->vis_prim, *slot_plant = a->slot_plant;
+    const int32_t *robot_prim = a->robot_prim;
+    const uint8_t *proto_label = a->proto_label;
+    double *t_out = a->t;
+    uint8_t *label = a->label;
+    int32_t *plant = a->plant, *proto = a->proto, *prim = a->prim;
     double *ab = ray_terms(&c);
-    if (!ab) return -1;
-    const int refine_ok = refine_terrain && g.heights != NULL && g.nx >= 2 && g.ny >= 2;
-    int ret = 0;
+    if (!ab) return AGN_NO_MEMORY;
+    const int refine_ok = a->refine_terrain && g.heights != NULL && g.nx >= 2 && g.ny >= 2;
+    int ret = AGN_OK;
 #ifdef AGRINAV_AVX2
     if (cpu_has_avx2()) {
         ret = resolve_rows_avx2(&c, &g, ab, w, fwd, iz, inst, vprim, slot_plant, proto_label,
@@ -231,8 +241,15 @@ static int seg_test(seg_test_t *s, int32_t si, int32_t sp) {
 /* The stereo test's per-row preparation (``scratch``: 3 w h doubles): inverse depth, and for
  * each pixel the best occluder candidate after it along the row (the maximum over u' > u of
  * 1/z(u') - u'/(f B)) and its column. Every row first: stereo_invalid reads the rows beside. */
-EXPORT void stereo_prepare(int w, double fx, double baseline, const double *t,
-                           const double *fwd, double *scratch, int n, int row0, int row1) {
+EXPORT int stereo_prepare(const stereo_prepare_args_t *a) {
+    if (!a) return AGN_NULL_ARRAY;
+    const int w = a->width, row0 = a->row0, row1 = a->row1;
+    if (w < 1 || a->height < 1 || !rows_ok(row0, row1, a->height)) return AGN_BAD_SIZE;
+    if (!a->t || !a->forward || !a->scratch) return AGN_NULL_ARRAY;
+    if (!(a->fx > 0) || !(a->baseline > 0)) return AGN_BAD_VALUE;
+    const double fx = a->fx, baseline = a->baseline, *t = a->t, *fwd = a->forward;
+    double *scratch = a->scratch;
+    const size_t n = (size_t)w * a->height;
     const double ifb = 1.0 / (fx * baseline);
     double *inv = scratch, *after = scratch + n;
     int32_t *arg = (int32_t *)(scratch + 2 * (size_t)n); /* the column of ``after``'s maximum */
@@ -252,6 +269,7 @@ EXPORT void stereo_prepare(int w, double fx, double baseline, const double *t,
             if (gk > m) m = gk, am = u;
         }
     }
+    return AGN_OK;
 }
 
 /* Which pixels the stereo pair cannot match (sensors/d455.py): left of the right imager's
@@ -273,15 +291,26 @@ EXPORT void stereo_prepare(int w, double fx, double baseline, const double *t,
  * surface the left imager sees. What can still slip through is a whole occluder narrower than
  * a pixel in both views. ``scratch`` holds 3 w h doubles (``stereo_prepare``). Returns 0, or
  * -1 when out of memory. */
-EXPORT int stereo_invalid(const double *cam, int w, int h, double baseline, double nearest,
-                           const double *t, const double *fwd, const int32_t *linst,
-                           const int32_t *lprim, const float *riz, const int32_t *rinst, const int32_t *rprim,
-                           const int64_t *gptr, const double *gval, const double *scratch,
-                           uint8_t *bad, int row0, int row1) {
+EXPORT int stereo_invalid(const stereo_invalid_args_t *a) {
+    if (!a) return AGN_NULL_ARRAY;
     cam_t c;
-    cam_from(&c, cam, w, h);
     geom_t g;
-    geom_from(&g, gptr, gval);
+    int st = cam_from(&c, a->cam);
+    if (st == AGN_OK) st = geom_from(&g, a->geom);
+    if (st != AGN_OK) return st;
+    if (g.n_slots > 0 && !g.proto_adj) return AGN_BAD_GEOMETRY; /* the faces beside a face */
+    const int w = c.w, h = c.h, row0 = a->row0, row1 = a->row1;
+    if (!rows_ok(row0, row1, h)) return AGN_BAD_SIZE;
+    if (!a->t || !a->forward || !a->left_inst || !a->left_prim || !a->right_iz ||
+        !a->right_inst || !a->right_prim || !a->scratch || !a->bad)
+        return AGN_NULL_ARRAY;
+    if (!(a->baseline > 0) || !(a->nearest > 0)) return AGN_BAD_VALUE;
+    const double baseline = a->baseline, nearest = a->nearest;
+    const double *t = a->t, *fwd = a->forward, *scratch = a->scratch;
+    const int32_t *linst = a->left_inst, *lprim = a->left_prim;
+    const float *riz = a->right_iz;
+    const int32_t *rinst = a->right_inst, *rprim = a->right_prim;
+    uint8_t *bad = a->bad;
     const double fb = c.fx * baseline, ifb = 1.0 / fb, inear = 1.0 / nearest;
     const size_t n = (size_t)w * h;
     const double *inv = scratch, *after = scratch + n;
@@ -290,7 +319,7 @@ EXPORT int stereo_invalid(const double *cam, int w, int h, double baseline, doub
     tri_cache_t *cache = (tri_cache_t *)calloc(1, sizeof(tri_cache_t));
     if (!ab || !cache) {
         free(ab), free(cache);
-        return -1;
+        return AGN_NO_MEMORY;
     }
     /* the right imager's centre: B to the right of the depth origin (-y in the camera) */
     double R[3] = {c.o[0] - baseline * c.r[3], c.o[1] - baseline * c.r[4],
@@ -359,16 +388,24 @@ EXPORT int stereo_invalid(const double *cam, int w, int h, double baseline, doub
         }
     }
     free(ab), free(cache);
-    return 0;
+    return AGN_OK;
 }
 
 /* The depth image: noise (sigma = z^2 s / (f B) times pixel i's draw for the frame's ``key``,
  * pixel_noise.h; ``tables`` NULL: none) on every valid hit, then 0 where invalid (``bad``: the
  * stereo pair's, NULL: none); and the labels cut at the far limit. */
-EXPORT void finish_depth(int i0, int i1, const double *t, const double *fwd,
-                         const double *tables, uint64_t key, double k_sigma, double min_range,
-                         double max_range, const uint8_t *bad, float *depth, uint8_t *label,
-                         int32_t *plant) {
+EXPORT int finish_depth(const finish_depth_args_t *a) {
+    if (!a) return AGN_NULL_ARRAY;
+    const int i0 = a->i0, i1 = a->i1;
+    if (i0 < 0 || i1 < i0) return AGN_BAD_SIZE;
+    if (!a->t || !a->forward || !a->depth || (!a->label != !a->plant)) return AGN_NULL_ARRAY;
+    const double *t = a->t, *fwd = a->forward, *tables = a->noise_tables;
+    const uint64_t key = a->noise_key;
+    const double k_sigma = a->k_sigma, min_range = a->min_range, max_range = a->max_range;
+    const uint8_t *bad = a->bad;
+    float *depth = a->depth;
+    uint8_t *label = a->label;
+    int32_t *plant = a->plant;
     pnoise_t pn = {0};
     if (tables) pn = pn_init(tables, key);
     for (int i = i0; i < i1; i++) {
@@ -383,12 +420,17 @@ EXPORT void finish_depth(int i0, int i1, const double *t, const double *fwd,
             plant[i] = -1;
         }
     }
+    return AGN_OK;
 }
 
 /* pixels i0..i1's draws for ``key`` (the ray-cast paths' and the tests') */
-EXPORT void pixel_normals(const double *tables, uint64_t key, int i0, int i1, double *out) {
-    pnoise_t pn = pn_init(tables, key);
-    for (int i = i0; i < i1; i++) out[i - i0] = pn_normal(&pn, (uint64_t)i);
+EXPORT int pixel_normals(const pixel_normals_args_t *a) {
+    if (!a) return AGN_NULL_ARRAY;
+    if (a->i0 < 0 || a->i1 < a->i0) return AGN_BAD_SIZE;
+    if (!a->tables || !a->out) return AGN_NULL_ARRAY;
+    pnoise_t pn = pn_init(a->tables, a->key);
+    for (int i = a->i0; i < a->i1; i++) a->out[i - a->i0] = pn_normal(&pn, (uint64_t)i);
+    return AGN_OK;
 }
 
 /* the bilinear surface's x, y derivatives (``bilinear``'s), without its clamps inside the grid */
@@ -407,18 +449,6 @@ static inline void slope(const geom_t *g, double x, double y, double *hx, double
     *hy = (h10 + b * fu - (h00 + a * fu)) * g->inv_s;
 }
 
-/* shading parameters (sensors/shading.py), in this order */
-enum {
-    SH_SOIL = 0,          /* soil colour rgb */
-    SH_LIGHT = 3,         /* sun direction */
-    SH_HORIZON = 6,       /* sky at the horizon */
-    SH_ZENITH = 9,        /* sky at the zenith */
-    SH_AMBIENT = 12,      /* ambient share of Lambert */
-    SH_FAR = 13,          /* haze distance scale */
-    SH_ORIGIN = 14,       /* scene origin x, y (the soil texture is in world coordinates) */
-    SH_TEXEL = 16         /* soil texel size */
-};
-
 /* floor(x) mod n, n a power of two (the soil texture's 512) */
 static inline int64_t wrap(double x, int64_t n) { return ifloor(x) & (n - 1); }
 
@@ -428,28 +458,38 @@ static inline int64_t wrap(double x, int64_t n) { return ifloor(x) & (n - 1); }
 /* Linear RGB of every pixel of a resolved colour view, as MeshCamera.shade: sky, distant
  * ground in haze, textured soil lit through the bilinear normal, plants by face colour or
  * texture (the texel at the hit's barycentrics) lit through their rotated face normal, the
- * robot by its face colours. Prototype k's faces start at face_offset[k] in the face tables;
- * tex[2k], tex[2k+1] are the addresses of its texture (h, w, 3 uint8) and UVs (0: untextured)
- * and tex_hw[2k], tex_hw[2k+1] the texture's size. */
-EXPORT void shade_view(const double *cam, int w, int h, const int64_t *gptr, const double *gval,
-                       const double *fwd, const double *t, const uint8_t *label, const int32_t *vinst,
-                       const int32_t *proto, const int32_t *prim, const int64_t *face_offset,
-                       const uint8_t *face_rgb, const float *face_normal, const int64_t *tex,
-                       const int32_t *tex_hw, const float *soil, int soil_n,
-                       const double *par, const double *robot_rot, const uint8_t *robot_rgb,
-                       const float *robot_normal, uint8_t *rgb, int row0, int row1) {
+ * robot by its face colours (materials_t, shading_t: native.h). */
+EXPORT int shade_view(const shade_view_args_t *a) {
+    if (!a || !a->materials || !a->shading) return AGN_NULL_ARRAY;
     cam_t c;
-    cam_from(&c, cam, w, h);
     geom_t g;
-    geom_from(&g, gptr, gval);
-    const double *light = par + SH_LIGHT, *horizon = par + SH_HORIZON, *zenith = par + SH_ZENITH;
-    const double ambient = par[SH_AMBIENT], far = par[SH_FAR], texel = par[SH_TEXEL];
+    int st = cam_from(&c, a->cam);
+    if (st == AGN_OK) st = geom_from(&g, a->geom);
+    if (st != AGN_OK) return st;
+    const int w = c.w, row0 = a->row0, row1 = a->row1;
+    if (!rows_ok(row0, row1, c.h)) return AGN_BAD_SIZE;
+    const materials_t *mt = a->materials;
+    const shading_t *sh = a->shading;
+    if (!a->forward || !a->t || !a->label || !a->vis_inst || !a->proto || !a->prim || !a->rgb ||
+        !mt->face_offset || !mt->face_rgb || !mt->face_normal || !mt->tex_image || !mt->tex_uv ||
+        !mt->tex_hw || !mt->soil || (a->robot_rot && (!a->robot_rgb || !a->robot_normal)))
+        return AGN_NULL_ARRAY;
+    const int soil_n = mt->soil_n;
+    /* a power of two, at least one tile (shading.TEX_SIZE) */
+    if (soil_n < 8 || (soil_n & (soil_n - 1))) return AGN_BAD_SIZE;
+    if (!(sh->far > 0) || !(sh->texel > 0)) return AGN_BAD_VALUE;
+    const double *fwd = a->forward, *t = a->t, *robot_rot = a->robot_rot;
+    const uint8_t *label = a->label, *face_rgb = mt->face_rgb, *robot_rgb = a->robot_rgb;
+    const int32_t *vinst = a->vis_inst, *proto = a->proto, *prim = a->prim, *tex_hw = mt->tex_hw;
+    const int64_t *face_offset = mt->face_offset, *tex_image = mt->tex_image, *tex_uv = mt->tex_uv;
+    const float *face_normal = mt->face_normal, *soil = mt->soil, *robot_normal = a->robot_normal;
+    uint8_t *rgb = a->rgb;
+    const double *light = sh->light, *horizon = sh->sky_horizon, *zenith = sh->sky_zenith;
+    const double ambient = sh->ambient, far = sh->far, texel = sh->texel;
     const double ca = cos(0.65), sa = sin(0.65), i3f = 1.0 / (3.0 * far), itx = 1.0 / texel;
     const double itx7 = 1.0 / (7.3 * texel);
-    /* a power of two, at least one tile (shading.TEX_SIZE) */
-    if (soil_n < 8 || (soil_n & (soil_n - 1))) return;
     double ground[3]; /* beyond the loaded world: the soil colour in haze */
-    for (int i = 0; i < 3; i++) ground[i] = par[SH_SOIL + i] * (ambient + 0.4);
+    for (int i = 0; i < 3; i++) ground[i] = sh->soil_rgb[i] * (ambient + 0.4);
     haze(ground, far, i3f, horizon);
     /* the sky's blend a = d_z^0.6, tabulated (linear interpolation: |error| < 3e-7) */
     double sky_a[SKY_STEPS + 2];
@@ -464,7 +504,7 @@ EXPORT void shade_view(const double *cam, int w, int h, const int64_t *gptr, con
     double *pk = (double *)malloc(sizeof(double) * 6 * (size_t)w);
     if (!ab || !us || !sc || !pk) {
         free(ab), free(us), free(sc), free(pk);
-        return;
+        return AGN_NO_MEMORY;
     }
     int32_t *up = us + w, *fl = us + 2 * (size_t)w, *sl = us + 3 * (size_t)w;
     uint8_t *pc = sc + 3 * (size_t)w;
@@ -472,13 +512,13 @@ EXPORT void shade_view(const double *cam, int w, int h, const int64_t *gptr, con
     uint8_t *qc = sc + 6 * (size_t)w;
     plant_par_t pp = {.cam = c, .face_normal = face_normal, .xfm = g.xfm, .ambient = ambient,
                       .i3f = i3f};
-    soil_par_t sp = {.cam = c, .org = {par[SH_ORIGIN], par[SH_ORIGIN + 1]}, .itx = itx,
+    soil_par_t sp = {.cam = c, .org = {sh->origin[0], sh->origin[1]}, .itx = itx,
                      .itx7 = itx7, .ca = ca, .sa = sa, .soil_n = soil_n, .inv_n = 1.0 / soil_n,
                      .soil = soil, .gx0 = g.gx0, .gy0 = g.gy0, .inv_s = g.inv_s, .nx = g.nx,
                      .ny = g.ny, .heights = g.heights, .ambient = ambient, .i3f = i3f};
     for (int i = 0; i < 3; i++) {
         pp.light[i] = sp.light[i] = light[i], pp.horizon[i] = sp.horizon[i] = horizon[i];
-        sp.rgb[i] = par[SH_SOIL + i];
+        sp.rgb[i] = sh->soil_rgb[i];
     }
 #endif
     const int batch = cpu_has_avx2(); /* else pixel by pixel, as below */
@@ -493,7 +533,7 @@ EXPORT void shade_view(const double *cam, int w, int h, const int64_t *gptr, con
                 us[ns++] = u;
                 continue;
             }
-            if (batch && lab != CLS_ROBOT && proto[k] >= 0 && !tex[2 * proto[k]]) {
+            if (batch && lab != CLS_ROBOT && proto[k] >= 0 && !tex_image[proto[k]]) {
                 size_t flat = (size_t)face_offset[proto[k]] + prim[k];
                 if (flat < (size_t)INT32_MAX / 3 && vinst[k] < INT32_MAX / 12) {
                     const uint8_t *col = face_rgb + 3 * flat;
@@ -518,12 +558,12 @@ EXPORT void shade_view(const double *cam, int w, int h, const int64_t *gptr, con
                 }
             } else if (lab == CLS_SOIL) {
                 double p[3] = {c.o[0] + tk * d[0], c.o[1] + tk * d[1], c.o[2] + tk * d[2]};
-                double x = p[0] + par[SH_ORIGIN], y = p[1] + par[SH_ORIGIN + 1];
+                double x = p[0] + sh->origin[0], y = p[1] + sh->origin[1];
                 int64_t i1 = wrap(x * itx, soil_n), j1 = wrap(y * itx, soil_n);
                 double xr = ca * x - sa * y, yr = sa * x + ca * y;
                 int64_t i2 = wrap(xr * itx7, soil_n), j2 = wrap(yr * itx7, soil_n);
                 float m = soil[tiled((int)j1, (int)i1, soil_n)] * soil[tiled((int)j2, (int)i2, soil_n)];
-                double alb[3] = {par[SH_SOIL] * m, par[SH_SOIL + 1] * m, par[SH_SOIL + 2] * m};
+                double alb[3] = {sh->soil_rgb[0] * m, sh->soil_rgb[1] * m, sh->soil_rgb[2] * m};
                 double hx, hy;
                 slope(&g, p[0], p[1], &hx, &hy);
                 lambert(alb, -hx, -hy, 1.0, d, light, ambient, out);
@@ -540,12 +580,12 @@ EXPORT void shade_view(const double *cam, int w, int h, const int64_t *gptr, con
                 int32_t pk = proto[k], f = prim[k], s = vinst[k];
                 size_t flat = (size_t)face_offset[pk] + f;
                 double alb[3];
-                const uint8_t *tx = (const uint8_t *)(intptr_t)tex[2 * pk];
+                const uint8_t *tx = (const uint8_t *)(intptr_t)tex_image[pk];
                 if (tx) {
                     double tri[9], bu = 0, bv = 0;
                     geom_triangle(&g, s, f, tri);
                     ray_triangle(c.o, d, tri, &bu, &bv);
-                    const float *uv = (const float *)(intptr_t)tex[2 * pk + 1];
+                    const float *uv = (const float *)(intptr_t)tex_uv[pk];
                     const uint32_t *fc = (const uint32_t *)(intptr_t)g.proto_faces[pk] + 3 * (size_t)f;
                     double w0 = 1.0 - bu - bv;
                     double tu = uv[2 * fc[0]] * w0 + uv[2 * fc[1]] * bu + uv[2 * fc[2]] * bv;
@@ -595,18 +635,29 @@ EXPORT void shade_view(const double *cam, int w, int h, const int64_t *gptr, con
 #endif
     }
     free(ab), free(us), free(sc), free(pk);
+    return AGN_OK;
 }
 
 /* ``mesh_scene.refine_ground`` for n rays from one origin ``o`` along float32 directions ``d``:
  * the hits ``t`` flagged in ``ground`` moved onto the bilinear surface, in place (world
- * coordinates; ``gptr``/``gval`` need only the height grid). */
-EXPORT void refine_rays(int n, const double *o, const float *d, double *t, const uint8_t *ground,
-                        const int64_t *gptr, const double *gval) {
+ * coordinates; the geometry needs only the height grid). */
+EXPORT int refine_rays(const refine_rays_args_t *a) {
+    if (!a) return AGN_NULL_ARRAY;
     geom_t g;
-    geom_from(&g, gptr, gval);
+    int st = geom_from(&g, a->geom);
+    if (st != AGN_OK) return st;
+    if (!g.heights) return AGN_BAD_GEOMETRY;
+    const int n = a->n;
+    if (n < 0) return AGN_BAD_SIZE;
+    if (n > 0 && (!a->dirs || !a->t || !a->ground)) return AGN_NULL_ARRAY;
+    const double *o = a->origin;
+    const float *d = a->dirs;
+    double *t = a->t;
+    const uint8_t *ground = a->ground;
     for (int k = 0; k < n; k++) {
         if (!ground[k]) continue;
         double dk[3] = {d[3 * (size_t)k], d[3 * (size_t)k + 1], d[3 * (size_t)k + 2]};
         t[k] = refine(&g, o, dk, t[k]);
     }
+    return AGN_OK;
 }

@@ -1,10 +1,17 @@
 /* Shared definitions of the compiled sensor kernels (called from Python through ctypes).
  *
+ * The boundary: every kernel takes one argument, a pointer to its own struct of named fields
+ * (declared below; render/native.py declares the same structs as ctypes.Structure and checks
+ * their layout against ``agrinav_layout`` when it loads a build), and returns a status: AGN_OK,
+ * or why it did nothing (``agrinav_status`` names each; native.py raises an error naming the
+ * kernel). Blocks that several kernels read (a camera, the scene's geometry, the proxy scene,
+ * the materials and the shading) are structs of their own, pointed to from the arguments.
+ *
  * Coordinates are the scene's: world ENU minus the MeshScene origin (the terrain's centre), so
- * float32 vertices keep sub-millimetre precision on any field. A pinhole camera is given as a
- * double array (see ``cam_from``): origin, the world -> camera rotation rows (camera body
- * frame: x forward, y left, z up), fx, fy, cx, cy and the clip depths; pixel (u, v) looks along
- * (1, -(u - cx)/fx, -(v - cy)/fy) in that frame, as ``CameraModel.pixel_rays``.
+ * float32 vertices keep sub-millimetre precision on any field. A pinhole camera (``camera_t``):
+ * origin, the world -> camera rotation rows (camera body frame: x forward, y left, z up), fx,
+ * fy, cx, cy and the clip depths; pixel (u, v) looks along (1, -(u - cx)/fx, -(v - cy)/fy) in
+ * that frame, as ``CameraModel.pixel_rays``.
  */
 #ifndef AGRINAV_NATIVE_H
 #define AGRINAV_NATIVE_H
@@ -19,6 +26,235 @@
 #define EXPORT __attribute__((visibility("default")))
 #endif
 
+/* ------------------------------------------------------------------ statuses */
+enum {
+    AGN_OK = 0,
+    AGN_NO_MEMORY = 1,    /* a working buffer could not be allocated */
+    AGN_BAD_SIZE = 2,     /* a count, size or row range out of bounds */
+    AGN_NULL_ARRAY = 3,   /* an array the call reads or writes is missing (NULL) */
+    AGN_BAD_VALUE = 4,    /* a parameter out of its range */
+    AGN_BAD_CAMERA = 5,   /* the camera block: size, focal lengths or clip depths */
+    AGN_BAD_GEOMETRY = 6, /* the geometry block: counts, arrays or the height grid */
+    AGN_STATUSES = 7
+};
+
+/* ------------------------------------------------------------------ shared blocks */
+
+/* a pinhole camera of width x height pixels (raster_view.camera_params) */
+typedef struct {
+    double origin[3]; /* scene coordinates */
+    double rot[9];    /* rows: the camera's forward, left and up axes in the world */
+    double fx, fy, cx, cy;
+    double znear, zfar;
+    int32_t width, height;
+} camera_t;
+
+/* The geometry a visibility buffer refers to: instance slots (a prototype and a row-major 3x4
+ * transform each) and the terrain's height grid (row i at y0 + i spacing, column j at
+ * x0 + j spacing; heights NULL: no terrain). A prototype's arrays are given by address
+ * (int64), in one table per kind. */
+typedef struct {
+    int32_t n_slots, n_protos;
+    const int32_t *slot_proto;     /* (n_slots,) the prototype of each slot */
+    const float *xfm;              /* (n_slots, 12) */
+    const int64_t *proto_vertices; /* addresses of float32 (V, 3) arrays */
+    const int64_t *proto_faces;    /* addresses of uint32 (F, 3) arrays */
+    const int32_t *proto_nv, *proto_nf;
+    const float *proto_sphere; /* (n_protos, 4): bounding sphere centre and radius */
+    const int64_t *proto_adj;  /* addresses of int32 (F, 3): the face across each edge, -1 */
+    /* addresses of float32 (ceil(F / cluster), 4): the bounding sphere of each run of
+     * ``cluster`` faces (NULL: no clusters), culled like an instance before its triangles */
+    const int64_t *proto_clusters;
+    int32_t cluster;
+    const double *heights; /* (ny, nx) */
+    int32_t nx, ny;
+    double x0, y0, spacing;
+} geometry_t;
+
+/* The proxy camera's scene (proxy_geometry.ProxyGeometry): the terrain with the highest vertex
+ * of each block of ``block`` x ``block`` cells (bny x bnx), and the plant cylinders listed per
+ * square cell of size ``cell`` of a gny x gnx grid from (gx, gy): cell c = i gnx + j holds
+ * cylinders cell_items[cell_start[c]:cell_start[c+1]], and cylinders[5m..5m+4] = (x, y, bottom
+ * z, top z, radius) is the record of cylinder cell_items[m] (in cell order: read one after
+ * another). ``ztop``: the tallest cylinder's top (a rising ray above it meets no plant). */
+typedef struct {
+    const double *heights; /* (ny, nx) */
+    int32_t nx, ny;
+    double x0, y0, spacing;
+    const double *block_max; /* (bny, bnx) */
+    int32_t block, bnx, bny;
+    int32_t gnx, gny;
+    double gx, gy, cell;
+    const int32_t *cell_start; /* (gnx gny + 1,) */
+    const int32_t *cell_items;
+    const double *cylinders;
+    double ztop;
+} proxy_scene_t;
+
+/* What the colour camera's surfaces are made of (raster_view.SceneGeometry): prototype k's
+ * faces start at face_offset[k] in the face tables; tex_image[k] and tex_uv[k] are the
+ * addresses of its texture (h, w, 3 uint8) and of its float32 UVs (0: untextured), tex_hw[2k]
+ * and tex_hw[2k+1] the texture's size. ``soil``: the soil texture (soil_n x soil_n, soil_n a
+ * power of two, at least one 8 x 8 tile) stored in tiles (raster_view.tiled_texture). */
+typedef struct {
+    const int64_t *face_offset;
+    const uint8_t *face_rgb;  /* (F, 3) over every prototype's faces */
+    const float *face_normal; /* (F, 3) */
+    const int64_t *tex_image, *tex_uv;
+    const int32_t *tex_hw;
+    const float *soil;
+    int32_t soil_n;
+} materials_t;
+
+/* the light of a colour frame (render/shading.py) */
+typedef struct {
+    double soil_rgb[3];
+    double light[3]; /* towards the sun */
+    double sky_horizon[3], sky_zenith[3];
+    double ambient;   /* ambient share of Lambert */
+    double far;       /* haze distance scale */
+    double origin[2]; /* the scene origin's x, y (the soil texture is in world coordinates) */
+    double texel;     /* soil texel size */
+} shading_t;
+
+/* ------------------------------------------------------------------ the kernels */
+
+/* proxycast.c: per ray k (from ``origin``, unit direction dirs[3k..3k+2] in the world, or in
+ * the body frame when the row-major rotation ``rot`` (body -> world) is given; length limit
+ * tlim[k]): the first hit's t (INFINITY: none) and what it hit (-1 terrain, -2 nothing, else
+ * the cylinder's index). */
+typedef struct {
+    const proxy_scene_t *scene;
+    int32_t n;
+    double origin[3];
+    const double *dirs; /* (n, 3) */
+    const double *rot;  /* 3 x 3 or NULL */
+    const double *tlim; /* (n,) */
+    double *t;          /* (n,) out */
+    int32_t *what;      /* (n,) out */
+} proxy_cast_args_t;
+EXPORT int proxy_cast(const proxy_cast_args_t *a);
+
+/* raster.c: rows [row0, row1) of the visibility buffer of ``cam`` over ``geom`` */
+typedef struct {
+    const camera_t *cam;
+    const geometry_t *geom;
+    int32_t terrain; /* 0: the ground left out */
+    int32_t hiz;     /* 0: no coarse depth tiles (the same image) */
+    float *iz;       /* (h w,) out: 1/z, 0 where nothing */
+    int32_t *inst;   /* (h w,) out: the slot, VB_TERRAIN or VB_NONE */
+    int32_t *prim;   /* (h w,) out: the triangle */
+    int32_t row0, row1;
+} raster_view_args_t;
+EXPORT int raster_view(const raster_view_args_t *a);
+
+/* frame.c: rows [row0, row1) of a visibility buffer resolved */
+typedef struct {
+    const camera_t *cam;
+    const geometry_t *geom;
+    const double *forward; /* (h w,) each pixel ray's cosine to the optical axis */
+    const float *vis_iz;   /* the visibility buffer (raster_view) */
+    const int32_t *vis_inst, *vis_prim;
+    const int32_t *slot_plant;  /* (n_slots,) the plant of each slot (NULL: no slots) */
+    const uint8_t *proto_label; /* (n_protos,) */
+    int32_t refine_terrain;
+    const double *robot_t; /* (h w,) the robot's own hits, or NULL: none in view */
+    const int32_t *robot_prim;
+    double *t; /* (h w,) out: ray length, INFINITY where none */
+    uint8_t *label;
+    int32_t *plant, *proto, *prim;
+    int32_t row0, row1;
+} resolve_view_args_t;
+EXPORT int resolve_view(const resolve_view_args_t *a);
+
+/* frame.c: the stereo test's per-row preparation into ``scratch`` */
+typedef struct {
+    int32_t width, height;
+    double fx, baseline;
+    const double *t, *forward; /* (h w,) */
+    double *scratch;           /* (3 h w,) out */
+    int32_t row0, row1;
+} stereo_prepare_args_t;
+EXPORT int stereo_prepare(const stereo_prepare_args_t *a);
+
+/* frame.c: rows [row0, row1) of ``bad``: 1 where the stereo pair cannot match */
+typedef struct {
+    const camera_t *cam;
+    const geometry_t *geom;
+    double baseline, nearest;
+    const double *t, *forward;            /* the left (depth) view, resolved */
+    const int32_t *left_inst, *left_prim; /* its visibility buffer */
+    const float *right_iz;                /* the right imager's visibility buffer */
+    const int32_t *right_inst, *right_prim;
+    const double *scratch; /* stereo_prepare's, every row */
+    uint8_t *bad;          /* (h w,) out */
+    int32_t row0, row1;
+} stereo_invalid_args_t;
+EXPORT int stereo_invalid(const stereo_invalid_args_t *a);
+
+/* frame.c: pixels [i0, i1) of the depth image, and the labels cut at the far limit */
+typedef struct {
+    int32_t i0, i1;
+    const double *t, *forward;
+    const double *noise_tables; /* pixel_noise.TABLES, or NULL: no noise */
+    uint64_t noise_key;
+    double k_sigma, min_range, max_range;
+    const uint8_t *bad; /* the stereo pair's invalid pixels, or NULL: none */
+    float *depth;       /* out */
+    uint8_t *label;     /* in place, or NULL (and plant NULL): no labels */
+    int32_t *plant;
+} finish_depth_args_t;
+EXPORT int finish_depth(const finish_depth_args_t *a);
+
+/* frame.c: pixels [i0, i1)'s standard normal draws for ``key`` (pixel_noise.h) */
+typedef struct {
+    const double *tables;
+    uint64_t key;
+    int32_t i0, i1;
+    double *out; /* (i1 - i0,) */
+} pixel_normals_args_t;
+EXPORT int pixel_normals(const pixel_normals_args_t *a);
+
+/* frame.c: mesh_scene.refine_ground for n rays from ``origin`` (world coordinates; ``geom``
+ * needs only the height grid) */
+typedef struct {
+    const geometry_t *geom;
+    int32_t n;
+    double origin[3];
+    const float *dirs;     /* (n, 3) */
+    double *t;             /* (n,) in place */
+    const uint8_t *ground; /* (n,) the hits to move */
+} refine_rays_args_t;
+EXPORT int refine_rays(const refine_rays_args_t *a);
+
+/* frame.c: rows [row0, row1) of the 8-bit RGB of a resolved colour view */
+typedef struct {
+    const camera_t *cam;
+    const geometry_t *geom;
+    const materials_t *materials;
+    const shading_t *shading;
+    const double *forward, *t; /* the view, resolved */
+    const uint8_t *label;
+    const int32_t *vis_inst, *proto, *prim;
+    const double *robot_rot;   /* the robot's 3 x 3 rotation, or NULL: not in view */
+    const uint8_t *robot_rgb;  /* its face colours */
+    const float *robot_normal; /* and normals */
+    uint8_t *rgb;              /* (h w, 3) out */
+    int32_t row0, row1;
+} shade_view_args_t;
+EXPORT int shade_view(const shade_view_args_t *a);
+
+/* packets.c: Embree's 8-ray packet queries, ``count`` packets ``stride`` bytes apart */
+typedef struct {
+    void *fn; /* rtcIntersect8 or rtcOccluded8 */
+    const void *valid;
+    void *scene;
+    char *first;
+    int64_t count, stride;
+} embree_packets_args_t;
+EXPORT int embree_packets(const embree_packets_args_t *a);
+
+/* ------------------------------------------------------------------ inside the kernels */
 /* what a visibility-buffer pixel holds besides an instance slot (>= 0) */
 #define VB_NONE (-1)
 #define VB_TERRAIN (-2)
@@ -31,9 +267,7 @@
 #define CLS_SOIL 1
 #define CLS_ROBOT 4
 
-/* the camera's double parameter block: o[3], r[9], fx, fy, cx, cy, znear, zfar */
-#define CAM_PARAMS 18
-
+/* the camera as the kernels read it */
 typedef struct {
     double o[3];
     double r[9]; /* rows: the camera's forward, left and up axes in the world */
@@ -43,18 +277,29 @@ typedef struct {
     double sl, sr, su, sd;
 } cam_t;
 
-static inline void cam_from(cam_t *c, const double *p, int w, int h) {
-    for (int k = 0; k < 3; k++) c->o[k] = p[k];
-    for (int k = 0; k < 9; k++) c->r[k] = p[3 + k];
-    c->fx = p[12], c->fy = p[13], c->cx = p[14], c->cy = p[15];
-    c->znear = p[16], c->zfar = p[17];
+/* the kernels' camera from its block (AGN_BAD_CAMERA: no camera) */
+static inline int cam_from(cam_t *c, const camera_t *p) {
+    if (!p) return AGN_NULL_ARRAY;
+    if (p->width < 1 || p->height < 1 || !(p->fx > 0) || !(p->fy > 0) || !(p->znear > 0) ||
+        !(p->zfar > p->znear))
+        return AGN_BAD_CAMERA;
+    for (int k = 0; k < 3; k++) c->o[k] = p->origin[k];
+    for (int k = 0; k < 9; k++) c->r[k] = p->rot[k];
+    c->fx = p->fx, c->fy = p->fy, c->cx = p->cx, c->cy = p->cy;
+    c->znear = p->znear, c->zfar = p->zfar;
+    int w = p->width, h = p->height;
     c->w = w, c->h = h;
     c->sl = (c->cx + 0.5) / c->fx;
     c->sr = (w - 0.5 - c->cx) / c->fx;
     c->su = (c->cy + 0.5) / c->fy;
     c->sd = (h - 0.5 - c->cy) / c->fy;
+    return AGN_OK;
 }
 
+/* whether [row0, row1) is a band of an image ``h`` rows high */
+static inline int rows_ok(int32_t row0, int32_t row1, int h) {
+    return 0 <= row0 && row0 <= row1 && row1 <= h;
+}
 /* The unit world direction of pixel (u, v) from its column and row terms a = -(u - cx)/fx,
  * b = -(v - cy)/fy and its cosine to the optical axis f = 1/|(1, a, b)| (PixelRays.forward):
  * no square root or division per pixel */
@@ -72,45 +317,48 @@ static inline int64_t ifloor(double x) {
     return i - (x < (double)i);
 }
 
-/* The geometry a visibility buffer refers to: instance slots (a prototype and a row-major 3x4
- * transform each) and the terrain's height grid (row i at gy0 + i s, column j at gx0 + j s). */
+/* the geometry as the kernels read it */
 typedef struct {
     int n_slots;
     const int32_t *slot_proto;
     const float *xfm; /* (n_slots, 12) */
     int n_protos;
-    const int64_t *proto_vertices; /* addresses of float32 (V, 3) arrays */
-    const int64_t *proto_faces;    /* addresses of uint32 (F, 3) arrays */
+    const int64_t *proto_vertices;
+    const int64_t *proto_faces;
     const int32_t *proto_nv, *proto_nf;
-    const float *proto_sphere; /* (n_protos, 4): bounding sphere centre and radius */
-    const int64_t *proto_adj;  /* addresses of int32 (F, 3): the face across each edge, -1 */
-    /* addresses of float32 (ceil(F / cluster), 4): the bounding sphere of each run of
-     * ``cluster`` faces (0: no clusters), culled like an instance before its triangles */
+    const float *proto_sphere;
+    const int64_t *proto_adj;
     const int64_t *proto_clusters;
-    int cluster;
+    int cluster; /* 0: no clusters */
     const double *heights;
     int nx, ny;
     double gx0, gy0, s, inv_s;
 } geom_t;
 
-/* the geometry block passed from Python: pointers as int64 then scalars as doubles */
-#define GEOM_PTRS 10
-#define GEOM_VALS 8
-static inline void geom_from(geom_t *g, const int64_t *p, const double *v) {
-    g->slot_proto = (const int32_t *)(intptr_t)p[0];
-    g->xfm = (const float *)(intptr_t)p[1];
-    g->proto_vertices = (const int64_t *)(intptr_t)p[2];
-    g->proto_faces = (const int64_t *)(intptr_t)p[3];
-    g->proto_nv = (const int32_t *)(intptr_t)p[4];
-    g->proto_nf = (const int32_t *)(intptr_t)p[5];
-    g->proto_sphere = (const float *)(intptr_t)p[6];
-    g->heights = (const double *)(intptr_t)p[7];
-    g->proto_adj = (const int64_t *)(intptr_t)p[8];
-    g->proto_clusters = (const int64_t *)(intptr_t)p[9];
-    g->n_slots = (int)v[0], g->n_protos = (int)v[1];
-    g->nx = (int)v[2], g->ny = (int)v[3];
-    g->gx0 = v[4], g->gy0 = v[5], g->s = v[6], g->inv_s = 1.0 / v[6];
-    g->cluster = g->proto_clusters ? (int)v[7] : 0;
+/* the kernels' geometry from its block (AGN_BAD_GEOMETRY: inconsistent) */
+static inline int geom_from(geom_t *g, const geometry_t *p) {
+    if (!p) return AGN_NULL_ARRAY;
+    if (p->n_slots < 0 || p->n_protos < 0 || p->cluster < 0) return AGN_BAD_GEOMETRY;
+    if (p->n_slots > 0 && (!p->slot_proto || !p->xfm || p->n_protos < 1)) return AGN_BAD_GEOMETRY;
+    if (p->n_protos > 0 && (!p->proto_vertices || !p->proto_faces || !p->proto_nv ||
+                            !p->proto_nf || !p->proto_sphere))
+        return AGN_BAD_GEOMETRY;
+    if (p->heights && (p->nx < 2 || p->ny < 2 || !(p->spacing > 0))) return AGN_BAD_GEOMETRY;
+    g->slot_proto = p->slot_proto;
+    g->xfm = p->xfm;
+    g->proto_vertices = p->proto_vertices;
+    g->proto_faces = p->proto_faces;
+    g->proto_nv = p->proto_nv;
+    g->proto_nf = p->proto_nf;
+    g->proto_sphere = p->proto_sphere;
+    g->proto_adj = p->proto_adj;
+    g->proto_clusters = p->proto_clusters;
+    g->heights = p->heights;
+    g->n_slots = p->n_slots, g->n_protos = p->n_protos;
+    g->nx = p->nx, g->ny = p->ny;
+    g->gx0 = p->x0, g->gy0 = p->y0, g->s = p->spacing, g->inv_s = 1.0 / p->spacing;
+    g->cluster = g->proto_clusters ? p->cluster : 0;
+    return AGN_OK;
 }
 
 /* the (up to 3) triangles sharing an edge with triangle ``prim`` of slot ``slot``; returns

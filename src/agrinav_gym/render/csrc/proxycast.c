@@ -225,22 +225,38 @@ static inline double cylinder_hit(const double *o, const double *d, double ia, d
     return best;
 }
 
-/* Per ray k (origin o, unit direction d[3k..3k+2] in the world, or in the body frame when the
- * row-major rotation ``rot`` (body -> world) is given; length limit tlim[k]): the first hit's
- * t (INFINITY: none) and what it hit (HIT_TERRAIN, HIT_NONE or the cylinder's index).
- * Terrain: heights h (ny x nx, row i at y0 + i s), bmax the highest vertex of each block of
- * bsize x bsize cells (bny x bnx). Plants: grid cell (i, j) of size gs from (gx, gy) lists
- * cylinders items[start[c]:start[c+1]] with c = i gnx + j, and cyl[5m..5m+4] = (x, y, bottom
- * z, top z, radius) is the record of cylinder items[m] (in cell order: read one after
- * another); ``ztop`` the tallest cylinder's top (a rising ray above it meets no plant any
- * more). */
-EXPORT void proxy_cast(int n, const double *o, const double *d, const double *rot,
-                       const double *tlim, double ztop,
-                       const double *h, int nx, int ny, double x0, double y0, double s,
-                       const double *bmax, int bsize, int bnx, int bny,
-                       int gnx, int gny, double gx, double gy, double gs,
-                       const int32_t *start, const int32_t *items, const double *cyl,
-                       double *t_out, int32_t *what) {
+/* Per ray k: the first hit (proxy_cast_args_t, native.h). Terrain: heights h (ny x nx, row i
+ * at y0 + i s), bmax the highest vertex of each block of bsize x bsize cells (bny x bnx).
+ * Plants: grid cell (i, j) of size gs from (gx, gy) lists cylinders items[start[c]:start[c+1]]
+ * with c = i gnx + j, and cyl[5m..5m+4] is the record of cylinder items[m]. */
+EXPORT int proxy_cast(const proxy_cast_args_t *a) {
+    if (!a || !a->scene) return AGN_NULL_ARRAY;
+    const proxy_scene_t *sc = a->scene;
+    const int n = a->n;
+    if (n < 0) return AGN_BAD_SIZE;
+    if (n > 0 && (!a->dirs || !a->tlim || !a->t || !a->what)) return AGN_NULL_ARRAY;
+    if (!sc->heights || !sc->block_max) return AGN_NULL_ARRAY;
+    if (sc->nx < 2 || sc->ny < 2 || sc->block < 1 || sc->bnx < 1 || sc->bny < 1 || sc->gnx < 0 ||
+        sc->gny < 0)
+        return AGN_BAD_SIZE;
+    if (!(sc->spacing > 0)) return AGN_BAD_VALUE;
+    if (sc->gnx > 0 && sc->gny > 0) {
+        if (!sc->cell_start || !sc->cell_items || !sc->cylinders) return AGN_NULL_ARRAY;
+        if (!(sc->cell > 0)) return AGN_BAD_VALUE;
+    }
+    const double *o = a->origin, *d = a->dirs, *rot = a->rot, *tlim = a->tlim;
+    const double ztop = sc->ztop;
+    const double *h = sc->heights;
+    const int nx = sc->nx, ny = sc->ny;
+    const double x0 = sc->x0, y0 = sc->y0, s = sc->spacing;
+    const double *bmax = sc->block_max;
+    const int bsize = sc->block, bnx = sc->bnx, bny = sc->bny;
+    const int gnx = sc->gnx, gny = sc->gny;
+    const double gx = sc->gx, gy = sc->gy, gs = sc->cell;
+    const int32_t *start = sc->cell_start, *items = sc->cell_items;
+    const double *cyl = sc->cylinders;
+    double *t_out = a->t;
+    int32_t *what = a->what;
     /* the highest terrain vertex any ray can reach (blocks within the longest ray) */
     double reach = 0;
     for (int k = 0; k < n; k++) reach = tlim[k] > reach ? tlim[k] : reach;
@@ -297,4 +313,5 @@ EXPORT void proxy_cast(int n, const double *o, const double *d, const double *ro
         t_out[k] = best;
         what[k] = id;
     }
+    return AGN_OK;
 }

@@ -492,25 +492,27 @@ static void draw_terrain(const cam_t *c, const geom_t *g, vbuf_t *b) {
         }
 }
 
-/* Rasterise the instances and the terrain of ``geom`` for camera ``cam`` (w x h) into rows
+/* Rasterise the instances and the terrain of ``geom`` for camera ``cam`` into rows
  * [row0, row1) of the visibility buffer (iz zeroed and ids set to VB_NONE there first; two
  * calls on disjoint bands may run at once). ``terrain`` = 0 leaves the ground out; ``hiz`` = 0
- * draws without the coarse depth tiles (the same image). Returns 0, or -1 when out of
- * memory. */
-EXPORT int raster_view(const double *cam, int w, int h, const int64_t *gptr,
-                           const double *gval, int terrain, int hiz, float *iz, int32_t *inst,
-                           int32_t *prim, int row0, int row1) {
+ * draws without the coarse depth tiles (the same image). */
+EXPORT int raster_view(const raster_view_args_t *a) {
+    if (!a) return AGN_NULL_ARRAY;
     cam_t c;
-    cam_from(&c, cam, w, h);
     geom_t g;
-    geom_from(&g, gptr, gval);
-    if (row0 < 0) row0 = 0;
-    if (row1 > h) row1 = h;
+    int st = cam_from(&c, a->cam);
+    if (st == AGN_OK) st = geom_from(&g, a->geom);
+    if (st != AGN_OK) return st;
+    const int w = c.w, h = c.h, row0 = a->row0, row1 = a->row1;
+    if (!rows_ok(row0, row1, h)) return AGN_BAD_SIZE;
+    if (!a->iz || !a->inst || !a->prim) return AGN_NULL_ARRAY;
+    float *iz = a->iz;
+    int32_t *inst = a->inst, *prim = a->prim;
     for (size_t k = (size_t)row0 * w; k < (size_t)row1 * w; k++)
         iz[k] = 0.0f, inst[k] = VB_NONE, prim[k] = -1;
     int tw = (w + TILE - 1) >> TSHIFT, th = (h + TILE - 1) >> TSHIFT;
-    vbuf_t b = {iz, inst, prim, 1.0 / c.zfar, row0, row1, w, tw, NULL, NULL, hiz};
-    if (row0 >= row1) return 0;
+    vbuf_t b = {iz, inst, prim, 1.0 / c.zfar, row0, row1, w, tw, NULL, NULL, a->hiz};
+    if (row0 >= row1) return AGN_OK;
     int maxv = 1;
     for (int p = 0; p < g.n_protos; p++)
         if (g.proto_nv[p] > maxv) maxv = g.proto_nv[p];
@@ -520,7 +522,7 @@ EXPORT int raster_view(const double *cam, int w, int h, const int64_t *gptr,
     int ok = scratch && b.tmin && b.dirty;
     /* plants first, nearest first: the terrain behind them is then mostly skipped */
     if (ok) ok = draw_instances(&c, &g, &b, scratch) == 0;
-    if (ok && terrain) draw_terrain(&c, &g, &b);
+    if (ok && a->terrain) draw_terrain(&c, &g, &b);
     free(scratch), free(b.tmin), free(b.dirty);
-    return ok ? 0 : -1;
+    return ok ? AGN_OK : AGN_NO_MEMORY;
 }
