@@ -110,6 +110,7 @@ def table(records: list[dict[str, Any]], suite_name: str, command: str) -> str:
                     + f" | {poses} | {len(rows)} |"
                 )
     lines += ["", *conditions(records, groups, pols)]
+    lines += paired(records, groups, pols)
     lines += held_out(records)
     lines += ["", *failures(records, groups, pols)]
     lines += interventions(records, groups, pols)
@@ -126,6 +127,61 @@ def table(records: list[dict[str, Any]], suite_name: str, command: str) -> str:
         "",
     ]
     return "\n".join(lines)
+
+
+#: What the paired comparison reports (on the same fields and reset seeds).
+PAIRED = (("completion", 1.0), ("path_rmse", -1.0))  # (metric, sign of "better")
+
+
+def paired_differences(
+    records: list[dict[str, Any]], group: str, a: str, b: str, metric: str
+) -> tuple[tuple[float, float, float] | None, int]:
+    """Mean of ``a − b`` over the episodes both policies drove on the same field and reset
+    seed (for cross-track metrics: both finished), with its 95 % bootstrap interval, and the
+    number of pairs. Pairing removes the field-to-field spread both policies share, so a
+    difference smaller than either policy's own interval can still be resolved."""
+    by = {(r["policy"], r.get("seed")): r for r in records if r["scenario"] == group}
+    diffs = []
+    for (pol, seed), ra in by.items():
+        rb = by.get((b, seed))
+        if pol != a or rb is None or seed is None:
+            continue
+        if metric in CTE_METRICS and not (finished(ra) and finished(rb)):
+            continue
+        va, vb = ra.get(metric), rb.get(metric)
+        if va is not None and vb is not None:
+            diffs.append(float(va) - float(vb))
+    return mean_ci(diffs), len(diffs)
+
+
+def paired(records: list[dict[str, Any]], groups: list[str], pols: list[str]) -> list[str]:
+    """Every policy against the first one listed, per scenario group, on shared seeds."""
+    if len(pols) < 2:
+        return []
+    ref = pols[0]
+    head = ["scenario", "policy", *(f"Δ {m}" for m, _ in PAIRED)]
+    lines = [
+        "",
+        f"Paired differences against `{ref}` (this policy − {ref}, same fields and reset seeds; "
+        "cross-track over episodes both finished): mean [95 % bootstrap interval] (pairs). An "
+        "interval that excludes 0 is a difference these episodes resolve.",
+        "",
+        "| " + " | ".join(head) + " |",
+        "|" + "---|" * len(head),
+    ]
+    rows = 0
+    for g in groups:
+        for p in pols[1:]:
+            cells = []
+            for metric, _ in PAIRED:
+                ci, n = paired_differences(records, g, p, ref, metric)
+                cells.append(
+                    "—" if ci is None else f"{ci[0]:+.3f} [{ci[1]:+.3f}, {ci[2]:+.3f}] ({n})"
+                )
+            if any(c != "—" for c in cells):
+                lines.append(f"| {g} | {p} | " + " | ".join(cells) + " |")
+                rows += 1
+    return lines if rows else []
 
 
 CONDITIONS = ("localisation", "camera", "speed_limit", "controller")

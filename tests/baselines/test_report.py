@@ -58,3 +58,29 @@ def test_a_failed_episode_is_a_failure_in_every_cross_track_column() -> None:
 @pytest.mark.parametrize("metric", METRICS)
 def test_every_metric_is_a_column(metric: str) -> None:
     assert f" {metric} |" in table([_rec("p", 0.1, "success", 100.0)], "t", "")
+
+
+def test_pairing_resolves_a_difference_the_field_spread_hides() -> None:
+    """Two policies on 20 shared fields: B is 5 mm better on every field, the fields spread by
+    5 cm. Each policy's own interval overlaps the other's; the paired interval excludes 0."""
+    from baselines.report import paired_differences
+
+    rng = np.random.default_rng(3)
+    field = rng.normal(0.10, 0.05, 20).clip(0.01)
+    records = []
+    for seed, base in enumerate(field):
+        for policy, rmse in (("a", base + 0.005), ("b", base)):
+            r = _rec(policy, float(rmse), "success", 100.0)
+            r["seed"] = seed
+            records.append(r)
+    a = mean_ci([r["path_rmse"] for r in records if r["policy"] == "a"])
+    b = mean_ci([r["path_rmse"] for r in records if r["policy"] == "b"])
+    assert a is not None and b is not None and a[1] < b[2]  # overlapping intervals
+    ci, n = paired_differences(records, "field", "a", "b", "path_rmse")
+    assert n == 20 and ci is not None
+    assert ci[0] == pytest.approx(0.005) and ci[1] > 0  # resolved
+    # an episode one of them did not finish drops out of the cross-track pairs only
+    records[0]["termination"] = "corridor"
+    assert paired_differences(records, "field", "a", "b", "path_rmse")[1] == 19
+    assert paired_differences(records, "field", "a", "b", "completion")[1] == 20
+    assert "Paired differences against `a`" in table(records, "t", "agrinav bench")
