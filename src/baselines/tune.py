@@ -1,5 +1,9 @@
 """Every classical controller gets the same chance: its parameters searched on the training split.
 
+RPP and Stanley search their arguments; DWB searches its critics' weights, the speed it samples
+and its rollout horizon, written as a DWB config on top of the furrow changes (``best.yaml`` is
+then a whole config: ``--policies dwb:best.yaml``).
+
 ``agrinav tune --policy rpp --trials 40 --episodes 8 --out runs/tune-rpp`` runs an Optuna TPE
 search (seeded, so the same command gives the same trials) over the controller's ``SEARCH``
 space. Each trial drives the same ``--episodes`` training fields of FieldRoute (scenario seeds
@@ -21,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from agrinav_gym.interface import OBS_GPS, OBS_IMU, OBS_ODOM, OBS_ROUTE
+from agrinav_gym.interface import OBS_GPS, OBS_IMU, OBS_ODOM, OBS_ROUTE, OBSERVATION_KEYS
 from scenario_gen.atomic import check_output_dir, output_dir
 from scenario_gen.errors import InputError
 
@@ -40,12 +44,29 @@ SEARCH: dict[str, dict[str, tuple[float, float]]] = {
         "k_heading": (0.5, 4.0),
         "integral_time": (2.0, 30.0),
     },
+    # DWB (Nav2 Humble): the critics' weights around their defaults (32 / 24), the speed
+    # sampled and the rollout horizon (1.7 s), on top of the furrow config's changes.
+    "dwb": {
+        "FollowPath.PathAlign.scale": (0.0, 64.0),
+        "FollowPath.GoalAlign.scale": (0.0, 48.0),
+        "FollowPath.PathDist.scale": (0.0, 64.0),
+        "FollowPath.GoalDist.scale": (0.0, 48.0),
+        "FollowPath.max_vel_x": (0.3, 1.0),
+        "FollowPath.sim_time": (1.0, 3.0),
+    },
 }
+#: Controllers whose parameters are a DWB config (dotted keys into its YAML), not arguments.
+CONFIG_TUNED = ("dwb",)
 FAIL_SCORE = 1.0  # m: an unfinished route scores like a metre of cross-track error
 CROP_PENALTY = 0.05  # m per stalk touched
 ENV_ID = "AgriNav/FieldRoute-v2"
-#: The benchmark's conditions (suites.RTK_EKF) without the depth camera the trackers ignore.
+#: The benchmark's conditions (suites.RTK_EKF); the path trackers ignore the depth camera, so
+#: they run without it (DWB's costmap reads it).
 OBSERVATIONS = [OBS_GPS, OBS_IMU, OBS_ODOM, OBS_ROUTE]
+
+
+def observations(policy: str) -> list[str]:
+    return list(OBSERVATION_KEYS) if policy in CONFIG_TUNED else OBSERVATIONS
 
 
 def score(records: list[dict[str, Any]]) -> float:
@@ -57,7 +78,7 @@ def score(records: list[dict[str, Any]]) -> float:
     return float(np.mean(parts))
 
 
-def training_env() -> Any:
+def training_env(policy: str = "rpp") -> Any:
     """FieldRoute on the training split under the benchmark's conditions (built once a search:
     every trial drives the same fields)."""
     import gymnasium as gym
@@ -70,7 +91,7 @@ def training_env() -> Any:
     _, setup = load(ENV_ID)
     kw = dict(setup.env_kwargs)
     config = {**kw.pop("config", {}), **RTK_EKF}
-    kw["observations"] = OBSERVATIONS
+    kw["observations"] = observations(policy)
     return gym.make(ENV_ID, **kw, config=config, scenario_seeds=list(setup.train_seeds))
 
 
@@ -82,7 +103,7 @@ def run_trial(
 
     from .episodes import run_episode
 
-    pi = make_policy(policy, env, **params)
+    pi = make_policy(policy, env, **policy_kwargs(policy, params))
     out = []
     for k in range(episodes):
         ep = run_episode(env, pi, seed + k, policy)
@@ -126,7 +147,7 @@ def tune(
     # The published defaults are trial 0: the search can only match or beat them.
     study.enqueue_trial(default_params(policy))
     rows: list[dict[str, Any]] = []
-    with contextlib.closing(training_env()) as env:
+    with contextlib.closing(training_env(policy)) as env:
         for _ in tqdm(range(trials), desc=f"tune {policy}", unit="trial"):
             trial = study.ask()
             params = {name: trial.suggest_float(name, lo, hi) for name, (lo, hi) in space.items()}
@@ -156,7 +177,9 @@ def tune(
             w.writerows(rows)
         import yaml
 
-        chosen = {k: best[k] for k in space}
+        chosen: dict[str, Any] = {k: best[k] for k in space}
+        if policy in CONFIG_TUNED:  # a whole DWB config: `dwb:best.yaml` loads it
+            chosen = dwb_changes(chosen)
         header = (
             f"# {policy} parameters chosen by `agrinav tune` (trial {best['trial']} of "
             f"{trials}, score {best['score']}: mean path RMSE of finished routes, 1 m per "
@@ -168,11 +191,46 @@ def tune(
     return best
 
 
+def dwb_changes(params: dict[str, float]) -> dict[str, Any]:
+    """The furrow config's changes to Nav2's DWB with ``params`` (dotted keys) set on top."""
+    from policies.dwb.params import _shipped
+    from scenario_gen.schema import merge
+
+    nested: dict[str, Any] = {}
+    for dotted, value in params.items():
+        node = nested
+        *parents, leaf = dotted.split(".")
+        for part in parents:
+            node = node.setdefault(part, {})
+        node[leaf] = float(value)
+    out: dict[str, Any] = merge(_shipped("furrow"), nested)
+    return out
+
+
+def policy_kwargs(policy: str, params: dict[str, float]) -> dict[str, Any]:
+    """How a trial's parameters reach the controller: arguments, or a DWB config."""
+    return {"params": dwb_changes(params)} if policy in CONFIG_TUNED else dict(params)
+
+
 def default_params(policy: str) -> dict[str, float]:
     """The controller's own defaults for the searched parameters (trial 0)."""
     import inspect
 
     from policies import POLICIES
+
+    if policy in CONFIG_TUNED:  # the furrow config, the robot's speed limit where it says none
+        from agrinav_gym.config import RobotConfig
+        from policies.dwb.params import DWBParams
+        from scenario_gen.schema import to_mapping
+
+        values = to_mapping(DWBParams.load("furrow"))
+        out = {}
+        for dotted in SEARCH[policy]:
+            v: Any = values
+            for part in dotted.split("."):
+                v = v[part]
+            out[dotted] = float(v) if v is not None else RobotConfig().v_max
+        return out
 
     sig = inspect.signature(POLICIES[policy].__init__)
     return {name: float(sig.parameters[name].default) for name in SEARCH[policy]}

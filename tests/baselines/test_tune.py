@@ -61,3 +61,36 @@ def test_a_bad_parameter_file_is_one_clear_error(tmp_path: Path, content: str, n
             make_policy(f"stanley:{p}", env)
     finally:
         env.close()
+
+
+def test_dwb_gets_a_search_too_starting_from_its_furrow_config(tmp_path: Path) -> None:
+    """DWB's trial 0 is the shipped furrow config (Nav2's critic weights, the robot's speed
+    limit); a trial's parameters become a DWB config the controller loads, and ``best.yaml`` is
+    a whole config `dwb:best.yaml` runs."""
+    from baselines.tune import dwb_changes, policy_kwargs
+    from policies.dwb.params import DWBParams
+
+    d = default_params("dwb")
+    assert d["FollowPath.PathAlign.scale"] == 32.0 and d["FollowPath.GoalDist.scale"] == 24.0
+    assert d["FollowPath.max_vel_x"] == 1.0 and d["FollowPath.sim_time"] == 1.7
+    for name, (lo, hi) in SEARCH["dwb"].items():
+        assert lo <= d[name] <= hi  # the default is inside the searched range
+    trial = {**d, "FollowPath.PathAlign.scale": 5.0, "FollowPath.max_vel_x": 0.4}
+    p = DWBParams.load(dwb_changes(trial))
+    assert p.FollowPath.PathAlign.scale == 5.0 and p.FollowPath.max_vel_x == 0.4
+    furrow = DWBParams.load("furrow")
+    assert p.FollowPath.prune_distance == furrow.FollowPath.prune_distance  # furrow kept
+    path = tmp_path / "best.yaml"
+    path.write_text(yaml.safe_dump(dwb_changes(trial)))
+    env = gym.make("AgriNav/FurrowFollow-v2", observations=["route", "odom", "depth"])
+    try:
+        for pi in (
+            make_policy(f"dwb:{path}", env),
+            make_policy("dwb", env, **policy_kwargs("dwb", trial)),
+        ):
+            assert pi.p.FollowPath.PathAlign.scale == 5.0  # type: ignore[attr-defined]
+            obs, _ = env.reset(seed=0)
+            pi.reset()
+            env.step(pi.act(obs))
+    finally:
+        env.close()

@@ -270,10 +270,13 @@ class DWBParams:
     )
 
     @classmethod
-    def load(cls, spec: str | Path | None = None) -> DWBParams:
-        """``nav2``, ``furrow`` (the default) or a YAML file of changes to ``dwb_nav2.yaml``."""
+    def load(cls, spec: str | Path | dict[str, Any] | None = None) -> DWBParams:
+        """``nav2``, ``furrow`` (the default), a YAML file of changes to ``dwb_nav2.yaml``, or
+        such changes as a mapping (what ``agrinav tune`` tries)."""
         reference = _shipped("nav2")
-        if spec is None or str(spec) == "furrow":
+        if isinstance(spec, dict):
+            changes = spec
+        elif spec is None or str(spec) == "furrow":
             changes = _shipped("furrow")
         elif str(spec) == "nav2":
             changes = {}

@@ -62,10 +62,13 @@ def kinematics(p: DWBParams, robot: RobotInterface) -> Kinematics:
     )
 
 
-def config_label(params: str | Path | None) -> str:
-    """How a benchmark row names the config: nav2, furrow or the YAML file's stem."""
+def config_label(params: str | Path | dict[str, Any] | None) -> str:
+    """How a benchmark row names the config: nav2, furrow, the YAML file's stem, or ``trial``
+    for changes given as a mapping."""
     if params is None:
         return "furrow"
+    if isinstance(params, dict):
+        return "trial"
     text = str(params)
     return text if text in ("nav2", "furrow") else Path(text).stem
 
@@ -85,7 +88,7 @@ class DWB(Policy):
         observation_space: spaces.Dict,
         action_space: spaces.Box,
         robot: RobotInterface,
-        params: str | Path | None = None,
+        params: str | Path | dict[str, Any] | None = None,
         **kwargs: Any,
     ) -> None:
         super().__init__(observation_space, action_space, robot, **kwargs)
