@@ -165,7 +165,7 @@ def _train(
     formats = ["csv", *(["tensorboard"] if _has_tensorboard() else [])]
     model.set_logger(configure(str(out / "logs"), formats))
     if run.resume is not None:
-        _restore(model, norm, run.resume)
+        restore(model, norm, run.resume)
     # Training-time evaluation (the curve, the best checkpoint, any stop/continue decision)
     # sees validation fields only: the test seeds are agrinav bench's.
     eval_kwargs = {**kwargs, "scenario_seeds": list(setup.val_seeds)}
@@ -342,29 +342,34 @@ class _Saver:
         (self.out / "command.txt").write_text(" ".join(shlex.quote(a) for a in cmd) + "\n")
 
 
-def _restore(model: Any, norm: Any, folder: Path) -> None:
-    """Weights, Adam's state, normalisation statistics and step count from a checkpoint."""
+def restore(
+    model: Any, norm: Any, folder: Path, what: str = "--resume", optimizer: bool = True
+) -> None:
+    """Weights, Adam's state (with ``optimizer``, where the checkpoint holds it), normalisation
+    statistics and step count from a checkpoint into an SB3 ``model`` (and its VecNormalize
+    ``norm``)."""
     import torch
 
     loaded = checkpoint.load(folder)
     model.policy.load_state_dict(loaded.policy.state_dict())
     meta = loaded.meta
-    opt = meta["optimizer"]
-    arrays = checkpoint.read_npz(folder / checkpoint.OPTIMIZER, "--resume")
-    state = model.policy.optimizer.state_dict()
-    names = [n for n, _ in model.policy.named_parameters()]
-    if names != opt["params"]:
-        raise InputError("--resume", str(folder), "its optimizer does not fit this network")
-    for i, n in enumerate(names):
-        entries = {k.split("/", 1)[1]: v for k, v in arrays.items() if k.split("/", 1)[0] == n}
-        if entries:
-            state["state"][i] = {k: torch.from_numpy(v) for k, v in entries.items()}
-    model.policy.optimizer.load_state_dict(state)
+    opt = meta.get("optimizer")
+    if optimizer and opt is not None:
+        arrays = checkpoint.read_npz(folder / checkpoint.OPTIMIZER, what)
+        state = model.policy.optimizer.state_dict()
+        names = [n for n, _ in model.policy.named_parameters()]
+        if names != opt["params"]:
+            raise InputError(what, str(folder), "its optimizer does not fit this network")
+        for i, n in enumerate(names):
+            entries = {k.split("/", 1)[1]: v for k, v in arrays.items() if k.split("/", 1)[0] == n}
+            if entries:
+                state["state"][i] = {k: torch.from_numpy(v) for k, v in entries.items()}
+        model.policy.optimizer.load_state_dict(state)
     if norm is not None:
         n = meta["normalization"]
         for k, rms in norm.obs_rms.items():
             rms.mean = np.asarray(n["mean"][k], np.float64)
             rms.var = np.asarray(n["var"][k], np.float64)
             rms.count = float(n["count"][k])
-    model.num_timesteps = int(meta["num_timesteps"])
+    model.num_timesteps = int(meta.get("num_timesteps", 0))
     model._num_timesteps_at_start = model.num_timesteps
