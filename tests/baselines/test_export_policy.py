@@ -129,6 +129,31 @@ def test_a_zoo_run_loads_with_its_normalisation_or_not_at_all(
         env.close()
 
 
+def test_a_trusted_zoo_run_exports_to_onnx_with_its_normalisation(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    pytest.importorskip("onnxruntime", reason="the export extra is not installed")
+    from policies.onnx_export import onnx_actions
+
+    run = _export(tmp_path, "sb3", capsys) / "ppo" / f"{ZOO_ENV}_1"
+    out = tmp_path / "onnx"
+    argv = ["export-policy", str(run), "--to", "onnx", "--out", str(out)]
+    assert main(argv) == 2 and "trust-checkpoint" in capsys.readouterr().err
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert main([*argv, "--trust-checkpoint"]) == 0
+    env = _env()
+    try:
+        ours = make_policy("ppo:shipped", env)
+        obs = observations(env, ours, 100, 100)
+    finally:
+        env.close()
+    got = onnx_actions(
+        (out / "policy.onnx").read_bytes(), {k: np.stack([o[k] for o in obs]) for k in OBS}
+    )
+    assert np.abs(got - np.stack([ours.act(o) for o in obs])).max() <= 1e-5
+
+
 def test_the_zoo_config_is_read_safely_in_each_of_its_forms(tmp_path: Path) -> None:
     from collections import OrderedDict
 
