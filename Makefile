@@ -19,10 +19,10 @@ $(STAMP): pyproject.toml $(NATIVE) | $(BIN)/python
 	$(BIN)/pip install --quiet -e ".[dev]"
 	touch $(STAMP)
 
-# The tests also cover the optional extras: Minari recording (jax) and Ray shards.
+# The tests also cover the optional extras: Minari recording (jax), Ray shards and the ONNX export.
 TEST_STAMP := $(VENV)/.installed-test
 $(TEST_STAMP): $(STAMP)
-	$(BIN)/pip install --quiet -e ".[dev,dataset,ray]"
+	$(BIN)/pip install --quiet -e ".[dev,dataset,ray,export]"
 	touch $(TEST_STAMP)
 
 demo: $(STAMP)

@@ -15,22 +15,26 @@ def evaluate(
     episodes: int,
     seed: int,
 ) -> dict[str, float]:
-    """``episodes`` deterministic episodes with reset seeds ``seed``, ``seed + 1``, ..."""
+    """``episodes`` deterministic episodes with reset seeds ``seed``, ``seed + 1``, ...: the
+    mean return, episode length (steps), paper metrics and success rate."""
     import gymnasium as gym
 
     import agrinav_gym
 
     env = gym.make(agrinav_gym.check_env_id(env_id), **kwargs)
     rets, rmse, furrow, comp, succ, crops = [], [], [], [], [], []
+    lengths: list[int] = []
     try:
         for ep in range(episodes):
             obs, _ = env.reset(seed=seed + ep)
-            total, done = 0.0, False
+            total, done, steps = 0.0, False, 0
             info: dict[str, Any] = {}
             while not done:
                 obs, r, term, trunc, info = env.step(act(obs))
                 total += float(r)
+                steps += 1
                 done = term or trunc
+            lengths.append(steps)
             m = info["metrics"]
             rets.append(total)
             rmse.append(m["rmse"] if m["rmse"] is not None else np.nan)
@@ -42,6 +46,7 @@ def evaluate(
         env.close()
     return {
         "return": float(np.mean(rets)),
+        "length": float(np.mean(lengths)),
         "rmse": float(np.nanmean(rmse)),
         "in_furrow_rmse": float(np.nanmean(furrow)),
         "completion": float(np.mean(comp)),

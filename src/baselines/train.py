@@ -5,7 +5,10 @@ A run folder holds the final checkpoint (``checkpoint.json`` + ``policy.npz`` +
 ``checkpoint_every`` steps (resume from any of them), ``config.yml`` (the exact hyperparameters
 in zoo's format, env kwargs, seeds, versions), ``command.txt``, ``evaluations.json`` and
 ``learning_curve.png`` (held-out scenario seeds), and ``logs/`` (SB3's logger: CSV, and
-TensorBoard event files when ``tensorboard`` is installed).
+TensorBoard event files when ``tensorboard`` is installed; every evaluation, the final one
+included, under SB3's ``EvalCallback`` tags: ``EVAL_TAGS``). ``--device`` is checked to exist
+(``resolve_device``) and the device trained on is recorded in ``checkpoint.json`` and
+``config.yml``.
 """
 
 from __future__ import annotations
@@ -92,8 +95,7 @@ def prepare(run: TrainRun) -> tuple[hpmod.PPOHyperparams, hpmod.EnvSetup, dict[s
     hp, setup = hpmod.load(run.env_id, overrides)
     if run.out.exists() and (not run.out.is_dir() or any(run.out.iterdir())):
         raise InputError("--out", str(run.out), "allowed: a new or empty directory")
-    if run.device not in ("cpu", "cuda", "auto"):
-        raise InputError("--device", run.device, "allowed: cpu, cuda, auto")
+    resolve_device(run.device)  # an unavailable device is refused before anything is made
     if run.resume is not None:
         meta = checkpoint.read_meta(run.resume)
         if meta.get("env_id") != run.env_id or meta.get("optimizer") is None:
@@ -125,6 +127,82 @@ def prepare(run: TrainRun) -> tuple[hpmod.PPOHyperparams, hpmod.EnvSetup, dict[s
     return hp, setup, kwargs
 
 
+#: What ``--device`` takes.
+DEVICES = ("cpu", "cuda", "cuda:N", "mps", "auto")
+
+
+def resolve_device(text: str) -> str:
+    """The torch device ``text`` names, checked to exist here: ``cpu``, ``cuda`` (the current
+    CUDA device), ``cuda:N``, ``mps`` (Apple GPUs), or ``auto`` — CUDA where there is one,
+    else the CPU (Stable-Baselines3's ``auto``; MPS only when named). An unavailable device is
+    one clear error: Stable-Baselines3 itself would fall back to the CPU without a word."""
+    import re
+
+    import torch
+
+    mps = getattr(torch.backends, "mps", None)
+    has_mps = mps is not None and mps.is_available()
+    here = f"allowed here: cpu, {'mps, ' if has_mps else ''}auto"
+    if text == "auto":
+        return resolve_device("cuda") if torch.cuda.is_available() else "cpu"
+    if text == "cpu":
+        return text
+    cuda = re.fullmatch(r"cuda(?::(\d+))?", text) if isinstance(text, str) else None
+    if cuda is not None:
+        if not torch.cuda.is_available():
+            build = f"torch {torch.__version__}" + (
+                "" if torch.version.cuda else ", built without CUDA"
+            )
+            raise InputError("--device", text, f"CUDA is not available here ({build}); {here}")
+        count = torch.cuda.device_count()
+        index = int(cuda.group(1)) if cuda.group(1) else torch.cuda.current_device()
+        if index >= count:
+            raise InputError(
+                "--device", text, f"allowed: cuda:0 to cuda:{count - 1} ({count} CUDA devices here)"
+            )
+        return f"cuda:{index}"
+    if text == "mps":
+        if not has_mps:
+            raise InputError("--device", text, f"MPS is not available here; {here}")
+        return text
+    raise InputError("--device", text, f"allowed: {', '.join(DEVICES)}")
+
+
+def device_record(device: str) -> dict[str, str]:
+    """The device a run trained on, as its checkpoint and config.yml record it."""
+    import platform
+
+    import torch
+
+    if device.startswith("cuda"):
+        name = torch.cuda.get_device_name(torch.device(device))
+    elif device == "mps":
+        name = "Apple MPS"
+    else:
+        name = platform.processor() or platform.machine()
+    return {"device": device, "device_name": name}
+
+
+#: Evaluation results as logged (TensorBoard, CSV): Stable-Baselines3's ``EvalCallback`` tags
+#: where it has one, the paper's metrics beside them.
+EVAL_TAGS = {
+    "return": "eval/mean_reward",
+    "length": "eval/mean_ep_length",
+    "success": "eval/success_rate",
+    "rmse": "eval/rmse",
+    "in_furrow_rmse": "eval/in_furrow_rmse",
+    "completion": "eval/completion",
+    "crops_hit": "eval/crops_hit",
+}
+
+
+def log_evaluation(logger: Any, res: dict[str, float], step: int) -> None:
+    """One evaluation into SB3's logger, written at ``step``."""
+    for key, tag in EVAL_TAGS.items():
+        logger.record(tag, res[key])
+    logger.dump(step)
+
+
 def train(run: TrainRun, argv: list[str] | None = None) -> Path:
     hp, setup, kwargs = prepare(run)
     out = run.out
@@ -151,6 +229,7 @@ def _train(
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
 
     out = run.out
+    device = resolve_device(run.device)
     venv: Any = make_vec_env(
         f"agrinav_gym:{run.env_id}",
         n_envs=hp.n_envs,
@@ -161,15 +240,15 @@ def _train(
     norm = None
     if hp.normalize_obs:
         venv = norm = VecNormalize(venv, norm_obs=True, norm_reward=False, clip_obs=10.0)
-    model = PPO(env=venv, seed=run.seed, verbose=0, device=run.device, **hp.ppo_kwargs())
+    model = PPO(env=venv, seed=run.seed, verbose=0, device=device, **hp.ppo_kwargs())
     formats = ["csv", *(["tensorboard"] if _has_tensorboard() else [])]
     model.set_logger(configure(str(out / "logs"), formats))
     if run.resume is not None:
-        _restore(model, norm, run.resume)
+        restore(model, norm, run.resume)
     # Training-time evaluation (the curve, the best checkpoint, any stop/continue decision)
     # sees validation fields only: the test seeds are agrinav bench's.
     eval_kwargs = {**kwargs, "scenario_seeds": list(setup.val_seeds)}
-    saver = _Saver(out, run, hp, setup, kwargs)
+    saver = _Saver(out, run, hp, setup, kwargs, device_record(device))
     history: list[dict[str, float]] = []
     t_start = time.perf_counter()
 
@@ -180,6 +259,7 @@ def _train(
         res.update(timesteps=int(m.num_timesteps), minutes=(time.perf_counter() - t_start) / 60)
         history.append(res)
         (out / "evaluations.json").write_text(json.dumps(history, indent=1))
+        log_evaluation(m.logger, res, int(m.num_timesteps))
         return res
 
     ws = setup.warm(run.env_id) if run.warm_start else None
@@ -208,9 +288,10 @@ def _train(
             callback=callback,
             reset_num_timesteps=run.resume is None,
         )
-        evaluation(model)
+        evaluation(model)  # the final policy's, logged like the others
     finally:
         venv.close()
+        model.logger.close()
     saver.final(model, norm, history, argv)
     learning_curve(history, out / "learning_curve.png", run.env_id)
     return out
@@ -248,7 +329,7 @@ def _callback(
     from tqdm import tqdm
 
     class Progress(BaseCallback):
-        """Progress bar; periodic held-out evaluation logged through SB3's logger; checkpoints."""
+        """Progress bar; periodic held-out evaluation (logged by ``evaluation``); checkpoints."""
 
         def _on_training_start(self) -> None:
             start = int(self.model.num_timesteps)
@@ -261,9 +342,6 @@ def _callback(
             if self.num_timesteps >= self.next_eval:
                 self.next_eval += run.eval_every
                 res = evaluation(self.model)
-                for k in ("return", "rmse", "in_furrow_rmse", "completion", "success", "crops_hit"):
-                    self.logger.record(f"eval/{k}", res[k])
-                self.logger.dump(self.num_timesteps)
                 self.bar.set_postfix(rmse=f"{res['rmse']:.3f}", done=f"{res['completion']:.0f}%")
             if run.checkpoint_every and self.num_timesteps >= self.next_save:
                 self.next_save += run.checkpoint_every
@@ -284,8 +362,10 @@ class _Saver:
         hp: hpmod.PPOHyperparams,
         setup: hpmod.EnvSetup,
         kwargs: dict[str, Any],
+        device: dict[str, str],
     ) -> None:
         self.out, self.run, self.hp, self.setup, self.kwargs = out, run, hp, setup, kwargs
+        self.device = device  # the device trained on (device_record)
 
     def _meta(self, model: Any) -> dict[str, Any]:
         return {
@@ -295,6 +375,7 @@ class _Saver:
             "num_timesteps": int(model.num_timesteps),
             "hyperparams": hpmod.to_zoo(self.hp),
             "env_kwargs": self.kwargs,
+            **self.device,
         }
 
     def write(self, folder: Path, model: Any, norm: Any) -> None:
@@ -337,6 +418,7 @@ class _Saver:
                 self.setup.warm_start if self.run.warm_start and not self.run.resume else None
             ),
             "minutes": history[-1]["minutes"] if history else None,
+            **self.device,
             "versions": {
                 n: metadata.version(n) for n in ("stable-baselines3", "torch", "agrinav-gym")
             },
@@ -346,29 +428,34 @@ class _Saver:
         (self.out / "command.txt").write_text(" ".join(shlex.quote(a) for a in cmd) + "\n")
 
 
-def _restore(model: Any, norm: Any, folder: Path) -> None:
-    """Weights, Adam's state, normalisation statistics and step count from a checkpoint."""
+def restore(
+    model: Any, norm: Any, folder: Path, what: str = "--resume", optimizer: bool = True
+) -> None:
+    """Weights, Adam's state (with ``optimizer``, where the checkpoint holds it), normalisation
+    statistics and step count from a checkpoint into an SB3 ``model`` (and its VecNormalize
+    ``norm``)."""
     import torch
 
     loaded = checkpoint.load(folder)
     model.policy.load_state_dict(loaded.policy.state_dict())
     meta = loaded.meta
-    opt = meta["optimizer"]
-    arrays = checkpoint.read_npz(folder / checkpoint.OPTIMIZER, "--resume")
-    state = model.policy.optimizer.state_dict()
-    names = [n for n, _ in model.policy.named_parameters()]
-    if names != opt["params"]:
-        raise InputError("--resume", str(folder), "its optimizer does not fit this network")
-    for i, n in enumerate(names):
-        entries = {k.split("/", 1)[1]: v for k, v in arrays.items() if k.split("/", 1)[0] == n}
-        if entries:
-            state["state"][i] = {k: torch.from_numpy(v) for k, v in entries.items()}
-    model.policy.optimizer.load_state_dict(state)
+    opt = meta.get("optimizer")
+    if optimizer and opt is not None:
+        arrays = checkpoint.read_npz(folder / checkpoint.OPTIMIZER, what)
+        state = model.policy.optimizer.state_dict()
+        names = [n for n, _ in model.policy.named_parameters()]
+        if names != opt["params"]:
+            raise InputError(what, str(folder), "its optimizer does not fit this network")
+        for i, n in enumerate(names):
+            entries = {k.split("/", 1)[1]: v for k, v in arrays.items() if k.split("/", 1)[0] == n}
+            if entries:
+                state["state"][i] = {k: torch.from_numpy(v) for k, v in entries.items()}
+        model.policy.optimizer.load_state_dict(state)
     if norm is not None:
         n = meta["normalization"]
         for k, rms in norm.obs_rms.items():
             rms.mean = np.asarray(n["mean"][k], np.float64)
             rms.var = np.asarray(n["var"][k], np.float64)
             rms.count = float(n["count"][k])
-    model.num_timesteps = int(meta["num_timesteps"])
+    model.num_timesteps = int(meta.get("num_timesteps", 0))
     model._num_timesteps_at_start = model.num_timesteps

@@ -8,7 +8,10 @@ training metadata. Loading builds the network from that description and fills it
 arrays: nothing is unpickled, so a crafted checkpoint can at worst fail to load.
 
 Stable-Baselines3's own ``model.zip`` unpickles Python objects (and ``vecnormalize.pkl`` is a
-pickle): those load only through ``load_sb3_trusted``, behind ``--trust-checkpoint``.
+pickle): those load only through ``load_sb3_trusted``, behind ``--trust-checkpoint`` — SB3's
+pair in one folder, or an rl-baselines3-zoo run (``<env>.zip`` beside ``<env>/vecnormalize.pkl``
+and ``<env>/config.yml``), whose normalisation is applied, or refused when its statistics are
+missing. ``load_policy`` picks the loader a path needs.
 """
 
 from __future__ import annotations
@@ -362,27 +365,176 @@ def _normalizer(meta: dict[str, Any], obs_space: spaces.Dict, folder: Path) -> N
     return Normalizer(mean, var, clip, eps)
 
 
+#: Stable-Baselines3's files: the model and VecNormalize's statistics, and rl-baselines3-zoo's
+#: hyperparameter record (in the ``<env>/`` folder beside its ``<env>.zip``)
+SB3_MODEL = "model.zip"
+SB3_STATS = "vecnormalize.pkl"
+ZOO_CONFIG = "config.yml"
+MAX_ZOO_CONFIG_BYTES = 1 << 20
+#: the first line of a config.yml that zoo wrote (``yaml.dump`` of an ``OrderedDict``)
+_ORDERED_DICT_TAG = "!!python/object/apply:collections.OrderedDict"
+
+
+def load_policy(path: str | Path, trust: bool, where: str) -> Loaded:
+    """A policy from ``path``: an AgriNav checkpoint folder (safe), or — only with ``trust``
+    (``--trust-checkpoint``) — a Stable-Baselines3 model (``find_sb3``)."""
+    p = Path(path)
+    if (p / META).is_file():
+        return load(p)
+    model = find_sb3(p)
+    if model is not None and trust:
+        return load_sb3_trusted(model)
+    if model is not None or p.suffix == ".zip":
+        raise InputError(
+            "policy",
+            where,
+            "is a Stable-Baselines3 model.zip, which unpickles code when loaded; "
+            "allowed: an AgriNav checkpoint folder, or --trust-checkpoint for a file you trust",
+        )
+    raise InputError("policy", where, f"allowed: a checkpoint folder holding {META}")
+
+
+def find_sb3(path: Path) -> Path | None:
+    """The SB3 model at ``path``: a ``.zip`` file, a folder's ``model.zip``, or the one
+    ``<env>.zip`` of an rl-baselines3-zoo run folder (the zip beside its ``<env>/`` folder)."""
+    if path.suffix == ".zip" and path.is_file():
+        return path
+    if (path / SB3_MODEL).is_file():
+        return path / SB3_MODEL
+    if path.is_dir():
+        zoo = [z for z in sorted(path.glob("*.zip")) if z.is_file() and (path / z.stem).is_dir()]
+        if len(zoo) == 1:
+            return zoo[0]
+    return None
+
+
+def sb3_stats(model_file: Path) -> tuple[Path | None, Path | None]:
+    """(the ``vecnormalize.pkl`` that goes with ``model_file`` or None, zoo's ``config.yml``
+    or None). SB3's own pair keeps both files in one folder; rl-baselines3-zoo writes
+    ``<env>.zip`` and, beside it, ``<env>/vecnormalize.pkl`` and ``<env>/config.yml`` (its
+    ``best_model.zip`` and step checkpoints share that folder)."""
+    folder = model_file.parent
+    params: Path | None = folder / model_file.stem
+    if not (folder / model_file.stem).is_dir():
+        found = [d for d in sorted(folder.iterdir()) if d.is_dir() and (d / ZOO_CONFIG).is_file()]
+        params = found[0] if len(found) == 1 else None
+    places = [folder / SB3_STATS] if params is None else [params / SB3_STATS, folder / SB3_STATS]
+    stats = [p for p in places if p.is_file()]
+    if len(stats) > 1:
+        raise InputError(
+            "policy",
+            str(model_file),
+            f"has two normalisation files ({stats[0]}, {stats[1]}); allowed: one",
+        )
+    config = params / ZOO_CONFIG if params is not None else None
+    return (stats[0] if stats else None), (config if config and config.is_file() else None)
+
+
+def zoo_normalizes(config: Path) -> bool:
+    """Whether rl-baselines3-zoo's ``config.yml`` says the observations were normalised.
+
+    Zoo writes the file with ``yaml.dump`` of an ``OrderedDict`` (a Python tag, read back with
+    yaml's unsafe loader); here the tag line is dropped and the list of (key, value) pairs
+    under it read with the safe, bounded ``parse_yaml``. ``normalize`` is a bool, a mapping
+    (``norm_obs``) or a Python expression zoo evaluates (read here as a literal only)."""
+    import ast
+
+    from scenario_gen.schema import parse_yaml
+
+    if config.stat().st_size > MAX_ZOO_CONFIG_BYTES:
+        raise InputError("policy", str(config), f"allowed: at most {MAX_ZOO_CONFIG_BYTES} bytes")
+    try:
+        text = config.read_text()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError("policy", str(config), f"cannot be read ({exc})") from None
+    head, _, rest = text.partition("\n")
+    data = parse_yaml(rest, str(config)) if head.strip() == _ORDERED_DICT_TAG else None
+    if data is None:
+        data = parse_yaml(text, str(config))
+    elif isinstance(data, list) and len(data) == 1 and isinstance(data[0], list):
+        pairs = data[0]
+        if not all(isinstance(kv, list) and len(kv) == 2 for kv in pairs):
+            raise InputError("policy", str(config), "allowed: zoo's (key, value) pairs")
+        data = {str(k): v for k, v in pairs}
+    if not isinstance(data, dict):
+        raise InputError("policy", str(config), "allowed: rl-baselines3-zoo's hyperparameters")
+    value = data.get("normalize", False)
+    if isinstance(value, str):
+        try:
+            value = ast.literal_eval(value)
+        except (ValueError, SyntaxError):
+            return True  # an expression zoo evaluates (``dict(norm_obs=True)``): normalised
+    if isinstance(value, dict):
+        return bool(value.get("norm_obs", True))
+    return bool(value)
+
+
 def load_sb3_trusted(model_file: Path) -> Loaded:
-    """An SB3 ``model.zip`` (+ ``vecnormalize.pkl``): unpickles, so it can run code — only for
-    checkpoints the user trusts (``--trust-checkpoint``)."""
+    """An SB3 model (``model.zip``, or rl-baselines3-zoo's ``<env>.zip``) and the
+    ``vecnormalize.pkl`` that goes with it (``sb3_stats``): unpickles, so it can run code —
+    only for checkpoints the user trusts (``--trust-checkpoint``).
+
+    The observations are normalised as the statistics say; a model whose zoo ``config.yml``
+    says it was trained on normalised observations but whose statistics are missing is
+    refused, naming the file (it would run on raw inputs and drive nonsense)."""
     import pickle
 
     from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import VecNormalize
 
     warnings.warn(
         f"loading {model_file} with pickle (--trust-checkpoint): a crafted file can run code",
         stacklevel=2,
     )
+    stats, config = sb3_stats(model_file)
+    if stats is None and config is not None and zoo_normalizes(config):
+        missing = config.parent / SB3_STATS
+        raise InputError(
+            "policy",
+            missing.name,
+            f"not found at {missing}, though {config} says the model was trained on "
+            "normalised observations; allowed: the run folder as rl-baselines3-zoo wrote it, "
+            "with its statistics",
+        )
     model = PPO.load(model_file, device="cpu")
-    stats = model_file.parent / "vecnormalize.pkl"
+    obs_space = model.policy.observation_space
     norm = None
-    if stats.is_file():
+    if stats is not None:
         with open(stats, "rb") as f:
             vn = pickle.load(f)
-        norm = Normalizer(
-            {k: r.mean for k, r in vn.obs_rms.items()},
-            {k: r.var for k, r in vn.obs_rms.items()},
-            float(vn.clip_obs),
-            float(vn.epsilon),
+        if not isinstance(vn, VecNormalize):
+            raise InputError("policy", str(stats), "allowed: a pickled VecNormalize")
+        if vn.norm_obs:
+            norm = _sb3_normalizer(vn, obs_space, stats)
+    meta = {
+        "policy": type(model.policy).__name__,
+        "num_timesteps": int(model.num_timesteps),
+        "normalization_file": str(stats) if stats is not None else None,
+    }
+    return Loaded(model.policy, norm, meta)
+
+
+def _sb3_normalizer(vn: Any, obs_space: Any, stats: Path) -> Normalizer:
+    """VecNormalize's observation statistics, checked against the model's spaces."""
+    rms = vn.obs_rms
+    keys = sorted(getattr(obs_space, "spaces", {}))
+    if not isinstance(rms, dict) or not set(rms) <= set(keys):
+        found = sorted(rms) if isinstance(rms, dict) else type(rms).__name__
+        raise InputError(
+            "policy",
+            str(stats),
+            f"holds statistics for {found}; the model observes {keys}",
         )
-    return Loaded(model.policy, norm, {"policy": type(model.policy).__name__})
+    mean, var = {}, {}
+    for k, r in rms.items():
+        shape = obs_space.spaces[k].shape
+        m, v = np.asarray(r.mean, np.float64), np.asarray(r.var, np.float64)
+        if m.shape != shape or v.shape != shape or not (np.isfinite(m).all() and (v >= 0).all()):
+            raise InputError(
+                "policy", str(stats), f"statistics of {k!r} do not fit its space {shape}"
+            )
+        mean[k], var[k] = m, v
+    clip, eps = float(vn.clip_obs), float(vn.epsilon)
+    if not (math.isfinite(clip) and clip > 0 and math.isfinite(eps) and eps > 0):
+        raise InputError("policy", str(stats), "allowed: clip_obs > 0 and epsilon > 0, finite")
+    return Normalizer(mean, var, clip, eps)

@@ -1,5 +1,8 @@
 """Learned policy: a PPO checkpoint in the safe format (``checkpoint``), deterministic actions.
 
+With ``trust_checkpoint`` a Stable-Baselines3 ``model.zip`` (or rl-baselines3-zoo's run folder)
+loads too, with its ``vecnormalize.pkl`` (``checkpoint.load_sb3_trusted``).
+
 The checkpoint's observation and action spaces must equal the env's for the keys it uses, so a
 policy never runs on inputs laid out differently from those it was trained on.
 """
@@ -34,21 +37,7 @@ class PPOPolicy(Policy):
     ) -> None:
         super().__init__(observation_space, action_space, robot, **params)
         p = Path(path)
-        if (p / checkpoint.META).is_file():
-            loaded = checkpoint.load(p)
-        elif trust_checkpoint and (p.suffix == ".zip" or (p / "model.zip").is_file()):
-            loaded = checkpoint.load_sb3_trusted(p if p.suffix == ".zip" else p / "model.zip")
-        elif p.suffix == ".zip" or (p / "model.zip").is_file():
-            raise InputError(
-                "policy",
-                f"ppo:{path}",
-                "is a Stable-Baselines3 model.zip, which unpickles code when loaded; "
-                "allowed: an AgriNav checkpoint folder, or --trust-checkpoint for a file you trust",
-            )
-        else:
-            raise InputError(
-                "policy", f"ppo:{path}", f"allowed: a checkpoint folder holding {checkpoint.META}"
-            )
+        loaded = checkpoint.load_policy(p, trust_checkpoint, f"ppo:{path}")
         check_spaces(
             loaded.policy.observation_space,
             observation_space,

@@ -66,6 +66,14 @@ def test_training_saves_safe_checkpoints_logs_and_resumes(
     assert "agrinav train --env AgriNav/FurrowFollow-v2" in (out / "command.txt").read_text()
     csv = (out / "logs" / "progress.csv").read_text().splitlines()[0]
     assert "eval/rmse" in csv and "train/value_loss" in csv
+    assert "eval/mean_reward" in csv and "eval/mean_ep_length" in csv  # SB3 EvalCallback's tags
+    # every evaluation reaches TensorBoard, the final one included; the device is recorded
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    events = EventAccumulator(str(out / "logs"))
+    events.Reload()
+    assert [e.step for e in events.Scalars("eval/mean_reward")] == [128, 256, 256]
+    assert config["device"] == "cpu" == json.loads((out / "checkpoint.json").read_text())["device"]
     assert not list(tmp_path.glob(".*tmp*")) and not list(out.glob(".*tmp*"))
 
     # resume from the first checkpoint: it continues at step 128, to 384 in all

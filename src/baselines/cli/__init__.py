@@ -17,9 +17,9 @@ from typing import NoReturn
 
 from scenario_gen.errors import InputError
 
-from . import bench, dataset, demo, export, scenario, studio, train, tune
+from . import bench, dataset, demo, export, export_policy, scenario, studio, train, tune
 
-COMMANDS = (scenario, export, train, tune, bench, demo, studio, dataset)
+COMMANDS = (scenario, export, train, export_policy, tune, bench, demo, studio, dataset)
 
 
 class Parser(argparse.ArgumentParser):

@@ -23,7 +23,12 @@ def add(sub: Any) -> None:
     tr.add_argument("--seed", type=seed_type, default=0)
     tr.add_argument("--out", required=True, help="run folder (new or empty)")
     tr.add_argument("--n-envs", type=int_at_least(1, 256), help="parallel envs (default: file's)")
-    tr.add_argument("--device", default="cpu", help="cpu, cuda or auto")
+    tr.add_argument(
+        "--device",
+        default="cpu",
+        help="torch device: cpu (default), cuda, cuda:N, mps, or auto (CUDA if present, else "
+        "cpu); refused when not available here, recorded in checkpoint.json and config.yml",
+    )
     tr.add_argument(
         "--hyperparams",
         nargs="*",
