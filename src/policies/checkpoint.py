@@ -496,12 +496,24 @@ def load_sb3_trusted(model_file: Path) -> Loaded:
             "normalised observations; allowed: the run folder as rl-baselines3-zoo wrote it, "
             "with its statistics",
         )
-    model = PPO.load(model_file, device="cpu")
+    try:
+        model = PPO.load(model_file, device="cpu")
+    except Exception as exc:  # a malformed zip fails anywhere in SB3's loader: one line
+        raise InputError(
+            "policy",
+            str(model_file),
+            f"cannot be loaded as a Stable-Baselines3 PPO model ({type(exc).__name__}: {exc})",
+        ) from None
     obs_space = model.policy.observation_space
     norm = None
     if stats is not None:
-        with open(stats, "rb") as f:
-            vn = pickle.load(f)
+        try:
+            with open(stats, "rb") as f:
+                vn = pickle.load(f)
+        except Exception as exc:  # truncated or not a pickle
+            raise InputError(
+                "policy", str(stats), f"cannot be unpickled ({type(exc).__name__}: {exc})"
+            ) from None
         if not isinstance(vn, VecNormalize):
             raise InputError("policy", str(stats), "allowed: a pickled VecNormalize")
         if vn.norm_obs:

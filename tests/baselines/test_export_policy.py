@@ -119,12 +119,20 @@ def test_a_zoo_run_loads_with_its_normalisation_or_not_at_all(
             assert max(np.abs(zoo.act(o) - ours.act(o)).max() for o in obs) <= 1e-5
         with pytest.raises(InputError, match="trust-checkpoint"):
             make_policy(f"ppo:{run}", env)  # never unpickled without trust
-        (run / ZOO_ENV / "vecnormalize.pkl").unlink()
+        stats = run / ZOO_ENV / "vecnormalize.pkl"
+        stats.write_bytes(stats.read_bytes()[:40])  # truncated
+        with pytest.raises(InputError, match=r"cannot be unpickled \(UnpicklingError"):
+            _trusted(f"ppo:{run}", env)
+        stats.unlink()
         with pytest.raises(
             InputError,
             match=r"vecnormalize\.pkl'; not found at .*AgriNav-FieldRoute-v2/vecnormalize\.pkl",
         ):
             _trusted(f"ppo:{run}", env)
+        model = tmp_path / "model.zip"
+        model.write_bytes(b"PK\x03\x04 not really a zip")  # malformed
+        with pytest.raises(InputError, match="cannot be loaded as a Stable-Baselines3 PPO model"):
+            _trusted(f"ppo:{model}", env)
     finally:
         env.close()
 
