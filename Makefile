@@ -19,10 +19,11 @@ $(STAMP): pyproject.toml $(NATIVE) | $(BIN)/python
 	$(BIN)/pip install --quiet -e ".[dev]"
 	touch $(STAMP)
 
-# The tests also cover the optional extras: Minari recording (jax) and Ray shards.
+# The tests also cover the optional extras: Minari recording (jax), Ray shards and GIS field
+# files (pyogrio).
 TEST_STAMP := $(VENV)/.installed-test
 $(TEST_STAMP): $(STAMP)
-	$(BIN)/pip install --quiet -e ".[dev,dataset,ray]"
+	$(BIN)/pip install --quiet -e ".[dev,dataset,ray,gis]"
 	touch $(TEST_STAMP)
 
 demo: $(STAMP)

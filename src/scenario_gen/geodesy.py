@@ -4,20 +4,23 @@ lat/lon/alt (EPSG:4979, ellipsoidal height) -> geocentric ECEF (EPSG:4978) -> ro
 tangent plane at the datum. Unlike the source paper's equirectangular approximation this is exact
 at any distance, so GPS readings simulated from ENU positions are real coordinates.
 
-Altitudes read from DEMs are orthometric; they are used as if ellipsoidal. Over a field the geoid
+Heights are ellipsoidal in this frame. A DEM's heights are usually orthometric (above a geoid):
+``dem`` converts them where the file declares its vertical datum and PROJ has the geoid grid,
+and otherwise uses them as if ellipsoidal and says so (``vertical``). Over a field the geoid
 separation is a constant to well under a millimetre per metre, so it shifts every height alike
-and cancels in the local frame.
+and cancels in the local frame; only absolute altitudes carry it.
 """
 
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
-from pyproj import Transformer
+from pyproj import CRS, Transformer
 
 from .arrays import FloatArray
 from .errors import InputError
@@ -44,6 +47,41 @@ def _check_latlon(lat: float, lon: float, alt: float, where: str) -> None:
     # ≈ 8,850 m; beyond -1,000..10,000 m a datum is a typo (10¹² m was accepted).
     if not (math.isfinite(alt) and -1000.0 <= alt <= 10_000.0):
         raise InputError(f"{where}.alt", alt, "allowed: a ground height in metres, -1000..10000")
+
+
+def best_transformer(src: CRS, dst: CRS, local_only: bool = False) -> Transformer | str:
+    """PROJ's most accurate transformation from ``src`` to ``dst`` (x, y in GIS order: lon,
+    lat), or why it cannot be had: its grid is not installed (``Transformer.from_crs`` would
+    fall back to a less accurate one with a warning), or, with ``local_only``, PROJ's network
+    access is on (a grid would be fetched, and the result would depend on the network)."""
+    from pyproj import network
+    from pyproj.datadir import get_user_data_dir
+    from pyproj.transformer import TransformerGroup
+
+    if local_only and network.is_network_enabled():
+        return (
+            "PROJ network access is on (pyproj.network); only locally installed grids are "
+            "used: turn it off"
+        )
+    with warnings.catch_warnings():  # "best transformation is not available": said below
+        warnings.simplefilter("ignore", UserWarning)
+        group = TransformerGroup(src, dst, always_xy=True)
+    if not group.best_available or not group.transformers:
+        grids = sorted(
+            {
+                g.short_name
+                for op in group.unavailable_operations
+                for g in op.grids
+                if not g.available
+            }
+        )
+        names = ", ".join(grids) or "of its best transformation"
+        return (
+            f"PROJ's grid {names} is not installed (copy it into {get_user_data_dir()}, or "
+            f"fetch it once with `pyproj sync --file {grids[0] if grids else 'NAME'}`)"
+        )
+    out: Transformer = group.transformers[0]
+    return out
 
 
 @dataclass(frozen=True)

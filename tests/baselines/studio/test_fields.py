@@ -10,7 +10,7 @@ from shapely.geometry import Polygon, mapping
 
 from baselines.studio import fields
 from scenario_gen.errors import InputError
-from scenario_gen.field import read_geojson
+from scenario_gen.fieldfile import read_geojson
 
 
 def _fc(*polys: Polygon) -> dict[str, object]:
