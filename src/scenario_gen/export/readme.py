@@ -100,6 +100,14 @@ yaw {info["spawn"][3]:.4f} rad). Gazebo sensors and a drive plugin are yours to 
 
 
 def gis_readme(scn: Scenario, info: dict[str, Any]) -> str:
+    utm = (
+        f"- `{info['utm_tif']}` — the same terrain resampled (bilinear) into the datum's UTM "
+        f"zone, {info['utm_crs']}, for tools that need an EPSG code; at the plants it departs "
+        f"from the terrain by up to {info['utm_error_mm']:.1f} mm (resampling: terrain.tif is "
+        "the exact one).\n"
+        if info.get("utm_tif")
+        else "- No UTM copy: the datum lies outside UTM's latitudes (-80° to 84°).\n"
+    )
     dem = (
         f"- `{info['dem_tif']}` — the same terrain resampled (bilinear) into the source DEM's "
         f"CRS {info['dem_crs']}, to overlay on the DEM.\n"
@@ -112,8 +120,10 @@ def gis_readme(scn: Scenario, info: dict[str, Any]) -> str:
 
 - `terrain.tif` — elevation (float32, metres, ellipsoidal like the scenario), one pixel per
   terrain node, in a local CRS whose x/y are the scenario's ENU x/y: {info["crs_name"]}
-  (`crs_local.wkt`). Over this field it matches ENU to {info["crs_error_mm"]:.2f} mm.
-{dem}- `layers.gpkg` — layers `field` (polygon), `rows` (planted rows), `plants` (points with
+  (`crs_local.wkt`). Over this field it matches ENU to {info["crs_error_mm"]:.2f} mm. NoData
+  is -9999 in every GeoTIFF here, so a reprojection (`gdalwarp -t_srs EPSG:...`) leaves NoData,
+  not 0 m, outside the terrain.
+{utm}{dem}- `layers.gpkg` — layers `field` (polygon), `rows` (planted rows), `plants` (points with
   species, stage, height, roll/pitch/yaw and ENU x/y/z) and `route` (furrow/headland
   segments), WGS84 lon/lat (EPSG:4326) with ellipsoidal heights.
 - `field.geojson`, `rows.geojson`, `plants.geojson`, `route.geojson` — the same layers as
