@@ -255,5 +255,18 @@ def export_terrain_mesh(terrain: Terrain, path: str | Path) -> None:
     """Write the terrain as a mesh (GLB/glTF in Y-up, anything else in ENU Z-up)."""
     p = Path(path)
     y_up = p.suffix.lower() in (".glb", ".gltf")
-    mesh: Any = terrain.to_trimesh(y_up=y_up)
-    mesh.export(p)
+    save_mesh(terrain.to_trimesh(y_up=y_up), p)
+
+
+def save_mesh(mesh: Any, path: Path) -> None:
+    """Write a trimesh whose vertices are ENU (Z up) or, for glTF, already Y-up. COLLADA gets
+    ``<up_axis>Z_UP</up_axis>``: trimesh's writer always says Y_UP, and Blender and assimp
+    then turn the data by 90° about x, standing a field on its edge."""
+    if path.suffix.lower() != ".dae":
+        mesh.export(path)
+        return
+    data: bytes = mesh.export(file_type="dae")
+    old, new = b"<up_axis>Y_UP</up_axis>", b"<up_axis>Z_UP</up_axis>"
+    if data.count(old) != 1:
+        raise RuntimeError(f"trimesh's COLLADA writer changed: {data.count(old)} Y_UP up axes")
+    path.write_bytes(data.replace(old, new))

@@ -141,7 +141,8 @@ def mesh_readme(scn: Scenario, files: list[str]) -> str:
     return (
         _head(scn, "meshes")
         + f"""Terrain (and, if asked, the plants merged) in the scenario's ENU frame, metres.
-glTF/GLB files are Y-up as the format requires (x east, y up, z south); the others are Z-up.
+glTF/GLB files are Y-up as the format requires (x east, y up, z south); the others are Z-up
+(x east, y north, z up; COLLADA files say so: `<up_axis>Z_UP</up_axis>`).
 
 {listing}
 """
