@@ -13,8 +13,9 @@ Layers: ``field.layer`` names the layer; without it the file's only layer, or it
 holding polygons, is used, and a file with several is refused with their names. All Polygon
 and MultiPolygon features of the layer are merged (polygons inside a GeometryCollection
 included); other geometries are ignored; heights (Z) are dropped. Coordinates are
-reprojected to WGS84 lon/lat with pyproj; a transformation whose grid is missing is refused
-rather than done approximately.
+reprojected to WGS84 lon/lat with pyproj, by PROJ's best transformation for the field's area;
+when its grid is missing, the best without it is taken if it is good to ``MAX_SHIFT_M``, and
+otherwise the file is refused with the grid named, rather than placed approximately.
 """
 
 from __future__ import annotations
@@ -32,11 +33,14 @@ from shapely.validation import explain_validity
 
 from .errors import InputError
 from .field import MAX_NESTING, geometries
-from .geodesy import best_transformer
+from .geodesy import area_of, best_transformer
 from .schema import parse_json
 
 MAX_FIELD_BYTES = 64 * 2**20
 MAX_FIELD_FEATURES = 100_000
+#: the accuracy a transformation to WGS84 must have (PROJ's statement) when a better one's grid
+#: is missing: NAD83 (4 m), OSGB36 (2 m) pass, NAD27 without its grids (10 m) does not
+MAX_SHIFT_M = 5.0
 PATH_FIELD = "field.geojson"
 LAYER_FIELD = "field.layer"
 JSON_SUFFIXES = (".geojson", ".json")
@@ -121,7 +125,9 @@ def _to_lonlat(poly: BaseGeometry, crs: CRS | None, where: str) -> BaseGeometry:
     if crs is None:
         out = poly
     else:
-        tr = best_transformer(crs, CRS.from_epsg(4326))
+        xy = shapely.get_coordinates(poly)
+        area = area_of(crs, xy[:, 0], xy[:, 1])
+        tr = best_transformer(crs, CRS.from_epsg(4326), area, tolerance_m=MAX_SHIFT_M)
         if isinstance(tr, str):
             raise InputError(PATH_FIELD, where, f"cannot be reprojected to WGS84 lon/lat: {tr}")
 

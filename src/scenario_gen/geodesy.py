@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 from pyproj import CRS, Transformer
+from pyproj.transformer import AreaOfInterest
 
 from .arrays import FloatArray
 from .errors import InputError
@@ -49,11 +50,41 @@ def _check_latlon(lat: float, lon: float, alt: float, where: str) -> None:
         raise InputError(f"{where}.alt", alt, "allowed: a ground height in metres, -1000..10000")
 
 
-def best_transformer(src: CRS, dst: CRS, local_only: bool = False) -> Transformer | str:
-    """PROJ's most accurate transformation from ``src`` to ``dst`` (x, y in GIS order: lon,
-    lat), or why it cannot be had: its grid is not installed (``Transformer.from_crs`` would
-    fall back to a less accurate one with a warning), or, with ``local_only``, PROJ's network
-    access is on (a grid would be fetched, and the result would depend on the network)."""
+def area_of(crs: CRS, x: ArrayLike, y: ArrayLike) -> AreaOfInterest | None:
+    """The lon/lat box of points in ``crs`` (through PROJ's default transformation: metres
+    off at worst, plenty to pick the transformations valid there); None if they do not map."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        tr = Transformer.from_crs(crs, CRS.from_epsg(4326), always_xy=True)
+    with np.errstate(all="ignore"):
+        lon, lat = tr.transform(np.asarray(x, np.float64), np.asarray(y, np.float64))
+    lon, lat = np.asarray(lon), np.asarray(lat)
+    ok = np.isfinite(lon) & np.isfinite(lat) & (np.abs(lon) <= 180) & (np.abs(lat) <= 90)
+    if not ok.any():
+        return None
+    return AreaOfInterest(
+        float(lon[ok].min()), float(lat[ok].min()), float(lon[ok].max()), float(lat[ok].max())
+    )
+
+
+def best_transformer(
+    src: CRS,
+    dst: CRS,
+    area: AreaOfInterest | None = None,
+    *,
+    tolerance_m: float = 0.0,
+    local_only: bool = False,
+) -> Transformer | str:
+    """PROJ's most accurate transformation from ``src`` to ``dst`` over ``area`` (x, y in GIS
+    order: lon, lat), or why it cannot be had.
+
+    When the best one's grid is not installed, PROJ's best without it is taken only if it is
+    good to ``tolerance_m`` (its stated accuracy; a ballpark never is), else the missing grid
+    is named: ``Transformer.from_crs`` would fall back with a warning (NAD27 → WGS84 without
+    its grids: 10 m). With ``local_only`` PROJ's network access must be off (a grid would be
+    fetched, and the result would depend on the network). Without ``area`` the best
+    transformation anywhere is taken, which may be another region's.
+    """
     from pyproj import network
     from pyproj.datadir import get_user_data_dir
     from pyproj.transformer import TransformerGroup
@@ -65,23 +96,24 @@ def best_transformer(src: CRS, dst: CRS, local_only: bool = False) -> Transforme
         )
     with warnings.catch_warnings():  # "best transformation is not available": said below
         warnings.simplefilter("ignore", UserWarning)
-        group = TransformerGroup(src, dst, always_xy=True)
-    if not group.best_available or not group.transformers:
-        grids = sorted(
-            {
-                g.short_name
-                for op in group.unavailable_operations
-                for g in op.grids
-                if not g.available
-            }
-        )
-        names = ", ".join(grids) or "of its best transformation"
-        return (
-            f"PROJ's grid {names} is not installed (copy it into {get_user_data_dir()}, or "
-            f"fetch it once with `pyproj sync --file {grids[0] if grids else 'NAME'}`)"
-        )
-    out: Transformer = group.transformers[0]
-    return out
+        group = TransformerGroup(src, dst, always_xy=True, area_of_interest=area)
+    if not group.transformers:
+        return f"PROJ knows no transformation from {src.name} to {dst.name}"
+    best: Transformer = group.transformers[0]
+    if group.best_available:
+        return best
+    accuracy = best.accuracy if "ballpark" not in best.description.lower() else -1.0
+    if 0.0 <= accuracy <= tolerance_m:
+        return best
+    ops = group.unavailable_operations[:1]
+    grids = [g.short_name for op in ops for g in op.grids if not g.available]
+    names = ", ".join(grids) or "of its best transformation"
+    without = f"{accuracy:g} m" if accuracy >= 0 else "an unknown accuracy (a ballpark)"
+    return (
+        f"PROJ's grid {names} is not installed and without it the transformation is good to "
+        f"{without} (copy the grid into {get_user_data_dir()}, or fetch it once with "
+        f"`pyproj sync --file {grids[0] if grids else 'NAME'}`)"
+    )
 
 
 @dataclass(frozen=True)
