@@ -25,6 +25,7 @@ from .geodesy import GeoFrame
 from .meshsurface import TriangleSurface
 from .spec import TerrainSpec
 from .terrain import Terrain, grid_for_bounds
+from .vertical import DATUM_HEIGHTS
 
 HeightFn = Callable[[FloatArray, FloatArray], FloatArray]
 
@@ -132,7 +133,12 @@ def _dem_site(
         geo,
         _dem_heights(dem, geo),
         credit=credit,
-        info={"dem": dem.source, "dem_crs": dem.crs.to_string(), "site": how},
+        info={
+            "dem": dem.source,
+            "dem_crs": dem.crs.to_string(),
+            "site": how,
+            "heights": dem.heights.to_dict(),
+        },
     )
 
 
@@ -169,7 +175,11 @@ def _plane_site(spec: TerrainSpec, field_lonlat: tuple[float, float] | None) -> 
         geo,
         heights,
         credit="procedural plane",
-        info={"slope_deg": spec.slope_deg, "aspect_deg": spec.aspect_deg},
+        info={
+            "slope_deg": spec.slope_deg,
+            "aspect_deg": spec.aspect_deg,
+            "heights": DATUM_HEIGHTS.to_dict(),
+        },
     )
 
 
@@ -247,7 +257,11 @@ def _mesh_site(spec: TerrainSpec) -> Site:
         heights,
         centre=centre,
         credit=f"mesh {name}",
-        info={"mesh_vertices": len(v), "mesh_triangles": surface.count},
+        info={
+            "mesh_vertices": len(v),
+            "mesh_triangles": surface.count,
+            "heights": DATUM_HEIGHTS.to_dict(),
+        },
     )
 
 

@@ -22,10 +22,12 @@ from typing import Any
 
 import numpy as np
 from pyproj import CRS, Transformer
+from pyproj.crs import CompoundCRS
 
 from ..arrays import FloatArray
 from ..geojson import collection, field_features, plant_features, route_features, row_features
 from ..model import Scenario
+from ..vertical import ORTHOMETRIC, of_scenario
 from .crs import enu_crs_error, local_crs, utm_epsg
 from .gpkg import Layer, write_gpkg
 
@@ -35,8 +37,20 @@ LOCAL_SRS_ID = 100000
 NODATA = -9999.0
 
 
+def with_heights(scn: Scenario, crs: CRS) -> CRS:
+    """``crs`` with the vertical CRS of the scenario's heights where they are orthometric in a
+    declared datum (a DEM's, not converted), so the GeoTIFF says what its values are; else
+    ``crs`` (ellipsoidal or undeclared heights: the band description and tags say)."""
+    h = of_scenario(scn.info)
+    if h.reference != ORTHOMETRIC or not h.crs:
+        return crs
+    vert = CRS.from_user_input(h.crs)
+    return CompoundCRS(f"{crs.name} + {vert.name}", [crs, vert])
+
+
 def terrain_altitudes(scn: Scenario) -> FloatArray:
-    """Ellipsoidal height of every terrain node (rows south to north, like ``heights``)."""
+    """Altitude of every terrain node (rows south to north, like ``heights``): the scenario's
+    heights, whose reference ``vertical.of_scenario`` gives."""
     t = scn.terrain
     gx, gy = np.meshgrid(t.xs, t.ys)
     return np.asarray(scn.geo.enu_to_geodetic(gx, gy, t.heights)[2])
@@ -60,7 +74,7 @@ def write_geotiff(scn: Scenario, path: Path, crs: CRS) -> None:
         height=ny,
         count=1,
         dtype="float32",
-        crs=rasterio.crs.CRS.from_wkt(crs.to_wkt()),
+        crs=rasterio.crs.CRS.from_wkt(with_heights(scn, crs).to_wkt()),
         transform=transform,
         nodata=NODATA,
         compress="deflate",
@@ -69,9 +83,11 @@ def write_geotiff(scn: Scenario, path: Path, crs: CRS) -> None:
         blockxsize=256,
         blockysize=256,
     ) as ds:
+        heights = of_scenario(scn.info).label()
         ds.write(alt, 1)
-        ds.set_band_description(1, "elevation (m, ellipsoidal as in the scenario)")
+        ds.set_band_description(1, f"elevation (m): {heights}")
         ds.update_tags(
+            AGRINAV_HEIGHTS=heights,
             AGRINAV_SCENARIO=scn.spec.name,
             AGRINAV_SEED=str(scn.seed),
             AGRINAV_DATUM=f"{scn.geo.lat} {scn.geo.lon} {scn.geo.alt}",
@@ -80,14 +96,14 @@ def write_geotiff(scn: Scenario, path: Path, crs: CRS) -> None:
         )
 
 
-def write_resampled(src: Path, dst: Path, crs: str, resolution: float | None = None) -> None:
+def write_resampled(src: Path, dst: Path, crs: CRS, resolution: float | None = None) -> None:
     """``src`` resampled (bilinear) into ``crs`` (pixel size ``resolution`` in its units, or
     GDAL's choice); NoData outside the terrain."""
     import rasterio
     from rasterio.warp import Resampling, calculate_default_transform, reproject
 
     with rasterio.open(src) as s:
-        dst_crs = rasterio.crs.CRS.from_user_input(crs)
+        dst_crs = rasterio.crs.CRS.from_wkt(crs.to_wkt())
         transform, w, h = calculate_default_transform(
             s.crs, dst_crs, s.width, s.height, *s.bounds, resolution=resolution
         )
@@ -141,13 +157,15 @@ def export_gis(scn: Scenario, out: Path) -> dict[str, Any]:
     info: dict[str, Any] = {"crs_name": crs.name, "crs_error_mm": err * 1000.0}
     utm = utm_epsg(scn.geo.lat, scn.geo.lon)
     if utm is not None:
+        utm_crs = with_heights(scn, CRS.from_epsg(utm))
         spacing = scn.terrain.spacing
-        write_resampled(out / "terrain.tif", out / "terrain_utm.tif", f"EPSG:{utm}", spacing)
+        write_resampled(out / "terrain.tif", out / "terrain_utm.tif", utm_crs, spacing)
         err_utm = resampling_error(scn, out / "terrain_utm.tif") * 1000.0
         info |= {"utm_tif": "terrain_utm.tif", "utm_crs": f"EPSG:{utm}", "utm_error_mm": err_utm}
     dem_crs = scn.info.get("dem_crs")
     if dem_crs:
-        write_resampled(out / "terrain.tif", out / "terrain_dem_crs.tif", str(dem_crs))
+        dem_out = with_heights(scn, CRS.from_user_input(dem_crs))
+        write_resampled(out / "terrain.tif", out / "terrain_dem_crs.tif", dem_out)
         info |= {"dem_tif": "terrain_dem_crs.tif", "dem_crs": str(dem_crs)}
     p, r = scn.plants, scn.route
     lat, lon, alt = scn.geo.enu_to_geodetic(p.x, p.y, p.z)
@@ -164,10 +182,11 @@ def export_gis(scn: Scenario, out: Path) -> dict[str, Any]:
         "plants": "POINT",
         "route": "LINESTRING",
     }
+    label = of_scenario(scn.info).label()
     write_gpkg(
         out / "layers.gpkg",
         [
-            Layer(n, kinds[n], f, description=f"AgriNav {scn.spec.name}: {n}")
+            Layer(n, kinds[n], f, description=f"AgriNav {scn.spec.name}: {n}; heights {label}")
             for n, f in full.items()
         ],
         {4326: CRS.from_epsg(4326)},
@@ -181,6 +200,7 @@ def export_gis(scn: Scenario, out: Path) -> dict[str, Any]:
     for name, feats in rounded.items():
         (out / f"{name}.geojson").write_text(json.dumps(collection(name, feats)))
     info["layers"] = {n: len(f) for n, f in full.items()}
+    info["heights"] = label
     (out / "README.md").write_text(gis_readme(scn, info))
     render_export_preview(scn, out / "preview.png", geotiff=out / "terrain.tif")
     return info

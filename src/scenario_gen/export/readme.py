@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 from ..model import Scenario
+from ..vertical import of_scenario
 from .gazebo import GazeboSummary
 
 
@@ -14,7 +15,9 @@ def _head(scn: Scenario, what: str) -> str:
         f"# {scn.spec.name} (seed {scn.seed}) — {what}\n\n"
         f"Written by `agrinav export`. Datum (ENU origin): lat {g.lat:.8f}, lon {g.lon:.8f}, "
         f"alt {g.alt:.3f} m; x east, y north, z up, metres. {len(scn.plants)} plants, "
-        f"route {scn.route.length:.1f} m.\n\n![layout](preview.png)\n\n"
+        f"route {scn.route.length:.1f} m.\n\n"
+        f"Heights (the datum's alt and every altitude written here): "
+        f"{of_scenario(scn.info).label()}.\n\n![layout](preview.png)\n\n"
     )
 
 
@@ -118,14 +121,14 @@ def gis_readme(scn: Scenario, info: dict[str, Any]) -> str:
         _head(scn, "GIS layers")
         + f"""## Files
 
-- `terrain.tif` — elevation (float32, metres, ellipsoidal like the scenario), one pixel per
+- `terrain.tif` — elevation (float32, metres, the heights above), one pixel per
   terrain node, in a local CRS whose x/y are the scenario's ENU x/y: {info["crs_name"]}
   (`crs_local.wkt`). Over this field it matches ENU to {info["crs_error_mm"]:.2f} mm. NoData
   is -9999 in every GeoTIFF here, so a reprojection (`gdalwarp -t_srs EPSG:...`) leaves NoData,
   not 0 m, outside the terrain.
 {utm}{dem}- `layers.gpkg` — layers `field` (polygon), `rows` (planted rows), `plants` (points with
   species, stage, height, roll/pitch/yaw and ENU x/y/z) and `route` (furrow/headland
-  segments), WGS84 lon/lat (EPSG:4326) with ellipsoidal heights.
+  segments), WGS84 lon/lat (EPSG:4326) with the heights above.
 - `field.geojson`, `rows.geojson`, `plants.geojson`, `route.geojson` — the same layers as
   RFC 7946 GeoJSON, one geometry type per file, so `ogr2ogr` converts each to GeoPackage or
   Shapefile.
