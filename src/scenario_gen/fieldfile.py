@@ -7,7 +7,7 @@ and KML go through GDAL via pyogrio (the ``gis`` extra, ≈100 MB with its own G
 only here). Every file is checked before GDAL opens it: a local regular file of a known
 suffix, whose first bytes are what that suffix promises (GDAL picks its driver by content),
 at most ``MAX_FIELD_BYTES`` with its Shapefile sidecars, at most ``MAX_FIELD_FEATURES``
-features read.
+features read, at most ``MAX_SCAN_LAYERS`` layers searched.
 
 Layers: ``field.layer`` names the layer; without it the file's only layer, or its only layer
 holding polygons, is used, and a file with several is refused with their names. All Polygon
@@ -38,6 +38,8 @@ from .schema import parse_json
 
 MAX_FIELD_BYTES = 64 * 2**20
 MAX_FIELD_FEATURES = 100_000
+#: layers searched for polygons when field.layer is not set (each KML folder is a re-read)
+MAX_SCAN_LAYERS = 16
 #: the accuracy a transformation to WGS84 must have (PROJ's statement) when a better one's grid
 #: is missing: NAD83 (4 m), OSGB36 (2 m) pass, NAD27 without its grids (10 m) does not
 MAX_SHIFT_M = 5.0
@@ -280,6 +282,13 @@ def _gdal_polygons(
     elif len(layers) == 1:
         chosen = names[0]
         read = _read_layer(pyogrio, p, chosen, errors, PATH_FIELD)
+    elif len(layers) > MAX_SCAN_LAYERS:
+        raise InputError(
+            LAYER_FIELD,
+            None,
+            f"{p.name} has {len(layers)} layers, more than the {MAX_SCAN_LAYERS} searched for "
+            "polygons; allowed: the name of the one holding the field",
+        )
     else:
         found: dict[str, tuple[list[BaseGeometry], CRS | None]] = {}
         for name, kind in layers:

@@ -174,7 +174,7 @@ def test_bad_files_are_one_input_error(source, tmp_path) -> None:
         read_field("/vsicurl/https://example.org/f.gpkg")
 
 
-def test_feature_limit(source, tmp_path, monkeypatch) -> None:
+def test_feature_and_layer_limits(source, tmp_path, monkeypatch) -> None:
     _pyogrio()
     from scenario_gen import fieldfile
 
@@ -182,6 +182,9 @@ def test_feature_limit(source, tmp_path, monkeypatch) -> None:
     monkeypatch.setattr(fieldfile, "MAX_FIELD_FEATURES", 0)
     with pytest.raises(InputError, match="over 0 features"):
         read_field(gpkg, "north")
+    monkeypatch.setattr(fieldfile, "MAX_SCAN_LAYERS", 2)
+    with pytest.raises(InputError, match="3 layers, more than the 2 searched"):
+        read_field(gpkg)
 
 
 def test_missing_pyogrio_names_the_extra(source, tmp_path, monkeypatch) -> None:
