@@ -46,7 +46,7 @@ MAX_SHIFT_M = 5.0
 PATH_FIELD = "field.geojson"
 LAYER_FIELD = "field.layer"
 JSON_SUFFIXES = (".geojson", ".json")
-#: suffix -> (format name, a test of the file's first bytes)
+#: suffix -> format name (the file's first bytes are checked against it: ``_check_magic``)
 GDAL_SUFFIXES = {
     ".gpkg": "GeoPackage",
     ".shp": "Shapefile",
@@ -73,11 +73,6 @@ def read_field(path: str | Path, layer: str | None = None) -> BaseGeometry:
         _check_valid(poly, str(path))
     lonlat = [_to_lonlat(poly, crs, str(path)) for poly in polys]
     return shapely.union_all(lonlat) if len(lonlat) > 1 else lonlat[0]
-
-
-def read_geojson(path: str | Path) -> BaseGeometry:
-    """The (multi)polygon of a GeoJSON file, in lon/lat; several features are merged."""
-    return read_field(path)
 
 
 def _check_file(path: str | Path) -> Path:
@@ -250,12 +245,13 @@ def _pyogrio(p: Path) -> Any:
     return pyogrio
 
 
-#: OGR geometry type names that hold polygons, or may (a KML folder is "Unknown")
 def _polygonal(kind: Any) -> bool:
+    """An OGR layer geometry type that holds polygons."""
     return isinstance(kind, str) and ("Polygon" in kind or "Surface" in kind)
 
 
 def _maybe_polygonal(kind: Any) -> bool:
+    """An OGR layer geometry type that may hold polygons (a KML folder is "Unknown")."""
     return isinstance(kind, str) and (kind.startswith("Unknown") or "Geometry" in kind)
 
 
