@@ -19,10 +19,11 @@ $(STAMP): pyproject.toml $(NATIVE) | $(BIN)/python
 	$(BIN)/pip install --quiet -e ".[dev]"
 	touch $(STAMP)
 
-# The tests also cover the optional extras: Minari recording (jax), Ray shards and the ONNX export.
+# The tests also cover the optional extras: Minari recording (jax), Ray shards, the ONNX export
+# and GIS field files (pyogrio).
 TEST_STAMP := $(VENV)/.installed-test
 $(TEST_STAMP): $(STAMP)
-	$(BIN)/pip install --quiet -e ".[dev,dataset,ray,export]"
+	$(BIN)/pip install --quiet -e ".[dev,dataset,ray,export,gis]"
 	touch $(TEST_STAMP)
 
 demo: $(STAMP)

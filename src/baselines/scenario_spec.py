@@ -41,7 +41,11 @@ def add_spec_arguments(parser: Any) -> None:
         "--datum",
         help="LAT,LON,ALT of the mesh or plane origin (a DEM sets its own: refused with one)",
     )
-    parser.add_argument("--field", help="GeoJSON polygon of the field (WGS84 lon/lat)")
+    parser.add_argument(
+        "--field",
+        help="the field's polygons: GeoJSON, GeoPackage, Shapefile or KML in any declared CRS "
+        "(a file with several polygon layers: add --set field.layer=NAME)",
+    )
     parser.add_argument(
         "--waypoints",
         help="Nav2 GPS waypoint YAML (as `agrinav export --to nav2` writes): the route is the "

@@ -14,6 +14,10 @@ Untagged nodata: when a file declares no nodata value, the common sentinels −3
 values at or below −1e38 (float32's lowest, −3.4e38) are nodata. Elevations outside
 [−500, 9000] m are refused (the Dead Sea shore is −430 m, Everest 8849 m): a DEM in feet or
 with an untagged odd sentinel says so instead of becoming a cliff.
+
+Heights (``vertical``): a DEM whose CRS declares a vertical datum (a compound CRS) has its
+heights converted to metres and, where PROJ has the geoid grid locally, to ellipsoidal
+heights; every ``Dem`` says what its heights are (``Dem.heights``).
 """
 
 from __future__ import annotations
@@ -32,6 +36,17 @@ from scipy import ndimage
 from .arrays import FloatArray
 from .bounds import MAX_DEM_PIXELS
 from .errors import InputError
+from .geodesy import area_of
+from .vertical import (
+    ELLIPSOIDAL,
+    NOT_DECLARED,
+    ORTHOMETRIC,
+    Heights,
+    geoid_separation,
+    split_crs,
+    to_ellipsoidal,
+    unit_factor,
+)
 
 EMBEDDED_NAME = "jacksboro_fault_dem.npz"
 #: Bicubic spline prefiltering reaches across the whole array, decaying by 0.268 per pixel: a
@@ -45,6 +60,16 @@ EMBEDDED_CREDIT = (
     "USGS 3 arc-second DEM around the Jacksboro fault, Tennessee (public domain), "
     "as shipped in matplotlib's sample data"
 )
+EMBEDDED_HEIGHTS = Heights(
+    ORTHOMETRIC,
+    "the USGS DEM's vertical datum, which the sample file does not declare",
+    "",
+    "as ellipsoidal heights they read ≈ 31 m high (EGM96 puts the geoid 30.7 m below the "
+    "ellipsoid there)",
+)
+#: the geoid undulation is computed on a lattice at most this many pixels apart and
+#: interpolated bilinearly (geoid grids are 1' to 15', ≥ 1.8 km, apart)
+GEOID_STEP_MAX = 256
 
 
 @dataclass(frozen=True)
@@ -53,8 +78,9 @@ class Dem:
 
     elevation: FloatArray  # (rows, cols), metres; NaN where nodata could not be filled
     transform: Affine  # pixel (col, row) corner -> CRS x, y
-    crs: CRS
+    crs: CRS  # horizontal
     source: str
+    heights: Heights = NOT_DECLARED
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -238,7 +264,8 @@ def load_embedded() -> Dem:
     north = float(max(d["ymin"], d["ymax"]))
     west = float(d["xmin"])
     transform = Affine(float(d["dx"]), 0.0, west, 0.0, -float(d["dy"]), north)
-    return Dem(elev, transform, CRS.from_epsg(4326), "embedded USGS Jacksboro DEM")
+    name = "embedded USGS Jacksboro DEM"
+    return Dem(elev, transform, CRS.from_epsg(4326), name, EMBEDDED_HEIGHTS)
 
 
 def check_georeference(
@@ -317,13 +344,20 @@ def lonlat_window(
 
 
 def clean_elevation(
-    elev: FloatArray, tagged: bool, where: str, offset: tuple[int, int] = (0, 0)
+    elev: FloatArray,
+    tagged: bool,
+    where: str,
+    offset: tuple[int, int] = (0, 0),
+    scale: float = 1.0,
 ) -> FloatArray:
-    """Untagged sentinels to NaN, then refuse elevations no terrain on Earth has (``offset``:
-    the window's first row and column, so the pixel named is the raster's)."""
+    """Untagged sentinels to NaN, values times ``scale`` (metres per vertical unit), then refuse
+    elevations no terrain on Earth has (``offset``: the window's first row and column, so the
+    pixel named is the raster's)."""
     if not tagged:
         sentinel = np.isin(elev, SENTINELS) | (elev <= SENTINEL_FLOOR)
         elev = np.where(sentinel, np.nan, elev)
+    if scale != 1.0:
+        elev = elev * scale
     lo, hi = ELEVATION_RANGE
     with np.errstate(invalid="ignore"):
         bad = np.isfinite(elev) & ((elev < lo) | (elev > hi))
@@ -375,7 +409,7 @@ def load_geotiff(
                 raise InputError(
                     "terrain.path", str(path), f"holds {ds.dtypes[0]} values; allowed: real numbers"
                 )
-            crs = CRS.from_wkt(ds.crs.to_wkt())
+            crs, vert, ellipsoidal = split_crs(CRS.from_wkt(ds.crs.to_wkt()))
             shape = (ds.height, ds.width)
             check_georeference(ds.transform, crs, shape, str(path))
             if need is None:
@@ -411,7 +445,39 @@ def load_geotiff(
         raise InputError("terrain.path", str(path), f"cannot be read as a raster ({exc})") from None
     elev = np.ma.filled(band.astype(np.float64), np.nan)
     elev[~np.isfinite(elev)] = np.nan
-    elev = clean_elevation(elev, tagged, str(path), (r0, c0))
+    elev = clean_elevation(elev, tagged, str(path), (r0, c0), unit_factor(vert))
     whole = (r0, c0) == (0, 0) and (r1, c1) == shape
     elev = fill_small_holes(elev, fill_max_pixels, open_border=not whole)
-    return Dem(elev, transform, crs, p.name)
+    if ellipsoidal:
+        heights = Heights(ELLIPSOIDAL, "WGS 84", "", f"{p.name} declares a 3-D {crs.name}")
+    elif vert is None:
+        heights = NOT_DECLARED
+    else:
+        rows, cols = elev.shape
+        cx, cy = Dem(elev, transform, crs, "").pixel_to_crs(
+            np.array([0.0, cols, 0.0, cols]), np.array([0.0, 0.0, rows, rows])
+        )
+        tr, heights = to_ellipsoidal(crs, vert, area_of(crs, cx, cy))
+        if tr is not None:
+            elev = elev + _geoid(tr, transform, elev.shape)
+    return Dem(elev, transform, crs, p.name, heights)
+
+
+def _geoid(tr: Any, transform: Affine, shape: tuple[int, int]) -> FloatArray:
+    """The geoid undulation at every pixel centre: exact on a lattice at most
+    ``GEOID_STEP_MAX`` pixels apart, bilinear between (geoid grids are coarser still)."""
+    rows, cols = shape
+    step = max(1, math.ceil(max(rows, cols) / GEOID_STEP_MAX))
+    lr = np.unique(np.append(np.arange(0, rows, step), rows - 1)).astype(np.float64)
+    lc = np.unique(np.append(np.arange(0, cols, step), cols - 1)).astype(np.float64)
+    grid = Dem(np.zeros((2, 2)), transform, CRS.from_epsg(4326), "")
+    cc, rr = np.meshgrid(lc, lr)
+    x, y = grid.pixel_to_crs(cc + 0.5, rr + 0.5)
+    n = geoid_separation(tr, x, y)
+    if step == 1:
+        return n
+    # lattice index of every pixel, then bilinear between lattice nodes
+    ri = np.interp(np.arange(rows), lr, np.arange(len(lr)))
+    ci = np.interp(np.arange(cols), lc, np.arange(len(lc)))
+    rg, cg = np.meshgrid(ri, ci, indexing="ij")
+    return np.asarray(ndimage.map_coordinates(n, [rg, cg], order=1, mode="nearest"))

@@ -1,24 +1,21 @@
-"""The planting area: a polygon from a GeoJSON file (WGS84 lon/lat) or a rectangle at the site."""
+"""The planting area: a lon/lat polygon (read by ``fieldfile``) or a rectangle at the site."""
 
 from __future__ import annotations
 
 import math
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 import shapely
-from shapely.geometry import MultiPolygon, Polygon, shape
+from shapely.geometry import MultiPolygon, Polygon
 from shapely.geometry.base import BaseGeometry
 from shapely.validation import explain_validity
 
 from .errors import InputError
 from .geodesy import GeoFrame
-from .schema import parse_json
 from .spec import FieldSpec
 
 MIN_FIELD_AREA = 4.0  # m²: below this not even one lane fits
-MAX_GEOJSON_BYTES = 64 * 2**20
 MAX_NESTING = 32  # FeatureCollection > Feature > GeometryCollection ... levels
 
 
@@ -31,36 +28,6 @@ def rectangle(spec: FieldSpec, centre: tuple[float, float]) -> Polygon:
     n = np.array([-math.sin(a), math.cos(a)]) * spec.width / 2
     c = np.asarray(centre)
     return Polygon([c - u - n, c + u - n, c + u + n, c - u + n])
-
-
-def read_geojson(path: str | Path) -> BaseGeometry:
-    """The (multi)polygon of a GeoJSON file, in lon/lat; several features are merged."""
-    p = Path(path)
-    if not p.is_file():
-        raise InputError("field.geojson", str(path), "allowed: an existing GeoJSON file")
-    size = p.stat().st_size
-    if size > MAX_GEOJSON_BYTES:
-        raise InputError(
-            "field.geojson", str(path), f"is {size:,} bytes; allowed: at most {MAX_GEOJSON_BYTES:,}"
-        )
-    data = parse_json(p.read_bytes(), "field.geojson", str(path))
-    geoms = [g for g in geometries(data, str(path)) if g.get("type") in ("Polygon", "MultiPolygon")]
-    if not geoms:
-        raise InputError("field.geojson", str(path), "holds no Polygon or MultiPolygon geometry")
-    try:
-        polys = [shape(g) for g in geoms]
-    except Exception as exc:  # shapely raises several types for malformed coordinates
-        raise InputError("field.geojson", str(path), f"has malformed coordinates ({exc})") from None
-    for poly in polys:
-        _check_valid(poly, str(path))
-        lon0, lat0, lon1, lat1 = poly.bounds
-        if not (-180 <= lon0 <= lon1 <= 180 and -90 <= lat0 <= lat1 <= 90):
-            raise InputError(
-                "field.geojson",
-                f"bounds {poly.bounds}",
-                "coordinates must be WGS84 longitude, latitude (RFC 7946); these look projected",
-            )
-    return shapely.union_all(polys) if len(polys) > 1 else polys[0]
 
 
 def geometries(data: Any, where: str) -> list[dict[str, Any]]:
@@ -87,18 +54,6 @@ def geometries(data: Any, where: str) -> list[dict[str, Any]]:
         else:
             out.append(node)
     return out
-
-
-def _check_valid(poly: BaseGeometry, where: str) -> None:
-    if poly.is_empty:
-        raise InputError("field.geojson", where, "the polygon is empty")
-    if not poly.is_valid:
-        raise InputError(
-            "field.geojson",
-            where,
-            f"the polygon is invalid ({explain_validity(poly)}); allowed: a "
-            "simple polygon without self-intersections",
-        )
 
 
 def lonlat_to_enu(geom: BaseGeometry, geo: GeoFrame) -> BaseGeometry:

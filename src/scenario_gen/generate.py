@@ -18,13 +18,8 @@ from . import crops
 from .arrays import FloatArray
 from .bounds import MAX_PLANE_RADIUS_M, check_budget, check_lod
 from .errors import InputError
-from .field import (
-    check_field,
-    long_axis_deg,
-    lonlat_to_enu,
-    read_geojson,
-    rectangle,
-)
+from .field import check_field, long_axis_deg, lonlat_to_enu, rectangle
+from .fieldfile import read_field
 from .furrows import add_relief
 from .geodesy import GeoFrame
 from .layout import Layout, layout
@@ -120,6 +115,10 @@ def check_spec(spec: ScenarioSpec) -> None:
             f"is not used with terrain.source={t.source}: a DEM fixes the datum at the field "
             "centre; allowed: null, or terrain.source mesh or plane",
         )
+    if spec.field.layer is not None and spec.field.geojson is None:
+        raise InputError(
+            "field.layer", spec.field.layer, "names a layer of field.geojson, which is not set"
+        )
     lay = spec.layout
     # Jitter is clipped at 3 std: within half a spacing, no plant can pass the midpoint to its
     # neighbouring row (or position), so every plant's row stays what the layout says.
@@ -195,7 +194,7 @@ def plan_field(
         raise InputError(
             "terrain.site",
             "latlon",
-            "a GeoJSON field fixes the site; leave terrain.site at its default",
+            "a field file fixes the site; leave terrain.site at its default",
         )
     m = spec.terrain.margin
     diag = math.hypot(spec.field.width, spec.field.length) + 2 * m
@@ -234,7 +233,7 @@ def generate(spec: ScenarioSpec, seed: int) -> Scenario:
     t_start = time.perf_counter()
     growth = growth_of(spec.crop)
     user_model = inspect_model(spec.crop.model) if spec.crop.model is not None else None
-    field_ll = read_geojson(spec.field.geojson) if spec.field.geojson else None
+    field_ll = read_field(spec.field.geojson, spec.field.layer) if spec.field.geojson else None
     plan = plan_field(spec, field_ll)
     site, poly = plan.site, plan.poly
     base = build_terrain(site, plan.bounds, spec.terrain.lod)
@@ -276,6 +275,6 @@ def check_on_plane(poly: BaseGeometry, terrain: TerrainSpec, geo: GeoFrame) -> N
             [geo.lat, geo.lon, geo.alt],
             f"the field and margin reach {reach / 1000:,.1f} km from the plane's datum; allowed: "
             f"within {MAX_PLANE_RADIUS_M / 1000:g} km (the tangent plane rises d²/2R above the "
-            "ellipsoid: 2 m at 5 km); leave terrain.datum null to centre the plane on a GeoJSON "
-            "field",
+            "ellipsoid: 2 m at 5 km); leave terrain.datum null to centre the plane on the field "
+            "file's field",
         )

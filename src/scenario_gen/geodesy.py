@@ -4,20 +4,24 @@ lat/lon/alt (EPSG:4979, ellipsoidal height) -> geocentric ECEF (EPSG:4978) -> ro
 tangent plane at the datum. Unlike the source paper's equirectangular approximation this is exact
 at any distance, so GPS readings simulated from ENU positions are real coordinates.
 
-Altitudes read from DEMs are orthometric; they are used as if ellipsoidal. Over a field the geoid
+Heights are ellipsoidal in this frame. A DEM's heights are usually orthometric (above a geoid):
+``dem`` converts them where the file declares its vertical datum and PROJ has the geoid grid,
+and otherwise uses them as if ellipsoidal and says so (``vertical``). Over a field the geoid
 separation is a constant to well under a millimetre per metre, so it shifts every height alike
-and cancels in the local frame.
+and cancels in the local frame; only absolute altitudes carry it.
 """
 
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
-from pyproj import Transformer
+from pyproj import CRS, Transformer
+from pyproj.transformer import AreaOfInterest
 
 from .arrays import FloatArray
 from .errors import InputError
@@ -44,6 +48,72 @@ def _check_latlon(lat: float, lon: float, alt: float, where: str) -> None:
     # ≈ 8,850 m; beyond -1,000..10,000 m a datum is a typo (10¹² m was accepted).
     if not (math.isfinite(alt) and -1000.0 <= alt <= 10_000.0):
         raise InputError(f"{where}.alt", alt, "allowed: a ground height in metres, -1000..10000")
+
+
+def area_of(crs: CRS, x: ArrayLike, y: ArrayLike) -> AreaOfInterest | None:
+    """The lon/lat box of points in ``crs`` (through PROJ's default transformation: metres
+    off at worst, plenty to pick the transformations valid there); None if they do not map."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        tr = Transformer.from_crs(crs, CRS.from_epsg(4326), always_xy=True)
+    with np.errstate(all="ignore"):
+        lon, lat = tr.transform(np.asarray(x, np.float64), np.asarray(y, np.float64))
+    lon, lat = np.asarray(lon), np.asarray(lat)
+    ok = np.isfinite(lon) & np.isfinite(lat) & (np.abs(lon) <= 180) & (np.abs(lat) <= 90)
+    if not ok.any():
+        return None
+    return AreaOfInterest(
+        float(lon[ok].min()), float(lat[ok].min()), float(lon[ok].max()), float(lat[ok].max())
+    )
+
+
+def best_transformer(
+    src: CRS,
+    dst: CRS,
+    area: AreaOfInterest | None = None,
+    *,
+    tolerance_m: float = 0.0,
+    local_only: bool = False,
+) -> Transformer | str:
+    """PROJ's most accurate transformation from ``src`` to ``dst`` over ``area`` (x, y in GIS
+    order: lon, lat), or why it cannot be had.
+
+    When the best one's grid is not installed, PROJ's best without it is taken only if it is
+    good to ``tolerance_m`` (its stated accuracy; a ballpark never is), else the missing grid
+    is named: ``Transformer.from_crs`` would fall back with a warning (NAD27 → WGS84 without
+    its grids: 10 m). With ``local_only`` PROJ's network access must be off (a grid would be
+    fetched, and the result would depend on the network). Without ``area`` the best
+    transformation anywhere is taken, which may be another region's.
+    """
+    from pyproj import network
+    from pyproj.datadir import get_user_data_dir
+    from pyproj.transformer import TransformerGroup
+
+    if local_only and network.is_network_enabled():
+        return (
+            "PROJ network access is on (pyproj.network); only locally installed grids are "
+            "used: turn it off"
+        )
+    with warnings.catch_warnings():  # "best transformation is not available": said below
+        warnings.simplefilter("ignore", UserWarning)
+        group = TransformerGroup(src, dst, always_xy=True, area_of_interest=area)
+    if not group.transformers:
+        return f"PROJ knows no transformation from {src.name} to {dst.name}"
+    best: Transformer = group.transformers[0]
+    if group.best_available:
+        return best
+    accuracy = best.accuracy if "ballpark" not in best.description.lower() else -1.0
+    if 0.0 <= accuracy <= tolerance_m:
+        return best
+    ops = group.unavailable_operations[:1]
+    grids = [g.short_name for op in ops for g in op.grids if not g.available]
+    names = ", ".join(grids) or "of its best transformation"
+    without = f"{accuracy:g} m" if accuracy >= 0 else "an unknown accuracy (a ballpark)"
+    return (
+        f"PROJ's grid {names} is not installed and without it the transformation is good to "
+        f"{without} (copy the grid into {get_user_data_dir()}, or fetch it once with "
+        f"`pyproj sync --file {grids[0] if grids else 'NAME'}`)"
+    )
 
 
 @dataclass(frozen=True)

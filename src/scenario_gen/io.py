@@ -26,6 +26,7 @@ from .geojson import scenario_layers
 from .model import Scenario
 from .models import sha256_file
 from .preview import render_preview
+from .vertical import of_scenario
 
 FORMAT = "agrinav-scenario"
 FORMAT_VERSION = 2
@@ -182,7 +183,8 @@ def metadata_dict(scn: Scenario) -> dict[str, Any]:
         "spec": scn.spec.to_dict(),
         "datum": scn.geo.to_dict(),
         "crs": {
-            "geodetic": "EPSG:4979 (WGS84 lat, lon, ellipsoidal height)",
+            "geodetic": "EPSG:4979 (WGS84 lat, lon, ellipsoidal height); heights: "
+            + of_scenario(scn.info).label(),
             "local": "ENU tangent plane at the datum via geocentric EPSG:4978; x east, y north, "
             "z up, metres",
         },

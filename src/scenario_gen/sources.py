@@ -25,6 +25,7 @@ from .geodesy import GeoFrame
 from .meshsurface import TriangleSurface
 from .spec import TerrainSpec
 from .terrain import Terrain, grid_for_bounds
+from .vertical import DATUM_HEIGHTS
 
 HeightFn = Callable[[FloatArray, FloatArray], FloatArray]
 
@@ -132,7 +133,12 @@ def _dem_site(
         geo,
         _dem_heights(dem, geo),
         credit=credit,
-        info={"dem": dem.source, "dem_crs": dem.crs.to_string(), "site": how},
+        info={
+            "dem": dem.source,
+            "dem_crs": dem.crs.to_string(),
+            "site": how,
+            "heights": dem.heights.to_dict(),
+        },
     )
 
 
@@ -169,7 +175,11 @@ def _plane_site(spec: TerrainSpec, field_lonlat: tuple[float, float] | None) -> 
         geo,
         heights,
         credit="procedural plane",
-        info={"slope_deg": spec.slope_deg, "aspect_deg": spec.aspect_deg},
+        info={
+            "slope_deg": spec.slope_deg,
+            "aspect_deg": spec.aspect_deg,
+            "heights": DATUM_HEIGHTS.to_dict(),
+        },
     )
 
 
@@ -247,7 +257,11 @@ def _mesh_site(spec: TerrainSpec) -> Site:
         heights,
         centre=centre,
         credit=f"mesh {name}",
-        info={"mesh_vertices": len(v), "mesh_triangles": surface.count},
+        info={
+            "mesh_vertices": len(v),
+            "mesh_triangles": surface.count,
+            "heights": DATUM_HEIGHTS.to_dict(),
+        },
     )
 
 
@@ -255,5 +269,18 @@ def export_terrain_mesh(terrain: Terrain, path: str | Path) -> None:
     """Write the terrain as a mesh (GLB/glTF in Y-up, anything else in ENU Z-up)."""
     p = Path(path)
     y_up = p.suffix.lower() in (".glb", ".gltf")
-    mesh: Any = terrain.to_trimesh(y_up=y_up)
-    mesh.export(p)
+    save_mesh(terrain.to_trimesh(y_up=y_up), p)
+
+
+def save_mesh(mesh: Any, path: Path) -> None:
+    """Write a trimesh whose vertices are ENU (Z up) or, for glTF, already Y-up. COLLADA gets
+    ``<up_axis>Z_UP</up_axis>``: trimesh's writer always says Y_UP, and Blender and assimp
+    then turn the data by 90° about x, standing a field on its edge."""
+    if path.suffix.lower() != ".dae":
+        mesh.export(path)
+        return
+    data: bytes = mesh.export(file_type="dae")
+    old, new = b"<up_axis>Y_UP</up_axis>", b"<up_axis>Z_UP</up_axis>"
+    if data.count(old) != 1:
+        raise RuntimeError(f"trimesh's COLLADA writer changed: {data.count(old)} Y_UP up axes")
+    path.write_bytes(data.replace(old, new))

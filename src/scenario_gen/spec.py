@@ -36,9 +36,10 @@ class TerrainSpec:
     )
     datum: tuple[float, float, float] | None = _f(
         None,
-        "lat, lon, alt of the mesh origin (source=mesh, required) or of the plane (source=plane; "
-        "null: the GeoJSON field's centroid at 0 m, else 42.6 N 5.57 W 830 m); a DEM fixes its "
-        "own datum, so embedded/dem refuse it",
+        "lat, lon (WGS84 degrees), alt (metres above the WGS84 ellipsoid) of the mesh origin "
+        "(source=mesh, required) or of the plane (source=plane; null: the field file's "
+        "centroid at 0 m, else 42.6 N 5.57 W 830 m); a DEM fixes its own datum, so "
+        "embedded/dem refuse it",
     )
     lod: int = _f(
         20,
@@ -62,8 +63,15 @@ class TerrainSpec:
 class FieldSpec:
     geojson: str | None = _f(
         None,
-        "GeoJSON file with a Polygon/MultiPolygon in lon/lat (holes and parts are kept "
-        "unplanted; lanes end at them); stored resolved",
+        "field polygon file: GeoJSON (RFC 7946 lon/lat, or the CRS its crs member names), "
+        "GeoPackage, Shapefile or KML (these three need the gis extra: pyogrio) in any CRS "
+        "the file declares; its Polygon/MultiPolygon features are merged (holes and parts are "
+        "kept unplanted; lanes end at them); stored resolved",
+    )
+    layer: str | None = _f(
+        None,
+        "layer of the field file holding the field (null: its only layer, or its only layer "
+        "with polygons; a file with several is refused)",
     )
     width: float = _f(30.0, "rectangle size across the rows, metres", 0, 5000)
     length: float = _f(40.0, "rectangle size along the rows, metres", 0, 5000)

@@ -122,7 +122,7 @@ def test_geojson_without_polygon_or_not_json(tmp_path: Path) -> None:
     p.write_text("{not json")
     with pytest.raises(ScenarioError, match="not valid JSON"):
         generate(small(field={"geojson": str(p)}), seed=0)
-    with pytest.raises(ScenarioError, match="existing GeoJSON"):
+    with pytest.raises(ScenarioError, match="an existing file, GeoJSON"):
         generate(small(field={"geojson": str(tmp_path / "missing.geojson")}), seed=0)
 
 

@@ -81,7 +81,7 @@ def to_text(geom: BaseGeometry) -> str:
 
 
 def from_text(text: str) -> BaseGeometry:
-    """The geometry a field file holds, read the way ``scenario_gen.field.read_geojson`` does."""
+    """The geometry a field file holds, read as ``scenario_gen.fieldfile`` reads a GeoJSON."""
     data = parse_json(text, "field", text[:40])
     polys = polygons_of(data)
     if not polys:

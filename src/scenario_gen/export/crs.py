@@ -1,4 +1,5 @@
-"""The local projected CRS whose x/y are a scenario's ENU x/y, and how far they drift apart.
+"""The local projected CRS whose x/y are a scenario's ENU x/y, and how far they drift apart;
+the UTM zone of a datum (an EPSG code for tools that need one).
 
 A transverse Mercator centred on the datum with scale factor 1 + h0/R (h0 the datum's
 ellipsoidal height, R the Gaussian radius of curvature there): ENU is a plane tangent at the
@@ -56,3 +57,16 @@ def enu_crs_error(scn: Scenario, crs: CRS, samples: int = 41) -> float:
     lat, lon, _ = scn.geo.enu_to_geodetic(gx, gy, gz)
     px, py = Transformer.from_crs("EPSG:4326", crs, always_xy=True).transform(lon, lat)
     return float(np.hypot(px - gx, py - gy).max())
+
+
+def utm_epsg(lat: float, lon: float) -> int | None:
+    """EPSG code of the WGS 84 / UTM zone holding (lat, lon), with the Norway and Svalbard
+    exceptions; None outside UTM's latitudes (-80° to 84°: UPS there)."""
+    if not -80.0 <= lat < 84.0:
+        return None
+    zone = int((lon + 180.0) // 6.0) % 60 + 1
+    if 56.0 <= lat < 64.0 and 3.0 <= lon < 12.0:
+        zone = 32
+    elif 72.0 <= lat < 84.0 and 0.0 <= lon < 42.0:
+        zone = 31 if lon < 9.0 else 33 if lon < 21.0 else 35 if lon < 33.0 else 37
+    return (32600 if lat >= 0 else 32700) + zone

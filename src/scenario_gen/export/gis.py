@@ -7,6 +7,11 @@ ENU is a plane tangent at the datum's height while a map projection maps the ell
 surface; the scale factor lifts it to the datum's height, leaving a residual of about
 (z − h0)·d/R (≈ 1 mm at 50 m relief and 130 m from the datum). The export measures the
 actual residual over the terrain's nodes and reports it (``crs_error_mm``).
+
+That CRS has no EPSG code, so a copy resampled (bilinear) into the datum's UTM zone,
+``terrain_utm.tif``, serves the tools that need one; the export measures how far it departs
+from the terrain at the plants (``utm_error_mm``). Every GeoTIFF declares NoData (``NODATA``):
+reprojected, the pixels outside the terrain read NoData, not a 0 m border.
 """
 
 from __future__ import annotations
@@ -16,19 +21,36 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from pyproj import CRS
+from pyproj import CRS, Transformer
+from pyproj.crs import CompoundCRS
 
 from ..arrays import FloatArray
 from ..geojson import collection, field_features, plant_features, route_features, row_features
 from ..model import Scenario
-from .crs import enu_crs_error, local_crs
+from ..vertical import ORTHOMETRIC, of_scenario
+from .crs import enu_crs_error, local_crs, utm_epsg
 from .gpkg import Layer, write_gpkg
 
 LOCAL_SRS_ID = 100000
+#: NoData of every GeoTIFF written: no ground on Earth is this low, and the DEM reader takes it
+#: as nodata even untagged (``dem.SENTINELS``)
+NODATA = -9999.0
+
+
+def with_heights(scn: Scenario, crs: CRS) -> CRS:
+    """``crs`` with the vertical CRS of the scenario's heights where they are orthometric in a
+    declared datum (a DEM's, not converted), so the GeoTIFF says what its values are; else
+    ``crs`` (ellipsoidal or undeclared heights: the band description and tags say)."""
+    h = of_scenario(scn.info)
+    if h.reference != ORTHOMETRIC or not h.crs:
+        return crs
+    vert = CRS.from_user_input(h.crs)
+    return CompoundCRS(f"{crs.name} + {vert.name}", [crs, vert])
 
 
 def terrain_altitudes(scn: Scenario) -> FloatArray:
-    """Ellipsoidal height of every terrain node (rows south to north, like ``heights``)."""
+    """Altitude of every terrain node (rows south to north, like ``heights``): the scenario's
+    heights, whose reference ``vertical.of_scenario`` gives."""
     t = scn.terrain
     gx, gy = np.meshgrid(t.xs, t.ys)
     return np.asarray(scn.geo.enu_to_geodetic(gx, gy, t.heights)[2])
@@ -52,17 +74,20 @@ def write_geotiff(scn: Scenario, path: Path, crs: CRS) -> None:
         height=ny,
         count=1,
         dtype="float32",
-        crs=rasterio.crs.CRS.from_wkt(crs.to_wkt()),
+        crs=rasterio.crs.CRS.from_wkt(with_heights(scn, crs).to_wkt()),
         transform=transform,
+        nodata=NODATA,
         compress="deflate",
         predictor=3,
         tiled=True,
         blockxsize=256,
         blockysize=256,
     ) as ds:
+        heights = of_scenario(scn.info).label()
         ds.write(alt, 1)
-        ds.set_band_description(1, "elevation (m, ellipsoidal as in the scenario)")
+        ds.set_band_description(1, f"elevation (m): {heights}")
         ds.update_tags(
+            AGRINAV_HEIGHTS=heights,
             AGRINAV_SCENARIO=scn.spec.name,
             AGRINAV_SEED=str(scn.seed),
             AGRINAV_DATUM=f"{scn.geo.lat} {scn.geo.lon} {scn.geo.alt}",
@@ -71,29 +96,54 @@ def write_geotiff(scn: Scenario, path: Path, crs: CRS) -> None:
         )
 
 
-def write_dem_crs_geotiff(src: Path, dst: Path, dem_crs: str) -> None:
-    """``src`` resampled (bilinear) into the source DEM's CRS; NaN outside the terrain."""
+def write_resampled(src: Path, dst: Path, crs: CRS, resolution: float | None = None) -> None:
+    """``src`` resampled (bilinear) into ``crs`` (pixel size ``resolution`` in its units, or
+    GDAL's choice); NoData outside the terrain."""
     import rasterio
     from rasterio.warp import Resampling, calculate_default_transform, reproject
 
     with rasterio.open(src) as s:
-        dst_crs = rasterio.crs.CRS.from_user_input(dem_crs)
-        transform, w, h = calculate_default_transform(s.crs, dst_crs, s.width, s.height, *s.bounds)
+        dst_crs = rasterio.crs.CRS.from_wkt(crs.to_wkt())
+        transform, w, h = calculate_default_transform(
+            s.crs, dst_crs, s.width, s.height, *s.bounds, resolution=resolution
+        )
         profile = s.profile | {
             "crs": dst_crs,
             "transform": transform,
             "width": w,
             "height": h,
-            "nodata": float("nan"),
+            "nodata": NODATA,
         }
         with rasterio.open(dst, "w", **profile) as d:
             reproject(
                 rasterio.band(s, 1),
                 rasterio.band(d, 1),
                 resampling=Resampling.bilinear,
-                dst_nodata=float("nan"),
+                src_nodata=NODATA,
+                dst_nodata=NODATA,
             )
             d.update_tags(**s.tags())
+            d.set_band_description(1, s.descriptions[0] or "")
+
+
+def resampling_error(scn: Scenario, path: Path) -> float:
+    """Largest |height read bilinearly from ``path`` − the scenario's ground| at the plants (m);
+    NaN without plants."""
+    import rasterio
+    from scipy import ndimage
+
+    p = scn.plants
+    if len(p) == 0:
+        return float("nan")
+    lat, lon, alt = scn.geo.enu_to_geodetic(p.x, p.y, scn.terrain.height_at(p.x, p.y))
+    with rasterio.open(path) as ds:
+        x, y = Transformer.from_crs("EPSG:4326", ds.crs.to_wkt(), always_xy=True).transform(
+            lon, lat
+        )
+        col, row = ~ds.transform @ (np.asarray(x), np.asarray(y))
+        z = ds.read(1).astype(np.float64)
+    got = ndimage.map_coordinates(z, [np.asarray(row) - 0.5, np.asarray(col) - 0.5], order=1)
+    return float(np.abs(got - alt).max())
 
 
 def export_gis(scn: Scenario, out: Path) -> dict[str, Any]:
@@ -105,9 +155,17 @@ def export_gis(scn: Scenario, out: Path) -> dict[str, Any]:
     err = enu_crs_error(scn, crs)
     write_geotiff(scn, out / "terrain.tif", crs)
     info: dict[str, Any] = {"crs_name": crs.name, "crs_error_mm": err * 1000.0}
+    utm = utm_epsg(scn.geo.lat, scn.geo.lon)
+    if utm is not None:
+        utm_crs = with_heights(scn, CRS.from_epsg(utm))
+        spacing = scn.terrain.spacing
+        write_resampled(out / "terrain.tif", out / "terrain_utm.tif", utm_crs, spacing)
+        err_utm = resampling_error(scn, out / "terrain_utm.tif") * 1000.0
+        info |= {"utm_tif": "terrain_utm.tif", "utm_crs": f"EPSG:{utm}", "utm_error_mm": err_utm}
     dem_crs = scn.info.get("dem_crs")
     if dem_crs:
-        write_dem_crs_geotiff(out / "terrain.tif", out / "terrain_dem_crs.tif", str(dem_crs))
+        dem_out = with_heights(scn, CRS.from_user_input(dem_crs))
+        write_resampled(out / "terrain.tif", out / "terrain_dem_crs.tif", dem_out)
         info |= {"dem_tif": "terrain_dem_crs.tif", "dem_crs": str(dem_crs)}
     p, r = scn.plants, scn.route
     lat, lon, alt = scn.geo.enu_to_geodetic(p.x, p.y, p.z)
@@ -119,10 +177,11 @@ def export_gis(scn: Scenario, out: Path) -> dict[str, Any]:
         "route": route_features(scn, rlat, rlon, None),
     }
     kinds = {name: _layer_type(feats) for name, feats in full.items()}
+    label = of_scenario(scn.info).label()
     write_gpkg(
         out / "layers.gpkg",
         [
-            Layer(n, kinds[n], f, description=f"AgriNav {scn.spec.name}: {n}")
+            Layer(n, kinds[n], f, description=f"AgriNav {scn.spec.name}: {n}; heights {label}")
             for n, f in full.items()
         ],
         {4326: CRS.from_epsg(4326)},
@@ -136,6 +195,7 @@ def export_gis(scn: Scenario, out: Path) -> dict[str, Any]:
     for name, feats in rounded.items():
         (out / f"{name}.geojson").write_text(json.dumps(collection(name, feats)))
     info["layers"] = {n: len(f) for n, f in full.items()}
+    info["heights"] = label
     (out / "README.md").write_text(gis_readme(scn, info))
     render_export_preview(scn, out / "preview.png", geotiff=out / "terrain.tif")
     return info

@@ -2,8 +2,10 @@
 
 Only what feature layers need: the three required metadata tables, one table per layer with an
 integer primary key, a ``geom`` column of GeoPackage binary geometry (``GP`` header, SRS id,
-XY envelope, ISO WKB) and typed attribute columns. GDAL, QGIS and any OGC reader open it; no
-GDAL is needed to write it.
+XY envelope, ISO WKB) and typed attribute columns, and each layer's spatial index (the RTree
+extension, ``gpkg_rtree_index``: ``rtree_<table>_geom`` filled from the envelopes, with the
+spec's triggers that keep it current when a GIS edits the layer). GDAL, QGIS and any OGC reader
+open it; no GDAL is needed to write it.
 """
 
 from __future__ import annotations
@@ -83,6 +85,10 @@ def _write(con: sqlite3.Connection, layers: list[Layer], crs: dict[int, CRS]) ->
           CONSTRAINT pk_geom_cols PRIMARY KEY (table_name, column_name),
           CONSTRAINT fk_gc_tn FOREIGN KEY (table_name) REFERENCES gpkg_contents(table_name),
           CONSTRAINT fk_gc_srs FOREIGN KEY (srs_id) REFERENCES gpkg_spatial_ref_sys (srs_id));
+        CREATE TABLE gpkg_extensions (
+          table_name TEXT, column_name TEXT, extension_name TEXT NOT NULL,
+          definition TEXT NOT NULL, scope TEXT NOT NULL,
+          CONSTRAINT ge_tce UNIQUE (table_name, column_name, extension_name));
         """
     )
     srs = [
@@ -139,6 +145,71 @@ def _layer(cur: sqlite3.Cursor, layer: Layer) -> None:
             for blob, p in zip(_blobs(geoms, layer.srs_id), props, strict=True)
         ),
     )
+    _rtree(cur, layer.name, geoms)
+
+
+#: The RTree spatial index triggers of GeoPackage 1.2 (Annex F.3); <t> the table, <c> the
+#: geometry column, <i> the primary key. The ST_* functions are the GeoPackage SQL functions
+#: GDAL and QGIS register: the triggers run in those tools, never here (the index is filled
+#: directly, before the triggers exist).
+RTREE_TRIGGERS = """
+CREATE TRIGGER "rtree_<t>_<c>_insert" AFTER INSERT ON "<t>"
+  WHEN (new."<c>" NOT NULL AND NOT ST_IsEmpty(NEW."<c>"))
+BEGIN
+  INSERT OR REPLACE INTO "rtree_<t>_<c>" VALUES (NEW."<i>",
+    ST_MinX(NEW."<c>"), ST_MaxX(NEW."<c>"), ST_MinY(NEW."<c>"), ST_MaxY(NEW."<c>"));
+END;
+CREATE TRIGGER "rtree_<t>_<c>_update1" AFTER UPDATE OF "<c>" ON "<t>"
+  WHEN OLD."<i>" = NEW."<i>" AND (NEW."<c>" NOTNULL AND NOT ST_IsEmpty(NEW."<c>"))
+BEGIN
+  INSERT OR REPLACE INTO "rtree_<t>_<c>" VALUES (NEW."<i>",
+    ST_MinX(NEW."<c>"), ST_MaxX(NEW."<c>"), ST_MinY(NEW."<c>"), ST_MaxY(NEW."<c>"));
+END;
+CREATE TRIGGER "rtree_<t>_<c>_update2" AFTER UPDATE OF "<c>" ON "<t>"
+  WHEN OLD."<i>" = NEW."<i>" AND (NEW."<c>" ISNULL OR ST_IsEmpty(NEW."<c>"))
+BEGIN
+  DELETE FROM "rtree_<t>_<c>" WHERE id = OLD."<i>";
+END;
+CREATE TRIGGER "rtree_<t>_<c>_update3" AFTER UPDATE ON "<t>"
+  WHEN OLD."<i>" != NEW."<i>" AND (NEW."<c>" NOTNULL AND NOT ST_IsEmpty(NEW."<c>"))
+BEGIN
+  DELETE FROM "rtree_<t>_<c>" WHERE id = OLD."<i>";
+  INSERT OR REPLACE INTO "rtree_<t>_<c>" VALUES (NEW."<i>",
+    ST_MinX(NEW."<c>"), ST_MaxX(NEW."<c>"), ST_MinY(NEW."<c>"), ST_MaxY(NEW."<c>"));
+END;
+CREATE TRIGGER "rtree_<t>_<c>_update4" AFTER UPDATE ON "<t>"
+  WHEN OLD."<i>" != NEW."<i>" AND (NEW."<c>" ISNULL OR ST_IsEmpty(NEW."<c>"))
+BEGIN
+  DELETE FROM "rtree_<t>_<c>" WHERE id IN (OLD."<i>", NEW."<i>");
+END;
+CREATE TRIGGER "rtree_<t>_<c>_delete" AFTER DELETE ON "<t>"
+  WHEN old."<c>" NOT NULL
+BEGIN
+  DELETE FROM "rtree_<t>_<c>" WHERE id = OLD."<i>";
+END;
+"""
+
+
+def _rtree(cur: sqlite3.Cursor, table: str, geoms: list[Any]) -> None:
+    """The layer's spatial index: the RTree of every non-empty geometry's envelope."""
+    rtree = f'"rtree_{table}_geom"'
+    cur.execute(f"CREATE VIRTUAL TABLE {rtree} USING rtree(id, minx, maxx, miny, maxy)")
+    if geoms:
+        arr = np.array(geoms, dtype=object)
+        keep = ~shapely.is_empty(arr)
+        ids = np.flatnonzero(keep) + 1  # fid: AUTOINCREMENT from 1 in insertion order
+        b = shapely.bounds(arr[keep])  # minx, miny, maxx, maxy -> the rtree's x, x, y, y order
+        rows = np.column_stack([ids, b[:, 0], b[:, 2], b[:, 1], b[:, 3]]).tolist()
+        cur.executemany(
+            f"INSERT INTO {rtree} VALUES (?, ?, ?, ?, ?)", ((int(r[0]), *r[1:]) for r in rows)
+        )
+    cur.execute(
+        "INSERT INTO gpkg_extensions VALUES (?, 'geom', 'gpkg_rtree_index', "
+        "'http://www.geopackage.org/spec120/#extension_rtree', 'write-only')",
+        (table,),
+    )
+    sql = RTREE_TRIGGERS.replace("<t>", table).replace("<c>", "geom").replace("<i>", "fid")
+    cur.executescript(sql)
 
 
 def _geometries(features: list[dict[str, Any]]) -> list[Any]:

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from ..model import Scenario
-from ..sources import export_terrain_mesh
+from ..sources import export_terrain_mesh, save_mesh
 from .options import ExportOptions
 from .plantmodels import assign
 from .tiles import rotations
@@ -68,7 +68,7 @@ def export_mesh(scn: Scenario, out: Path, opts: ExportOptions) -> dict[str, Any]
                     )
                     y_up.export(out / name)
                 else:
-                    plants.export(out / name)
+                    save_mesh(plants, out / name)
                 files.append(name)
     (out / "README.md").write_text(mesh_readme(scn, files))
     render_export_preview(scn, out / "preview.png")

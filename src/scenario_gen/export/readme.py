@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 from ..model import Scenario
+from ..vertical import of_scenario
 from .gazebo import GazeboSummary
 
 
@@ -14,7 +15,9 @@ def _head(scn: Scenario, what: str) -> str:
         f"# {scn.spec.name} (seed {scn.seed}) — {what}\n\n"
         f"Written by `agrinav export`. Datum (ENU origin): lat {g.lat:.8f}, lon {g.lon:.8f}, "
         f"alt {g.alt:.3f} m; x east, y north, z up, metres. {len(scn.plants)} plants, "
-        f"route {scn.route.length:.1f} m.\n\n![layout](preview.png)\n\n"
+        f"route {scn.route.length:.1f} m.\n\n"
+        f"Heights (the datum's alt and every altitude written here): "
+        f"{of_scenario(scn.info).label()}.\n\n![layout](preview.png)\n\n"
     )
 
 
@@ -100,6 +103,14 @@ yaw {info["spawn"][3]:.4f} rad). Gazebo sensors and a drive plugin are yours to 
 
 
 def gis_readme(scn: Scenario, info: dict[str, Any]) -> str:
+    utm = (
+        f"- `{info['utm_tif']}` — the same terrain resampled (bilinear) into the datum's UTM "
+        f"zone, {info['utm_crs']}, for tools that need an EPSG code; at the plants it departs "
+        f"from the terrain by up to {info['utm_error_mm']:.1f} mm (resampling: terrain.tif is "
+        "the exact one).\n"
+        if info.get("utm_tif")
+        else "- No UTM copy: the datum lies outside UTM's latitudes (-80° to 84°).\n"
+    )
     dem = (
         f"- `{info['dem_tif']}` — the same terrain resampled (bilinear) into the source DEM's "
         f"CRS {info['dem_crs']}, to overlay on the DEM.\n"
@@ -110,12 +121,14 @@ def gis_readme(scn: Scenario, info: dict[str, Any]) -> str:
         _head(scn, "GIS layers")
         + f"""## Files
 
-- `terrain.tif` — elevation (float32, metres, ellipsoidal like the scenario), one pixel per
+- `terrain.tif` — elevation (float32, metres, the heights above), one pixel per
   terrain node, in a local CRS whose x/y are the scenario's ENU x/y: {info["crs_name"]}
-  (`crs_local.wkt`). Over this field it matches ENU to {info["crs_error_mm"]:.2f} mm.
-{dem}- `layers.gpkg` — layers `field` (polygon), `rows` (planted rows), `plants` (points with
+  (`crs_local.wkt`). Over this field it matches ENU to {info["crs_error_mm"]:.2f} mm. NoData
+  is -9999 in every GeoTIFF here, so a reprojection (`gdalwarp -t_srs EPSG:...`) leaves NoData,
+  not 0 m, outside the terrain.
+{utm}{dem}- `layers.gpkg` — layers `field` (polygon), `rows` (planted rows), `plants` (points with
   species, stage, height, roll/pitch/yaw and ENU x/y/z) and `route` (furrow/headland
-  segments), WGS84 lon/lat (EPSG:4326) with ellipsoidal heights.
+  segments), WGS84 lon/lat (EPSG:4326) with the heights above.
 - `field.geojson`, `rows.geojson`, `plants.geojson`, `route.geojson` — the same layers as
   RFC 7946 GeoJSON, one geometry type per file, so `ogr2ogr` converts each to GeoPackage or
   Shapefile.
@@ -131,7 +144,8 @@ def mesh_readme(scn: Scenario, files: list[str]) -> str:
     return (
         _head(scn, "meshes")
         + f"""Terrain (and, if asked, the plants merged) in the scenario's ENU frame, metres.
-glTF/GLB files are Y-up as the format requires (x east, y up, z south); the others are Z-up.
+glTF/GLB files are Y-up as the format requires (x east, y up, z south); the others are Z-up
+(x east, y north, z up; COLLADA files say so: `<up_axis>Z_UP</up_axis>`).
 
 {listing}
 """

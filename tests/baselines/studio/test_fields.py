@@ -10,7 +10,7 @@ from shapely.geometry import Polygon, mapping
 
 from baselines.studio import fields
 from scenario_gen.errors import InputError
-from scenario_gen.field import read_geojson
+from scenario_gen.fieldfile import read_field
 
 
 def _fc(*polys: Polygon) -> dict[str, object]:
@@ -49,5 +49,5 @@ def test_normalised_geometry_is_what_the_generator_reads(tmp_path: Path) -> None
     geom, text = fields.normalise(p)
     f = tmp_path / "f.geojson"
     f.write_text(text)
-    assert read_geojson(f).equals_exact(geom, 0.0)
+    assert read_field(f).equals_exact(geom, 0.0)
     assert json.loads(text)["features"][0]["geometry"]["type"] == "Polygon"

@@ -14,7 +14,8 @@ from pyproj import Transformer
 
 from scenario_gen import GeoFrame, Scenario, load
 from scenario_gen.export import ExportOptions, export
-from scenario_gen.export.crs import local_crs
+from scenario_gen.export.crs import local_crs, utm_epsg
+from scenario_gen.export.gis import NODATA
 
 from .tools import gdal
 
@@ -137,3 +138,78 @@ def test_geojson_converts_with_ogr2ogr(gis, dem, tmp_path, driver, ext) -> None:
         _run("ogr2ogr", "-f", driver, str(tmp_path / f"{i}_{f.stem}.{ext}"), str(f))
     count = _run("ogrinfo", "-so", "-al", str(tmp_path / f"2_plants.{ext}")).stdout
     assert f"Feature Count: {len(scn.plants)}" in count
+
+
+def test_reprojection_leaves_nodata_not_a_0m_border(gis, tmp_path) -> None:
+    """gdalwarp into the UTM zone: pixels outside the terrain are NoData, none reads 0 m."""
+    import rasterio
+
+    scn, out = gis
+    zone = utm_epsg(scn.geo.lat, scn.geo.lon)
+    assert zone == 32616
+    warped = tmp_path / "utm.tif"
+    _run(gdal("gdalwarp"), "-q", "-t_srs", f"EPSG:{zone}", str(out / "terrain.tif"), str(warped))
+    with rasterio.open(out / "terrain.tif") as ds:
+        assert ds.nodata == NODATA
+        lo, hi = float(ds.read(1).min()), float(ds.read(1).max())
+    with rasterio.open(warped) as ds:
+        assert ds.nodata == NODATA  # GDAL carried the source's NoData over
+        z = ds.read(1)
+    outside = z == NODATA
+    assert 0.01 < outside.mean() < 0.5  # the rotated grid's corners
+    assert ((z[~outside] >= lo - 0.01) & (z[~outside] <= hi + 0.01)).all()  # no fake 0 m
+
+
+def test_utm_copy_has_an_epsg_code(gis) -> None:
+    import rasterio
+    from scipy import ndimage
+
+    scn, out = gis
+    p = scn.plants
+    lat, lon, alt = scn.geo.enu_to_geodetic(p.x, p.y, scn.terrain.height_at(p.x, p.y))
+    with rasterio.open(out / "terrain_utm.tif") as ds:
+        assert ds.crs.to_epsg() == 32616 and ds.nodata == NODATA
+        assert ds.res == pytest.approx((scn.terrain.spacing, scn.terrain.spacing))
+        x, y = Transformer.from_crs("EPSG:4326", "EPSG:32616", always_xy=True).transform(lon, lat)
+        col, row = ~ds.transform @ (x, y)
+        got = ndimage.map_coordinates(ds.read(1).astype(float), [row - 0.5, col - 0.5], order=1)
+    assert np.abs(got - alt).max() < 0.01  # bilinear over bilinear: mm on flat planting
+    assert "EPSG:32616" in (out / "README.md").read_text()
+
+
+def test_utm_zones() -> None:
+    assert utm_epsg(36.5, -84.1) == 32616
+    assert utm_epsg(-33.9, 18.4) == 32734  # Cape Town
+    assert utm_epsg(60.4, 5.3) == 32632  # Bergen: Norway's widened zone 32
+    assert utm_epsg(78.2, 15.6) == 32633  # Svalbard
+    assert utm_epsg(84.5, 0.0) is None  # UPS
+
+
+def test_geopackage_has_a_spatial_index(gis) -> None:
+    import sqlite3
+
+    scn, out = gis
+    con = sqlite3.connect(out / "layers.gpkg")
+    try:
+        ext = con.execute(
+            "SELECT table_name, column_name FROM gpkg_extensions "
+            "WHERE extension_name = 'gpkg_rtree_index'"
+        ).fetchall()
+        assert sorted(ext) == sorted((n, "geom") for n in ("field", "rows", "plants", "route"))
+        for name, _ in ext:
+            n = con.execute(f'SELECT count(*) FROM "{name}"').fetchone()[0]
+            assert con.execute(f'SELECT count(*) FROM "rtree_{name}_geom"').fetchone()[0] == n
+        # each plant's box holds the plant
+        got = con.execute(
+            "SELECT p.fid, r.minx, r.maxx, r.miny, r.maxy FROM plants p "
+            "JOIN rtree_plants_geom r ON r.id = p.fid ORDER BY p.fid"
+        ).fetchall()
+    finally:
+        con.close()
+    b = np.array(got)[:, 1:]
+    lat, lon, _ = scn.geo.enu_to_geodetic(scn.plants.x, scn.plants.y, scn.plants.z)
+    assert ((b[:, 0] <= lon) & (lon <= b[:, 1]) & (b[:, 2] <= lat) & (lat <= b[:, 3])).all()
+    for name in ("field", "rows", "plants", "route"):  # GDAL finds and uses it
+        sql = f"SELECT HasSpatialIndex('{name}', 'geom')"
+        text = _run(gdal("ogrinfo"), "-q", str(out / "layers.gpkg"), "-sql", sql).stdout
+        assert "HasSpatialIndex (Integer) = 1" in text, text

@@ -5,6 +5,7 @@ from __future__ import annotations
 import ast
 import csv
 import math
+import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
@@ -105,6 +106,25 @@ def test_mesh_export_formats(dem, tmp_path) -> None:
         assert mesh.bounds[1, up] == pytest.approx(t.heights.max(), abs=1e-4)
     plants = trimesh.load(out / "plants.ply", force="mesh")
     p = load(src).plants
+    for name in ("terrain.dae", "plants.dae"):
+        _dae_is_z_up(out / name, t.heights.max() if name == "terrain.dae" else None)
     lo, hi = plants.bounds
     assert hi[2] == pytest.approx((p.z + p.height).max(), abs=0.05)
     assert lo[0] > p.x.min() - 1.0 and hi[0] < p.x.max() + 1.0
+
+
+def _dae_is_z_up(path: Path, top: float | None) -> None:
+    """The file declares Z_UP and its vertices are Z-up: a reader that honours the up axis
+    (Blender, assimp) lays the field flat."""
+    import collada
+
+    ns = {"c": "http://www.collada.org/2005/11/COLLADASchema"}
+    root = ET.parse(path).getroot()
+    assert [e.text for e in root.iterfind("c:asset/c:up_axis", ns)] == ["Z_UP"]
+    doc = collada.Collada(str(path))
+    assert doc.assetInfo.upaxis == "Z_UP"
+    v = np.concatenate([g.primitives[0].vertex.reshape(-1, 3) for g in doc.geometries])
+    extent = v.max(axis=0) - v.min(axis=0)
+    assert extent[2] < 0.5 * min(extent[0], extent[1])  # flat along z: z is up
+    if top is not None:
+        assert v[:, 2].max() == pytest.approx(top, abs=1e-4)
