@@ -98,6 +98,7 @@ def pybullet_op(reset_simulation: bool) -> Callable[[int], None]:
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--resets", type=int, default=300)
+    ap.add_argument("--only", default="", help="run the lines whose name contains this")
     n = ap.parse_args().resets
     print(f"# {platform.machine()}, {platform.python_version()}, {n} resets per line")
     print("| what | raw kB/reset | after malloc_trim kB/reset |")
@@ -109,7 +110,10 @@ def main() -> None:
         ("pybullet: URDF reload (removeBody + loadURDF)", pybullet_op(False)),
         ("pybullet: resetSimulation + loadURDF", pybullet_op(True)),
     ]
+    only = ap.parse_args().only
     for name, op in lines:
+        if only and only not in name:
+            continue
         raw, trimmed = growth(op, n)
         print(f"| {name} | {raw:.1f} | {trimmed:.1f} |", flush=True)
 
