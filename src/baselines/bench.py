@@ -40,6 +40,11 @@ def _record(ep: Episode, suite_name: str, scenario: str, env: Any = None) -> dic
         "steps": ep.steps,
         "termination": ep.termination,
         "seconds": round(ep.seconds, 3),
+        **(
+            {"frames": ep.frames, "render_seconds": round(ep.render_seconds, 3)}
+            if ep.frames
+            else {}
+        ),
         **ep.conditions,
         **({"geometry": geometry(env.unwrapped.scenario)} if env is not None else {}),
         **(
@@ -117,25 +122,28 @@ def run(
     trust_checkpoint: bool = False,
     max_steps: int | None = None,
 ) -> list[dict[str, Any]]:
-    """Episodes of one policy: metrics.json, a trajectory figure per episode, a video."""
+    """Episodes of one policy: metrics.json, a trajectory figure per episode, with ``video``
+    a WebM of the first (a progress bar per frame; its time is the record's
+    ``render_seconds``, not part of ``seconds``)."""
     if episodes < 1:
         raise InputError("--episodes", episodes, "allowed: an integer >= 1")
     check_policy_spec(policy)
+    if video:
+        check_video()
     check_output_dir(out, force)
     # everything is checked before --out exists
     env = _make_env(env_id, scenario, render=video, max_steps=max_steps)
     records = []
     try:
         pi = _policy(policy, env, trust_checkpoint)
+        name = scenario_label(env, scenario)
         with output_dir(out, force) as tmp:
             for k in tqdm(range(episodes), desc=f"{policy} on {env_id}", unit="ep"):
-                writer = VideoWriter(tmp / f"episode_{k:03d}.webm") if video and k == 0 else None
-                try:
-                    ep = run_episode(env, pi, seed + k, policy, writer)
-                finally:
-                    if writer is not None:
-                        writer.close()
-                records.append(_record(ep, "run", scenario or "default"))
+                if video and k == 0:
+                    ep = _video_episode(env, pi, seed, policy, tmp / "episode_000.webm")
+                else:
+                    ep = run_episode(env, pi, seed + k, policy)
+                records.append(_record(ep, "run", name))
                 trajectory_figure(
                     ep, tmp / f"trajectory_{k:03d}.png", f"{policy} · {env_id} · seed {seed + k}"
                 )
@@ -143,6 +151,42 @@ def run(
     finally:
         env.close()
     return records
+
+
+def check_video() -> None:
+    """``--video`` writes with PyAV (libvpx): a clear error before anything starts."""
+    try:
+        import av  # noqa: F401
+    except ImportError as exc:
+        raise InputError(
+            "--video", True, "needs PyAV (pip install av), which writes the WebM"
+        ) from exc
+
+
+def _video_episode(env: Any, pi: Any, seed: int, policy: str, path: Path) -> Episode:
+    limit = getattr(env.spec, "max_episode_steps", None)
+    with tqdm(
+        total=None if limit is None else limit + 1,
+        desc="video",
+        unit="frame",
+        leave=False,
+        position=1,
+    ) as bar:
+        writer = VideoWriter(path, progress=bar)
+        try:
+            ep = run_episode(env, pi, seed, policy, writer)
+        finally:
+            writer.close()
+        bar.total = bar.n  # the episode ended before its step limit
+        bar.refresh()
+    return ep
+
+
+def scenario_label(env: Any, scenario: str | None) -> str:
+    """What a record calls the field: the scenario's name (its preset or folder)."""
+    if scenario is not None:
+        return scenario
+    return str(env.unwrapped.scenario.spec.name)
 
 
 def bench(

@@ -7,6 +7,7 @@ import pytest
 import yaml
 
 from baselines.cli import main
+from baselines.episodes import VIDEO_BITRATE
 from baselines.report import METRICS
 
 
@@ -175,7 +176,9 @@ def test_smoke_bench_writes_results_and_table(tmp_path: Path) -> None:
     assert (out / "benchmark.png").is_file() and (out / "traj_tiny_dwb-furrow.png").is_file()
 
 
-def test_run_writes_metrics_plot_and_video(tmp_path: Path) -> None:
+def test_run_writes_metrics_plot_and_video(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     out = tmp_path / "run"
     assert (
         main(
@@ -193,7 +196,7 @@ def test_run_writes_metrics_plot_and_video(tmp_path: Path) -> None:
                 "--scenario",
                 "early-corn",
                 "--max-steps",
-                "40",  # every frame is ray-cast at 640x480: a whole episode is minutes
+                "40",
             ]
         )
         == 0
@@ -201,18 +204,54 @@ def test_run_writes_metrics_plot_and_video(tmp_path: Path) -> None:
     records = json.loads((out / "metrics.json").read_text())
     assert len(records) == 1 and records[0]["policy"] == "rpp"
     assert records[0]["steps"] == 40 and records[0]["termination"] == "time_limit"
+    # the frames' time is reported apart from the episode's own
+    assert records[0]["frames"] == 41 and records[0]["render_seconds"] > 0
     assert (out / "trajectory_000.png").is_file()
     video = out / "episode_000.webm"
     assert video.read_bytes()[:4] == b"\x1a\x45\xdf\xa3"  # EBML: a Matroska/WebM file
+    # VP8 at VIDEO_BITRATE: about 2 s of video, 0.3 MB (OpenCV's writer made 3 MB of it)
+    assert video.stat().st_size < 1.5 * VIDEO_BITRATE / 8 * 41 / 20
     import cv2
 
     cap = cv2.VideoCapture(str(video))
     try:
         assert cap.get(cv2.CAP_PROP_FRAME_WIDTH) == 640
+        assert cap.get(cv2.CAP_PROP_FRAME_HEIGHT) == 480
         assert int(cap.get(cv2.CAP_PROP_FOURCC)).to_bytes(4, "little") == b"VP80"
-        assert cap.read()[0]
+        frames = 0
+        while cap.read()[0]:
+            frames += 1
+        assert frames == 41  # the reset's state and each step's
     finally:
         cap.release()
+    err = capsys.readouterr().err
+    assert "41/41" in err and "frame" in err  # the video's progress, frame by frame
+
+
+def test_episode_seconds_leave_the_video_out(monkeypatch: pytest.MonkeyPatch) -> None:
+    """``seconds`` is the episode's own time: what its frames take is ``render_seconds``."""
+    import baselines.episodes as episodes
+    from policies import make_policy
+
+    from ..agrinav_gym.helpers import make
+
+    clock = [0.0]
+    monkeypatch.setattr(episodes.time, "perf_counter", lambda: clock[0])
+
+    class SlowVideo(episodes.VideoWriter):
+        def __call__(self, env: object) -> float:
+            clock[0] += 10.0  # ten seconds a frame
+            self.frames += 1
+            return 10.0
+
+    env = make(max_episode_steps=5)
+    try:
+        pi = make_policy("blind", env)
+        ep = episodes.run_episode(env, pi, 0, "blind", SlowVideo(Path("unused.webm")))
+    finally:
+        env.close()
+    assert ep.frames == 6 and ep.render_seconds == 60.0
+    assert ep.seconds == 0.0  # the clock moved only in the frames
 
 
 @pytest.mark.parametrize(
