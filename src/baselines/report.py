@@ -127,6 +127,42 @@ def table(records: list[dict[str, Any]], suite_name: str, command: str) -> str:
     return "\n".join(lines)
 
 
+#: ``run_table``'s cross-track columns: the headline, then the paper's
+RUN_CTE = ("path_rmse", "rmse", "mae", "max")
+
+
+def run_table(records: list[dict[str, Any]]) -> str:
+    """``agrinav run``'s summary, a plain-text table: one row per policy with its episodes,
+    how many finished, the mean cross-track errors of those (m), mean completion and crops hit
+    of all, and the episodes' own seconds summed (with a video, its frames' seconds apart)."""
+    head = ["policy", "episodes", "finished", *RUN_CTE, "completion %", "crops hit", "seconds"]
+    video = any("render_seconds" in r for r in records)
+    if video:
+        head.append("video seconds")
+    rows = [head]
+    for p in dict.fromkeys(r["policy"] for r in records):
+        mine = [r for r in records if r["policy"] == p]
+        done = [r for r in mine if finished(r)]
+
+        def mean(key: str, over: list[dict[str, Any]], fmt: str = ".3f") -> str:
+            v = [float(r[key]) for r in over if r.get(key) is not None]
+            return format(statistics.fmean(v), fmt) if v else "—"
+
+        row = [p, str(len(mine)), f"{len(done)}/{len(mine)}", *(mean(m, done) for m in RUN_CTE)]
+        row += [mean("completion", mine, ".1f"), mean("crops_hit", mine, ".3g")]
+        row.append(f"{sum(float(r.get('seconds', 0.0)) for r in mine):.1f}")
+        if video:
+            row.append(f"{sum(float(r.get('render_seconds', 0.0)) for r in mine):.1f}")
+        rows.append(row)
+    widths = [max(len(r[i]) for r in rows) for i in range(len(head))]
+    lines = ["  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip() for r in rows]
+    lines.append(
+        "cross-track errors (m): means over the finished episodes (— none finished); "
+        "completion, crops hit: over all"
+    )
+    return "\n".join(lines)
+
+
 CONDITIONS = ("localisation", "camera", "speed_limit", "controller")
 GEOMETRY = (
     "row_direction_deg",

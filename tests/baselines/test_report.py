@@ -7,7 +7,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from baselines.report import METRICS, mean_ci, table
+from baselines.report import METRICS, mean_ci, run_table, table
 
 
 def _rec(policy: str, rmse: float, termination: str, completion: float) -> dict[str, Any]:
@@ -58,3 +58,22 @@ def test_a_failed_episode_is_a_failure_in_every_cross_track_column() -> None:
 @pytest.mark.parametrize("metric", METRICS)
 def test_every_metric_is_a_column(metric: str) -> None:
     assert f" {metric} |" in table([_rec("p", 0.1, "success", 100.0)], "t", "")
+
+
+def test_run_prints_a_short_table_not_records() -> None:
+    """``agrinav run``'s summary: a row per policy, finished episodes counted, cross-track
+    errors of the finished ones only, and the episodes' own seconds apart from the video's."""
+    recs = [
+        {**_rec("rpp", 0.02, "success", 100.0), "seconds": 1.5, "render_seconds": 30.0},
+        {**_rec("rpp", 0.5, "corridor", 20.0), "seconds": 0.5},
+    ]
+    lines = run_table(recs).splitlines()
+    head = lines[0].split()
+    assert head[:7] == ["policy", "episodes", "finished", "path_rmse", "rmse", "mae", "max"]
+    assert lines[0].rstrip().endswith("seconds  video seconds")
+    row = lines[1].split()
+    assert row[:4] == ["rpp", "2", "1/2", "0.020"]  # the corridor exit's 0.5 is not averaged in
+    assert row[7] == "60.0" and row[-2:] == ["2.0", "30.0"]  # completion over both; seconds
+    assert "{" not in run_table(recs)
+    plain = run_table([{**_rec("dwb", 0.1, "progress", 5.0), "seconds": 2.0}])
+    assert "video" not in plain and plain.splitlines()[1].split()[3] == "—"

@@ -224,8 +224,13 @@ def test_run_writes_metrics_plot_and_video(
         assert frames == 41  # the reset's state and each step's
     finally:
         cap.release()
-    err = capsys.readouterr().err
-    assert "41/41" in err and "frame" in err  # the video's progress, frame by frame
+    printed = capsys.readouterr()
+    assert "41/41" in printed.err and "frame" in printed.err  # the video's progress
+    # a table, not the records: the policy's row, then the folder written
+    lines = printed.out.splitlines()
+    assert lines[0].split()[:3] == ["policy", "episodes", "finished"] and "{" not in printed.out
+    assert lines[1].split()[:3] == ["rpp", "1", "0/1"]  # truncated at 40 steps: not finished
+    assert lines[-1].startswith(f"wrote {out.resolve()}")
 
 
 def test_episode_seconds_leave_the_video_out(monkeypatch: pytest.MonkeyPatch) -> None:
