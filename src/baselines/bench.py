@@ -232,12 +232,11 @@ def bench(
                         run = run_with_interventions if case.interventions else run_episode
                         ep = run(env, pi, EVAL_SEED + CASE_SEEDS * ci + k, name)
                         records.append(_record(ep, suite_name, case.group, env))
-                        if k == 0:
-                            trajectory_figure(
-                                ep,
-                                tmp / f"traj_{_slug(case.group)}_{_slug(name)}.png",
-                                f"{name} · {suite_name} · {case.group}",
-                            )
+                        trajectory_figure(  # every episode: the second seed is a field too
+                            ep,
+                            tmp / trajectory_name(case.group, name, k),
+                            f"{name} · {suite_name} · {case.group} · seed {ep.seed}",
+                        )
                         bar.update(1)
                         bar.set_postfix(case=case.group, policy=name)
             finally:
@@ -246,6 +245,11 @@ def bench(
         (tmp / "benchmark.md").write_text(table(records, suite_name, command))
         bar_chart(records, tmp / "benchmark.png", suite_name)
     return records
+
+
+def trajectory_name(group: str, policy: str, k: int) -> str:
+    """The trajectory figure of a suite's case, policy and k-th seed."""
+    return f"traj_{_slug(group)}_{_slug(policy)}_{k:03d}.png"
 
 
 def _slug(s: str) -> str:

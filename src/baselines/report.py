@@ -65,8 +65,35 @@ def mean_ci(values: Sequence[Any]) -> tuple[float, float, float] | None:
 
 
 def _cell(values: Sequence[Any]) -> str:
+    """Mean [95 % interval]; one sample is its value alone (no interval to give)."""
     ci = mean_ci(values)
-    return "—" if ci is None else f"{ci[0]:.3f} [{ci[1]:.3f}, {ci[2]:.3f}]"
+    if ci is None:
+        return "—"
+    if _finite(values) < 2:
+        return f"{ci[0]:.3f}"
+    return f"{ci[0]:.3f} [{ci[1]:.3f}, {ci[2]:.3f}]"
+
+
+def _finite(values: Sequence[Any]) -> int:
+    return sum(1 for x in values if x is not None and math.isfinite(float(x)))
+
+
+def mean_pm(values: Sequence[Any], digits: int = 3) -> str:
+    """ "mean ± standard deviation" of the finite values; the mean alone for one, "—" for none."""
+    v = [float(x) for x in values if x is not None and math.isfinite(float(x))]
+    if not v:
+        return "—"
+    if len(v) < 2:
+        return f"{v[0]:.{digits}f}"
+    return f"{statistics.fmean(v):.{digits}f} ± {statistics.pstdev(v):.{digits}f}"
+
+
+def mean_err(values: Sequence[float]) -> tuple[float, float | None]:
+    """A bar's mean and its error bar (the standard deviation), None below two values."""
+    v = [float(x) for x in values]
+    if not v:
+        return math.nan, None
+    return statistics.fmean(v), (statistics.pstdev(v) if len(v) >= 2 else None)
 
 
 def finished(record: dict[str, Any]) -> bool:
@@ -271,8 +298,9 @@ def failures(records: list[dict[str, Any]], groups: list[str], pols: list[str]) 
 
 
 def bar_chart(records: list[dict[str, Any]], path: Path, suite_name: str) -> None:
-    """Mean ± std per scenario group and policy: in-furrow and headland cross-track error (the
-    paper's split), max deviation, completion and crops hit."""
+    """Mean ± std per scenario group and policy (error bars where a bar has two values or
+    more): in-furrow and headland cross-track error (the paper's split), max deviation,
+    completion and crops hit."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -302,10 +330,12 @@ def bar_chart(records: list[dict[str, Any]], path: Path, suite_name: str) -> Non
                     for r in records
                     if r["scenario"] == g and r["policy"] == p and r[metric] is not None
                 ]
-                vals.append(np.mean(v) if v else np.nan)
-                errs.append(np.std(v) if v else 0.0)
+                m, e = mean_err(v)
+                vals.append(m)
+                errs.append(np.nan if e is None else e)  # no bar drawn for one value
+            yerr = errs if np.isfinite(errs).any() else None
             ax.bar(
-                x + (i - (len(pols) - 1) / 2) * width, vals, width, yerr=errs, label=p, capsize=3
+                x + (i - (len(pols) - 1) / 2) * width, vals, width, yerr=yerr, label=p, capsize=3
             )
         ax.set_xticks(
             x,
@@ -322,7 +352,8 @@ def bar_chart(records: list[dict[str, Any]], path: Path, suite_name: str) -> Non
         ncols=len(pols),
         fontsize=8,
     )
-    fig.suptitle(f"{suite_name} suite (mean ± std over seeds)")
+    many = max(Counter((r["scenario"], r["policy"]) for r in records).values(), default=0) > 1
+    fig.suptitle(f"{suite_name} suite (" + ("mean ± std over seeds)" if many else "one seed)"))
     fig.savefig(path, dpi=100)
 
 

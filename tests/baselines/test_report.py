@@ -7,7 +7,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from baselines.report import METRICS, mean_ci, run_table, table
+from baselines.report import METRICS, mean_ci, mean_err, mean_pm, run_table, table
 
 
 def _rec(policy: str, rmse: float, termination: str, completion: float) -> dict[str, Any]:
@@ -49,7 +49,7 @@ def test_a_failed_episode_is_a_failure_in_every_cross_track_column() -> None:
     row = next(line for line in md.splitlines() if line.startswith("| field | stalls |"))
     cells = [c.strip() for c in row.strip("|").split("|")]
     assert cells[2] == "1/2"
-    assert cells[3] == "0.010 [0.010, 0.010]"  # path_rmse of the finished episode alone
+    assert cells[3] == "0.010"  # path_rmse of the finished episode alone: no interval of one
     assert cells[3 + METRICS.index("completion")].startswith("55.000")  # over both episodes
     never = next(line for line in md.splitlines() if line.startswith("| field | never |"))
     assert never.split("|")[3].strip() == "0/1" and never.split("|")[4].strip() == "—"
@@ -77,3 +77,16 @@ def test_run_prints_a_short_table_not_records() -> None:
     assert "{" not in run_table(recs)
     plain = run_table([{**_rec("dwb", 0.1, "progress", 5.0), "seconds": 2.0}])
     assert "video" not in plain and plain.splitlines()[1].split()[3] == "—"
+
+
+def test_a_spread_is_shown_only_where_there_are_two_samples() -> None:
+    """One seed has no spread to show: "± 0.000" and "[x, x]" would claim a certainty."""
+    assert mean_pm([0.2]) == "0.200" and mean_pm([None, 0.2, float("nan")]) == "0.200"
+    assert mean_pm([0.1, 0.3]) == "0.200 ± 0.100" and mean_pm([]) == "—"
+    assert mean_err([0.5]) == (0.5, None) and mean_err([0.1, 0.3])[1] == pytest.approx(0.1)
+    one = table([_rec("p", 0.1, "success", 100.0)], "t", "")
+    row = next(line for line in one.splitlines() if line.startswith("| field | p |"))
+    assert "[" not in row and "±" not in row
+    two = table([_rec("p", 0.1, "success", 100.0), _rec("p", 0.2, "success", 100.0)], "t", "")
+    row = next(line for line in two.splitlines() if line.startswith("| field | p |"))
+    assert "0.150 [" in row

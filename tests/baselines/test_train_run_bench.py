@@ -3,6 +3,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 
@@ -173,7 +174,12 @@ def test_smoke_bench_writes_results_and_table(tmp_path: Path) -> None:
     assert "agrinav bench --suite smoke" in md  # how to reproduce
     for m in METRICS:
         assert m in md
-    assert (out / "benchmark.png").is_file() and (out / "traj_tiny_dwb-furrow.png").is_file()
+    assert (out / "benchmark.png").is_file()
+    for policy in ("dwb-furrow", "rpp", "depth"):  # every episode drawn, the second seed too
+        assert sorted(p.name for p in out.glob(f"traj_tiny_{policy}_*.png")) == [
+            f"traj_tiny_{policy}_000.png",
+            f"traj_tiny_{policy}_001.png",
+        ]
 
 
 def test_run_writes_metrics_plot_and_video(
@@ -424,3 +430,39 @@ def test_a_second_train_on_the_same_out_is_refused(
         assert main([*argv, "--out", str(out)]) == 2
     assert "being written by another run" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_demo_saves_and_prints_the_fields_it_drives(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The demo's printed scenarios are the paper suite's fields, as its envs generate them."""
+    import baselines.bench
+    from baselines.bench import _make_env
+    from baselines.demo import demo
+    from baselines.suites import suite
+    from scenario_gen import load
+
+    ran: list[tuple[str, list[str], int]] = []
+
+    def fake_bench(name: str, policies: list[str], seeds: int, out: Path, *a: object, **k: object):  # type: ignore[no-untyped-def]
+        ran.append((name, list(policies), seeds))
+        out.mkdir(parents=True)
+        (out / "benchmark.md").write_text("# table\n")
+        return []
+
+    monkeypatch.setattr(baselines.bench, "bench", fake_bench)
+    demo(tmp_path / "demo", seeds=1)
+    printed = capsys.readouterr().out
+    assert ran and ran[0][0] == "paper" and ran[0][2] == 1
+    for case in suite("paper"):
+        folder = tmp_path / "demo" / "scenarios" / case.group
+        assert f"scenario {case.group}: {folder}" in printed
+        env = _make_env(case)
+        try:
+            driven = env.unwrapped.scenario
+        finally:
+            env.close()
+        saved = load(folder)  # the same spec and seed: the same field, to the files' precision
+        assert (saved.spec, saved.seed) == (driven.spec, driven.seed)
+        np.testing.assert_allclose(saved.plants.x, driven.plants.x, atol=1e-5)
+        np.testing.assert_allclose(saved.route.xy, driven.route.xy, atol=1e-5)
