@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import warnings
 from collections import Counter
 from collections.abc import Sequence
 from pathlib import Path
@@ -84,6 +85,7 @@ def _make_env(
     import gymnasium as gym
 
     import agrinav_gym
+    from agrinav_gym.scenarios import FixedFieldWarning
 
     if isinstance(case_or_id, Case):
         kw = case_or_id.env_kwargs()
@@ -100,7 +102,11 @@ def _make_env(
     agrinav_gym.check_env_id(env_id, "--env")
     if render:
         kw["render_mode"] = "rgb_array"
-    return gym.make(env_id, **kw)
+    if not isinstance(case_or_id, Case):
+        return gym.make(env_id, **kw)
+    with warnings.catch_warnings():  # a suite's fields are its own, fixed on purpose
+        warnings.simplefilter("ignore", FixedFieldWarning)
+        return gym.make(env_id, **kw)
 
 
 def _policy(spec: str, env: Any, trust: bool) -> Any:
