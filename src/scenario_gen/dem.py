@@ -46,6 +46,47 @@ EMBEDDED_CREDIT = (
     "USGS 3 arc-second DEM around the Jacksboro fault, Tennessee (public domain), "
     "as shipped in matplotlib's sample data"
 )
+#: The embedded DEM's heights are orthometric: USGS elevation data of the conterminous US
+#: (3DEP, formerly the National Elevation Dataset) are referenced to NAVD88.
+EMBEDDED_VERTICAL_DATUM = "NAVD88"
+
+
+def vertical_datum(crs_text: str) -> str | None:
+    """The vertical datum a CRS names for its heights (a compound or vertical CRS in any text
+    pyproj reads), None where it names none."""
+    try:
+        crs = CRS.from_user_input(crs_text)
+    except Exception:  # pyproj's CRSError, or text that is no CRS at all
+        return None
+    for sub in crs.sub_crs_list or [crs]:
+        if sub.is_vertical:
+            return sub.datum.name if sub.datum is not None else sub.name
+    return None
+
+
+def _geographic_3d(crs_text: str) -> bool:
+    try:
+        crs = CRS.from_user_input(crs_text)
+    except Exception:  # pyproj's CRSError, or text that is no CRS at all
+        return False
+    return bool(crs.is_geographic and len(crs.axis_info) == 3)
+
+
+def height_reference(source: str, info: dict[str, Any]) -> str:
+    """What a scenario's heights (its terrain, the plants' z and alt) are, in words. A DEM's
+    are orthometric, above the geoid, as DEMs store them; the ENU frame takes them as if they
+    were ellipsoidal (``geodesy``: over a field the geoid's offset is one constant)."""
+    if source == "embedded":
+        return f"orthometric, {EMBEDDED_VERTICAL_DATUM} (the embedded USGS DEM's vertical datum)"
+    if source == "dem":
+        text = str(info.get("dem_crs", ""))
+        datum = vertical_datum(text)
+        if datum is not None:
+            return f"orthometric, {datum} (the DEM's vertical datum)"
+        if _geographic_3d(text):
+            return "ellipsoidal, as the DEM's 3-D geographic CRS says"
+        return "orthometric as the DEM stores them (its CRS names no vertical datum)"
+    return "ellipsoidal (WGS84): terrain.datum's altitude plus the terrain's own relief"
 
 
 @dataclass(frozen=True)

@@ -5,8 +5,8 @@ One geometry type per layer and file (``field.geojson``, ``route.geojson``,
 lines and points cannot be converted to a Shapefile. Every feature carries a unique top-level
 ``id`` (its index in the file), and plant numbers live in the ``plant_id`` property, so GDAL
 never takes a repeated property for its feature id (``ogr2ogr -f GPKG`` refused the old file).
-Coordinates are lon, lat, ellipsoidal height; ``decimals=None`` keeps full precision (for the
-GeoPackage writer), 8 decimals are ≈1 mm.
+Coordinates are lon, lat and the scenario's height (``dem.height_reference``: orthometric from
+a DEM); ``decimals=None`` keeps full precision (for the GeoPackage writer), 8 decimals are ≈1 mm.
 """
 
 from __future__ import annotations

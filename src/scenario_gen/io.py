@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from .atomic import output_dir
+from .dem import height_reference
 from .errors import InputError
 from .geojson import scenario_layers
 from .model import Scenario
@@ -183,6 +184,7 @@ def metadata_dict(scn: Scenario) -> dict[str, Any]:
         "datum": scn.geo.to_dict(),
         "crs": {
             "geodetic": "EPSG:4979 (WGS84 lat, lon, ellipsoidal height)",
+            "heights": height_reference(scn.spec.terrain.source, scn.info),
             "local": "ENU tangent plane at the datum via geocentric EPSG:4978; x east, y north, "
             "z up, metres",
         },

@@ -22,6 +22,7 @@ from pyproj import CRS, Transformer
 from pyproj.crs import GeographicCRS, ProjectedCRS
 from pyproj.crs.coordinate_operation import TransverseMercatorConversion
 
+from ..dem import height_reference
 from ..geodesy import GeoFrame
 from ..geojson import collection, field_features, plant_features, route_features, row_features
 from ..model import Scenario
@@ -69,8 +70,14 @@ def enu_crs_error(scn: Scenario, crs: CRS, samples: int = 41) -> float:
     return float(np.hypot(px - gx, py - gy).max())
 
 
+def heights(scn: Scenario) -> str:
+    """What the scenario's heights are, in words (orthometric from a DEM, with its datum)."""
+    return height_reference(scn.spec.terrain.source, scn.info)
+
+
 def terrain_altitudes(scn: Scenario) -> FloatArray:
-    """Ellipsoidal height of every terrain node (rows south to north, like ``heights``)."""
+    """The height of every terrain node (rows south to north, like ``heights``), as the
+    scenario's heights are (``dem.height_reference``: a DEM's are orthometric)."""
     t = scn.terrain
     gx, gy = np.meshgrid(t.xs, t.ys)
     return np.asarray(scn.geo.enu_to_geodetic(gx, gy, t.heights)[2])
@@ -103,7 +110,7 @@ def write_geotiff(scn: Scenario, path: Path, crs: CRS) -> None:
         blockysize=256,
     ) as ds:
         ds.write(alt, 1)
-        ds.set_band_description(1, "elevation (m, ellipsoidal as in the scenario)")
+        ds.set_band_description(1, f"elevation (m, {heights(scn)})")
         ds.update_tags(
             AGRINAV_SCENARIO=scn.spec.name,
             AGRINAV_SEED=str(scn.seed),

@@ -6,6 +6,7 @@ from typing import Any
 
 from ..model import Scenario
 from .gazebo import GazeboSummary
+from .gis import heights
 
 
 def _head(scn: Scenario, what: str) -> str:
@@ -110,12 +111,12 @@ def gis_readme(scn: Scenario, info: dict[str, Any]) -> str:
         _head(scn, "GIS layers")
         + f"""## Files
 
-- `terrain.tif` — elevation (float32, metres, ellipsoidal like the scenario), one pixel per
+- `terrain.tif` — elevation (float32, metres, {heights(scn)}), one pixel per
   terrain node, in a local CRS whose x/y are the scenario's ENU x/y: {info["crs_name"]}
   (`crs_local.wkt`). Over this field it matches ENU to {info["crs_error_mm"]:.2f} mm.
 {dem}- `layers.gpkg` — layers `field` (polygon), `rows` (planted rows), `plants` (points with
   species, stage, height, roll/pitch/yaw and ENU x/y/z) and `route` (furrow/headland
-  segments), WGS84 lon/lat (EPSG:4326) with ellipsoidal heights.
+  segments), WGS84 lon/lat (EPSG:4326) with the same heights.
 - `field.geojson`, `rows.geojson`, `plants.geojson`, `route.geojson` — the same layers as
   RFC 7946 GeoJSON, one geometry type per file, so `ogr2ogr` converts each to GeoPackage or
   Shapefile.

@@ -137,3 +137,26 @@ def test_geojson_converts_with_ogr2ogr(gis, dem, tmp_path, driver, ext) -> None:
         _run("ogr2ogr", "-f", driver, str(tmp_path / f"{i}_{f.stem}.{ext}"), str(f))
     count = _run("ogrinfo", "-so", "-al", str(tmp_path / f"2_plants.{ext}")).stdout
     assert f"Feature Count: {len(scn.plants)}" in count
+
+
+def test_heights_are_labelled_as_what_they_are(gis, hill) -> None:
+    """A DEM's heights are orthometric (the embedded USGS DEM's: NAVD88), not ellipsoidal: so
+    say the GeoTIFF's band, the export's README and scenario.json; a plane's are ellipsoidal."""
+    import rasterio
+
+    from scenario_gen.dem import height_reference
+
+    _, out = gis
+    with rasterio.open(out / "terrain.tif") as ds:
+        band = ds.descriptions[0]
+    assert band == "elevation (m, orthometric, NAVD88 (the embedded USGS DEM's vertical datum))"
+    assert "ellipsoidal" not in (out / "README.md").read_text()
+    assert "orthometric, NAVD88" in (out / "README.md").read_text()
+    _, hill_dir = hill
+    heights = json.loads((hill_dir / "scenario.json").read_text())["crs"]["heights"]
+    assert heights.startswith("ellipsoidal (WGS84)")
+    compound = {"dem_crs": "EPSG:26916+5703"}  # UTM 16N + NAVD88 height, as a GeoTIFF may say
+    assert height_reference("dem", compound).startswith(
+        "orthometric, North American Vertical Datum 1988"
+    )
+    assert "names no vertical datum" in height_reference("dem", {"dem_crs": "EPSG:4326"})
