@@ -466,3 +466,15 @@ def test_demo_saves_and_prints_the_fields_it_drives(
         assert (saved.spec, saved.seed) == (driven.spec, driven.seed)
         np.testing.assert_allclose(saved.plants.x, driven.plants.x, atol=1e-5)
         np.testing.assert_allclose(saved.route.xy, driven.route.xy, atol=1e-5)
+
+
+def test_video_without_pyav_is_one_line_before_anything_runs(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.setitem(sys.modules, "av", None)  # import av raises ImportError
+    out = tmp_path / "run"
+    args = ["run", "--policy", "rpp", "--out", str(out), "--video"]
+    assert main(args) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "--video" in err and "pip install av" in err, err
+    assert not out.exists()
