@@ -197,9 +197,9 @@ VIDEO_OPTIONS = {"deadline": "good", "cpu-used": "5"}
 
 class VideoWriter:
     """A VP8 WebM (libvpx through PyAV) of the env's ``rgb_array`` view: plays in browsers and
-    README previews. ``bitrate`` in bit/s; each call
-    renders and encodes one frame, moves ``progress`` (a tqdm bar) on by one and returns the
-    seconds it took. Odd frame sizes lose their last column or row (4:2:0 chroma)."""
+    README previews. ``bitrate`` in bit/s. Each call renders and encodes one frame, moves
+    ``progress`` (a tqdm bar) on by one and returns the seconds it took (``seconds`` sums
+    them). Odd frame sizes lose their last column or row (4:2:0 chroma)."""
 
     def __init__(
         self, path: Path, fps: int = 20, bitrate: int = VIDEO_BITRATE, progress: Any = None
@@ -237,7 +237,8 @@ class VideoWriter:
             self._stream.pix_fmt = "yuv420p"
             self._stream.bit_rate = self.bitrate
         elif (h, w) != (self._stream.height, self._stream.width):
-            raise ValueError(f"frame {frame.shape} differs from the video's {h} x {w}")
+            size = f"{self._stream.height} x {self._stream.width}"
+            raise ValueError(f"frame {frame.shape} differs from the video's {size}")
         vf = av.VideoFrame.from_ndarray(np.ascontiguousarray(frame[:h, :w, :3]), format="rgb24")
         vf.pts = self.frames
         self._mux(self._stream.encode(vf))

@@ -79,7 +79,8 @@ def _finite(values: Sequence[Any]) -> int:
 
 
 def mean_pm(values: Sequence[Any], digits: int = 3) -> str:
-    """ "mean ± standard deviation" of the finite values; the mean alone for one, "—" for none."""
+    """The finite values' mean ± standard deviation; the mean alone for one value, "—" for
+    none (a spread of one sample, "± 0.000", would claim a certainty there is not)."""
     v = [float(x) for x in values if x is not None and math.isfinite(float(x))]
     if not v:
         return "—"
