@@ -478,3 +478,20 @@ def test_video_without_pyav_is_one_line_before_anything_runs(
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "--video" in err and "pip install av" in err, err
     assert not out.exists()
+
+
+def test_run_on_one_field_notes_it_in_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import warnings
+
+    args = ["run", "--env", "AgriNav/FurrowFollow-v2", "--policy", "blind", "--max-steps", "5"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("default")  # as outside the tests
+        assert main([*args, "--episodes", "2", "--out", str(tmp_path / "run")]) == 0
+    notes = [
+        line
+        for line in capsys.readouterr().err.splitlines()
+        if "every reset drives one field" in line
+    ]
+    assert len(notes) == 1 and notes[0].startswith("agrinav run: note: FurrowFollowEnv: "), notes
