@@ -23,6 +23,7 @@ import platform
 import statistics
 import tempfile
 import time
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -30,6 +31,7 @@ import gymnasium as gym
 import numpy as np
 
 import agrinav_gym  # noqa: F401  (registers the envs)
+from agrinav_gym.scenarios import FixedFieldWarning
 from agrinav_gym.sensors import native
 from baselines.episodes import VIDEO_BITRATE, VideoWriter, run_episode
 from policies import make_policy
@@ -93,9 +95,11 @@ def main() -> None:
     ap.add_argument("--episode-steps", type=int, default=200, help="steps of the end-to-end run")
     args = ap.parse_args()
 
+    warnings.simplefilter("ignore", FixedFieldWarning)  # one field on purpose: the same poses
     py = platform.python_version()
     print(f"machine: {platform.platform()}, {cpu_model()}, {os.cpu_count()} cores, Python {py}")
     print(f"compiled kernels: {'built' if native.available() else 'NOT BUILT (reference paths)'}")
+    print(f"load average at start: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     env = gym.make(ENV, render_mode="rgb_array", observations=OBS)
     try:
         every = 15
