@@ -190,8 +190,8 @@ def trajectory_figure(ep: Episode, path: Path, title: str) -> None:
 #: writer, which takes no bitrate, made ≈ 12 Mbit/s of it: 90 MB a minute). On a FieldRoute
 #: drive doubling it gains < 1 dB PSNR.
 VIDEO_BITRATE = 1_200_000
-#: libvpx's speed settings: ≈ 5 ms a 640 × 480 frame where its defaults take ≈ 40 ms, for the
-#: same PSNR at this bitrate
+#: libvpx's speed settings: ≈ 5-7 ms a 640 × 480 frame where its defaults take ≈ 40 ms, for
+#: the same PSNR at this bitrate
 VIDEO_OPTIONS = {"deadline": "good", "cpu-used": "5"}
 
 
@@ -236,6 +236,9 @@ class VideoWriter:
             self._stream.width, self._stream.height = w, h
             self._stream.pix_fmt = "yuv420p"
             self._stream.bit_rate = self.bitrate
+            # one thread: libvpx's own threads cost ≈ 7× the CPU at 640 × 480 (≈ 50 ms a frame
+            # against 7 ms measured on 2 busy cores), and the renderer has the cores
+            self._stream.codec_context.thread_count = 1
         elif (h, w) != (self._stream.height, self._stream.width):
             size = f"{self._stream.height} x {self._stream.width}"
             raise ValueError(f"frame {frame.shape} differs from the video's {size}")
