@@ -13,6 +13,7 @@ import dataclasses
 import math
 import os
 import sys
+import warnings
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -36,7 +37,7 @@ from .render.mesh_scene import SceneCache
 from .render.proxy_plants import PlantField
 from .robot import robot_interface
 from .routes import RoutePath, Tracker
-from .scenarios import ScenarioSource
+from .scenarios import FixedFieldWarning, ScenarioSource
 from .sensors.camera import FieldView
 from .sensors.fixmode import Canopy
 from .sensors.suite import SensorSuite
@@ -45,6 +46,21 @@ from .sim.world import World
 from .tasks import TASKS
 
 Obs = dict[str, NDArray[np.float32]]
+
+
+def _caller_level() -> int:
+    """``warnings.warn``'s stacklevel, from the function calling this one, of the first frame
+    outside agrinav_gym and gymnasium: the line that made the env (``gym.make`` or the class)."""
+    frame = sys._getframe(1)
+    level = 1
+    while frame.f_back is not None and _package(frame) in ("agrinav_gym", "gymnasium"):
+        frame = frame.f_back
+        level += 1
+    return level
+
+
+def _package(frame: Any) -> str:
+    return str(frame.f_globals.get("__name__", "")).split(".")[0]
 
 
 def _display() -> bool:
@@ -99,6 +115,10 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
             scenario, scenario_overrides, scenario_seed, scenario_seeds, bank, randomize
         )
         self.scenario = self.source.first
+        fixed = self.source.fixed_field()
+        if fixed is not None:  # a notice once per env, not per reset, at the caller's line
+            msg = f"{type(self).__name__}: {fixed}"
+            warnings.warn(msg, FixedFieldWarning, stacklevel=_caller_level())
         self.world = World(self.cfg.robot, self.cfg.soil, gui=render_mode == "human")
         self._closed = False
         self.interface = robot_interface(self.cfg, self.world.geometry)

@@ -293,6 +293,12 @@ class Bank:
         return scn
 
 
+class FixedFieldWarning(UserWarning):
+    """Every reset of an env drives the same field: nothing about the field is drawn per reset
+    (``ScenarioSource.fixed_field``). A notice, once per env; silence it with
+    ``warnings.filterwarnings("ignore", category=FixedFieldWarning)`` where that is meant."""
+
+
 class ScenarioSource:
     """One way in for every kind of scenario; ``sample`` is called at each reset."""
 
@@ -313,6 +319,7 @@ class ScenarioSource:
             raise InputError("scenario_seed", seed, "allowed: an integer in [0, 2**63)")
         lo, hi = _seed_range(seed_range)
         self.seed_range = (lo, hi)
+        self.seed, self.seeds_given = int(seed), seed_range is not None
         self.bank = Bank(bank) if bank is not None else None
         if self.bank is not None and scenario is not None:
             raise InputError("scenario", scenario, "give a scenario or a bank, not both")
@@ -371,6 +378,23 @@ class ScenarioSource:
 
     def describe(self) -> dict[str, Any]:
         return {"kind": self.kind, "preset": self.preset, "overrides": self.overrides}
+
+    def fixed_field(self) -> str | None:
+        """Why every reset drives the same field, in one line (None: a field is drawn per
+        reset, from a bank or by randomized scenario keys). Only the start pose, the lane and
+        the sensors' noise then change between episodes."""
+        if self.bank is not None or self.randomization.scenario_keys:
+            return None
+        if self.preset is not None:
+            what = f"preset {self.preset!r} at scenario_seed {self.seed}"
+        else:
+            what = f"the scenario given ({self.first.spec.name!r})"
+        unused = "; scenario_seeds alone changes nothing" if self.seeds_given else ""
+        return (
+            f"every reset drives one field, {what}{unused}: randomize a scenario key (e.g. "
+            "randomize={'layout.plant_spacing': [0.15, 0.25]}) or pass bank=FOLDER to draw "
+            "a field per reset"
+        )
 
 
 def check_scenario(scn: Scenario, where: str) -> Scenario:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import warnings
 from collections import Counter
 from collections.abc import Sequence
 from pathlib import Path
@@ -42,6 +43,11 @@ def _record(ep: Episode, suite_name: str, scenario: str, env: Any = None) -> dic
         "steps": ep.steps,
         "termination": ep.termination,
         "seconds": round(ep.seconds, 3),
+        **(
+            {"frames": ep.frames, "render_seconds": round(ep.render_seconds, 3)}
+            if ep.frames
+            else {}
+        ),
         **ep.conditions,
         **({"geometry": geometry(env.unwrapped.scenario)} if env is not None else {}),
         **(
@@ -81,6 +87,7 @@ def _make_env(
     import gymnasium as gym
 
     import agrinav_gym
+    from agrinav_gym.scenarios import FixedFieldWarning
 
     if isinstance(case_or_id, Case):
         kw = case_or_id.env_kwargs()
@@ -97,7 +104,11 @@ def _make_env(
     agrinav_gym.check_env_id(env_id, "--env")
     if render:
         kw["render_mode"] = "rgb_array"
-    return gym.make(env_id, **kw)
+    if not isinstance(case_or_id, Case):
+        return gym.make(env_id, **kw)
+    with warnings.catch_warnings():  # a suite's fields are its own, fixed on purpose
+        warnings.simplefilter("ignore", FixedFieldWarning)
+        return gym.make(env_id, **kw)
 
 
 def _policy(spec: str, env: Any, trust: bool) -> Any:
@@ -119,25 +130,28 @@ def run(
     trust_checkpoint: bool = False,
     max_steps: int | None = None,
 ) -> list[dict[str, Any]]:
-    """Episodes of one policy: metrics.json, a trajectory figure per episode, a video."""
+    """Episodes of one policy: metrics.json, a trajectory figure per episode, with ``video``
+    a WebM of the first (a progress bar per frame; its time is the record's
+    ``render_seconds``, not part of ``seconds``)."""
     if episodes < 1:
         raise InputError("--episodes", episodes, "allowed: an integer >= 1")
     check_policy_spec(policy)
+    if video:
+        check_video()
     check_output_dir(out, force)
     # everything is checked before --out exists
     env = _make_env(env_id, scenario, render=video, max_steps=max_steps)
     records = []
     try:
         pi = _policy(policy, env, trust_checkpoint)
+        name = scenario_label(env, scenario)
         with output_dir(out, force) as tmp:
             for k in tqdm(range(episodes), desc=f"{policy} on {env_id}", unit="ep"):
-                writer = VideoWriter(tmp / f"episode_{k:03d}.webm") if video and k == 0 else None
-                try:
-                    ep = run_episode(env, pi, seed + k, policy, writer)
-                finally:
-                    if writer is not None:
-                        writer.close()
-                records.append(_record(ep, "run", scenario or "default"))
+                if video and k == 0:
+                    ep = _video_episode(env, pi, seed, policy, tmp / "episode_000.webm")
+                else:
+                    ep = run_episode(env, pi, seed + k, policy)
+                records.append(_record(ep, "run", name))
                 trajectory_figure(
                     ep, tmp / f"trajectory_{k:03d}.png", f"{policy} · {env_id} · seed {seed + k}"
                 )
@@ -145,6 +159,42 @@ def run(
     finally:
         env.close()
     return records
+
+
+def check_video() -> None:
+    """``--video`` writes with PyAV (libvpx): a clear error before anything starts."""
+    try:
+        import av  # noqa: F401
+    except ImportError as exc:
+        raise InputError(
+            "--video", True, "needs PyAV (pip install av), which writes the WebM"
+        ) from exc
+
+
+def _video_episode(env: Any, pi: Any, seed: int, policy: str, path: Path) -> Episode:
+    limit = getattr(env.spec, "max_episode_steps", None)
+    with tqdm(
+        total=None if limit is None else limit + 1,
+        desc="video",
+        unit="frame",
+        leave=False,
+        position=1,
+    ) as bar:
+        writer = VideoWriter(path, progress=bar)
+        try:
+            ep = run_episode(env, pi, seed, policy, writer)
+        finally:
+            writer.close()
+        bar.total = bar.n  # the episode ended before its step limit
+        bar.refresh()
+    return ep
+
+
+def scenario_label(env: Any, scenario: str | None) -> str:
+    """What a record calls the field: the scenario's name (its preset or folder)."""
+    if scenario is not None:
+        return scenario
+    return str(env.unwrapped.scenario.spec.name)
 
 
 def bench(
@@ -190,12 +240,11 @@ def bench(
                         run = run_with_interventions if case.interventions else run_episode
                         ep = run(env, pi, EVAL_SEED + CASE_SEEDS * ci + k, name)
                         records.append(_record(ep, suite_name, case.group, env))
-                        if k == 0:
-                            trajectory_figure(
-                                ep,
-                                tmp / f"traj_{_slug(case.group)}_{_slug(name)}.png",
-                                f"{name} · {suite_name} · {case.group}",
-                            )
+                        trajectory_figure(  # every episode: the second seed is a field too
+                            ep,
+                            tmp / trajectory_name(case.group, name, k),
+                            f"{name} · {suite_name} · {case.group} · seed {ep.seed}",
+                        )
                         bar.update(1)
                         bar.set_postfix(case=case.group, policy=name)
             finally:
@@ -204,6 +253,11 @@ def bench(
         (tmp / "benchmark.md").write_text(table(records, suite_name, command))
         bar_chart(records, tmp / "benchmark.png", suite_name)
     return records
+
+
+def trajectory_name(group: str, policy: str, k: int) -> str:
+    """The trajectory figure of a suite's case, policy and k-th seed."""
+    return f"traj_{_slug(group)}_{_slug(policy)}_{k:03d}.png"
 
 
 def _slug(s: str) -> str:

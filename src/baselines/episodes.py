@@ -18,7 +18,7 @@ class Episode:
     metrics: dict[str, Any]
     steps: int
     termination: str
-    seconds: float
+    seconds: float  # the episode's own time (reset, policy, steps), rendering left out
     poses: np.ndarray = field(repr=False)  # true base positions (N, 2), for evaluation only
     errors: np.ndarray = field(repr=False)  # cross-track error of each pose (EpisodeMetrics)
     route: np.ndarray = field(repr=False)
@@ -31,6 +31,8 @@ class Episode:
     # with interventions (run_with_interventions): what ended each stretch, and where
     interventions: list[dict[str, Any]] | None = None
     autonomous_m: float | None = None  # route metres the robot drove by itself
+    render_seconds: float = 0.0  # drawing and encoding the video's frames, apart from seconds
+    frames: int = 0  # video frames written
 
 
 #: Terminations an operator answers by putting the robot back on the route.
@@ -74,22 +76,27 @@ def run_with_interventions(env: Any, policy: Any, seed: int, policy_name: str) -
 
 
 def run_episode(
-    env: Any, policy: Any, seed: int, policy_name: str, video: Any | None = None
+    env: Any, policy: Any, seed: int, policy_name: str, video: VideoWriter | None = None
 ) -> Episode:
+    """One episode; with ``video`` every state (the reset's and each step's) is a frame,
+    and the time spent on frames is ``render_seconds``, kept out of ``seconds``."""
     obs, _ = env.reset(seed=seed)
     policy.reset()
     info: dict[str, Any] = {}
     steps, t0 = 0, time.perf_counter()
-    if video is not None:
-        video(env)
+    rendered = 0.0 if video is None else video(env)
     while True:
         obs, _, term, trunc, info = env.step(policy.act(obs))
         steps += 1
         if video is not None:
-            video(env)
+            rendered += video(env)
         if term or trunc:
             break
-    return _episode(env, policy, seed, policy_name, info, steps, t0)
+    ep = _episode(env, policy, seed, policy_name, info, steps, t0)
+    ep.seconds -= rendered
+    ep.render_seconds = rendered
+    ep.frames = 0 if video is None else video.frames
+    return ep
 
 
 def _episode(
@@ -179,29 +186,75 @@ def trajectory_figure(ep: Episode, path: Path, title: str) -> None:
     fig.savefig(path, dpi=110)
 
 
+#: VP8's target bitrate, bit/s: ≈ 9 MB a minute of the 640 × 480 chase view (OpenCV's
+#: writer, which takes no bitrate, made ≈ 12 Mbit/s of it: 90 MB a minute). On a FieldRoute
+#: drive doubling it gains < 1 dB PSNR.
+VIDEO_BITRATE = 1_200_000
+#: libvpx's speed settings: ≈ 5-7 ms a 640 × 480 frame where its defaults take ≈ 40 ms, for
+#: the same PSNR at this bitrate
+VIDEO_OPTIONS = {"deadline": "good", "cpu-used": "5"}
+
+
 class VideoWriter:
-    """A VP8 WebM of the env's ``rgb_array`` view: plays in browsers and README previews
-    (OpenCV's bundled FFmpeg; MPEG-4 part 2, ``mp4v``, is refused by browsers)."""
+    """A VP8 WebM (libvpx through PyAV) of the env's ``rgb_array`` view: plays in browsers and
+    README previews. ``bitrate`` in bit/s. Each call renders and encodes one frame, moves
+    ``progress`` (a tqdm bar) on by one and returns the seconds it took (``seconds`` sums
+    them). Odd frame sizes lose their last column or row (4:2:0 chroma)."""
 
-    def __init__(self, path: Path, fps: int = 20) -> None:
-        self.path, self.fps = path, fps
-        self.writer: Any = None
+    def __init__(
+        self, path: Path, fps: int = 20, bitrate: int = VIDEO_BITRATE, progress: Any = None
+    ) -> None:
+        self.path, self.fps, self.bitrate = Path(path), fps, bitrate
+        self.progress = progress
+        self.frames = 0
+        self.seconds = 0.0
+        self._out: Any = None
+        self._stream: Any = None
 
-    def __call__(self, env: Any) -> None:
-        import cv2
-
+    def __call__(self, env: Any) -> float:
+        t0 = time.perf_counter()
         frame = env.render()
-        if frame is None:
-            return
-        if self.writer is None:
-            h, w = frame.shape[:2]
-            self.writer = cv2.VideoWriter(
-                str(self.path), cv2.VideoWriter.fourcc(*"VP80"), self.fps, (w, h)
-            )
-            if not self.writer.isOpened():
-                raise OSError(f"cannot write a VP8 WebM video to {self.path}")
-        self.writer.write(frame[:, :, ::-1])
+        if frame is not None:
+            self.write(frame)
+        dt = time.perf_counter() - t0
+        self.seconds += dt
+        if self.progress is not None:
+            self.progress.update(1)
+        return dt
+
+    def write(self, frame: np.ndarray) -> None:
+        """Encode one (h, w, 3) uint8 RGB frame."""
+        import av
+
+        h, w = (frame.shape[0] // 2) * 2, (frame.shape[1] // 2) * 2
+        if self._stream is None:
+            if h == 0 or w == 0:
+                raise ValueError(f"a video frame needs at least 2 x 2 pixels, got {frame.shape}")
+            self._out = av.open(str(self.path), "w", format="webm")
+            opts = dict(VIDEO_OPTIONS)
+            self._stream = self._out.add_stream("libvpx", rate=self.fps, options=opts)
+            self._stream.width, self._stream.height = w, h
+            self._stream.pix_fmt = "yuv420p"
+            self._stream.bit_rate = self.bitrate
+            # one thread: libvpx's own threads cost ≈ 7× the CPU at 640 × 480 (≈ 50 ms a frame
+            # against 7 ms measured on 2 busy cores), and the renderer has the cores
+            self._stream.codec_context.thread_count = 1
+        elif (h, w) != (self._stream.height, self._stream.width):
+            size = f"{self._stream.height} x {self._stream.width}"
+            raise ValueError(f"frame {frame.shape} differs from the video's {size}")
+        vf = av.VideoFrame.from_ndarray(np.ascontiguousarray(frame[:h, :w, :3]), format="rgb24")
+        vf.pts = self.frames
+        self._mux(self._stream.encode(vf))
+        self.frames += 1
+
+    def _mux(self, packets: Any) -> None:
+        for pk in packets:
+            self._out.mux(pk)
 
     def close(self) -> None:
-        if self.writer is not None:
-            self.writer.release()
+        if self._out is not None:
+            try:
+                self._mux(self._stream.encode())  # flush the encoder
+            finally:
+                self._out.close()
+                self._out = None

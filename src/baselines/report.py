@@ -66,8 +66,36 @@ def mean_ci(values: Sequence[Any]) -> tuple[float, float, float] | None:
 
 
 def _cell(values: Sequence[Any]) -> str:
+    """Mean [95 % interval]; one sample is its value alone (no interval to give)."""
     ci = mean_ci(values)
-    return "—" if ci is None else f"{ci[0]:.3f} [{ci[1]:.3f}, {ci[2]:.3f}]"
+    if ci is None:
+        return "—"
+    if _finite(values) < 2:
+        return f"{ci[0]:.3f}"
+    return f"{ci[0]:.3f} [{ci[1]:.3f}, {ci[2]:.3f}]"
+
+
+def _finite(values: Sequence[Any]) -> int:
+    return sum(1 for x in values if x is not None and math.isfinite(float(x)))
+
+
+def mean_pm(values: Sequence[Any], digits: int = 3) -> str:
+    """The finite values' mean ± standard deviation; the mean alone for one value, "—" for
+    none (a spread of one sample, "± 0.000", would claim a certainty there is not)."""
+    v = [float(x) for x in values if x is not None and math.isfinite(float(x))]
+    if not v:
+        return "—"
+    if len(v) < 2:
+        return f"{v[0]:.{digits}f}"
+    return f"{statistics.fmean(v):.{digits}f} ± {statistics.pstdev(v):.{digits}f}"
+
+
+def mean_err(values: Sequence[float]) -> tuple[float, float | None]:
+    """A bar's mean and its error bar (the standard deviation), None below two values."""
+    v = [float(x) for x in values]
+    if not v:
+        return math.nan, None
+    return statistics.fmean(v), (statistics.pstdev(v) if len(v) >= 2 else None)
 
 
 def finished(record: dict[str, Any]) -> bool:
@@ -184,6 +212,42 @@ def paired(records: list[dict[str, Any]], groups: list[str], pols: list[str]) ->
     return lines if rows else []
 
 
+#: ``run_table``'s cross-track columns: the headline, then the paper's
+RUN_CTE = ("path_rmse", "rmse", "mae", "max")
+
+
+def run_table(records: list[dict[str, Any]]) -> str:
+    """``agrinav run``'s summary, a plain-text table: one row per policy with its episodes,
+    how many finished, the mean cross-track errors of those (m), mean completion and crops hit
+    of all, and the episodes' own seconds summed (with a video, its frames' seconds apart)."""
+    head = ["policy", "episodes", "finished", *RUN_CTE, "completion %", "crops hit", "seconds"]
+    video = any("render_seconds" in r for r in records)
+    if video:
+        head.append("video seconds")
+    rows = [head]
+    for p in dict.fromkeys(r["policy"] for r in records):
+        mine = [r for r in records if r["policy"] == p]
+        done = [r for r in mine if finished(r)]
+
+        def mean(key: str, over: list[dict[str, Any]], fmt: str = ".3f") -> str:
+            v = [float(r[key]) for r in over if r.get(key) is not None]
+            return format(statistics.fmean(v), fmt) if v else "—"
+
+        row = [p, str(len(mine)), f"{len(done)}/{len(mine)}", *(mean(m, done) for m in RUN_CTE)]
+        row += [mean("completion", mine, ".1f"), mean("crops_hit", mine, ".3g")]
+        row.append(f"{sum(float(r.get('seconds', 0.0)) for r in mine):.1f}")
+        if video:
+            row.append(f"{sum(float(r.get('render_seconds', 0.0)) for r in mine):.1f}")
+        rows.append(row)
+    widths = [max(len(r[i]) for r in rows) for i in range(len(head))]
+    lines = ["  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip() for r in rows]
+    lines.append(
+        "cross-track errors (m): means over the finished episodes (— none finished); "
+        "completion, crops hit: over all"
+    )
+    return "\n".join(lines)
+
+
 CONDITIONS = ("localisation", "camera", "speed_limit", "controller")
 GEOMETRY = (
     "row_direction_deg",
@@ -292,8 +356,9 @@ def failures(records: list[dict[str, Any]], groups: list[str], pols: list[str]) 
 
 
 def bar_chart(records: list[dict[str, Any]], path: Path, suite_name: str) -> None:
-    """Mean ± std per scenario group and policy: in-furrow and headland cross-track error (the
-    paper's split), max deviation, completion and crops hit."""
+    """Mean ± std per scenario group and policy (error bars where a bar has two values or
+    more): in-furrow and headland cross-track error (the paper's split), max deviation,
+    completion and crops hit."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -323,10 +388,12 @@ def bar_chart(records: list[dict[str, Any]], path: Path, suite_name: str) -> Non
                     for r in records
                     if r["scenario"] == g and r["policy"] == p and r[metric] is not None
                 ]
-                vals.append(np.mean(v) if v else np.nan)
-                errs.append(np.std(v) if v else 0.0)
+                m, e = mean_err(v)
+                vals.append(m)
+                errs.append(np.nan if e is None else e)  # no bar drawn for one value
+            yerr = errs if np.isfinite(errs).any() else None
             ax.bar(
-                x + (i - (len(pols) - 1) / 2) * width, vals, width, yerr=errs, label=p, capsize=3
+                x + (i - (len(pols) - 1) / 2) * width, vals, width, yerr=yerr, label=p, capsize=3
             )
         ax.set_xticks(
             x,
@@ -343,7 +410,8 @@ def bar_chart(records: list[dict[str, Any]], path: Path, suite_name: str) -> Non
         ncols=len(pols),
         fontsize=8,
     )
-    fig.suptitle(f"{suite_name} suite (mean ± std over seeds)")
+    many = max(Counter((r["scenario"], r["policy"]) for r in records).values(), default=0) > 1
+    fig.suptitle(f"{suite_name} suite (" + ("mean ± std over seeds)" if many else "one seed)"))
     fig.savefig(path, dpi=100)
 
 

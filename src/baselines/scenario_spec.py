@@ -81,15 +81,19 @@ def _parse_datum(text: str) -> list[float]:
 
 
 def spec_from_args(args: argparse.Namespace) -> Any:
-    """preset < --config file < --dem/--mesh/--field/--lod flags < --set overrides."""
+    """preset < --config file < --dem/--mesh/--field/--lod flags < --set overrides; named after
+    the preset and the files it reads (``source_name``) unless the config or --set names it."""
+    import dataclasses
+
     from scenario_gen import preset
     from scenario_gen.generate import check_spec, resolve_paths
+    from scenario_gen.presets import source_name
     from scenario_gen.schema import load_yaml, merge
     from scenario_gen.spec import ScenarioSpec
 
     base = preset(args.preset).to_dict()
-    if args.config:
-        base = merge(base, load_yaml(args.config))
+    config: dict[str, Any] = load_yaml(args.config) if args.config else {}
+    base = merge(base, config)
     flags: dict[str, Any] = {}
     if args.dem and args.mesh:
         raise InputError("--dem/--mesh", (args.dem, args.mesh), "allowed: one terrain source")
@@ -107,7 +111,11 @@ def spec_from_args(args: argparse.Namespace) -> Any:
         flags["route.waypoints"] = args.waypoints
     if args.lod is not None:
         flags["terrain.lod"] = args.lod
-    spec = ScenarioSpec.from_dict(merge(merge(base, flags), parse_set(args.set)))
+    sets = parse_set(args.set)
+    spec = ScenarioSpec.from_dict(merge(merge(base, flags), sets))
+    if "name" not in config and "name" not in sets:  # named after its preset and files
+        files = [args.config] if args.config else []
+        spec = dataclasses.replace(spec, name=source_name(args.preset, spec, files))
     check_spec(spec)
     return resolve_paths(spec)  # absolute input paths in scenario.json and bank.yaml
 

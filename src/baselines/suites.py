@@ -46,6 +46,15 @@ class Case:
             kw["scenario_seeds"] = list(EVAL_SCENARIO_SEEDS)
         return kw
 
+    def field(self) -> Any:
+        """The one field every episode of this case drives, generated as its env generates it
+        (a case that randomizes scenario keys draws a field per episode: refused)."""
+        from agrinav_gym.scenarios import ScenarioSource
+
+        if self.randomize:
+            raise ScenarioError("case", self.group, "draws a new field each episode")
+        return ScenarioSource(self.scenario, self.overrides or None, EVAL_SEED).first
+
 
 #: Held-out scenario seeds, the range every envs.yml entry evaluates on.
 EVAL_SCENARIO_SEEDS = (1_000_000_000, 1_001_000_000)

@@ -28,11 +28,13 @@ The LoD rule (``check_lod``): the terrain grid spacing must be at most
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 from shapely.geometry.base import BaseGeometry
 
 from .errors import InputError
 from .geodesy import GSD_Z0, ground_sample_distance
+from .schema import field_info
 from .spec import ScenarioSpec
 
 MAX_PLANTS = 1_000_000
@@ -55,27 +57,64 @@ RIDGE_SAMPLES = 4  # per row period: worst-case ridge kept cos(pi/4) = 71 %
 MAX_PLANE_RADIUS_M = 5000.0
 
 
-def grid_bound(spec: ScenarioSpec) -> tuple[float, str]:
-    """Largest terrain grid spacing the spec allows, metres, and the reason in words."""
-    bounds = [(MAX_GROUND_SPACING, "10 m: Bullet contact on larger triangles is unreliable")]
-    f = spec.furrows
+@dataclass(frozen=True)
+class GridRule:
+    """A bound the spec sets on the terrain grid spacing, and what else would meet it: the
+    spacing-limited field raised to ``factor`` × the spacing, or ``off`` (a setting)."""
+
+    bound: float  # m
+    why: str  # what sets it, naming the fields and their values
+    field: str | None = None
+    factor: float = 1.0
+    off: str | None = None
+
+    def others(self, spacing: float) -> list[str]:
+        """The other ways to meet the rule at ``spacing`` that the fields' ranges allow."""
+        out = []
+        if self.field is not None:
+            need = self.factor * spacing
+            info = field_info(ScenarioSpec, self.field)
+            hi = info[1].get("hi") if info is not None and info[1] else None
+            if hi is None or need <= hi:
+                out.append(f"{self.field} >= {need:.3g} m")
+        if self.off is not None:
+            out.append(self.off)
+        return out
+
+
+def grid_rules(spec: ScenarioSpec) -> list[GridRule]:
+    """Every bound on the terrain grid spacing the spec sets."""
+    rules = [GridRule(MAX_GROUND_SPACING, "Bullet's contact is unreliable on larger triangles")]
+    f, lay = spec.furrows, spec.layout
     if f.enabled and f.depth > 0:
-        bounds.append(
-            (
-                spec.layout.row_spacing / RIDGE_SAMPLES,
-                f"{RIDGE_SAMPLES} samples per {spec.layout.row_spacing:g} m row period keep "
-                "at least 71 % of the furrow ridge (furrows.enabled)",
+        rules.append(
+            GridRule(
+                lay.row_spacing / RIDGE_SAMPLES,
+                f"{RIDGE_SAMPLES} samples per layout.row_spacing {lay.row_spacing:g} m row period "
+                "keep at least 71 % of the furrow ridge of furrows.enabled",
+                "layout.row_spacing",
+                RIDGE_SAMPLES,
+                "furrows.enabled false",
             )
         )
     if f.roughness > 0:
-        bounds.append(
-            (
+        rules.append(
+            GridRule(
                 f.roughness_length,
                 f"furrows.roughness_length {f.roughness_length:g} m needs samples at most that "
                 "far apart",
+                "furrows.roughness_length",
+                1.0,
+                "furrows.roughness 0",
             )
         )
-    return min(bounds)
+    return rules
+
+
+def grid_bound(spec: ScenarioSpec) -> tuple[float, str]:
+    """Largest terrain grid spacing the spec allows, metres, and the reason in words."""
+    rule = min(grid_rules(spec), key=lambda r: r.bound)
+    return rule.bound, rule.why
 
 
 def min_lod(bound_m: float, lat_deg: float) -> int | None:
@@ -84,24 +123,73 @@ def min_lod(bound_m: float, lat_deg: float) -> int | None:
     return lod if lod <= 22 else None
 
 
-def check_lod(spec: ScenarioSpec, lat_deg: float) -> float:
-    """The grid spacing of ``terrain.lod`` at ``lat_deg``, or an error stating the LoD rule."""
+def terrain_samples(spec: ScenarioSpec, field: BaseGeometry, spacing: float) -> int:
+    """Terrain grid nodes over the field's bounding box and ``terrain.margin`` at ``spacing``."""
+    xmin, ymin, xmax, ymax = field.bounds
+    m = spec.terrain.margin
+    return (math.floor((xmax - xmin + 2 * m) / spacing) + 2) * (
+        math.floor((ymax - ymin + 2 * m) / spacing) + 2
+    )
+
+
+def max_lod(spec: ScenarioSpec, field: BaseGeometry, lat_deg: float) -> int | None:
+    """The finest LoD whose terrain stays within ``MAX_TERRAIN_SAMPLES`` (None: not even 0)."""
+    for lod in range(22, -1, -1):
+        spacing = ground_sample_distance(lod, lat_deg)
+        if terrain_samples(spec, field, spacing) <= MAX_TERRAIN_SAMPLES:
+            return lod
+    return None
+
+
+def check_lod(spec: ScenarioSpec, lat_deg: float, field: BaseGeometry | None = None) -> float:
+    """The grid spacing of ``terrain.lod`` at ``lat_deg``, or one error naming every rule the
+    LoD breaks — each bound the spec sets on the spacing (with the fields that set it, their
+    values and the LoD or values that meet it) and, given the ``field``, the terrain's size —
+    and the range of LoDs that meets them all."""
     lod = spec.terrain.lod
     spacing = ground_sample_distance(lod, lat_deg)
-    bound, why = grid_bound(spec)
-    if spacing <= bound * (1 + 1e-9):
+    broken: list[str] = []
+    need = 0
+    for rule in grid_rules(spec):
+        if spacing <= rule.bound * (1 + 1e-9):
+            continue
+        lo = min_lod(rule.bound, lat_deg)
+        need = 23 if lo is None else max(need, lo)
+        meet = [f"LoD >= {lo}" if lo is not None else "no LoD up to 22", *rule.others(spacing)]
+        broken.append(f"at most {rule.bound:.3g} m ({rule.why}): " + ", or ".join(meet))
+    top = None
+    if field is not None:
+        top = max_lod(spec, field, lat_deg)
+        samples = terrain_samples(spec, field, spacing)
+        if samples > MAX_TERRAIN_SAMPLES:
+            ok = f"LoD <= {top}" if top is not None else "no LoD"
+            broken.append(
+                f"{samples:,} terrain samples ({spacing:.3g} m over the field and terrain.margin "
+                f"{spec.terrain.margin:g} m); allowed: at most {MAX_TERRAIN_SAMPLES:,}: {ok}, "
+                "or a smaller margin or field"
+            )
+    if not broken:
         return spacing
-    need = min_lod(bound, lat_deg)
-    fix = (
-        f"use LoD >= {need} at latitude {lat_deg:.2f}°"
-        if need is not None
-        else "no LoD up to 22 is that fine here: widen the rows or disable furrows"
-    )
+    if need > 22:
+        fix = "no LoD up to 22 is that fine here: widen the rows or disable furrows"
+    elif top is not None and need > top:
+        fix = (
+            f"no LoD meets both: the spacing rules need LoD >= {need}, the terrain's size "
+            f"LoD <= {top} (a smaller field or terrain.margin, or relax a rule)"
+        )
+    elif need and top is not None and top < 22:
+        fix = f"use LoD {need}..{top} at latitude {lat_deg:.2f}°"
+    elif need:
+        fix = f"use LoD >= {need} at latitude {lat_deg:.2f}°"
+    else:
+        fix = f"use LoD <= {top} at latitude {lat_deg:.2f}° (or a smaller margin or field)"
+    rules = "; ".join(f"({i}) {b}" for i, b in enumerate(broken, 1))
+    count = "a rule" if len(broken) == 1 else f"{len(broken)} rules"
     raise InputError(
         "terrain.lod",
         lod,
-        f"gives a {spacing:.3g} m grid at latitude {lat_deg:.2f}°; allowed: at most "
-        f"{bound:.3g} m ({why}); {fix}",
+        f"gives a {spacing:.3g} m grid at latitude {lat_deg:.2f}° and breaks {count}: "
+        f"{rules}; {fix}",
     )
 
 
@@ -109,11 +197,8 @@ def check_budget(spec: ScenarioSpec, field: BaseGeometry, spacing: float) -> Non
     """Refuse a field whose plants, weeds, terrain or route would exceed the memory bounds."""
     lay = spec.layout
     xmin, ymin, xmax, ymax = field.bounds
-    m = spec.terrain.margin
-    samples = (math.floor((xmax - xmin + 2 * m) / spacing) + 2) * (
-        math.floor((ymax - ymin + 2 * m) / spacing) + 2
-    )
-    if samples > MAX_TERRAIN_SAMPLES:
+    samples = terrain_samples(spec, field, spacing)
+    if samples > MAX_TERRAIN_SAMPLES:  # check_lod with the field has said so with the rest
         raise InputError(
             "terrain.lod",
             spec.terrain.lod,

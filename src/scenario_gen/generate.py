@@ -207,7 +207,7 @@ def plan_field(
         default_angle = spec.field.angle_deg
     if spec.terrain.source == "plane":
         check_on_plane(poly, spec.terrain, site.geo)
-    spacing = check_lod(spec, site.geo.lat)
+    spacing = check_lod(spec, site.geo.lat, poly)
     check_budget(spec, poly, spacing)
     angle = math.radians(
         spec.layout.row_angle_deg if spec.layout.row_angle_deg is not None else default_angle

@@ -9,6 +9,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import agrinav_gym
+from agrinav_gym.scenarios import FixedFieldWarning
 
 from .helpers import TINY, make
 
@@ -28,6 +29,8 @@ def test_gymnasium_check_env(env_id: str) -> None:
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
+            # the checker makes envs of its own: their one-field notice is not its finding
+            warnings.filterwarnings("ignore", category=FixedFieldWarning)
             check_env(env.unwrapped)
         assert [str(w.message) for w in caught] == []
     finally:
@@ -238,3 +241,29 @@ def test_older_ids_point_to_v2(old: str) -> None:
 
     with pytest.raises(DeprecatedEnv, match="AgriNav/FurrowFollow-v2"):
         gym.make(f"AgriNav/FurrowFollow-{old}")
+
+
+def test_an_env_that_drives_one_field_says_so_once() -> None:
+    """Without randomized scenario keys or a bank every reset reuses one field: a one-line
+    notice when the env is made, none at its resets, none where a field is drawn per reset."""
+
+    def notices(caught: list[warnings.WarningMessage]) -> list[str]:
+        return [str(w.message) for w in caught if issubclass(w.category, FixedFieldWarning)]
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        env = make(scenario_seeds=[0, 10])
+        try:
+            env.reset(seed=0)
+            env.reset(seed=1)
+        finally:
+            env.close()
+        drawn = make(randomize={"layout.plant_spacing": [0.15, 0.25]})
+        drawn.close()
+        only_soil = make(randomize={"soil_colour": [[0.3, 0.2, 0.1], [0.5, 0.4, 0.3]]})
+        only_soil.close()
+    said = notices(caught)
+    assert len(said) == 2, said  # the fixed env's and the one randomizing the soil alone
+    assert said[0].startswith("FurrowFollowEnv: every reset drives one field, preset 'default'")
+    assert "scenario_seeds alone changes nothing" in said[0] and "randomize=" in said[0]
+    assert all("\n" not in m for m in said)

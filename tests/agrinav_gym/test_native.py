@@ -570,3 +570,37 @@ def test_proxy_kernel_hits_the_first_surface_exactly(
     assert np.array_equal(le, lab) and np.array_equal(np.isfinite(te), np.isfinite(t))
     fin = np.isfinite(t)
     assert np.abs(te[fin] - t[fin]).max() < EMBREE_DEPTH
+
+
+@needs_kernels
+def test_the_rasterised_chase_view_is_the_ray_cast_one(maize: MeshScene) -> None:
+    """The video's frame drawn by the rasteriser (with the robot cast into it in its true,
+    tilted pose) against every pixel ray-cast: the same picture to a few stray edge pixels."""
+    from agrinav_gym.sim.render import ChaseView
+
+    from agrinav_gym.config import RenderConfig
+    from agrinav_gym.sim.world import RobotState
+
+    cfg = EnvConfig.from_dict({"render": {"width": 320, "height": 240}})
+    model = robot_interface(cfg, RobotGeometry.from_urdf()).camera
+    rot, pos = lane_pose(maize_scenario(maize))
+    roll, pitch = 0.08, -0.05  # on a slope: the robot tilts, the chase camera does not
+    cr, sr, cp, sp = math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch)
+    tilt = np.array([[cp, sp * sr, sp * cr], [0, cr, -sr], [-sp, cp * sr, cp * cr]])
+    yaw = math.atan2(rot[1, 0], rot[0, 0])
+    s = RobotState(pos, rot @ tilt, np.array([roll, pitch, yaw]), np.zeros(3), np.zeros(3), [])
+    frames = {}
+    for raster in (True, False):
+        view = ChaseView(RenderConfig(320, 240), model, cfg.camera)
+        view.rasterises = raster
+        frames[raster] = view.render(maize, s).astype(int)
+    diff = np.abs(frames[True] - frames[False]).max(axis=2)
+    assert frames[True].shape == (240, 320, 3)
+    assert (diff > 8).mean() < 0.002, (diff > 8).mean()
+    # the robot is in the picture: without its hits a patch below the centre changes
+    none = (np.full(320 * 240, np.inf), np.full(320 * 240, -1, np.int32))
+    view = ChaseView(RenderConfig(320, 240), model, cfg.camera)
+    view._robot_in_chase = lambda *_: none  # type: ignore[method-assign]
+    bare = np.abs(view.render(maize, s).astype(int) - frames[True]).max(axis=2) > 8
+    rows, cols = np.nonzero(bare)
+    assert bare.sum() > 100 and rows.min() > 100 and 100 < cols.mean() < 220

@@ -112,3 +112,31 @@ def test_broken_scenario_folders(scenario: Path, tmp_path: Path, capsys) -> None
     (broken / "scenario.json").write_text("{not json")
     assert "scenario" in _error(capsys, ["export", str(broken), "--to", "gis", "--out", str(out)])
     assert not out.exists()
+
+
+def test_include_limit_help_and_docs_state_the_limit_the_code_uses(capsys) -> None:
+    from scenario_gen.export.options import INCLUDE_LIMIT, ExportOptions
+
+    try:
+        main(["export", "--help"])
+    except SystemExit:  # argparse's --help exits where main does not catch it
+        pass
+    help_text = " ".join(capsys.readouterr().out.split())
+    assert f"auto's limit (default {INCLUDE_LIMIT:,} plants)" in help_text
+    assert f"plants per merged tile (default {ExportOptions().tile_plants:,})" in help_text
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "exports.md").read_text()
+    doc = " ".join(doc.split())
+    assert f"`--include-limit N` (auto's switch, {INCLUDE_LIMIT:,})" in doc
+    assert f"uses includes up to {INCLUDE_LIMIT:,} plants" in doc
+
+
+def test_exports_doc_states_the_default_fields_plant_count() -> None:
+    """docs/exports.md prices the default field in includes: its count is the generator's."""
+    import re
+
+    doc_file = Path(__file__).resolve().parents[2] / "docs" / "exports.md"
+    doc = " ".join(doc_file.read_text().split())
+    said = re.search(r"the default field's ([\d,]+) plants", doc)
+    assert said is not None
+    scn = generate(preset("default"), 0)
+    assert int(said.group(1).replace(",", "")) == len(scn.plants)

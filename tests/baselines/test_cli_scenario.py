@@ -1,3 +1,4 @@
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -104,3 +105,25 @@ def test_config_reference_is_current() -> None:
 
     root = Path(__file__).resolve().parents[2]
     assert (root / "docs" / "config.md").read_text() == reference()
+
+
+@pytest.mark.parametrize(
+    "config,sets,name",
+    [
+        ("field: {width: 8.0, length: 12.0}\n", [], "default+north--farm"),
+        ("name: mine\nfield: {width: 8.0, length: 12.0}\n", [], "mine"),
+        ("field: {width: 8.0, length: 12.0}\n", ["--set", "name=set-by-hand"], "set-by-hand"),
+    ],
+)
+def test_a_scenario_is_named_after_its_preset_and_files(
+    tmp_path: Path, config: str, sets: list[str], name: str
+) -> None:
+    """A custom scenario is not called "default": its config file's stem follows the preset
+    (one '-' for a run of them: names go into XML comments), unless it is named."""
+    cfg = tmp_path / "north--farm.yaml"
+    cfg.write_text(config + "layout: {headland: 2.0}\n")
+    out = tmp_path / "scn"
+    args = ["scenario", "--config", str(cfg), "--out", str(out), "--no-preview", *sets]
+    assert main(args) == 0
+    meta = json.loads((out / "scenario.json").read_text())
+    assert meta["name"] == name.replace("--", "-") and meta["spec"]["name"] == meta["name"]

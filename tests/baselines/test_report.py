@@ -7,7 +7,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from baselines.report import METRICS, mean_ci, table
+from baselines.report import METRICS, mean_ci, mean_err, mean_pm, run_table, table
 
 
 def _rec(policy: str, rmse: float, termination: str, completion: float) -> dict[str, Any]:
@@ -49,7 +49,7 @@ def test_a_failed_episode_is_a_failure_in_every_cross_track_column() -> None:
     row = next(line for line in md.splitlines() if line.startswith("| field | stalls |"))
     cells = [c.strip() for c in row.strip("|").split("|")]
     assert cells[2] == "1/2"
-    assert cells[3] == "0.010 [0.010, 0.010]"  # path_rmse of the finished episode alone
+    assert cells[3] == "0.010"  # path_rmse of the finished episode alone: no interval of one
     assert cells[3 + METRICS.index("completion")].startswith("55.000")  # over both episodes
     never = next(line for line in md.splitlines() if line.startswith("| field | never |"))
     assert never.split("|")[3].strip() == "0/1" and never.split("|")[4].strip() == "—"
@@ -84,3 +84,35 @@ def test_pairing_resolves_a_difference_the_field_spread_hides() -> None:
     assert paired_differences(records, "field", "a", "b", "path_rmse")[1] == 19
     assert paired_differences(records, "field", "a", "b", "completion")[1] == 20
     assert "Paired differences against `a`" in table(records, "t", "agrinav bench")
+
+
+def test_run_prints_a_short_table_not_records() -> None:
+    """``agrinav run``'s summary: a row per policy, finished episodes counted, cross-track
+    errors of the finished ones only, and the episodes' own seconds apart from the video's."""
+    recs = [
+        {**_rec("rpp", 0.02, "success", 100.0), "seconds": 1.5, "render_seconds": 30.0},
+        {**_rec("rpp", 0.5, "corridor", 20.0), "seconds": 0.5},
+    ]
+    lines = run_table(recs).splitlines()
+    head = lines[0].split()
+    assert head[:7] == ["policy", "episodes", "finished", "path_rmse", "rmse", "mae", "max"]
+    assert lines[0].rstrip().endswith("seconds  video seconds")
+    row = lines[1].split()
+    assert row[:4] == ["rpp", "2", "1/2", "0.020"]  # the corridor exit's 0.5 is not averaged in
+    assert row[7] == "60.0" and row[-2:] == ["2.0", "30.0"]  # completion over both; seconds
+    assert "{" not in run_table(recs)
+    plain = run_table([{**_rec("dwb", 0.1, "progress", 5.0), "seconds": 2.0}])
+    assert "video" not in plain and plain.splitlines()[1].split()[3] == "—"
+
+
+def test_a_spread_is_shown_only_where_there_are_two_samples() -> None:
+    """One seed has no spread to show: "± 0.000" and "[x, x]" would claim a certainty."""
+    assert mean_pm([0.2]) == "0.200" and mean_pm([None, 0.2, float("nan")]) == "0.200"
+    assert mean_pm([0.1, 0.3]) == "0.200 ± 0.100" and mean_pm([]) == "—"
+    assert mean_err([0.5]) == (0.5, None) and mean_err([0.1, 0.3])[1] == pytest.approx(0.1)
+    one = table([_rec("p", 0.1, "success", 100.0)], "t", "")
+    row = next(line for line in one.splitlines() if line.startswith("| field | p |"))
+    assert "[" not in row and "±" not in row
+    two = table([_rec("p", 0.1, "success", 100.0), _rec("p", 0.2, "success", 100.0)], "t", "")
+    row = next(line for line in two.splitlines() if line.startswith("| field | p |"))
+    assert "0.150 [" in row

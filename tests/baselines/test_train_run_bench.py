@@ -3,10 +3,12 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 
 from baselines.cli import main
+from baselines.episodes import VIDEO_BITRATE
 from baselines.report import METRICS
 
 
@@ -180,10 +182,17 @@ def test_smoke_bench_writes_results_and_table(tmp_path: Path) -> None:
     assert "agrinav bench --suite smoke" in md  # how to reproduce
     for m in METRICS:
         assert m in md
-    assert (out / "benchmark.png").is_file() and (out / "traj_tiny_dwb-furrow.png").is_file()
+    assert (out / "benchmark.png").is_file()
+    for policy in ("dwb-furrow", "rpp", "depth"):  # every episode drawn, the second seed too
+        assert sorted(p.name for p in out.glob(f"traj_tiny_{policy}_*.png")) == [
+            f"traj_tiny_{policy}_000.png",
+            f"traj_tiny_{policy}_001.png",
+        ]
 
 
-def test_run_writes_metrics_plot_and_video(tmp_path: Path) -> None:
+def test_run_writes_metrics_plot_and_video(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     out = tmp_path / "run"
     assert (
         main(
@@ -201,7 +210,7 @@ def test_run_writes_metrics_plot_and_video(tmp_path: Path) -> None:
                 "--scenario",
                 "early-corn",
                 "--max-steps",
-                "40",  # every frame is ray-cast at 640x480: a whole episode is minutes
+                "40",
             ]
         )
         == 0
@@ -209,18 +218,59 @@ def test_run_writes_metrics_plot_and_video(tmp_path: Path) -> None:
     records = json.loads((out / "metrics.json").read_text())
     assert len(records) == 1 and records[0]["policy"] == "rpp"
     assert records[0]["steps"] == 40 and records[0]["termination"] == "time_limit"
+    # the frames' time is reported apart from the episode's own
+    assert records[0]["frames"] == 41 and records[0]["render_seconds"] > 0
     assert (out / "trajectory_000.png").is_file()
     video = out / "episode_000.webm"
     assert video.read_bytes()[:4] == b"\x1a\x45\xdf\xa3"  # EBML: a Matroska/WebM file
+    # VP8 at VIDEO_BITRATE: about 2 s of video, 0.3 MB (OpenCV's writer made 3 MB of it)
+    assert video.stat().st_size < 1.5 * VIDEO_BITRATE / 8 * 41 / 20
     import cv2
 
     cap = cv2.VideoCapture(str(video))
     try:
         assert cap.get(cv2.CAP_PROP_FRAME_WIDTH) == 640
+        assert cap.get(cv2.CAP_PROP_FRAME_HEIGHT) == 480
         assert int(cap.get(cv2.CAP_PROP_FOURCC)).to_bytes(4, "little") == b"VP80"
-        assert cap.read()[0]
+        frames = 0
+        while cap.read()[0]:
+            frames += 1
+        assert frames == 41  # the reset's state and each step's
     finally:
         cap.release()
+    printed = capsys.readouterr()
+    assert "41/41" in printed.err and "frame" in printed.err  # the video's progress
+    # a table, not the records: the policy's row, then the folder written
+    lines = printed.out.splitlines()
+    assert lines[0].split()[:3] == ["policy", "episodes", "finished"] and "{" not in printed.out
+    assert lines[1].split()[:3] == ["rpp", "1", "0/1"]  # truncated at 40 steps: not finished
+    assert lines[-1].startswith(f"wrote {out.resolve()}")
+
+
+def test_episode_seconds_leave_the_video_out(monkeypatch: pytest.MonkeyPatch) -> None:
+    """``seconds`` is the episode's own time: what its frames take is ``render_seconds``."""
+    import baselines.episodes as episodes
+    from policies import make_policy
+
+    from ..agrinav_gym.helpers import make
+
+    clock = [0.0]
+    monkeypatch.setattr(episodes.time, "perf_counter", lambda: clock[0])
+
+    class SlowVideo(episodes.VideoWriter):
+        def __call__(self, env: object) -> float:
+            clock[0] += 10.0  # ten seconds a frame
+            self.frames += 1
+            return 10.0
+
+    env = make(max_episode_steps=5)
+    try:
+        pi = make_policy("blind", env)
+        ep = episodes.run_episode(env, pi, 0, "blind", SlowVideo(Path("unused.webm")))
+    finally:
+        env.close()
+    assert ep.frames == 6 and ep.render_seconds == 60.0
+    assert ep.seconds == 0.0  # the clock moved only in the frames
 
 
 @pytest.mark.parametrize(
@@ -414,3 +464,68 @@ def test_a_checkpoint_that_cannot_be_written_leaves_nothing(
     with pytest.raises(OSError, match="No space left"):
         saver.periodic(model, None)
     assert sorted(p.name for p in (tmp_path / "checkpoints").iterdir()) == ["step_0000000100"]
+
+
+def test_demo_saves_and_prints_the_fields_it_drives(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The demo's printed scenarios are the paper suite's fields, as its envs generate them."""
+    import baselines.bench
+    from baselines.bench import _make_env
+    from baselines.demo import demo
+    from baselines.suites import suite
+    from scenario_gen import load
+
+    ran: list[tuple[str, list[str], int]] = []
+
+    def fake_bench(name: str, policies: list[str], seeds: int, out: Path, *a: object, **k: object):  # type: ignore[no-untyped-def]
+        ran.append((name, list(policies), seeds))
+        out.mkdir(parents=True)
+        (out / "benchmark.md").write_text("# table\n")
+        return []
+
+    monkeypatch.setattr(baselines.bench, "bench", fake_bench)
+    demo(tmp_path / "demo", seeds=1)
+    printed = capsys.readouterr().out
+    assert ran and ran[0][0] == "paper" and ran[0][2] == 1
+    for case in suite("paper"):
+        folder = tmp_path / "demo" / "scenarios" / case.group
+        assert f"scenario {case.group}: {folder}" in printed
+        env = _make_env(case)
+        try:
+            driven = env.unwrapped.scenario
+        finally:
+            env.close()
+        saved = load(folder)  # the same spec and seed: the same field, to the files' precision
+        assert (saved.spec, saved.seed) == (driven.spec, driven.seed)
+        np.testing.assert_allclose(saved.plants.x, driven.plants.x, atol=1e-5)
+        np.testing.assert_allclose(saved.route.xy, driven.route.xy, atol=1e-5)
+
+
+def test_video_without_pyav_is_one_line_before_anything_runs(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.setitem(sys.modules, "av", None)  # import av raises ImportError
+    out = tmp_path / "run"
+    args = ["run", "--policy", "rpp", "--out", str(out), "--video"]
+    assert main(args) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "--video" in err and "pip install av" in err, err
+    assert not out.exists()
+
+
+def test_run_on_one_field_notes_it_in_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import warnings
+
+    args = ["run", "--env", "AgriNav/FurrowFollow-v2", "--policy", "blind", "--max-steps", "5"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("default")  # as outside the tests
+        assert main([*args, "--episodes", "2", "--out", str(tmp_path / "run")]) == 0
+    notes = [
+        line
+        for line in capsys.readouterr().err.splitlines()
+        if "every reset drives one field" in line
+    ]
+    assert len(notes) == 1 and notes[0].startswith("agrinav run: note: FurrowFollowEnv: "), notes

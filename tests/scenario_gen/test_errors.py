@@ -228,3 +228,22 @@ def test_numpy_scalars_are_accepted_in_a_spec() -> None:
     assert spec.terrain.datum == (42.0, -5.5, 800.0)
     assert type(spec.terrain.datum[0]) is float
     generate(spec.replace({"field.width": 8.0, "field.length": 10.0}), seed=np.int64(3))
+
+
+def test_a_preset_with_files_is_named_after_them() -> None:
+    """preset() names a scenario after the preset and the files its overrides bring in, in a
+    form generate accepts (printable, no '--', at most 100 characters)."""
+    from scenario_gen import preset
+    from scenario_gen.presets import source_name
+
+    assert preset("hillside").name == "hillside"
+    dem = {"terrain": {"source": "dem", "path": "/data/farm.v2.tif"}}
+    assert preset("default", **dem).name == "default+farm"
+    both = preset("default", **dem, field={"geojson": "/x/north.geojson"})
+    assert both.name == "default+farm+north"
+    assert preset("default", **dem).replace({"name": "mine"}).name == "mine"
+    assert preset("default", terrain={"source": "plane"}).name == "default"  # no file
+    odd = source_name("default", preset("default"), ["/x/a\nb---c.yaml"])
+    assert odd == "default+a_b-c"
+    long = source_name("default", preset("default"), ["/x/" + "a" * 300 + ".yaml"])
+    assert len(long) == 100 and long.isprintable()

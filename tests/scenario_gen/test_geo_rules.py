@@ -109,3 +109,32 @@ def test_plane_datum_near_the_field_is_honoured(tmp_path: Path) -> None:
     _lat, _lon, alt = scn.geo.enu_to_geodetic(scn.plants.x, scn.plants.y, scn.plants.z)
     # the tangent plane at 1 km lies d²/2R = 8 cm above the ellipsoid
     assert np.abs(alt - 250.0 - 1000.0**2 / (2 * 6.371e6)).max() < 0.03
+
+
+def test_every_broken_lod_rule_is_named_at_once() -> None:
+    """One refusal lists each rule the LoD breaks, the fields that set it with their values,
+    and what meets it, then the LoD that meets them all: no fixing one to meet the next."""
+    rough = {"enabled": True, "roughness": 0.01, "roughness_length": 0.5}
+    with pytest.raises(ScenarioError) as info:
+        generate(small(terrain={"lod": 16}, furrows=rough), seed=0)
+    e, text = info.value, str(info.value)
+    assert e.field == "terrain.lod" and e.value == 16 and "\n" not in text
+    assert "breaks 2 rules" in text, text
+    assert "(1) at most 0.25 m (4 samples per layout.row_spacing 1 m" in text
+    assert "LoD >= 19, or layout.row_spacing >= 7.68 m, or furrows.enabled false" in text
+    assert "(2) at most 0.5 m (furrows.roughness_length 0.5 m" in text
+    assert "LoD >= 18, or furrows.roughness_length >= 1.92 m, or furrows.roughness 0" in text
+    assert text.endswith("use LoD >= 19 at latitude 36.55°")
+    # the 10 m rule as well on a coarser grid, and nothing out of a field's range (row spacing
+    # is at most 50 m: "layout.row_spacing >= 123 m" would be no advice)
+    with pytest.raises(ScenarioError, match=r"breaks 3 rules: \(1\) at most 10 m") as coarse:
+        generate(small(terrain={"lod": 12}, furrows=rough), seed=0)
+    assert "layout.row_spacing >=" not in str(coarse.value)
+
+
+def test_an_lod_between_the_grid_rules_and_the_terrain_size_is_named_or_refused() -> None:
+    """Too coarse for the ridges and, at the LoD they need, too many samples: both at once."""
+    spec = plane(field={"width": 1000.0, "length": 1000.0}, terrain={"lod": 15}, furrows=RIDGED)
+    with pytest.raises(ScenarioError) as info:
+        generate(spec, seed=0)
+    assert "need LoD >= 19, the terrain's size LoD <= 18" in str(info.value), str(info.value)

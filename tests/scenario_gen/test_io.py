@@ -174,3 +174,14 @@ def test_load_recovers_rows_of_a_version_1_folder(saved, tmp_path: Path) -> None
     back = load(old)
     np.testing.assert_array_equal(back.plants.row, scn.plants.row)
     np.testing.assert_array_equal(back.lanes, scn.lanes)
+
+
+def test_the_readme_lists_the_csv_columns_the_files_have() -> None:
+    """README.md's output table is where people learn the columns: it must name them all."""
+    import re
+
+    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text()
+    for name, header in (("plants.csv", PLANT_HEADER), ("route.csv", ROUTE_HEADER)):
+        row = re.search(rf"^\| `{re.escape(name)}` \| `([^`]+)`", readme, re.MULTILINE)
+        assert row is not None, name
+        assert row.group(1).split(",") == header, (name, row.group(1))

@@ -11,9 +11,10 @@ from __future__ import annotations
 import argparse
 import signal
 import sys
+import warnings
 from collections.abc import Sequence
 from types import FrameType
-from typing import NoReturn
+from typing import Any, NoReturn
 
 from scenario_gen.errors import InputError
 
@@ -42,6 +43,21 @@ def _terminate(signum: int, _frame: FrameType | None) -> None:
     raise SystemExit(128 + signum)
 
 
+def _notes(command: str, show: Any) -> Any:
+    """``warnings.showwarning`` that prints agrinav_gym's notice (``FixedFieldWarning``) as
+    one line ``agrinav COMMAND: note: ...`` and leaves every other warning to ``show``."""
+
+    def showwarning(message: Any, category: Any, *args: Any, **kwargs: Any) -> None:
+        # looked up, not imported: the CLI starts without loading the simulator
+        scenarios = sys.modules.get("agrinav_gym.scenarios")
+        if scenarios is not None and issubclass(category, scenarios.FixedFieldWarning):
+            print(f"agrinav {command}: note: {message}", file=sys.stderr)
+        else:
+            show(message, category, *args, **kwargs)
+
+    return showwarning
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     try:
@@ -51,7 +67,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     args.argv = ["agrinav", *(argv if argv is not None else sys.argv[1:])]  # for "reproduce"
     previous = signal.signal(signal.SIGTERM, _terminate)
     try:
-        return int(args.func(args))
+        with warnings.catch_warnings():  # restores showwarning
+            warnings.showwarning = _notes(args.command, warnings.showwarning)
+            return int(args.func(args))
     except InputError as exc:
         print(f"agrinav {args.command}: error: {exc}", file=sys.stderr)
         return 2

@@ -60,6 +60,7 @@ def _common(parser: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from baselines.bench import run as run_policy
+    from baselines.report import run_table
 
     records = run_policy(
         args.env,
@@ -73,8 +74,8 @@ def run(args: argparse.Namespace) -> int:
         force=args.force,
         trust_checkpoint=args.trust_checkpoint,
     )
-    for r in records:
-        print({k: (round(v, 3) if isinstance(v, float) else v) for k, v in r.items()})
+    print(run_table(records))
+    print(f"wrote {Path(args.out).resolve()} (metrics.json: every field of every episode)")
     return 0
 
 

@@ -9,7 +9,11 @@ from .args import episodes_type
 
 
 def add(sub: Any) -> None:
-    de = sub.add_parser("demo", help="default scenario + DWB vs shipped PPO on the paper suite")
+    de = sub.add_parser(
+        "demo",
+        help="DWB, shipped PPO and the blind reference on the paper suite's fields (saved "
+        "and printed first)",
+    )
     de.add_argument("--out", default="runs/demo")
     de.add_argument("--seeds", type=episodes_type, default=2)
     de.set_defaults(func=run)

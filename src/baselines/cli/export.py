@@ -11,7 +11,7 @@ from scenario_gen.errors import InputError
 
 
 def add(sub: Any) -> None:
-    from scenario_gen.export import MESH_FORMATS, TARGETS
+    from scenario_gen.export import MESH_FORMATS, TARGETS, ExportOptions
 
     ex = sub.add_parser(
         "export",
@@ -31,8 +31,17 @@ def add(sub: Any) -> None:
         help="gazebo/nav2: one <include> per plant, or merged static tiles "
         "(auto: tiles above --include-limit plants)",
     )
-    ex.add_argument("--include-limit", type=int, help="gazebo/nav2: auto's limit (default 5000)")
-    ex.add_argument("--tile-plants", type=int, help="gazebo/nav2: plants per merged tile")
+    defaults = ExportOptions()
+    ex.add_argument(
+        "--include-limit",
+        type=int,
+        help=f"gazebo/nav2: auto's limit (default {defaults.include_limit:,} plants)",
+    )
+    ex.add_argument(
+        "--tile-plants",
+        type=int,
+        help=f"gazebo/nav2: plants per merged tile (default {defaults.tile_plants:,})",
+    )
     ex.add_argument(
         "--heightmap",
         action="store_true",

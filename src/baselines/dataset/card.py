@@ -10,7 +10,6 @@ and label statistics.
 from __future__ import annotations
 
 import json
-import statistics
 from pathlib import Path
 from typing import Any
 
@@ -18,6 +17,7 @@ import numpy as np
 
 from scenario_gen.atomic import atomic_write
 
+from ..report import mean_pm
 from .loader import PerceptionDataset
 from .run import MANIFEST
 
@@ -118,9 +118,6 @@ def write_card(out: Path) -> None:
     if len(ds):
         atomic_write(out / "mosaic.png", lambda tmp: mosaic(ds, tmp))
 
-    def stat(v: list[Any]) -> str:
-        return f"{statistics.fmean(v):.3f} ± {statistics.pstdev(v):.3f}" if v else "—"
-
     spec = man["spec"]
     lines = [
         *front_matter(man, len(ds)),
@@ -136,10 +133,10 @@ def write_card(out: Path) -> None:
         "| label | value |",
         "|---|---|",
         f"| frames per species | {', '.join(f'{k}: {v}' for k, v in sorted(species.items()))} |",
-        f"| lateral offset to the lane centre, m | {stat(lateral)} |",
-        f"| heading offset to the rows, rad | {stat(heading)} |",
-        f"| plants labelled per frame | {stat(plants)} |",
-        f"| plants visible per frame | {stat(visible)} |",
+        f"| lateral offset to the lane centre, m | {mean_pm(lateral)} |",
+        f"| heading offset to the rows, rad | {mean_pm(heading)} |",
+        f"| plants labelled per frame | {mean_pm(plants)} |",
+        f"| plants visible per frame | {mean_pm(visible)} |",
         "",
         "Spec:",
         "",

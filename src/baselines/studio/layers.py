@@ -29,7 +29,7 @@ PLANE_HALF_M = 500.0  # a plane has no edge: show this much around its datum
 
 
 class Elevation:
-    """Ellipsoidal-ish heights (the source's metres) at lon/lat, NaN off the terrain."""
+    """Heights (the source's metres: orthometric from a DEM) at lon/lat, NaN off the terrain."""
 
     extent: tuple[float, float, float, float]  # west, south, east, north, degrees
     label: str
