@@ -25,6 +25,7 @@ import zipfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
+from functools import lru_cache
 from pathlib import Path, PurePosixPath
 from typing import Any
 
@@ -241,6 +242,19 @@ def inspect_model(path: str | Path, scale: str = "stage") -> UserModel:
             member = str(b.mesh)
             kept_as = _slug(p.stem)
     return UserModel(p, p.name, sha256_file(p), member, size, str(p), files, kept_as, scale, shape)
+
+
+def model_shape(um: UserModel) -> ProxyShape:
+    """The proxy camera's shape of a recorded model: the one scenario.json keeps, or (a
+    scenario saved before it was recorded) measured from the model now."""
+    if um.shape is not None:
+        return um.shape
+    return _measured_shape(str(um.path), um.sha256)
+
+
+@lru_cache(maxsize=8)
+def _measured_shape(path: str, sha256: str) -> ProxyShape:
+    return proxy_shape(load_model(path, 1.0))
 
 
 def load_model(path: str | Path, height: float, up_axis: str = "auto") -> Any:
