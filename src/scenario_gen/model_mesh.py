@@ -53,6 +53,20 @@ def collada_unit(path: Path) -> float:
     return 1.0
 
 
+def collada_up_axis(path: Path) -> str | None:
+    """A COLLADA file's ``<asset><up_axis>`` (``X_UP``, ``Y_UP``, ``Z_UP``), None when absent."""
+    try:
+        for _, el in ElementTree.iterparse(str(path), events=("end",)):
+            tag = el.tag.rsplit("}", 1)[-1]
+            if tag == "up_axis":
+                return (el.text or "").strip() or None
+            if tag == "asset":
+                break
+    except (ElementTree.ParseError, OSError):
+        pass
+    return None
+
+
 def read_scene(path: Path) -> Any:
     """The file as a trimesh Scene, referenced files resolved from its folder (the caller has
     checked them with ``model_files.bundle``)."""

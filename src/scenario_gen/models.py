@@ -267,6 +267,16 @@ def load_model(path: str | Path, height: float, up_axis: str = "auto") -> Any:
     return _placed(mesh, height)
 
 
+def native_bounds(path: str | Path) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """The model's bounding box as read (metres, +z up), before it is placed and scaled: what
+    an exporter that references the file itself needs to place it."""
+    p = Path(path)
+    _check_file(p)
+    with _mesh_of(p) as (mesh_path, _, _):
+        lo, hi = _read_mesh(mesh_path, p).bounds
+    return tuple(float(v) for v in lo), tuple(float(v) for v in hi)
+
+
 def _placed(mesh: Any, height: float) -> Any:
     """A copy of ``mesh`` with its base centred at the origin, scaled to ``height``."""
     out = mesh.copy()

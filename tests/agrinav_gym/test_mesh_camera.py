@@ -336,3 +336,23 @@ def test_a_textured_mesh_without_its_image_keeps_its_material_colour() -> None:
     mesh.visual = trimesh.visual.TextureVisuals(material=material)
     proto = Prototype.from_trimesh(mesh, "untextured", CROP)
     assert proto.texture is None and (proto.face_rgb == (10, 200, 30)).all()
+
+
+def test_a_crop_model_whose_texture_is_gone_is_refused_by_name(tmp_path: Path) -> None:
+    """A scenario folder that kept only the COLLADA file (as folders did before a model's
+    files were kept with it): the mesh camera refuses it naming the texture, one line."""
+    import json
+    import shutil
+
+    from scenario_gen import InputError, load, save
+
+    shutil.copytree(CROP_MODELS / "cutout_plant", tmp_path / "plant")
+    model = str(tmp_path / "plant" / "meshes" / "plant.dae")
+    out = save(generate(preset("default", **TINY, crop={"model": model}), 0), tmp_path / "s")
+    meta = json.loads((out / "scenario.json").read_text())
+    del meta["crop_model"]["files"]
+    (out / "scenario.json").write_text(json.dumps(meta))
+    shutil.rmtree(out / "models" / "plant" / "materials")
+    with pytest.raises(InputError, match=r"leaf\.png.*missing") as info:
+        MeshScene.from_scenario(load(out))
+    assert "\n" not in str(info.value)
