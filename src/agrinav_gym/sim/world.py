@@ -152,9 +152,9 @@ class World:
         its base's speed below ``SETTLED_SPEED`` and its rotation below ``SETTLED_RATE`` for
         ``SETTLED_STEPS`` steps in a row (at most ``SETTLE_SECONDS``). Placed a few mm above
         the ground, it drops onto the tyres' springs and rocks on them for ≈ 1 s (on ridge
-        flanks the tyres can chatter for up to ≈ 9 s); an episode
-        that started there would read that bounce in its first IMU samples (specific force
-        0.02 … 27 m/s² before 9.8). Returns the steps taken."""
+        flanks the tyres can chatter for up to ≈ 9 s); an episode that started there would
+        read that bounce in its first IMU samples (specific force 0.02 … 27 m/s² before 9.8).
+        Returns the physics steps taken."""
         cid, robot = self.client, self.robot
         self.drive(0.0, 0.0)
         calm = 0
