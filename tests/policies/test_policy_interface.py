@@ -90,7 +90,9 @@ def test_depth_follower_finds_the_lane() -> None:
         true_heading = -info["heading_error"]
         ahead = 1.0
         truth = -info["cte"] + math.tan(true_heading) * ahead
-        assert abs(offset + math.tan(heading) * ahead - truth) < 0.08
+        # 9 cm: the first frame is taken at rest on the tyres, 7 mm lower than the pose before
+        # the drop it used to be taken at (seeds 0-7 read 1.6-8.5 cm there, 1.0-6.7 before)
+        assert abs(offset + math.tan(heading) * ahead - truth) < 0.09
         assert abs(heading - true_heading) < 0.2
     finally:
         env.close()
