@@ -170,7 +170,7 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
             )
         self.start = self.task.start_pose(self.route, rng, self._clearance())
         self.world.place_robot(*self.start, self.scenario.terrain)
-        self.world.step(1)
+        self.world.settle()  # at rest on the ground before the first reading
         self.tracker = Tracker(self.route)
         self.tracker.reset(self.start[0], self.start[1])
         self.metrics = EpisodeMetrics(self.route.xy, self.route.furrow)
@@ -273,7 +273,7 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         h = float(np.interp(s, self.route.arc, np.unwrap(self.route.heading)))
         self.world.follow(float(x), float(y), h)
         self.world.place_robot(float(x), float(y), h, self.scenario.terrain)
-        self.world.step(1)
+        self.world.settle()
         self.state = self.world.state()
         self._cmd, self._prev_action = (0.0, 0.0), (0.0, 0.0)
         # Sensors and estimator restart as at a reset: a fix still in the receiver's latency

@@ -52,10 +52,16 @@ def orientation(zx: FloatArray, zy: FloatArray, yaw: FloatArray) -> tuple[FloatA
 
 
 def place_plants(
-    lay: Layout, terrain: Terrain, crop: CropSpec, growth: float, rng: np.random.Generator
+    lay: Layout,
+    terrain: Terrain,
+    crop: CropSpec,
+    growth: float,
+    rng: np.random.Generator,
+    nominal: float | None = None,
 ) -> Plants:
     """Heights, orientation, size and species for a layout, vectorized (design.md, "The
-    scenario pipeline")."""
+    scenario pipeline"); crops are ``nominal`` metres tall (default: the growth stage's
+    height) before the height spread."""
     z, zx, zy = terrain.idw(lay.x, lay.y)
     sp = crops.species(crop.species)
     n, weed = len(lay.x), lay.is_weed
@@ -63,7 +69,8 @@ def place_plants(
     weed_sp = crops.CATALOG[crops.WEED_SPECIES]
     weed_growth = rng.random(n)
     yaw = rng.uniform(-math.pi, math.pi, n)
-    height = np.where(weed, weed_sp.height(weed_growth), float(sp.height(growth)) * (1 + spread))
+    crop_h = float(sp.height(growth)) if nominal is None else float(nominal)
+    height = np.where(weed, weed_sp.height(weed_growth), crop_h * (1 + spread))
     stage = np.where(weed, weed_sp.stage_of_growth(weed_growth), float(sp.stage_of_growth(growth)))
     roll, pitch = orientation(zx, zy, yaw)
     return Plants(
@@ -232,7 +239,11 @@ def generate(spec: ScenarioSpec, seed: int) -> Scenario:
     spec = resolve_paths(spec)
     t_start = time.perf_counter()
     growth = growth_of(spec.crop)
-    user_model = inspect_model(spec.crop.model) if spec.crop.model is not None else None
+    user_model = (
+        inspect_model(spec.crop.model, spec.crop.model_scale)
+        if spec.crop.model is not None
+        else None
+    )
     field_ll = read_field(spec.field.geojson, spec.field.layer) if spec.field.geojson else None
     plan = plan_field(spec, field_ll)
     site, poly = plan.site, plan.poly
@@ -240,7 +251,10 @@ def generate(spec: ScenarioSpec, seed: int) -> Scenario:
 
     lay = layout(poly, spec.layout, plan.angle, rng["jitter"], rng["gaps"], rng["weeds"])
     terrain = add_relief(base, lay.rows, lay.planting_area, spec.furrows, rng["roughness"])
-    plants = place_plants(lay, terrain, spec.crop, growth, rng["plants"])
+    nominal = None  # crop.model_scale "native": the model's own height
+    if user_model is not None and user_model.scale == "native":
+        nominal = user_model.size[2]
+    plants = place_plants(lay, terrain, spec.crop, growth, rng["plants"], nominal)
     if spec.route.waypoints is not None:
         route = waypoint_route(
             read_gps_waypoints(spec.route.waypoints, "route.waypoints"),

@@ -4,8 +4,9 @@ Layout: ``scenario.json`` (format version, spec, seed, datum, CRS, LoD, counts, 
 planted segments, the user plant model, versions), ``terrain.npz``, ``plants.csv`` (with each
 plant's ``row`` since format 2), ``route.csv``, ``field.geojson``, ``route.geojson`` and
 ``plants.geojson`` (WGS84, one geometry type each), ``preview.png`` and, when the spec names a
-``crop.model``, ``models/<its file name>``: a byte-identical copy, checked against the
-recorded SHA-256. Everything is first written to a hidden sibling folder which is renamed
+``crop.model``, ``models/<its file name>`` (or ``models/<mesh stem>/`` holding the mesh and
+the files it references in their folders): byte-identical copies, checked against the recorded
+SHA-256s. Everything is first written to a hidden sibling folder which is renamed
 into place only once complete, so a failure never leaves a half-written scenario.
 """
 
@@ -154,21 +155,26 @@ def _write_all(scn: Scenario, d: Path, preview: bool) -> None:
 
 
 def _copy_model(scn: Scenario, d: Path) -> None:
-    """models/<name>: the user's model file, byte for byte, as it was at generation."""
+    """models/<name> (a single file), or models/<bundle>/ (a mesh and the files it references,
+    in their folders): the user's files, byte for byte, as they were at generation."""
     um = scn.crop_model
     assert um is not None
     target = d / um.file
-    target.parent.mkdir()
-    try:
-        shutil.copyfile(um.path, target)
-    except OSError as exc:
-        raise InputError("crop.model", str(um.path), f"cannot be copied ({exc})") from None
-    if sha256_file(target) != um.sha256:
-        raise InputError(
-            "crop.model",
-            str(um.path),
-            "changed since the scenario was generated (SHA-256 differs); generate it again",
-        )
+    pairs = [(um.path, target, um.sha256)]
+    pairs += [(um.root / rel, target.parents[len(Path(um.mesh).parts) - 1] / rel, digest)
+              for rel, digest in um.files]  # fmt: skip
+    for src, dst, digest in pairs:
+        dst.parent.mkdir(parents=True, exist_ok=True)
+        try:
+            shutil.copyfile(src, dst)
+        except OSError as exc:
+            raise InputError("crop.model", str(src), f"cannot be copied ({exc})") from None
+        if sha256_file(dst) != digest:
+            raise InputError(
+                "crop.model",
+                str(src),
+                "changed since the scenario was generated (SHA-256 differs); generate it again",
+            )
 
 
 def metadata_dict(scn: Scenario) -> dict[str, Any]:

@@ -1,30 +1,40 @@
-"""User plant models: a mesh file, or a .zip holding one mesh and its textures.
+"""User plant models: a mesh file with the files it references, or a .zip holding them.
 
 Archives are extracted defensively: absolute paths, ``..`` components, symbolic links, too many
 members, too many bytes and implausible compression ratios (zip bombs) are refused before a
 single byte is written. An archive must hold exactly one mesh file (two are refused, naming
-both). A single-file model must not reference other files (a glTF's external buffers or
-images, an OBJ's material library): those come with it in a .zip, so that the copy a scenario
-keeps in ``models/`` is complete.
+both). A mesh file is kept with every file it references (``model_files``: a COLLADA file's
+textures, an OBJ's material library and its maps, a glTF's buffers and images), which must
+exist; a missing one is refused by name. The copy a scenario keeps in ``models/`` is then
+complete: a single file as ``models/<file name>``, a mesh with references as
+``models/<mesh stem>/`` holding them in their folders as they were (``meshes/corn.dae`` and
+``materials/textures/corn.png``).
 
-``inspect_model`` checks a model and records what a scenario keeps of it (``UserModel``: file,
-content hash, native size, scale rule); ``load_model`` gives the mesh scaled to a height.
+``inspect_model`` checks a model and records what a scenario keeps of it (``UserModel``: files,
+content hashes, native size, scale rule, the proxy camera's shape); ``load_model`` gives the
+mesh scaled to a height with the file's own colours (``model_mesh``).
 """
 
 from __future__ import annotations
 
 import hashlib
-import json
+import re
 import stat
 import tempfile
 import zipfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
+from functools import lru_cache
 from pathlib import Path, PurePosixPath
 from typing import Any
 
 import numpy as np
 
 from .errors import InputError
+from .model_files import Bundle, bundle
+from .model_mesh import collada_unit, one_mesh, read_scene
+from .model_shape import ProxyShape, proxy_shape
 from .sources import MESH_SUFFIXES
 
 MAX_MEMBERS = 1000
@@ -34,38 +44,60 @@ MAX_RATIO = 200.0
 #: the mesh camera's cost grows with the triangles under each pixel (a 100k-triangle model
 #: made one 848 × 480 frame take minutes). Plant models made for simulation have 1-20k.
 MAX_MODEL_TRIANGLES = 50_000
-#: How a model becomes each plant: recorded in scenario.json next to the model.
-SCALE_RULE = (
-    "uniform scale = plant height / native_size[2]; base centred on the plant position, +z up "
-    "(glTF/GLB are turned from +y up)"
-)
+#: How a model becomes each plant (``crop.model_scale``): recorded in scenario.json.
+SCALE_RULES = {
+    "stage": "uniform scale = plant height / native_size[2] (the plant heights follow the growth "
+    "stage); base centred on the plant position, +z up (glTF/GLB are turned from +y up)",
+    "native": "uniform scale = plant height / native_size[2] (the plant heights are the model's "
+    "own native_size[2], metres, times the height spread); base centred on the plant position, "
+    "+z up (glTF/GLB are turned from +y up)",
+}
 
 
 @dataclass(frozen=True)
 class UserModel:
     """A user plant model as a scenario records it."""
 
-    path: Path  # the file now: the user's at generation, the folder's copy after ``load``
-    name: str  # file name; a saved scenario keeps a copy as models/<name>
+    path: Path  # the mesh file now: the user's at generation, the folder's copy after ``load``
+    name: str  # file name of the mesh (or the .zip)
     sha256: str  # of the file's bytes
-    mesh: str  # the mesh inside: the .zip member, or the file name itself
-    size: tuple[float, float, float]  # native bounding box (x, y, z), model units, +z up
+    mesh: str  # the mesh: the .zip member, the file name, or its path in the bundle
+    size: tuple[float, float, float]  # native bounding box (x, y, z), metres, +z up
     source: str  # absolute path of the user's file when the scenario was generated
+    files: tuple[tuple[str, str], ...] = ()  # referenced files: (path in the bundle, sha256)
+    bundle: str | None = None  # the folder under models/ of a mesh kept with its files
+    scale: str = "stage"  # crop.model_scale
+    shape: ProxyShape | None = None  # the proxy camera's cylinders for this model
 
     @property
     def file(self) -> str:
-        """Path of the copy relative to a scenario folder."""
+        """Path of the mesh's copy relative to a scenario folder."""
+        if self.bundle is not None:
+            return f"models/{self.bundle}/{self.mesh}"
         return f"models/{self.name}"
 
+    @property
+    def root(self) -> Path:
+        """The folder holding the mesh and its referenced files (``files`` are relative to it)."""
+        if self.bundle is None:
+            return self.path.parent
+        return self.path.parents[len(PurePosixPath(self.mesh).parts) - 1]
+
     def to_dict(self) -> dict[str, Any]:
-        return {
+        out: dict[str, Any] = {
             "file": self.file,
             "sha256": self.sha256,
             "mesh": self.mesh,
             "native_size": list(self.size),
-            "scale": SCALE_RULE,
+            "model_scale": self.scale,
+            "scale": SCALE_RULES[self.scale],
             "source": self.source,
         }
+        if self.files:
+            out["files"] = [{"path": p, "sha256": h} for p, h in self.files]
+        if self.shape is not None:
+            out["proxy"] = self.shape.to_dict()
+        return out
 
 
 def safe_extract(archive: str | Path, dest: str | Path) -> list[Path]:
@@ -142,32 +174,6 @@ def sha256_file(path: Path) -> str:
     return h.hexdigest()
 
 
-def _external_refs(p: Path) -> list[str]:
-    """Files a single-file model references (which a copy of that file alone would lose)."""
-    suffix = p.suffix.lower()
-    if suffix == ".gltf":
-        try:
-            doc = json.loads(p.read_text())
-        except (ValueError, UnicodeDecodeError):
-            return []  # not JSON: trimesh reports it as unreadable
-        items = [*(doc.get("buffers") or []), *(doc.get("images") or [])]
-        return [
-            str(it["uri"])
-            for it in items
-            if isinstance(it, dict)
-            and isinstance(it.get("uri"), str)
-            and not it["uri"].startswith("data:")
-        ]
-    if suffix == ".obj":
-        with open(p, "rb") as f:
-            return [
-                line.split(None, 1)[1].decode("utf-8", "replace").strip()
-                for line in f
-                if line.startswith(b"mtllib") and len(line.split(None, 1)) == 2
-            ]
-    return []
-
-
 def _one_mesh(files: list[Path], root: Path, archive: Path) -> Path:
     meshes = sorted(f for f in files if f.suffix.lower() in MESH_SUFFIXES)
     if not meshes:
@@ -200,54 +206,98 @@ def _check_file(p: Path) -> None:
         )
 
 
-def inspect_model(path: str | Path) -> UserModel:
-    """Check a user model completely and record it (hash, mesh, native size)."""
-    p = Path(path).expanduser().resolve()
-    _check_file(p)
+def _slug(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", text).strip("._") or "model"
+
+
+@contextmanager
+def _mesh_of(p: Path) -> Iterator[tuple[Path, Bundle, str]]:
+    """The mesh file of a model (extracted from a .zip into a temporary folder), its bundle
+    (references checked) and its name in the archive (or the file name)."""
     if p.suffix.lower() == ".zip":
         with tempfile.TemporaryDirectory(prefix="agrinav-model-") as tmp:
-            mesh_path = _one_mesh(safe_extract(p, tmp), Path(tmp).resolve(), p)
-            mesh_name = str(mesh_path.relative_to(Path(tmp).resolve()))
-            native = _read_mesh(mesh_path, p)
+            root = Path(tmp).resolve()
+            mesh_path = _one_mesh(safe_extract(p, tmp), root, p)
+            member = mesh_path.relative_to(root).as_posix()
+            yield mesh_path, bundle(mesh_path, p, limit_root=root), member
     else:
-        refs = _external_refs(p)
-        if refs:
-            raise InputError(
-                "crop.model",
-                str(p),
-                f"references other files ({', '.join(refs[:3])}) that a copy of it alone would "
-                "lose; allowed: the model and those files together in one .zip",
-            )
-        mesh_name = p.name
-        native = _read_mesh(p, p)
-    lo, hi = native.bounds
-    size = tuple(float(v) for v in hi - lo)
-    return UserModel(p, p.name, sha256_file(p), mesh_name, size, str(p))  # type: ignore[arg-type]
+        yield p, bundle(p, p), p.name
+
+
+def inspect_model(path: str | Path, scale: str = "stage") -> UserModel:
+    """Check a user model completely and record it (hashes, mesh, native size, proxy shape)."""
+    p = Path(path).expanduser().resolve()
+    _check_file(p)
+    if scale not in SCALE_RULES:
+        raise InputError("crop.model_scale", scale, f"allowed: {', '.join(SCALE_RULES)}")
+    with _mesh_of(p) as (mesh_path, b, member):
+        native = _read_mesh(mesh_path, p)
+        lo, hi = native.bounds
+        size = (float(hi[0] - lo[0]), float(hi[1] - lo[1]), float(hi[2] - lo[2]))
+        shape = proxy_shape(_placed(native, 1.0))
+        files: tuple[tuple[str, str], ...] = ()
+        kept_as: str | None = None
+        if p.suffix.lower() != ".zip" and b.files:  # kept with its files, in their folders
+            files = tuple((str(f), sha256_file(b.root / f)) for f in b.files)
+            member = str(b.mesh)
+            kept_as = _slug(p.stem)
+    return UserModel(p, p.name, sha256_file(p), member, size, str(p), files, kept_as, scale, shape)
+
+
+def model_shape(um: UserModel) -> ProxyShape:
+    """The proxy camera's shape of a recorded model: the one scenario.json keeps, or (a
+    scenario saved before it was recorded) measured from the model now."""
+    if um.shape is not None:
+        return um.shape
+    return _measured_shape(str(um.path), um.sha256)
+
+
+@lru_cache(maxsize=8)
+def _measured_shape(path: str, sha256: str) -> ProxyShape:
+    return proxy_shape(load_model(path, 1.0))
 
 
 def load_model(path: str | Path, height: float, up_axis: str = "auto") -> Any:
-    """A user model scaled uniformly to ``height`` metres, base centred at the origin, +z up."""
+    """A user model scaled uniformly to ``height`` metres, base centred at the origin, +z up,
+    with its file's colours and textures (an RGBA atlas: alpha 0 marks cut-outs)."""
     p = Path(path)
     _check_file(p)
-    if p.suffix.lower() == ".zip":
-        with tempfile.TemporaryDirectory(prefix="agrinav-model-") as tmp:
-            mesh_path = _one_mesh(safe_extract(p, tmp), Path(tmp).resolve(), p)
-            mesh = _read_mesh(mesh_path, p, up_axis)
-    else:
-        mesh = _read_mesh(p, p, up_axis)
-    lo, hi = mesh.bounds
+    with _mesh_of(p) as (mesh_path, _, _):
+        mesh = _read_mesh(mesh_path, p, up_axis)
+    return _placed(mesh, height)
+
+
+def native_bounds(path: str | Path) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """The model's bounding box as read (metres, +z up), before it is placed and scaled: what
+    an exporter that references the file itself needs to place it."""
+    p = Path(path)
+    _check_file(p)
+    with _mesh_of(p) as (mesh_path, _, _):
+        lo, hi = _read_mesh(mesh_path, p).bounds
+    return tuple(float(v) for v in lo), tuple(float(v) for v in hi)
+
+
+def _placed(mesh: Any, height: float) -> Any:
+    """A copy of ``mesh`` with its base centred at the origin, scaled to ``height``."""
+    out = mesh.copy()
+    lo, hi = out.bounds
     extent = float(hi[2] - lo[2])
-    mesh.apply_translation([-(lo[0] + hi[0]) / 2, -(lo[1] + hi[1]) / 2, -lo[2]])
-    mesh.apply_scale(height / extent)
-    return mesh
+    out.apply_translation([-(lo[0] + hi[0]) / 2, -(lo[1] + hi[1]) / 2, -lo[2]])
+    out.apply_scale(height / extent)
+    return out
 
 
 def _read_mesh(p: Path, given: Path, up_axis: str = "auto") -> Any:
-    """The mesh in ``p`` turned +z up, checked to be a 3-D object (``given`` names it)."""
+    """The mesh in ``p`` turned +z up, in metres, checked to be a 3-D object (``given`` names
+    it)."""
     import trimesh
 
     try:
-        mesh = trimesh.load(p, force="mesh")
+        scene = read_scene(p)
+        unit = collada_unit(p) if p.suffix.lower() == ".dae" else 1.0
+        mesh = one_mesh(scene, unit)
+    except InputError:
+        raise
     except Exception as exc:  # trimesh raises many types for malformed files
         raise InputError("crop.model", str(given), f"cannot be read as a mesh ({exc})") from None
     v = np.asarray(getattr(mesh, "vertices", np.empty((0, 3))))

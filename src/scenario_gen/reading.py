@@ -14,7 +14,7 @@ import csv
 import math
 import zipfile
 import zlib
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 from typing import Any
 
 import numpy as np
@@ -44,7 +44,10 @@ from .io import (
 )
 from .layout import RowFrame
 from .model import Plants, Scenario
-from .models import UserModel, sha256_file
+from .model_files import MAX_FILES as MAX_MODEL_FILES
+from .model_shape import ProxyShape
+from .models import MAX_TOTAL_BYTES as MAX_MODEL_BYTES
+from .models import SCALE_RULES, UserModel, sha256_file
 from .routes import SEGMENTS, Route
 from .schema import parse_json
 from .spec import ScenarioSpec
@@ -249,22 +252,86 @@ def _user_model(d: Path, rec: Any, version: int) -> UserModel | None:
     if not isinstance(rec, dict):
         raise InputError("scenario.json: crop_model", type(rec).__name__, "allowed: an object")
     file = _get(rec, "file", str, "crop_model.file")
-    parts = Path(file).parts
-    if len(parts) != 2 or parts[0] != "models" or parts[1] in ("..", "."):
-        raise InputError("scenario.json: crop_model.file", file, "allowed: models/<file name>")
-    path = _member(d, file, 256 * 2**20)
+    parts = PurePosixPath(file).parts
+    if len(parts) < 2 or parts[0] != "models" or any(q in ("..", ".") for q in parts):
+        raise InputError(
+            "scenario.json: crop_model.file", file, "allowed: models/<file> or models/<name>/<path>"
+        )
+    path = _member(d, file, MAX_MODEL_BYTES)
     digest = _get(rec, "sha256", str, "crop_model.sha256")
     if sha256_file(path) != digest:
         raise InputError(file, str(path), "does not match its SHA-256 in scenario.json")
     size = _numbers({"native_size": rec.get("native_size")}, "native_size", 3)
+    mesh = str(_get(rec, "mesh", str, "crop_model.mesh"))
+    files = _model_files(d, rec, parts, mesh)
+    scale = rec.get("model_scale", "stage")
+    if scale not in SCALE_RULES:
+        raise InputError(
+            "scenario.json: crop_model.model_scale", scale, f"allowed: {list(SCALE_RULES)}"
+        )
     return UserModel(
         path.resolve(),
-        parts[1],
+        PurePosixPath(mesh).name if len(parts) > 2 else parts[1],
         digest,
-        str(_get(rec, "mesh", str, "crop_model.mesh")),
+        mesh,
         (float(size[0]), float(size[1]), float(size[2])),
         str(_get(rec, "source", str, "crop_model.source")),
+        files,
+        parts[1] if len(parts) > 2 else None,
+        scale,
+        _proxy_shape(rec.get("proxy")),
     )
+
+
+def _model_files(
+    d: Path, rec: dict[str, Any], parts: tuple[str, ...], mesh: str
+) -> tuple[tuple[str, str], ...]:
+    """The files a bundled model references (models/<name>/...), each present and unchanged."""
+    items = rec.get("files", [])
+    if len(parts) == 2:
+        if items:
+            raise InputError(
+                "scenario.json: crop_model.files", items, "allowed: none for models/<file>"
+            )
+        return ()
+    if "/".join(parts[2:]) != mesh:
+        raise InputError("scenario.json: crop_model.mesh", mesh, f"allowed: {'/'.join(parts[2:])}")
+    if not isinstance(items, list) or len(items) > MAX_MODEL_FILES:
+        raise InputError(
+            "scenario.json: crop_model.files", type(items).__name__,
+            f"allowed: a list of at most {MAX_MODEL_FILES} {{path, sha256}} objects",
+        )  # fmt: skip
+    out = []
+    for item in items:
+        if not isinstance(item, dict):
+            raise InputError("scenario.json: crop_model.files", item, "allowed: {path, sha256}")
+        rel = _get(item, "path", str, "crop_model.files[].path")
+        q = PurePosixPath(rel)
+        if q.is_absolute() or not q.parts or any(x in ("..", ".") for x in q.parts):
+            raise InputError(
+                "scenario.json: crop_model.files[].path", rel, "allowed: a path in the bundle"
+            )
+        name = "/".join(parts[:2]) + "/" + rel
+        member = _member(d, name, MAX_MODEL_BYTES)
+        digest = _get(item, "sha256", str, "crop_model.files[].sha256")
+        if sha256_file(member) != digest:
+            raise InputError(name, str(member), "does not match its SHA-256 in scenario.json")
+        out.append((rel, digest))
+    return tuple(out)
+
+
+def _proxy_shape(rec: Any) -> ProxyShape | None:
+    if rec is None:
+        return None  # scenarios saved before the shape was recorded: computed on use
+    keys = ("core", "base", "reach_x", "reach_y")
+    if not isinstance(rec, dict) or set(rec) != set(keys):
+        raise InputError("scenario.json: crop_model.proxy", rec, f"allowed: an object of {keys}")
+    vals = [rec[k] for k in keys]
+    if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in vals) or not all(
+        0.0 <= float(v) <= 100.0 for v in vals
+    ):
+        raise InputError("scenario.json: crop_model.proxy", rec, "allowed: numbers in [0, 100]")
+    return ProxyShape(*(float(v) for v in vals))
 
 
 # ----------------------------------------------------------------------------- terrain.npz

@@ -129,8 +129,16 @@ class CropSpec:
     height_std: float = _f(0.08, "relative std of plant height between plants", 0, 0.5)
     model: str | None = _f(
         None,
-        "user mesh file or .zip (one mesh + its textures), scaled to each plant's height; "
-        "copied into the scenario folder (models/)",
+        "user plant model: a mesh file (COLLADA, glTF/GLB, OBJ, PLY, STL) with the files it "
+        "references (textures, .mtl, .bin), or a .zip of them; copied into the scenario folder "
+        "(models/)",
+    )
+    model_scale: str = _f(
+        "stage",
+        "size of crop.model: 'stage' scales it to the growth stage's height (as the catalog "
+        "plants), 'native' keeps the file's own size (metres; COLLADA's unit applied); "
+        "height_std varies both",
+        choices=("stage", "native"),
     )
 
 

@@ -10,6 +10,7 @@ import pytest
 import trimesh
 
 from agrinav_gym.config import EnvConfig
+from agrinav_gym.render import native
 from agrinav_gym.render.classes import CROP, SOIL
 from agrinav_gym.render.mesh_scene import MeshScene
 from agrinav_gym.render.plant_meshes import PlantMeshes, Prototype
@@ -216,3 +217,142 @@ def test_a_saved_user_model_is_found_after_the_folder_moves(
     scene = MeshScene.from_scenario(back)
     user = [p for p in scene.plants.prototypes if p.name == "plant.zip"]
     assert len(user) == 1 and float(np.ptp(user[0].vertices[:, 2])) > 0.1
+
+
+CROP_MODELS = Path(__file__).resolve().parents[1] / "data" / "crop_models"
+
+
+def _cutout_scene(x: float = 1.5) -> MeshScene:
+    """The test plant (a leaf quad facing -x whose outer quarters are cut out, a stalk behind
+    it) 1 m tall, ``x`` m ahead of the robot on flat ground."""
+    from scenario_gen.models import load_model
+
+    proto = Prototype.from_trimesh(
+        load_model(CROP_MODELS / "cutout_plant" / "meshes" / "plant.dae", 1.0), "cutout", CROP
+    )
+    assert proto.alpha is not None and 0.3 < proto.alpha.mean() < 0.7
+    one = np.zeros(1)
+    plants = PlantMeshes(
+        (proto,), np.zeros(1, np.int16), np.ones(1, np.float32), one + x, one, one, one, one, one
+    )
+    return MeshScene(flat(), plants)
+
+
+def _on_quad(cam: MeshCamera, rays: Any, x_quad: float) -> tuple[Any, Any, Any]:
+    """Pixels whose rays cross the leaf quad's plane inside the quad: on its opaque strip, on
+    its cut-out quarters (margins of 1 cm left out), and the distance along the axis there."""
+    o, d = rays.world(np.eye(3), BASE)
+    t = (x_quad - o[0]) / d[:, 0]
+    p = o + d * t[:, None]
+    inside = (p[:, 2] > 0.21) & (p[:, 2] < 0.99) & (np.abs(p[:, 1]) < 0.29) & (t > 0)
+    strip = inside & (np.abs(p[:, 1]) < 0.14)
+    cut = inside & (np.abs(p[:, 1]) > 0.16)
+    return strip, cut, t * rays.forward
+
+
+def test_textured_model_colours_are_its_texels(renderer: str) -> None:
+    """The leaf, lit head-on (sun behind the camera), reads its texture's colour: mean RGB
+    within 10 levels of the texel (haze at 1.3 m moves it by < 7)."""
+    from ..data.crop_models.make_models import LEAF
+
+    cam = camera(cam={"width": 160, "height": 120}, renderer=renderer)
+    cam.set_lighting(None, 180.0, 0.0)  # light along -x: the quad's face towards the camera
+    f = cam.draw(np.eye(3), BASE, _cutout_scene(), None, rgb=True, labels=True, stereo=False)
+    strip, _, _ = _on_quad(cam, cam.color_rays, 1.5 - 0.03)
+    leaf = f.rgb.reshape(-1, 3)[strip & (f.rgb_label.ravel() == CROP)].astype(float)
+    assert len(leaf) > 200
+    assert np.abs(leaf.mean(axis=0) - LEAF).max() < 10, leaf.mean(axis=0)
+
+
+def test_alpha_cutouts_let_rays_through(renderer: str) -> None:
+    """A ray through a cut-out texel is no hit: depth, labels, instance and colour there are
+    those of the same view without the plant; rays through its opaque strip see the leaf."""
+    from ..data.crop_models.make_models import CUT
+
+    cam = camera(cam={"width": 160, "height": 120}, renderer=renderer)
+    x_quad = 1.5 - 0.03  # the model's base is centred: its quad lies 3 cm in front of 1.5 m
+    kw: dict[str, Any] = {"rgb": True, "labels": True, "stereo": False}
+    f = cam.draw(np.eye(3), BASE, _cutout_scene(), None, **kw)
+    bare = cam.draw(np.eye(3), BASE, MeshScene(flat()), None, **kw)
+    strip, cut, z_quad = _on_quad(cam, cam.rays, x_quad)
+    label, depth = f.label.ravel(), f.depth.ravel()
+    assert strip.sum() > 200 and cut.sum() > 200
+    assert (label[strip] == CROP).all() and (f.instance.ravel()[strip] == 0).all()
+    assert np.allclose(depth[strip], z_quad[strip], atol=2e-3)
+    assert (f.instance.ravel()[cut] == -1).all()
+    assert np.array_equal(label[cut], bare.label.ravel()[cut])
+    assert np.allclose(depth[cut], bare.depth.ravel()[cut], atol=1e-5)
+    assert (bare.label.ravel()[cut] == SOIL).sum() > 50  # the ground is seen through them
+    # no cut-out texel's colour anywhere in the colour image
+    rgb = f.rgb.reshape(-1, 3).astype(int)
+    assert not (np.abs(rgb - CUT).max(axis=1) < 60).any()
+    c_strip, c_cut, _ = _on_quad(cam, cam.color_rays, x_quad)
+    assert np.array_equal(f.rgb_label.ravel()[c_cut], bare.rgb_label.ravel()[c_cut])
+    assert np.array_equal(f.rgb.reshape(-1, 3)[c_cut], bare.rgb.reshape(-1, 3)[c_cut])
+    assert (f.rgb_label.ravel()[c_strip] == CROP).all()
+
+
+def test_alpha_cutouts_hide_nothing_from_the_stereo_pair() -> None:
+    """The right imager's occlusion test passes through cut-outs too: behind the cut-out
+    quarters a ground pixel is invalid exactly where the segment from the right imager to it
+    crosses the leaf's opaque strip."""
+    cam = camera(cam={"width": 160, "height": 120}, renderer="raycast")
+    x_quad = 1.5 - 0.03
+    with_plant = cam.draw(np.eye(3), BASE, _cutout_scene(), None).depth.ravel()
+    bare = cam.draw(np.eye(3), BASE, MeshScene(flat()), None).depth.ravel()
+    _, cut, _ = _on_quad(cam, cam.rays, x_quad)
+    seen = cut & (bare > 0)
+    o, d = cam.rays.world(np.eye(3), BASE)
+    ground = o + d * (np.where(seen, bare, 1.0) / cam.rays.forward)[:, None]
+    right = cam.right_world(np.eye(3), BASE)
+    s = (x_quad - right[0]) / (ground[:, 0] - right[0])
+    q = right + (ground - right) * s[:, None]  # where the right imager's view crosses the quad
+    y, z = np.abs(q[:, 1]), q[:, 2]
+    on_strip = (y < 0.14) & (z > 0.21) & (z < 0.99)
+    clear = (y > 0.16) | (z < 0.19) | (z > 1.01)
+    assert (seen & on_strip).sum() > 10 and (seen & clear).sum() > 100
+    assert (with_plant[seen & on_strip] == 0).all()  # the opaque strip hides them
+    assert (with_plant[seen & clear] > 0).all()  # through the cut-out: still matched
+
+
+def test_scenes_with_cutouts_are_drawn_by_rays() -> None:
+    """The compiled rasteriser knows no cut-outs: a scene with them is cast by Embree whatever
+    ``camera.renderer`` says, so both settings give the same frame."""
+    if not native.available():
+        pytest.skip("compiled kernels not built (test_native checks the build in CI)")
+    scene = _cutout_scene()
+    kw = {"cam": {"width": 96, "height": 72}}
+    a = camera(**kw, renderer="raster").draw(np.eye(3), BASE, scene, None, rgb=True, labels=True)
+    b = camera(**kw, renderer="raycast").draw(np.eye(3), BASE, scene, None, rgb=True, labels=True)
+    assert np.array_equal(a.depth, b.depth) and np.array_equal(a.rgb, b.rgb)
+    assert np.array_equal(a.label, b.label)
+
+
+def test_a_textured_mesh_without_its_image_keeps_its_material_colour() -> None:
+    """A texture that did not load leaves a TextureVisuals without an image: its faces take
+    the material's colour (it used to be an AttributeError on face_colors)."""
+    mesh = trimesh.creation.box(extents=(0.2, 0.2, 1.0))
+    material = trimesh.visual.material.SimpleMaterial(diffuse=[10, 200, 30, 255])
+    mesh.visual = trimesh.visual.TextureVisuals(material=material)
+    proto = Prototype.from_trimesh(mesh, "untextured", CROP)
+    assert proto.texture is None and (proto.face_rgb == (10, 200, 30)).all()
+
+
+def test_a_crop_model_whose_texture_is_gone_is_refused_by_name(tmp_path: Path) -> None:
+    """A scenario folder that kept only the COLLADA file (as folders did before a model's
+    files were kept with it): the mesh camera refuses it naming the texture, one line."""
+    import json
+    import shutil
+
+    from scenario_gen import InputError, load, save
+
+    shutil.copytree(CROP_MODELS / "cutout_plant", tmp_path / "plant")
+    model = str(tmp_path / "plant" / "meshes" / "plant.dae")
+    out = save(generate(preset("default", **TINY, crop={"model": model}), 0), tmp_path / "s")
+    meta = json.loads((out / "scenario.json").read_text())
+    del meta["crop_model"]["files"]
+    (out / "scenario.json").write_text(json.dumps(meta))
+    shutil.rmtree(out / "models" / "plant" / "materials")
+    with pytest.raises(InputError, match=r"leaf\.png.*missing") as info:
+        MeshScene.from_scenario(load(out))
+    assert "\n" not in str(info.value)

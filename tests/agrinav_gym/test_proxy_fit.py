@@ -2,6 +2,7 @@
 
 import math
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -113,3 +114,78 @@ def test_lane_width_of_an_open_lane_and_of_two_walls() -> None:
     z = np.where((z * rays[:, 0] < 6.0), z, 0.0).reshape(m.height, m.width).astype(np.float32)
     assert lane_width(z, m) == pytest.approx(0.8, abs=0.02)
     assert lane_width(np.zeros_like(z), m) == 2.0  # nothing seen: both sides capped at 1 m
+
+
+CROP_MODELS = Path(__file__).resolve().parents[1] / "data" / "crop_models"
+
+
+def _user_lanes(model: Path) -> list[Any]:
+    """Lanes of 1.2 m plants of a user model, 0.75 and 1 m rows, with the fit's poses."""
+    import scenario_gen as sg
+    from agrinav_gym.tools.proxy_fit import FitScene, _lane_poses
+
+    out = []
+    for k, spacing in enumerate((0.75, 1.0)):
+        spec = sg.preset(
+            "default",
+            terrain={"margin": 4.0},
+            field={"width": 4.5 * spacing, "length": 14.0},
+            layout={"row_spacing": spacing, "headland": 2.0, "weed_density": 0.0},
+            crop={"species": "corn", "stage": 2, "model": str(model)},
+        )
+        scn = sg.generate(spec, HELD_OUT + k)
+        out.append(FitScene(scn, _lane_poses(scn)))
+    return out
+
+
+@pytest.mark.parametrize("model", ["textured_obj/plant.obj", "cutout_plant/meshes/plant.dae"])
+def test_the_proxy_of_a_user_model_is_fitted_to_that_model(model: str) -> None:
+    """With crop.model the proxy camera draws the shape measured from the model when the
+    scenario was generated: its depth differs from the catalog maize's proxy on the same field
+    and is nearer to the mesh camera's (per-pixel depth plus lane width, as the fit weighs
+    them)."""
+    from agrinav_gym.config import EnvConfig
+    from agrinav_gym.render.mesh_scene import MeshScene
+    from agrinav_gym.render.proxy_plants import PlantField
+    from agrinav_gym.robot import RobotGeometry, robot_interface
+    from agrinav_gym.sensors.depth import DepthCamera
+    from agrinav_gym.sensors.mesh_camera import MeshCamera
+    from agrinav_gym.tools.proxy_fit import _depth_error
+
+    cfg = EnvConfig.from_dict({"camera": {"min_range": 0.0}})
+    cam = robot_interface(cfg, RobotGeometry.from_urdf()).camera
+    proxy, mesh = DepthCamera(cfg.camera, cam), MeshCamera(cfg.camera, cam)
+    far = cfg.camera.max_range
+    err = {"model": 0.0, "catalog": 0.0}
+    differ = 0.0
+    for fs in _user_lanes(CROP_MODELS / model):
+        scn = fs.scenario
+        assert scn.crop_model is not None and scn.crop_model.shape is not None
+        fields = {
+            "model": PlantField.from_scenario(scn),
+            "catalog": PlantField.from_scenario(scn, proxy_params),
+        }
+        ms = MeshScene.from_scenario(scn)
+        for r, p in fs.poses:
+            ref = mesh.draw(r, p, ms, None, stereo=False).depth
+            depth = {k: proxy.draw(r, p, scn.terrain, f, None).depth for k, f in fields.items()}
+            for k, d in depth.items():
+                err[k] += _depth_error(d, ref, far) + abs(lane_width(d, cam) - lane_width(ref, cam))
+            differ += _depth_error(depth["model"], depth["catalog"], far)
+    assert differ > 0.05 * len(fs.poses)
+    assert err["model"] < 0.7 * err["catalog"], err
+
+
+def test_the_model_shape_follows_the_models_silhouette() -> None:
+    """The test plant: a 2 cm stalk, a 0.3 m opaque strip across its y axis from 0.2 m up (its
+    outer quarters cut out); the box: 0.1 m square, 0.5 m tall."""
+    from scenario_gen.models import inspect_model
+
+    leaf = inspect_model(CROP_MODELS / "cutout_plant" / "meshes" / "plant.dae").shape
+    assert leaf is not None
+    assert leaf.base == pytest.approx(0.2, abs=0.051)
+    assert leaf.reach_y == pytest.approx(0.15, rel=0.1)  # the cut-out quarters do not count
+    assert leaf.reach_x == pytest.approx(0.03, abs=0.01) and leaf.core < 0.04
+    box = inspect_model(CROP_MODELS / "textured_obj" / "plant.obj").shape
+    assert box is not None and box.base == 0.0
+    assert box.core == pytest.approx(0.1, rel=0.06) and box.reach_x == pytest.approx(box.core)

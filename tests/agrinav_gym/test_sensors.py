@@ -76,6 +76,30 @@ def test_imu_noise_matches_the_datasheet() -> None:
     assert rms[2] == pytest.approx(math.radians(1.0), rel=0.2)
 
 
+@pytest.mark.parametrize("ridged", [False, True])
+def test_the_imu_reads_gravity_from_the_first_step(ridged: bool) -> None:
+    """``reset`` lets the robot settle on the ground before the episode: standing still, the
+    specific force reads g within its noise at the reset and every step after (it used to
+    read 0.02, 27.3, 3.3 ... m/s² while the robot dropped onto its tyres). Ridged seed 2 starts
+    on ridge flanks where the tyres chatter for ≈ 9 s before the robot rests."""
+    from agrinav_gym.interface import decode_imu
+
+    from .helpers import STILL, TINY, make
+
+    over = {**TINY, "furrows": {"enabled": True}} if ridged else TINY
+    env = make(scenario_overrides=over, config=STILL)
+    sigma = 60e-6 * G * math.sqrt(20.0)  # white noise at the 20 Hz control rate
+    tol = 6 * sigma + 5 * 15e-6 * G  # noise and the in-run bias
+    for seed in range(3):
+        obs, _ = env.reset(seed=seed)
+        f = [np.linalg.norm(decode_imu(obs["imu"]).specific_force)]
+        for _ in range(10):
+            obs, *_ = env.step(np.zeros(2, np.float32))
+            f.append(np.linalg.norm(decode_imu(obs["imu"]).specific_force))
+        assert np.abs(np.array(f) - G).max() < tol, (seed, np.round(f, 4))
+    env.close()
+
+
 def _empty_plants() -> PlantField:
     e = np.empty(0)
     tree = cKDTree(np.zeros((1, 2)))

@@ -140,3 +140,59 @@ def test_exports_doc_states_the_default_fields_plant_count() -> None:
     assert said is not None
     scn = generate(preset("default"), 0)
     assert int(said.group(1).replace(",", "")) == len(scn.plants)
+
+
+CUTOUT = Path(__file__).resolve().parents[1] / "data" / "crop_models" / "cutout_plant"
+
+
+@pytest.fixture(scope="module")
+def collada(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A scenario whose crop.model is a textured COLLADA plant in Gazebo's layout."""
+    import shutil
+
+    base = tmp_path_factory.mktemp("collada")
+    shutil.copytree(CUTOUT, base / "plant")
+    spec = preset(
+        "default",
+        field={"width": 3.0, "length": 4.0},
+        layout={"headland": 1.0},
+        terrain={"margin": 2.5},
+        route={"lead_in": 1.0},
+        crop={"model": str(base / "plant" / "meshes" / "plant.dae")},
+    )
+    save(generate(spec, 1), base / "scn", preview=False)
+    return base / "scn"
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["--to", "gazebo"],
+        ["--to", "gazebo", "--plants", "tiles"],
+        ["--to", "mesh", "--with-plants"],
+    ],
+)
+def test_a_textured_collada_crop_model_exports(collada: Path, tmp_path: Path, args) -> None:
+    out = tmp_path / "out"
+    assert main(["export", str(collada), *args, "--out", str(out)]) == 0
+    assert (out / "README.md").is_file()
+
+
+@pytest.mark.parametrize("to", [["--to", "gazebo"], ["--to", "mesh", "--with-plants"]])
+def test_a_crop_model_whose_texture_is_gone_is_one_line(
+    collada: Path, tmp_path: Path, capsys, to
+) -> None:
+    """A folder kept only the mesh (as scenarios did before their models' files were kept):
+    the export names the missing texture in one line and writes nothing."""
+    import shutil
+
+    old = tmp_path / "old"
+    shutil.copytree(collada, old)
+    meta = json.loads((old / "scenario.json").read_text())
+    del meta["crop_model"]["files"]
+    (old / "scenario.json").write_text(json.dumps(meta))
+    shutil.rmtree(old / "models" / "plant" / "materials")
+    out = tmp_path / "out"
+    err = _error(capsys, ["export", str(old), *to, "--out", str(out)])
+    assert "crop.model" in err and "leaf.png" in err and "missing" in err
+    assert not out.exists()

@@ -1,6 +1,7 @@
 import math
 
 import gymnasium as gym
+import numpy as np
 import pytest
 
 import agrinav_gym  # noqa: F401
@@ -76,22 +77,29 @@ def test_classical_controllers_follow_straight_and_curved_paths(
 
 
 def test_depth_follower_finds_the_lane() -> None:
+    """The follower's single-frame lane estimate on eight fields of 1 m maize rows at stage 2,
+    against the true lane centre 1 m ahead (where the camera sees the rows; its view starts
+    0.5 m out): its mean error is below the 9.2 cm it has over the perception dataset's
+    randomized fields (docs/datasets.md), which are harder than these flat ones."""
     env = gym.make(
         "AgriNav/FurrowFollowDepth-v2", scenario_overrides={**FLAT_1M, "crop": {"stage": 2}}
     )
     try:
         pi = make_policy("depth", env)
-        obs, info = env.reset(seed=0)
-        est = pi.lane(obs["depth"][0])
-        assert est is not None
-        offset, heading = est
-        # The true lane centre in the robot frame: offset -cte, direction -heading error. It is
-        # compared 1 m ahead, where the camera sees the rows (its view starts 0.5 m out).
-        true_heading = -info["heading_error"]
-        ahead = 1.0
-        truth = -info["cte"] + math.tan(true_heading) * ahead
-        assert abs(offset + math.tan(heading) * ahead - truth) < 0.08
-        assert abs(heading - true_heading) < 0.2
+        offsets, headings = [], []
+        for seed in range(8):
+            obs, info = env.reset(seed=seed)
+            est = pi.lane(obs["depth"][0])
+            assert est is not None
+            offset, heading = est
+            # the true lane centre in the robot frame: offset -cte, direction -heading error
+            true_heading = -info["heading_error"]
+            ahead = 1.0
+            truth = -info["cte"] + math.tan(true_heading) * ahead
+            offsets.append(abs(offset + math.tan(heading) * ahead - truth))
+            headings.append(abs(heading - true_heading))
+        assert float(np.mean(offsets)) < 0.092, offsets
+        assert float(np.mean(headings)) < 0.2, headings
     finally:
         env.close()
 

@@ -3,6 +3,7 @@ with two meshes is refused."""
 
 import hashlib
 import json
+import re
 import shutil
 import zipfile
 from pathlib import Path
@@ -10,11 +11,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from scenario_gen import ScenarioError, generate, load, save
+from scenario_gen import CATALOG, ScenarioError, generate, load, save
 from scenario_gen.models import inspect_model, load_model
 from scenario_gen.preview import preview_figure
 
+from ..data.crop_models.make_models import CUT, LEAF, OBJ_RGB, STEM
 from .helpers import small
+
+DATA = Path(__file__).resolve().parents[1] / "data" / "crop_models"
+CUTOUT = DATA / "cutout_plant"
 
 
 def _plant_obj(height: float = 3.0, radius: float = 0.2) -> bytes:
@@ -126,15 +131,113 @@ def test_zip_with_two_meshes_is_refused_naming_both(tmp_path: Path) -> None:
             json.dumps({"asset": {"version": "2.0"}, "buffers": [{"uri": "plant.bin"}]}),
             "plant.bin",
         ),
+        ("plant.dae", None, "../materials/textures/leaf.png"),
     ],
 )
-def test_single_file_model_with_external_files_must_be_zipped(
-    tmp_path: Path, name: str, text: str, ref: str
+def test_a_model_whose_files_are_missing_is_refused_naming_them(
+    tmp_path: Path, name: str, text: str | None, ref: str
 ) -> None:
-    p = tmp_path / name
-    p.write_text(text)
-    with pytest.raises(ScenarioError, match=rf"references other files \({ref}\).*one \.zip"):
+    p = tmp_path / "meshes" / name
+    p.parent.mkdir()
+    if text is None:  # the test plant's COLLADA file without its textures
+        shutil.copy(CUTOUT / "meshes" / "plant.dae", p)
+    else:
+        p.write_text(text)
+    with pytest.raises(ScenarioError, match=rf"references {re.escape(ref)}.* missing") as info:
         inspect_model(p)
+    assert "\n" not in str(info.value)  # one line
+    with pytest.raises(ScenarioError, match=re.escape(ref)):
+        load_model(p, 1.0)
+
+
+def test_references_by_absolute_path_or_far_above_are_refused(tmp_path: Path) -> None:
+    deep = tmp_path / "a" / "b" / "c" / "d"
+    deep.mkdir(parents=True)
+    (tmp_path / "x.png").write_bytes((CUTOUT / "materials/textures/stem.png").read_bytes())
+    for ref, why in ((str(tmp_path / "x.png"), "absolute"), ("../../../../x.png", "outside")):
+        mtl = deep / "plant.mtl"
+        mtl.write_text(f"newmtl a\nmap_Kd {ref}\n")
+        obj = deep / "plant.obj"
+        obj.write_bytes(b"mtllib plant.mtl\n" + _plant_obj())
+        with pytest.raises(ScenarioError, match=why):
+            inspect_model(obj)
+
+
+def test_a_collada_model_is_kept_with_its_textures_in_their_folders(tmp_path: Path) -> None:
+    """Gazebo's layout (meshes/plant.dae naming ../materials/textures/*.png) is copied whole,
+    each file checked against its hash, and the copy is what loads once the original is gone."""
+    src = tmp_path / "user" / "cutout_plant"
+    shutil.copytree(CUTOUT, src)
+    scn = generate(small(crop={"model": str(src / "meshes" / "plant.dae")}), seed=0)
+    out = save(scn, tmp_path / "scn", preview=False)
+    rec = json.loads((out / "scenario.json").read_text())["crop_model"]
+    assert rec["file"] == "models/plant/meshes/plant.dae"
+    assert rec["mesh"] == "meshes/plant.dae"
+    names = sorted(f["path"] for f in rec["files"])
+    assert names == ["materials/textures/leaf.png", "materials/textures/stem.png"]
+    for f in rec["files"]:
+        copy = out / "models" / "plant" / f["path"]
+        assert copy.read_bytes() == (src / f["path"]).read_bytes()
+        assert hashlib.sha256(copy.read_bytes()).hexdigest() == f["sha256"]
+    shutil.rmtree(src)
+    back = load(out)
+    assert back.crop_model is not None and back.crop_model.files == scn.crop_model.files
+    mesh = load_model(back.crop_model_path, 1.0)
+    assert mesh.visual.material.image is not None  # the textures were found beside the copy
+    (out / "models/plant/materials/textures/leaf.png").write_bytes(b"\x89PNG tampered")
+    with pytest.raises(ScenarioError, match="leaf.png.*SHA-256"):
+        load(out)
+    (out / "models/plant/materials/textures/leaf.png").unlink()
+    with pytest.raises(ScenarioError, match="leaf.png"):
+        load(out)
+
+
+def test_an_obj_is_kept_with_its_material_library_and_texture(tmp_path: Path) -> None:
+    src = tmp_path / "obj"
+    shutil.copytree(DATA / "textured_obj", src)
+    out = save(generate(small(crop={"model": str(src / "plant.obj")}), 0), tmp_path / "s")
+    assert sorted(p.name for p in (out / "models" / "plant").iterdir()) == [
+        "plant.mtl",
+        "plant.obj",
+        "plant.png",
+    ]
+    shutil.rmtree(src)
+    mesh = load_model(load(out).crop_model_path, 1.0)
+    tex = np.asarray(mesh.visual.material.image.convert("RGB"))
+    assert (tex.reshape(-1, 3) == OBJ_RGB).all(axis=1).any()
+
+
+def test_texture_colours_are_the_files(tmp_path: Path) -> None:
+    """Two parts with a texture each: every face keeps its own texture's colour (trimesh's own
+    packing multiplied the texels by 255: green maize came out purple), and the leaf's cut-out
+    texels are transparent in the atlas."""
+    mesh = load_model(CUTOUT / "meshes" / "plant.dae", 1.0)
+    image = np.asarray(mesh.visual.material.image)
+    uv = np.asarray(mesh.visual.uv)[np.asarray(mesh.faces)].mean(axis=1)
+    h, w = image.shape[:2]
+    texel = image[
+        np.clip(((1 - uv[:, 1]) * h).astype(int), 0, h - 1),
+        np.clip((uv[:, 0] * w).astype(int), 0, w - 1),
+    ]
+    centre = np.asarray(mesh.triangles_center)
+    leaf = centre[:, 0] < -0.02  # the quad, 4-6 cm in front of the stalk (base centred)
+    assert (texel[leaf, :3] == LEAF).all() and (texel[~leaf, :3] == STEM).all()
+    assert (texel[:, 3] == 255).all()  # face centres lie on opaque texels
+    rgba = image.reshape(-1, 4)
+    assert (rgba[rgba[:, 3] == 0, :3] == CUT).all(axis=1).any()  # the cut-out is kept
+
+
+@pytest.mark.parametrize("scale", ["stage", "native"])
+def test_model_scale_native_keeps_the_files_size(scale: str) -> None:
+    model = str(DATA / "textured_obj" / "plant.obj")  # 0.5 m tall
+    spec = small(crop={"model": model, "model_scale": scale, "stage": 3, "height_std": 0.0})
+    scn = generate(spec, 0)
+    crop = ~scn.plants.is_weed
+    stage_height = float(CATALOG["corn"].height(CATALOG["corn"].growth_of_stage(3)))
+    want = 0.5 if scale == "native" else stage_height
+    assert np.allclose(scn.plants.height[crop], want)
+    assert scn.crop_model is not None and scn.crop_model.scale == scale
+    assert scn.crop_model.to_dict()["model_scale"] == scale
 
 
 def test_flat_or_empty_models_are_refused(tmp_path: Path) -> None:

@@ -43,7 +43,8 @@ class FurrowFollowEnv(AgriNavEnv):
 
     ## Starting State
     At rest 0.3 m into the lane, laterally offset by N(0, 0.03 m) and turned by N(0, 3°)
-    (clipped), tilted with the terrain.
+    (clipped), tilted with the terrain: ``reset`` lets the robot settle on its tyres, wheels
+    held, before the first observation, so the IMU reads gravity from the first step.
 
     ## Episode End
     Terminated on success (lane end reached within 0.3 m), leaving the corridor (|cte| > half

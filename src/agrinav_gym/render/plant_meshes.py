@@ -74,6 +74,7 @@ class Prototype:
     height: float
     radius: float  # farthest vertex from the z axis, m
     label: int  # CROP or WEED
+    alpha: NDArray[np.bool_] | None = None  # (h, w) texel opaque; None: no cut-outs
 
     @classmethod
     def from_trimesh(cls, mesh: Any, name: str, label: int) -> Prototype:
@@ -82,12 +83,12 @@ class Prototype:
         tri = v[f.astype(np.int64)]
         n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
         n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
-        uv, tex = _texture(mesh)
+        uv, tex, alpha = _texture(mesh)
         if tex is not None and uv is not None:
             centre = uv[f.astype(np.int64)].mean(axis=1)
             rgb = sample_texture(tex, centre[:, 0], centre[:, 1])
         else:
-            rgb = np.asarray(mesh.visual.face_colors, np.uint8)[:, :3]
+            rgb = _face_rgb(mesh)
         return cls(
             name,
             v,
@@ -99,37 +100,84 @@ class Prototype:
             float(v[:, 2].max()) if len(v) else 0.0,
             float(np.hypot(v[:, 0], v[:, 1]).max()) if len(v) else 0.0,
             label,
+            alpha,
         )
 
     @property
     def nbytes(self) -> int:
-        arrays = (self.vertices, self.faces, self.face_rgb, self.normals, self.uv, self.texture)
+        arrays = (
+            self.vertices, self.faces, self.face_rgb, self.normals, self.uv, self.texture,
+            self.alpha,
+        )  # fmt: skip
         return sum(a.nbytes for a in arrays if a is not None)
 
+    def opaque(self, prim: NDArray[np.int64], u: Any, v: Any) -> NDArray[np.bool_]:
+        """Whether the texel under each hit (triangle ``prim``, barycentric ``u``, ``v``) is
+        opaque: False on a cut-out (alpha below one half)."""
+        if self.alpha is None or self.uv is None:
+            return np.ones(len(prim), bool)
+        uv = hit_uv(self, prim, u, v)
+        out: NDArray[np.bool_] = sample_texture(self.alpha, uv[:, 0], uv[:, 1])
+        return out
 
-def _texture(mesh: Any) -> tuple[F32 | None, NDArray[np.uint8] | None]:
+
+def hit_uv(p: Prototype, prim: NDArray[np.int64], u: Any, v: Any) -> FloatArray:
+    """Texture coordinates of hits on ``p``'s triangles ``prim`` at barycentric (u, v)."""
+    assert p.uv is not None
+    f = p.faces[prim].astype(np.int64)
+    u = np.asarray(u, np.float64)[:, None]
+    v = np.asarray(v, np.float64)[:, None]
+    out: FloatArray = p.uv[f[:, 0]] * (1.0 - u - v) + p.uv[f[:, 1]] * u + p.uv[f[:, 2]] * v
+    return out
+
+
+def _texture(
+    mesh: Any,
+) -> tuple[F32 | None, NDArray[np.uint8] | None, NDArray[np.bool_] | None]:
+    """UVs, RGB texels and (where any texel is cut out) the opaque mask of a textured mesh."""
     visual = mesh.visual
     if getattr(visual, "kind", None) != "texture" or getattr(visual, "uv", None) is None:
-        return None, None
+        return None, None, None
     material = visual.material
     image = getattr(material, "image", None)
     if image is None:
         image = getattr(material, "baseColorTexture", None)
     if image is None:
-        return None, None
-    tex = np.asarray(image.convert("RGB"), np.uint8)
+        return None, None, None
+    rgba = np.asarray(image.convert("RGBA"), np.uint8)
     uv = np.asarray(visual.uv, np.float32)
-    if len(uv) != len(mesh.vertices) or tex.size == 0:
-        return None, None
-    return uv, tex
+    if len(uv) != len(mesh.vertices) or rgba.size == 0:
+        return None, None, None
+    opaque = rgba[..., 3] >= 128
+    alpha = None if opaque.all() else np.ascontiguousarray(opaque)
+    return uv, np.ascontiguousarray(rgba[..., :3]), alpha
 
 
-def sample_texture(tex: NDArray[np.uint8], u: Any, v: Any) -> NDArray[np.uint8]:
+def _face_rgb(mesh: Any) -> NDArray[np.uint8]:
+    """(F, 3) colours of an untextured mesh: face colours, vertex colours averaged, or its
+    material's colour (a texture that did not load leaves only that)."""
+    visual = mesh.visual
+    n = len(mesh.faces)
+    if getattr(visual, "kind", None) == "texture":
+        colour = getattr(getattr(visual, "material", None), "main_color", None)
+        if colour is None or np.shape(colour) != (4,):
+            return np.full((n, 3), 128, np.uint8)
+        return np.tile(np.asarray(colour, np.uint8)[:3], (n, 1))
+    if getattr(visual, "kind", None) == "vertex":
+        vc = np.asarray(visual.vertex_colors, np.float64)[:, :3]
+        return np.asarray(np.round(vc[np.asarray(mesh.faces)].mean(axis=1)), np.uint8)
+    fc = np.asarray(getattr(visual, "face_colors", np.zeros((0, 4))), np.uint8)
+    if fc.ndim != 2 or len(fc) != n:
+        return np.full((n, 3), 128, np.uint8)
+    return np.ascontiguousarray(fc[:, :3])
+
+
+def sample_texture(tex: NDArray[Any], u: Any, v: Any) -> NDArray[Any]:
     """Nearest texel at (u, v), wrapping (glTF/OBJ repeat); v = 0 is the image's bottom row."""
     h, w = tex.shape[:2]
     x = np.floor(np.mod(u, 1.0) * w).astype(np.int64).clip(0, w - 1)
     y = np.floor((1.0 - np.mod(v, 1.0)) * h).astype(np.int64).clip(0, h - 1)
-    out: NDArray[np.uint8] = tex[y, x]
+    out: NDArray[Any] = tex[y, x]
     return out
 
 

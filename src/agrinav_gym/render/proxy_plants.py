@@ -5,7 +5,10 @@ top, and species with planar leaves (maize) add a leaf band above the bare lower
 reach into the inter-row follows the leaf plane's azimuth (the plant's yaw) against the row, so
 a tall crop's leaves close over the lane at the camera's height, as in the field. The core's
 radius, the band's base and its reach are fitted to the crop meshes per species and growth
-stage (``proxy_params``; docs/camera.md), not chosen by hand.
+stage (``proxy_params``; docs/camera.md), not chosen by hand. A scenario with a user
+``crop.model`` draws its crops with the shape measured from that model when the scenario was
+generated (``scenario_gen.model_shape``): core, band base and the band's radii along the
+model's own axes, so the band's reach across the row follows each plant's yaw.
 Per plant this holds a handful of floats plus its KD-tree node: a few hundred bytes.
 """
 
@@ -19,6 +22,8 @@ from scipy.spatial import cKDTree
 
 from scenario_gen import CATALOG, Scenario
 from scenario_gen.arrays import FloatArray
+from scenario_gen.crops import WEED_SPECIES
+from scenario_gen.models import model_shape
 
 from .proxy_params import ParamsFn, proxy_params
 
@@ -38,7 +43,10 @@ class PlantField:
     @classmethod
     def from_scenario(cls, scn: Scenario, params: ParamsFn | None = None) -> PlantField:
         """The proxies of ``scn``'s plants; ``params(species, growth)`` gives (fill, base, reach)
-        (default: the fitted ``proxy_params``)."""
+        (default: the fitted ``proxy_params``, or the user model's own shape)."""
+        user = (
+            model_shape(scn.crop_model) if scn.crop_model is not None and params is None else None
+        )
         params = params or proxy_params
         p = scn.plants
         names = np.unique(p.species)
@@ -50,6 +58,13 @@ class PlantField:
         for name in names:
             sp = CATALOG[str(name)]
             m = p.species == name
+            if user is not None and name != WEED_SPECIES:  # the crops are the user's model
+                h = p.height[m]
+                turn = p.yaw[m] - scn.rows.angle
+                radius[m] = user.core * h
+                leaf[m] = user.band(np.sin(turn), np.cos(turn)) * h
+                base[m] = user.base * h
+                continue
             growth = sp.growth_of_stage(p.stage[m])
             scale = p.height[m] / np.maximum(sp.height(growth), 1e-6)
             width = sp.canopy_width(growth) * scale

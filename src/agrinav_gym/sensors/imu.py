@@ -43,9 +43,11 @@ class Imu:
         self.white = np.array([self.accel_sigma] * 3 + [self.gyro_sigma] * 3)
         self.prev_vel = np.zeros(3)
 
-    def reset(self, rng: np.random.Generator) -> None:
+    def reset(self, rng: np.random.Generator, vel: NDArray[np.float64] | None = None) -> None:
+        """Restart the noise processes; ``vel`` is the base's velocity now (world frame), from
+        which the first reading's acceleration is differenced (default: at rest)."""
         self.slow.reset(rng)
-        self.prev_vel = np.zeros(3)
+        self.prev_vel = np.zeros(3) if vel is None else np.asarray(vel, np.float64).copy()
 
     def measure(
         self,

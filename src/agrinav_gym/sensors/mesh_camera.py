@@ -31,7 +31,7 @@ from ..render import native, pixel_noise, raster_view, shading
 from ..render.classes import OTHER, ROBOT, SOIL
 from ..render.embree import Caster, Scene, device
 from ..render.mesh_scene import MeshScene, SceneHits, bilinear
-from ..render.plant_meshes import Prototype, rotation_rpy, sample_texture
+from ..render.plant_meshes import Prototype, hit_uv, rotation_rpy, sample_texture
 from ..render.robot_mesh import robot_prototype
 from ..render.shading import SOIL_RGB, Lighting
 from . import d455
@@ -131,7 +131,7 @@ class MeshCamera(Lighting):
         """``render`` on a mesh scene the caller holds;
         ``view=False`` when the caller has already made the scene cover this camera's view;
         ``stereo=False`` skips the stereo pair's invalid pixels (the geometry's own depth)."""
-        if self.rasterises:
+        if self.rasterises and not scene.cutouts:  # the rasteriser knows no cut-outs
             return self._render_raster(rot, pos, scene, rng, rgb, labels, stereo)
         scene.caster.threads = self.threads
         c = self.cfg
@@ -418,9 +418,7 @@ class FaceTable:
 
 def _texel(p: Prototype, prim: NDArray[np.int64], u: Any, v: Any) -> FloatArray:
     assert p.uv is not None and p.texture is not None
-    f = p.faces[prim].astype(np.int64)
-    w0 = (1.0 - u - v)[:, None]
-    uv = p.uv[f[:, 0]] * w0 + p.uv[f[:, 1]] * u[:, None] + p.uv[f[:, 2]] * v[:, None]
+    uv = hit_uv(p, prim, u, v)
     out: FloatArray = sample_texture(p.texture, uv[:, 0], uv[:, 1]).astype(np.float64) / 255.0
     return out
 

@@ -42,7 +42,7 @@ class SensorSuite:
         return s.pos + s.rot @ self.lever
 
     def reset(self, s: RobotState, rng: np.random.Generator) -> Readings:
-        self.imu.reset(rng)
+        self.imu.reset(rng, s.vel)
         self.gnss.reset(self.antenna(s), rng)
         return self._pack(s, self.imu.measure(s.rot, s.vel, s.ang, s.rpy, rng), np.zeros(2))
 

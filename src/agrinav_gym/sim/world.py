@@ -48,6 +48,14 @@ def _quiet_stdout() -> Iterator[None]:
             os.close(saved)
 
 
+#: When ``World.settle`` calls the robot at rest (m/s, rad/s, consecutive physics steps) and
+#: how long it waits at most (s).
+SETTLED_SPEED = 1e-4
+SETTLED_RATE = 1e-4
+SETTLED_STEPS = 24
+SETTLE_SECONDS = 10.0
+
+
 class World:
     """The physics client with terrain and robot; rebuilt only when the terrain changes."""
 
@@ -138,6 +146,27 @@ class World:
         self._spawn_robot([x, y, z], q)
         self.tyres.reset(terrain)
         self.drive(0.0, 0.0)
+
+    def settle(self) -> int:
+        """Physics steps, the wheels held (zero command), until the robot rests on the ground:
+        its base's speed below ``SETTLED_SPEED`` and its rotation below ``SETTLED_RATE`` for
+        ``SETTLED_STEPS`` steps in a row (at most ``SETTLE_SECONDS``). Placed a few mm above
+        the ground, it drops onto the tyres' springs and rocks on them for ≈ 1 s (on ridge
+        flanks the tyres can chatter for up to ≈ 9 s); an episode that started there would
+        read that bounce in its first IMU samples (specific force 0.02 … 27 m/s² before 9.8).
+        Returns the physics steps taken."""
+        cid, robot = self.client, self.robot
+        self.drive(0.0, 0.0)
+        calm = 0
+        most = round(SETTLE_SECONDS * self.cfg.physics_hz)
+        for k in range(1, most + 1):
+            self.step(1)
+            lin, ang = p.getBaseVelocity(robot, physicsClientId=cid)
+            still = math.hypot(*lin) < SETTLED_SPEED and math.hypot(*ang) < SETTLED_RATE
+            calm = calm + 1 if still else 0
+            if calm >= SETTLED_STEPS:
+                return k
+        return most
 
     def _spawn_robot(self, pos: list[float], quat: Any) -> None:
         cid = self.client

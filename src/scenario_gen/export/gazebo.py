@@ -4,7 +4,8 @@ Layout of the export::
 
     worlds/field.sdf            Gazebo Sim   (spherical_coordinates heading 0)
     worlds/field_classic.world  Gazebo Classic 11 (heading 180, see below)
-    models/<name>/model.config, model.sdf, meshes/, materials/textures/
+    models/<name>/model.config, model.sdf, meshes/, materials/textures/ (a user crop.model
+                                referenced as its own files: user/ in its own layout)
     setup.bash                  GAZEBO_MODEL_PATH / IGN_GAZEBO_RESOURCE_PATH / GZ_SIM_RESOURCE_PATH
 
 The world frame is the scenario's ENU frame (x east, y north, z up) at the datum, so every
@@ -221,7 +222,7 @@ def export_gazebo(scn: Scenario, out: Path, opts: ExportOptions) -> GazeboSummar
     triangles = 0
     if tiles_mode:
         tiles = make_tiles(scn, opts.tile_plants)
-        n_models = len(tiles)
+        n_models = len(tiles) + len(write_models(models, a, only_base=True, only_user=True))
         for tile, tri in tqdm(
             write_tiles(models, scn, a, tiles), total=len(tiles), desc="tiles", unit="tile"
         ):

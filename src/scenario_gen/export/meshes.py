@@ -114,7 +114,10 @@ def face_colours(mesh: Any) -> NDArray[np.uint8]:
         if image is not None and visual.uv is not None:
             centroid = np.asarray(visual.uv, np.float64)[faces].mean(axis=1)
             return np.asarray(uv_to_color(centroid, image), np.uint8)[:, :3]
-        visual = visual.to_color()
+        colour: Any = getattr(material, "main_color", None)  # a texture that did not load
+        if colour is None or np.shape(colour) != (4,):
+            colour = (128, 128, 128, 255)
+        return np.tile(np.asarray(colour, np.uint8)[:3], (len(faces), 1))
     if getattr(visual, "kind", None) == "vertex":
         vc = np.asarray(visual.vertex_colors, np.float64)[:, :3]
         return np.asarray(np.round(vc[faces].mean(axis=1)), np.uint8)

@@ -7,6 +7,15 @@ cannot scale what it includes. So each species/growth (or the user's ``crop.mode
 off by at most half a step (1 %). Weeds grow continuously, so their growth is binned too
 (``GROWTH_STEPS``); a crop field has one growth and keeps it exactly.
 
+A user model (``crop.model``) in a format both Gazebos read — COLLADA that says ``Z_UP``, OBJ,
+STL — is exported as its own files, as the seed world's ``<include>``s reference their maize:
+copied byte for byte into the base model's ``user/`` folder in their own layout (a COLLADA
+file's ``../materials/textures`` beside its ``meshes/``, an OBJ's material library and maps, an
+archive's members), the visual naming the mesh with the ``<scale>`` and ``<pose>`` that put
+its base centre on the plant and make it the plant's height. Other formats (glTF, GLB, PLY,
+and COLLADA in another or no up axis, which Gazebo would turn) become a COLLADA mesh and its
+texture as the catalog models do.
+
 Collision proxy: a stem cylinder of the catalog's stem radius at the model's growth times the
 plant's scale — the circle agrinav_gym counts crop contact with — as tall as the plant. Weeds
 have none.
@@ -16,8 +25,10 @@ from __future__ import annotations
 
 import math
 import re
+import shutil
+import tempfile
 from dataclasses import dataclass
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 from typing import Any
 from xml.sax.saxutils import escape
 
@@ -27,11 +38,69 @@ from ..arrays import FloatArray, IntArray
 from ..crops import CATALOG, WEED_SPECIES, crop_mesh
 from ..errors import InputError
 from ..model import Scenario
+from ..model_mesh import collada_up_axis
+from ..models import UserModel, inspect_model, load_model, native_bounds, safe_extract
 from .meshes import face_colours, flat_colour_mesh, save_png, textured_mesh, write_dae
 
 SCALE_STEP = 1.02
 GROWTH_STEPS = 16
 MAX_EXACT_GROWTHS = 8  # more distinct growth values than this are binned
+
+
+#: Mesh formats both Gazebo Classic 11 and Gazebo Sim read, referenced as they are.
+REFERENCED = (".dae", ".obj", ".stl")
+USER_DIR = "user"
+
+
+@dataclass(frozen=True)
+class UserFiles:
+    """A user model exported as its own files into the base model's ``user/`` folder."""
+
+    model: UserModel
+    mesh: str  # the mesh's path inside the base model's folder (user/...)
+    lo: tuple[float, ...]  # its bounding box as Gazebo reads it (metres, +z up)
+    hi: tuple[float, ...]
+
+    def placement(self, height: float) -> tuple[float, FloatArray]:
+        """Uniform scale and offset (before the plant's rotation) that stand the mesh on the
+        plant's base point, ``height`` tall."""
+        s = height / (self.hi[2] - self.lo[2])
+        centre = np.array(
+            [(self.lo[0] + self.hi[0]) / 2, (self.lo[1] + self.hi[1]) / 2, self.lo[2]]
+        )
+        return s, -s * centre
+
+    def copy_into(self, folder: Path) -> None:
+        """The model's files, byte for byte, under ``folder``/user/ in their own layout."""
+        um = self.model
+        dest = folder / USER_DIR
+        if um.path.suffix.lower() == ".zip":
+            safe_extract(um.path, dest)
+            return
+        pairs = [(um.path, PurePosixPath(um.mesh if um.bundle else um.name))]
+        pairs += [(um.root / rel, PurePosixPath(rel)) for rel, _ in um.files]
+        for src, rel in pairs:
+            (dest / rel).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(src, dest / rel)
+
+
+def user_files(um: UserModel) -> UserFiles | None:
+    """How ``um`` is exported by reference, or None where Gazebo would read it otherwise than
+    the cameras do (see the module docstring)."""
+    mesh = PurePosixPath(um.mesh if (um.bundle or um.path.suffix.lower() == ".zip") else um.name)
+    if mesh.suffix.lower() not in REFERENCED:
+        return None
+    if mesh.suffix.lower() == ".dae":
+        if um.path.suffix.lower() == ".zip":
+            with tempfile.TemporaryDirectory(prefix="agrinav-export-") as tmp:
+                safe_extract(um.path, tmp)
+                up = collada_up_axis(Path(tmp) / mesh)
+        else:
+            up = collada_up_axis(um.path)
+        if up != "Z_UP":
+            return None
+    lo, hi = native_bounds(um.path)
+    return UserFiles(um, f"{USER_DIR}/{mesh}", lo, hi)
 
 
 @dataclass(frozen=True, eq=False)
@@ -44,6 +113,7 @@ class PlantModel:
     height: float
     proxy_radius: float  # stem radius at this growth and nominal size, m; 0 = no collision
     source: str  # "catalog" or the user model's path
+    user: UserFiles | None = None  # the user model's own files, referenced as they are
 
     def variant(self, step: int) -> str:
         """Folder/model name of the size variant ``SCALE_STEP ** step``."""
@@ -99,6 +169,10 @@ def assign(scn: Scenario) -> Assignment:
     """Base models and size variants for every plant of ``scn``."""
     p = scn.plants
     user = user_model_path(scn)
+    um = scn.crop_model
+    if user is not None and um is None:  # a scenario made in memory from a spec
+        um = inspect_model(user, scn.spec.crop.model_scale)
+    ref = user_files(um) if um is not None else None
     models: list[PlantModel] = []
     model = np.zeros(len(p), np.int64)
     step = np.zeros(len(p), np.int64)
@@ -112,9 +186,11 @@ def assign(scn: Scenario) -> Assignment:
         for g, members in ((float(g), idx[which.ravel() == i]) for i, g in enumerate(keys)):
             nominal = float(sp.height(g))
             base = f"agrinav_{name}_g{round(g * 1000):04d}"
-            if user is not None and name != WEED_SPECIES:
-                from ..models import load_model
-
+            mine = user is not None and um is not None and name != WEED_SPECIES
+            if mine:
+                assert user is not None and um is not None
+                if um.scale == "native":
+                    nominal = um.size[2]
                 mesh = load_model(user, nominal)
                 base = f"agrinav_{_slug(user.stem)}_{name}_g{round(g * 1000):04d}"
                 source = str(user)
@@ -134,6 +210,7 @@ def assign(scn: Scenario) -> Assignment:
                     nominal,
                     float(sp.stem_radius(g)),
                     source,
+                    ref if mine else None,
                 )
             )
     return Assignment(models, model, step)
@@ -164,6 +241,38 @@ def stem_collision(name: str, pose: str, radius: float, length: float) -> str:
     )
 
 
+def visual_xml(
+    pm: PlantModel, height: float, name: str = "visual", rot: Any = None, pos: Any = None
+) -> str:
+    """A visual of ``pm``'s mesh ``height`` m tall, its base at ``pos`` turned by ``rot``
+    (URDF rpy matrix; default: the model's own origin, upright)."""
+    r = np.eye(3) if rot is None else np.asarray(rot, np.float64)
+    at = np.zeros(3) if pos is None else np.asarray(pos, np.float64)
+    if pm.user is not None:
+        s, offset = pm.user.placement(height)
+        uri = f"model://{pm.name}/{pm.user.mesh}"
+    else:
+        s, offset = height / pm.height, np.zeros(3)
+        uri = f"model://{pm.name}/meshes/plant.dae"
+    xyz = at + r @ offset
+    rpy = _rpy(r)
+    return (
+        f'<visual name="{name}"><pose>{fmt(*xyz)} {fmt(*rpy, digits=7)}</pose>'
+        f"<geometry><mesh><uri>{escape(uri)}</uri><scale>{fmt(s, s, s)}</scale></mesh>"
+        "</geometry></visual>"
+    )
+
+
+def _rpy(r: FloatArray) -> tuple[float, float, float]:
+    """URDF/SDF roll, pitch, yaw of R = Rz(yaw)·Ry(pitch)·Rx(roll)."""
+    pitch = math.asin(max(-1.0, min(1.0, -float(r[2, 0]))))
+    return (
+        math.atan2(float(r[2, 1]), float(r[2, 2])),
+        pitch,
+        math.atan2(float(r[1, 0]), float(r[0, 0])),
+    )
+
+
 def plant_sdf(pm: PlantModel, step: int) -> str:
     scale = SCALE_STEP**step
     h = pm.height * scale
@@ -177,10 +286,7 @@ def plant_sdf(pm: PlantModel, step: int) -> str:
   <model name="{pm.variant(step)}">
     <static>true</static>
     <link name="link">
-      <visual name="visual">
-        <geometry><mesh><uri>model://{pm.name}/meshes/plant.dae</uri>
-          <scale>{fmt(scale, scale, scale)}</scale></mesh></geometry>
-      </visual>
+      {visual_xml(pm, h)}
       {col}
     </link>
   </model>
@@ -188,23 +294,21 @@ def plant_sdf(pm: PlantModel, step: int) -> str:
 """
 
 
-def write_models(models_dir: Path, a: Assignment, only_base: bool = False) -> list[str]:
-    """Write every base model (mesh, texture) and, unless ``only_base``, every size variant."""
+def write_models(
+    models_dir: Path, a: Assignment, only_base: bool = False, only_user: bool = False
+) -> list[str]:
+    """Write every base model (mesh, texture; a referenced user model's own files) and, unless
+    ``only_base``, every size variant; ``only_user``: the referenced user models alone."""
     written = []
     for m, pm in enumerate(a.models):
+        if only_user and pm.user is None:
+            continue
         folder = models_dir / pm.name
-        (folder / "meshes").mkdir(parents=True)
-        (folder / "materials" / "textures").mkdir(parents=True)
-        data = textured_mesh(pm.mesh)
-        if data is None:
-            data = flat_colour_mesh(
-                np.asarray(pm.mesh.vertices, np.float64),
-                np.asarray(pm.mesh.faces, np.int64),
-                face_colours(pm.mesh),
-            )
-        md, image = data
-        save_png(image, folder / "materials" / "textures" / "plant.png")
-        write_dae(folder / "meshes" / "plant.dae", md, "../materials/textures/plant.png", pm.name)
+        folder.mkdir(parents=True)
+        if pm.user is not None:
+            pm.user.copy_into(folder)
+        else:
+            _write_mesh(folder, pm)
         desc = f"{pm.label}, {pm.height:.3f} m, from {pm.source}; agrinav export"
         (folder / "model.config").write_text(model_config(pm.name, desc))
         (folder / "model.sdf").write_text(plant_sdf(pm, 0))
@@ -221,3 +325,19 @@ def write_models(models_dir: Path, a: Assignment, only_base: bool = False) -> li
             (vfolder / "model.sdf").write_text(plant_sdf(pm, s))
             written.append(pm.variant(s))
     return written
+
+
+def _write_mesh(folder: Path, pm: PlantModel) -> None:
+    """meshes/plant.dae and materials/textures/plant.png of ``pm``'s mesh."""
+    (folder / "meshes").mkdir()
+    (folder / "materials" / "textures").mkdir(parents=True)
+    data = textured_mesh(pm.mesh)
+    if data is None:
+        data = flat_colour_mesh(
+            np.asarray(pm.mesh.vertices, np.float64),
+            np.asarray(pm.mesh.faces, np.int64),
+            face_colours(pm.mesh),
+        )
+    md, image = data
+    save_png(image, folder / "materials" / "textures" / "plant.png")
+    write_dae(folder / "meshes" / "plant.dae", md, "../materials/textures/plant.png", pm.name)

@@ -4,8 +4,11 @@ The source paper measured ≈1.45 MB of Gazebo memory per plant model. Above a t
 (``ExportOptions.include_limit``) plants are baked into square tiles of about
 ``tile_plants`` plants each: per tile one static model whose visuals are the plants' real
 meshes, transformed (pose and exact per-plant scale, no size binning), merged per colour into
-binary STL, and whose collision is one mesh of the plants' stem proxies (prisms). Tiles are
-written one at a time, so memory stays bounded by one tile whatever the field size.
+binary STL, and whose collision is one mesh of the plants' stem proxies (prisms). A user
+``crop.model`` referenced as its own files (``plantmodels.UserFiles``) is not flattened: each of
+its plants is a visual of the tile naming that mesh, textures and all, at the plant's pose and
+exact size. Tiles are written one at a time, so memory stays bounded by one tile whatever the
+field size.
 """
 
 from __future__ import annotations
@@ -21,7 +24,7 @@ from numpy.typing import NDArray
 from ..arrays import FloatArray, IntArray
 from ..model import Scenario
 from .meshes import face_colours, write_stl
-from .plantmodels import Assignment, fmt, model_config
+from .plantmodels import Assignment, fmt, model_config, visual_xml
 
 #: Stem proxies of a tile are one collision mesh of prisms: one SDF <collision> per plant costs
 #: libsdformat ≥240 kB of DOM each (a 99k-plant world did not load within 24 GB).
@@ -125,11 +128,16 @@ class _Shape:
     colour: IntArray  # (f,) index into the palette
 
 
-def _shapes(a: Assignment) -> tuple[list[_Shape], NDArray[np.uint8]]:
-    rgb = [face_colours(pm.mesh) for pm in a.models]
-    palette = np.unique(np.concatenate(rgb), axis=0) if rgb else np.empty((0, 3), np.uint8)
-    shapes = []
+def _shapes(a: Assignment) -> tuple[list[_Shape | None], NDArray[np.uint8]]:
+    """Per model its triangles and their palette colours (None: referenced, not merged)."""
+    rgb = [face_colours(pm.mesh) if pm.user is None else None for pm in a.models]
+    used = [c for c in rgb if c is not None]
+    palette = np.unique(np.concatenate(used), axis=0) if used else np.empty((0, 3), np.uint8)
+    shapes: list[_Shape | None] = []
     for pm, c in zip(a.models, rgb, strict=True):
+        if c is None:
+            shapes.append(None)
+            continue
         v = np.asarray(pm.mesh.vertices, np.float64)[np.asarray(pm.mesh.faces)]
         idx = np.array([np.flatnonzero((palette == col).all(axis=1))[0] for col in c], np.int64)
         shapes.append(_Shape(v, idx))
@@ -153,17 +161,24 @@ def write_tiles(
         folder = models_dir / tile.name
         (folder / "meshes").mkdir(parents=True)
         by_colour: dict[int, list[FloatArray]] = {}
+        visuals = []
+        total = 0
         for m in np.unique(a.model[sel]).tolist():
             k = a.model[sel] == m
             sh = shapes[m]
+            if sh is None:  # the user's model, by reference: one visual per plant
+                pm = a.models[m]
+                for j in np.flatnonzero(k).tolist():
+                    i = int(sel[j])
+                    visuals.append(visual_xml(pm, p.height[i], f"plant_{i:06d}", rot[j], pos[j]))
+                total += int(k.sum()) * len(pm.mesh.faces)
+                continue
             # (k, 3, 3) @ (3, 3f): every corner of every plant in one batched product
             m_k = rot[k] * scale[k, None, None]
             tri = np.matmul(m_k, sh.triangles.reshape(-1, 3).T).transpose(0, 2, 1)
             tri = (tri + pos[k, None, :]).reshape(len(m_k), -1, 3, 3)
             for c in np.unique(sh.colour).tolist():
                 by_colour.setdefault(c, []).append(tri[:, sh.colour == c].reshape(-1, 3, 3))
-        visuals = []
-        total = 0
         for c in sorted(by_colour):
             tri = np.concatenate(by_colour[c])
             total += len(tri)

@@ -260,7 +260,10 @@ def test_user_model_keeps_its_texture(tmp_path, sdf_check) -> None:
     uv = np.array([[0, 0], [1, 0], [1, 1], [0, 1]] * 2, float)
     img = Image.new("RGB", (4, 4), (200, 30, 30))
     img.paste((30, 160, 40), (0, 0, 4, 2))  # the image's top half: high v
-    visual = trimesh.visual.TextureVisuals(uv=uv, image=img)
+    # glTF's texels are baseColorFactor × the image: a factor of 1 keeps the image's colours
+    # (trimesh's default material would write 0.4)
+    pbr = trimesh.visual.material.PBRMaterial(baseColorTexture=img, baseColorFactor=[1.0] * 4)
+    visual = trimesh.visual.TextureVisuals(uv=uv, material=pbr)
     model = tmp_path / "plant.glb"
     trimesh.Trimesh(np.array(v, float), f, visual=visual, process=False).export(model)
     spec = plane(
@@ -294,3 +297,99 @@ def test_user_model_keeps_its_texture(tmp_path, sdf_check) -> None:
     sdf = next(tiled.glob("models/agrinav_tile_*/model.sdf")).read_text()
     for rgb in ((200, 30, 30), (30, 160, 40)):
         assert "<diffuse>" + " ".join(f"{c / 255:.4f}" for c in rgb) + " 1.0000" in sdf
+
+
+CUTOUT = Path(__file__).resolve().parents[2] / "data" / "crop_models" / "cutout_plant"
+
+
+def _pose_scale(sdf: str, uri: str) -> list[tuple[np.ndarray, float]]:
+    """(pose, scale) of every visual of ``sdf`` naming ``uri``."""
+    out = []
+    for m in re.finditer(
+        r"<pose>([^<]+)</pose><geometry><mesh><uri>" + re.escape(uri) + r"</uri>"
+        r"<scale>([^ <]+)",
+        sdf,
+    ):
+        out.append((np.array(m.group(1).split(), float), float(m.group(2))))
+    return out
+
+
+def test_user_collada_model_is_referenced_with_its_textures(tmp_path, sdf_check) -> None:
+    """crop.model in Gazebo's own layout (meshes/plant.dae naming ../materials/textures/*.png)
+    is exported as those files, byte for byte, and every plant's visual names that mesh with
+    the pose and scale that stand it on the plant, the plant's height tall — in include mode
+    and in merged tiles alike; libsdformat finds the mesh and the textures it names."""
+    import trimesh
+
+    from scenario_gen import generate, save
+
+    from ..helpers import plane
+
+    src = tmp_path / "user"
+    shutil.copytree(CUTOUT, src)
+    spec = plane(
+        field={"width": 3.0, "length": 3.6},
+        layout={"headland": 0.8, "plant_spacing": 0.5},
+        terrain={"margin": 2.5},
+        route={"lead_in": 0.8},
+        crop={"model": str(src / "meshes" / "plant.dae")},
+    )
+    save(generate(spec, 2), tmp_path / "scn", preview=False)
+    scn = load(tmp_path / "scn")
+    out = tmp_path / "gz"
+    export(tmp_path / "scn", "gazebo", out, ExportOptions(plants="include"))
+    a = assign(scn)
+    (base,) = [m for m in a.models if m.species == "corn"]
+    assert base.user is not None and base.user.mesh == "user/meshes/plant.dae"
+    folder = out / "models" / base.name
+    for rel in ("meshes/plant.dae", "materials/textures/leaf.png", "materials/textures/stem.png"):
+        assert (folder / "user" / rel).read_bytes() == (CUTOUT / rel).read_bytes(), rel
+    assert not (folder / "meshes").exists()  # not flattened into a mesh of our own
+    c = run_check(sdf_check, out / "worlds" / "field.sdf", out / "models")
+    assert c.valid, c.stderr
+    assert str(folder / "user" / "meshes" / "plant.dae") in [str(Path(m)) for m in c.meshes]
+    # the visual stands the mesh on the model's origin, as tall as the variant's plants
+    dae = folder / "user" / "meshes" / "plant.dae"
+    native = trimesh.load(dae, force="mesh", resolver=trimesh.resolvers.FilePathResolver(dae))
+    uri = f"model://{base.name}/user/meshes/plant.dae"
+    for m, step in a.variants():
+        if a.models[m] is not base:
+            continue
+        sdf = (out / "models" / base.variant(step) / "model.sdf").read_text()
+        ((pose, s),) = _pose_scale(sdf, uri)
+        assert np.allclose(pose[3:], 0.0)
+        lo, hi = native.bounds * s + pose[:3]
+        assert lo[2] == pytest.approx(0.0, abs=1e-5)
+        assert hi[2] == pytest.approx(base.height * SCALE_STEP**step, rel=1e-5)
+        assert np.allclose((lo[:2] + hi[:2]) / 2, 0.0, atol=1e-5)
+    # merged tiles: the user's plants stay visuals of that mesh, none is flattened into STL
+    tiled = tmp_path / "tiles"
+    export(tmp_path / "scn", "gazebo", tiled, ExportOptions(plants="tiles", tile_plants=4))
+    c = run_check(sdf_check, tiled / "worlds" / "field.sdf", tiled / "models")
+    assert c.valid, c.stderr
+    p = scn.plants
+    crops = np.flatnonzero(~p.is_weed)
+    found = {}
+    for tile in (tiled / "models").glob("agrinav_tile_*"):
+        sdf = (tile / "model.sdf").read_text()
+        origin = c.models[tile.name.removeprefix("agrinav_")][:3]
+        for i, (pose, s) in zip(
+            [int(k) for k in re.findall(r'<visual name="plant_(\d+)"', sdf)],
+            _pose_scale(sdf, uri),
+            strict=True,
+        ):
+            found[i] = (pose[:3] + origin, pose[3:], s)
+    assert sorted(found) == crops.tolist()
+    for i in crops:
+        xyz, rpy, s = found[i]
+        r = rotations(np.array([rpy[0]]), np.array([rpy[1]]), np.array([rpy[2]]))[0]
+        corners = np.array(np.meshgrid(*native.bounds.T, indexing="ij")).reshape(3, -1).T
+        world = (r @ (corners * s).T).T + xyz
+        assert s * float(np.ptp(native.bounds[:, 2])) == pytest.approx(p.height[i], rel=1e-5)
+        # the mesh's base centre lies on the plant's base point, its axis along the plant's
+        centre = np.array([*native.bounds.mean(axis=0)[:2], native.bounds[0, 2]])
+        assert np.allclose(r @ (centre * s) + xyz, [p.x[i], p.y[i], p.z[i]], atol=1e-4)
+        want = rotations(p.roll[i : i + 1], p.pitch[i : i + 1], p.yaw[i : i + 1])[0]
+        assert np.allclose(r, want, atol=1e-6)
+        top = (world - xyz) @ want[:, 2]  # heights of the box corners along the plant's axis
+        assert top.max() - top.min() == pytest.approx(p.height[i], rel=1e-5)

@@ -1,0 +1,272 @@
+"""A user model's mesh with its materials, as one mesh with one texture: the file's colours.
+
+A model file is a scene of parts (COLLADA geometries, OBJ materials, glTF primitives), each
+with a texture or a colour. The parts become one mesh whose texture is an atlas of the parts'
+images — packed here rather than by trimesh's ``force="mesh"``, whose packing multiplies a
+texture by its uint8 colour factor (255 × texel, modulo 256: green maize turned purple) and
+drops the alpha channel of COLLADA and OBJ textures.
+
+What a part's texels are: the image; glTF's ``baseColorFactor`` multiplies it (the glTF rule);
+an OBJ's ``Kd`` beside a ``map_Kd`` does not (exporters write Kd 0.8 next to a texture that is
+meant as is). A part without a texture gets a cell of the atlas per colour (material colour,
+face or vertex colours). Alpha becomes a cut-out: texels with alpha below one half (glTF
+``MASK``: below its ``alphaCutoff``) are holes, the rest opaque; glTF ``OPAQUE`` parts have no
+holes. UVs outside [0, 1] repeat the image (glTF and OBJ wrap): such a part's image is tiled in
+its atlas cell as often as its UVs span.
+
+COLLADA's ``<unit meter>`` is applied (trimesh ignores it; Gazebo does not), so the mesh is in
+metres.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+from xml.etree import ElementTree
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .arrays import FloatArray
+
+#: Texels of one atlas side at most; larger atlases are built from scaled-down parts.
+MAX_ATLAS = 4096
+#: Repeats of an image per axis a part may span before its tiles are scaled down.
+MAX_TILES = 8
+ALPHA_CUT = 0.5
+CELL = 4  # texels per side of a flat colour's cell
+
+
+def collada_unit(path: Path) -> float:
+    """Metres per unit of a COLLADA file (``<asset><unit meter=...>``; 1 when absent)."""
+    try:
+        for _, el in ElementTree.iterparse(str(path), events=("start",)):
+            tag = el.tag.rsplit("}", 1)[-1]
+            if tag == "unit":
+                value = float(el.get("meter", "1"))
+                return value if math.isfinite(value) and value > 0 else 1.0
+            if tag in ("library_geometries", "library_visual_scenes"):
+                break
+    except (ElementTree.ParseError, ValueError, OSError):
+        pass
+    return 1.0
+
+
+def collada_up_axis(path: Path) -> str | None:
+    """A COLLADA file's ``<asset><up_axis>`` (``X_UP``, ``Y_UP``, ``Z_UP``), None when absent."""
+    try:
+        for _, el in ElementTree.iterparse(str(path), events=("end",)):
+            tag = el.tag.rsplit("}", 1)[-1]
+            if tag == "up_axis":
+                return (el.text or "").strip() or None
+            if tag == "asset":
+                break
+    except (ElementTree.ParseError, OSError):
+        pass
+    return None
+
+
+def read_scene(path: Path) -> Any:
+    """The file as a trimesh Scene, referenced files resolved from its folder (the caller has
+    checked them with ``model_files.bundle``)."""
+    import trimesh
+    from trimesh.resolvers import FilePathResolver
+
+    resolver = FilePathResolver(str(path), allow_anywhere=True)
+    return trimesh.load(str(path), force="scene", resolver=resolver)
+
+
+def one_mesh(scene: Any, unit: float = 1.0) -> Any:
+    """The scene's parts as one trimesh: vertices in the scene frame (× ``unit``), an RGBA
+    atlas texture where any part is textured (else face colours)."""
+    import trimesh
+
+    parts = [g for g in scene.dump(concatenate=False) if len(getattr(g, "faces", ())) > 0]
+    if not parts:
+        return trimesh.Trimesh()
+    looks = [_look(g) for g in parts]
+    if not any(isinstance(lk, _Image) for lk in looks):
+        v, f, rgba = [], [], []
+        base = 0
+        for g, lk in zip(parts, looks, strict=True):
+            assert not isinstance(lk, _Image)
+            v.append(np.asarray(g.vertices, np.float64))
+            f.append(np.asarray(g.faces, np.int64) + base)
+            rgba.append(lk)
+            base += len(g.vertices)
+        colours = trimesh.visual.ColorVisuals(face_colors=np.concatenate(rgba))
+        return trimesh.Trimesh(
+            np.concatenate(v) * unit, np.concatenate(f), visual=colours, process=False
+        )
+    return _atlas_mesh(parts, looks, unit)
+
+
+class _Image:
+    """A textured part: its RGBA texels (alpha already 0 or 255) and UVs."""
+
+    def __init__(self, rgba: NDArray[np.uint8], uv: FloatArray) -> None:
+        self.rgba = rgba
+        self.uv = uv
+
+
+def _look(g: Any) -> _Image | NDArray[np.uint8]:
+    """A part's texture (``_Image``) or its per-face RGBA colours."""
+    visual = g.visual
+    n = len(g.faces)
+    if getattr(visual, "kind", None) == "texture":
+        mat = getattr(visual, "material", None)
+        uv = getattr(visual, "uv", None)
+        image, factor, mode, cutoff = _material(mat)
+        if image is not None and uv is not None and len(uv) == len(g.vertices):
+            rgba = np.asarray(image.convert("RGBA"), np.float64)
+            rgba = rgba * factor[None, None, :]
+            alpha = rgba[..., 3] / 255.0
+            if mode == "OPAQUE":
+                rgba[..., 3] = 255.0
+            else:
+                rgba[..., 3] = np.where(alpha >= cutoff, 255.0, 0.0)
+            img = np.clip(np.round(rgba), 0, 255).astype(np.uint8)
+            return _Image(img, np.asarray(uv, np.float64))
+        colour = _material_colour(mat) * factor
+        return np.tile(np.clip(np.round(colour), 0, 255).astype(np.uint8), (n, 1))
+    if getattr(visual, "kind", None) == "vertex":
+        vc = np.asarray(visual.vertex_colors, np.float64)
+        return np.asarray(np.round(vc[np.asarray(g.faces)].mean(axis=1)), np.uint8)
+    fc = np.asarray(visual.face_colors, np.uint8)
+    return fc if fc.shape == (n, 4) else np.tile(np.array([128, 128, 128, 255], np.uint8), (n, 1))
+
+
+def _material(mat: Any) -> tuple[Any, FloatArray, str | None, float]:
+    """(image, RGBA factor in [0, 1] per channel, glTF alpha mode, alpha cutoff)."""
+    from trimesh.visual.material import PBRMaterial
+
+    one = np.ones(4)
+    if isinstance(mat, PBRMaterial):
+        factor = one
+        if mat.baseColorFactor is not None:
+            factor = np.asarray(mat.baseColorFactor, np.float64).reshape(4) / 255.0
+        cutoff = mat.alphaCutoff if mat.alphaMode == "MASK" and mat.alphaCutoff else ALPHA_CUT
+        return mat.baseColorTexture, factor, mat.alphaMode, float(cutoff)
+    image = getattr(mat, "image", None)
+    return image, one, None, ALPHA_CUT
+
+
+def _material_colour(mat: Any) -> FloatArray:
+    """A material's colour without a texture (RGBA 0-255; the factor multiplies it after)."""
+    from trimesh.visual.material import PBRMaterial
+
+    if isinstance(mat, PBRMaterial):
+        return np.full(4, 255.0)  # the factor is the colour
+    diffuse = getattr(mat, "diffuse", None)
+    if diffuse is not None and np.shape(diffuse) == (4,):
+        return np.asarray(diffuse, np.float64)
+    return np.array([128.0, 128.0, 128.0, 255.0])
+
+
+def _atlas_mesh(parts: list[Any], looks: list[Any], unit: float) -> Any:
+    import trimesh
+
+    # each textured part's block: its image tiled over the UV span
+    blocks: list[NDArray[np.uint8]] = []
+    spans: list[tuple[FloatArray, FloatArray]] = []  # (floor of uv min, repeats) per part
+    colours: list[NDArray[np.uint8]] = []
+    for lk in looks:
+        if isinstance(lk, _Image):
+            lo = np.floor(lk.uv.min(axis=0) + 1e-6) if len(lk.uv) else np.zeros(2)
+            hi = np.ceil(lk.uv.max(axis=0) - 1e-6) if len(lk.uv) else np.ones(2)
+            reps = np.maximum(hi - lo, 1.0)
+            tile = np.tile(lk.rgba, (int(reps[1]), int(reps[0]), 1))
+            scale = max(reps.max() / MAX_TILES, 1.0)
+            blocks.append(_shrink(tile, scale))
+            spans.append((lo, reps))
+        else:
+            colours.append(lk)
+    palette = np.unique(np.concatenate(colours), axis=0) if colours else np.zeros((0, 4), np.uint8)
+    if len(palette):
+        side = math.ceil(math.sqrt(len(palette)))
+        pal = np.zeros((math.ceil(len(palette) / side) * CELL, side * CELL, 4), np.uint8)
+        for i, c in enumerate(palette):
+            r, q = divmod(i, side)
+            pal[r * CELL : (r + 1) * CELL, q * CELL : (q + 1) * CELL] = c
+        blocks.append(pal)
+    atlas, where = _pack(blocks)
+    ah, aw = atlas.shape[:2]
+    verts, faces, uvs = [], [], []
+    base = 0
+    k = 0
+    for g, lk in zip(parts, looks, strict=True):
+        v = np.asarray(g.vertices, np.float64)
+        f = np.asarray(g.faces, np.int64)
+        if isinstance(lk, _Image):
+            (y0, x0), (bh, bw) = where[k], blocks[k].shape[:2]
+            lo, reps = spans[k]
+            s = (lk.uv - lo) / reps  # [0, 1] over the block
+            px = x0 + np.clip(s[:, 0] * bw, 0.5, bw - 0.5)
+            py = y0 + np.clip((1.0 - s[:, 1]) * bh, 0.5, bh - 0.5)
+            uv = np.column_stack([px / aw, 1.0 - py / ah])
+            k += 1
+        else:  # flat colours: three vertices of its own per face, UVs at its colour's cell
+            (y0, x0), (bh, bw) = where[-1], blocks[-1].shape[:2]
+            cols = math.ceil(math.sqrt(len(palette)))
+            rows = math.ceil(len(palette) / cols)
+            idx = np.array([np.flatnonzero((palette == c).all(axis=1))[0] for c in lk])
+            row, col = np.divmod(idx, cols)
+            cu = (x0 + (col + 0.5) / cols * bw) / aw
+            cv = 1.0 - (y0 + (row + 0.5) / rows * bh) / ah
+            v = v[f.ravel()]
+            f = np.arange(len(v)).reshape(-1, 3)
+            uv = np.column_stack([np.repeat(cu, 3), np.repeat(cv, 3)])
+        verts.append(v)
+        faces.append(f + base)
+        uvs.append(uv)
+        base += len(v)
+    from PIL import Image
+
+    mesh = trimesh.Trimesh(np.concatenate(verts) * unit, np.concatenate(faces), process=False)
+    mesh.visual = trimesh.visual.TextureVisuals(
+        uv=np.concatenate(uvs),
+        material=trimesh.visual.material.SimpleMaterial(image=Image.fromarray(atlas, "RGBA")),
+    )
+    return mesh
+
+
+def _shrink(img: NDArray[np.uint8], factor: float) -> NDArray[np.uint8]:
+    if factor <= 1.0:
+        return img
+    from PIL import Image
+
+    h, w = img.shape[:2]
+    size = (max(1, round(w / factor)), max(1, round(h / factor)))
+    out = Image.fromarray(img, "RGBA").resize(size, Image.Resampling.NEAREST)
+    return np.asarray(out, np.uint8)
+
+
+def _pack(blocks: list[NDArray[np.uint8]]) -> tuple[NDArray[np.uint8], list[tuple[int, int]]]:
+    """Shelf packing, tallest first: the atlas and each block's (row, column) corner. Blocks
+    are scaled down together when the atlas would exceed ``MAX_ATLAS`` a side."""
+    scale = 1.0
+    while True:
+        sized = [_shrink(b, scale) for b in blocks]
+        area = sum(b.shape[0] * b.shape[1] for b in sized)
+        width = max(max(b.shape[1] for b in sized), math.ceil(math.sqrt(area)))
+        order = sorted(range(len(sized)), key=lambda i: -sized[i].shape[0])
+        where: list[tuple[int, int]] = [(0, 0)] * len(sized)
+        x = y = shelf = 0
+        for i in order:
+            h, w = sized[i].shape[:2]
+            if x + w > width:
+                x, y, shelf = 0, y + shelf, 0
+            where[i] = (y, x)
+            x += w
+            shelf = max(shelf, h)
+        height = y + shelf
+        if max(width, height) <= MAX_ATLAS or scale > 64:
+            break
+        scale *= max(width, height) / MAX_ATLAS * 1.01
+    atlas = np.zeros((height, width, 4), np.uint8)
+    for b, (r, c) in zip(sized, where, strict=True):
+        atlas[r : r + b.shape[0], c : c + b.shape[1]] = b
+    if scale > 1.0:
+        blocks[:] = sized
+    return atlas, where
