@@ -440,7 +440,7 @@ class _TurnFitter:
                 raise InputError(
                     "route.turn",
                     spec.turn,
-                    f"a {spec.turn} turn of radius {spec.turn_radius:g} m for a "
+                    f"the {spec.turn} turn of radius {spec.turn_radius:g} m for a "
                     f"{length:g} x {width:g} m footprint starts {offset:.2f} m past the crop "
                     f"and needs about {depth:.1f} m of headland beyond it; it leaves the field "
                     f"at ENU ({corners[out][0, 0]:.1f}, {corners[out][0, 1]:.1f}) m; allowed: "

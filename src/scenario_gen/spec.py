@@ -16,6 +16,7 @@ import yaml
 from .crops import CROP_SPECIES
 from .schema import from_mapping, merge, plain
 from .schema import param as _f
+from .turns import TURN_TYPES
 
 
 @dataclass(frozen=True)
@@ -177,7 +178,7 @@ class RouteSpec:
         "three_point (forward, reverse, forward: two cusps); all but semicircle keep "
         "turn_radius, start where the swept footprint clears the crop by turn_clearance and "
         "must fit the field",
-        choices=("semicircle", "omega", "keyhole", "three_point"),
+        choices=TURN_TYPES,
     )
     turn_radius: float = _f(
         0.9,
