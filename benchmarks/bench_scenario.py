@@ -7,7 +7,10 @@ Measures, as the median of several runs in one process:
    KD-tree exist already (their build is reported on its own line);
 2. the same for ≈100,000 plants;
 3. ``generate`` end to end for the ``default`` preset (DEM load, site search, resampling,
-   furrows, KD-tree, layout, route).
+   furrows, KD-tree, layout, route);
+4. ``generate`` end to end for ≈100,000 plants in straight and in curved rows (radius 30-80 m),
+   the two runs interleaved so that both see the same machine load; target: curved within
+   twice the straight grid's time.
 
 Run: ``make bench`` or ``python benchmarks/bench_scenario.py [--repeat N]``.
 """
@@ -98,6 +101,23 @@ def main() -> None:
     spec = sg.preset("default")
     med, best = median_ms(lambda: sg.generate(spec, seed=0), args.repeat)
     print(f"generate('default') end to end: {med:8.1f} ms (min {best:.1f}; target ≤ 2000 ms)")
+
+    # 4. ≈100,000 plants end to end, straight vs curved rows, interleaved
+    times: dict[str, list[float]] = {"straight": [], "curved": []}
+    plants: dict[str, int] = {}
+    for _ in range(max(3, args.repeat // 2)):
+        for geometry in times:
+            spec = big.replace({"layout.row_geometry": geometry})
+            t0 = time.perf_counter()
+            scn = sg.generate(spec, seed=0)
+            times[geometry].append((time.perf_counter() - t0) * 1e3)
+            plants[geometry] = len(scn.plants)
+    med_s, med_c = statistics.median(times["straight"]), statistics.median(times["curved"])
+    print(
+        f"generate ≈100k plants, {len(times['curved'])} runs each: straight "
+        f"{med_s:8.1f} ms ({plants['straight']} plants), curved {med_c:8.1f} ms "
+        f"({plants['curved']} plants): {med_c / med_s:.2f}x (target ≤ 2x)"
+    )
 
 
 if __name__ == "__main__":

@@ -416,7 +416,7 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
 
     def _build_world(self) -> None:
         scn = self.scenario
-        self.world.load(scn.terrain, scn.rows.angle)
+        self.world.load(scn.terrain, scn.rows.angle if scn.rows.curve is None else None)
         if self._fields_of is not scn:
             self.plants = PlantField.from_scenario(scn)
             self.field = FieldView(scn, self.plants, self._camera_scenes)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 from functools import cached_property
@@ -11,8 +12,12 @@ from numpy.typing import NDArray
 
 from scenario_gen import Scenario
 from scenario_gen.arrays import FloatArray
+from scenario_gen.routes import lane_path
 
 TABLE_STEP = 0.02  # m: route lookup table resolution (waypoints are ≤ 0.1 m apart)
+#: A reversing route's cusp counts as reached this close along the route (m): a robot stops
+#: and reverses within a few centimetres of it.
+CUSP_REACH = 0.1
 
 
 @dataclass(frozen=True, eq=False)
@@ -21,16 +26,30 @@ class RoutePath:
     z: FloatArray
     furrow: NDArray[np.bool_]  # per waypoint
     arc: FloatArray  # cumulative arc length at each waypoint
-    heading: FloatArray  # direction of the segment leaving each waypoint
+    heading: FloatArray  # the robot's facing along the segment leaving each waypoint
+    #: the segment leaving each waypoint is driven backwards (a three-point turn's middle leg:
+    #: there ``heading`` faces against the direction of travel); None: all forwards
+    reverse: NDArray[np.bool_] | None = None
 
     @classmethod
-    def from_points(cls, xy: FloatArray, z: FloatArray, furrow: NDArray[np.bool_]) -> RoutePath:
+    def from_points(
+        cls,
+        xy: FloatArray,
+        z: FloatArray,
+        furrow: NDArray[np.bool_],
+        reverse: NDArray[np.bool_] | None = None,
+    ) -> RoutePath:
         d = np.diff(xy, axis=0)
         seg = np.hypot(d[:, 0], d[:, 1])
         arc = np.concatenate([[0.0], np.cumsum(seg)])
         heading = np.arctan2(d[:, 1], d[:, 0])
         heading = np.concatenate([heading, heading[-1:]])
-        return cls(xy, z, furrow, arc, heading)
+        if reverse is not None and reverse.any():
+            heading = np.where(reverse, heading + math.pi, heading)
+            heading = (heading + math.pi) % (2 * math.pi) - math.pi
+        else:
+            reverse = None
+        return cls(xy, z, furrow, arc, heading, reverse)
 
     @property
     def length(self) -> float:
@@ -73,7 +92,11 @@ class RoutePath:
 
 
 def lane_route(scn: Scenario, lane: int, spacing: float = 0.05, lead: float = 0.0) -> RoutePath:
-    """One lane centreline (start -> end of its crop rows), optionally with a headland lead-in."""
+    """One lane centreline (start -> end of its crop rows), optionally with a headland lead-in;
+    on curved and contour rows it follows the rows' curve."""
+    if scn.rows.curve is not None:
+        xy, furrow = lane_path(scn.rows, scn.field, lane, spacing, lead)
+        return RoutePath.from_points(xy, scn.terrain.height_at(xy[:, 0], xy[:, 1]), furrow)
     a, b = scn.lanes[lane]
     u = (b - a) / np.linalg.norm(b - a)
     start = a - lead * u
@@ -86,7 +109,9 @@ def lane_route(scn: Scenario, lane: int, spacing: float = 0.05, lead: float = 0.
 
 def scenario_route(scn: Scenario) -> RoutePath:
     r = scn.route
-    return RoutePath.from_points(r.xy.copy(), r.xyz[:, 2].copy(), r.segment == "furrow")
+    return RoutePath.from_points(
+        r.xy.copy(), r.xyz[:, 2].copy(), r.segment == "furrow", r.direction < 0
+    )
 
 
 class Tracker:
@@ -94,6 +119,10 @@ class Tracker:
 
     Called twice per env step with a handful of segments, so it is plain Python: for windows
     this small numpy's per-call overhead costs more than the arithmetic.
+
+    A route that reverses (a three-point turn) doubles back on itself at its cusps, where the
+    nearest segment may lie on the other leg: the search then stays within the leg it is on
+    and moves on to the next leg once the point's foot is within ``CUSP_REACH`` of the cusp.
     """
 
     def __init__(self, route: RoutePath) -> None:
@@ -101,6 +130,13 @@ class Tracker:
         self.k = 0
         self._xy = route.xy.tolist()
         self._arc = route.arc.tolist()
+        self._legs: list[tuple[int, int]] | None = None  # (first, last) segment of each leg
+        self._leg_of: list[int] = []
+        if route.reverse is not None:
+            seg = route.reverse[:-1]
+            cuts = [0, *(np.flatnonzero(seg[1:] != seg[:-1]) + 1).tolist(), len(seg)]
+            self._legs = [(a, b - 1) for a, b in itertools.pairwise(cuts)]
+            self._leg_of = np.repeat(np.arange(len(self._legs)), np.diff(cuts)).tolist()
 
     def reset(self, x: float, y: float) -> None:
         d = np.hypot(self.route.xy[:, 0] - x, self.route.xy[:, 1] - y)
@@ -133,15 +169,26 @@ class Tracker:
         """
         last = len(self._xy) - 2
         k = min(self.k, last)
+        lo, hi = 0, last
+        if self._legs is not None:
+            leg = self._leg_of[k]
+            lo, hi = self._legs[leg]
         best = self._seg(k, x, y)
         for step in (1, -1):
             j = k + step
-            while 0 <= j <= last:
+            while lo <= j <= hi:
                 cand = self._seg(j, x, y)
                 if cand[0] > best[0] + 1e-12:
                     break
                 k, best = j, cand
                 j += step
+        if self._legs is not None and hi < last:
+            foot = self._arc[k] + best[1] * (self._arc[k + 1] - self._arc[k])
+            if self._arc[hi + 1] - foot <= CUSP_REACH:
+                # at the cusp: on to the next leg, from its start (near a cusp the legs
+                # overlap, so a search there could land farther along it)
+                k = hi + 1
+                best = self._seg(k, x, y)
         self.k = k
         d2, u, cross = best
         seg = self._arc[k + 1] - self._arc[k]

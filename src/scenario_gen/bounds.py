@@ -227,7 +227,11 @@ def check_budget(spec: ScenarioSpec, field: BaseGeometry, spacing: float) -> Non
     diag = math.hypot(xmax - xmin, ymax - ymin)
     rows = diag / lay.row_spacing + 1
     lanes = min(r.lanes, rows)
-    length = lanes * (diag + 2 * r.turn_offset + math.pi * lay.row_spacing) + 2 * r.lead_in
+    along = diag if lay.row_geometry == "straight" else 0.5 * math.pi * diag  # an arc's chord
+    turn = math.pi * lay.row_spacing
+    if r.turn != "semicircle":  # the keyhole, longest, turns through < 3π at the radius
+        turn = 3 * math.pi * max(r.turn_radius, lay.row_spacing) + r.footprint[0]
+    length = lanes * (along + 2 * r.turn_offset + turn) + 2 * r.lead_in
     waypoints = length / r.spacing
     if waypoints > MAX_ROUTE_WAYPOINTS:
         raise InputError(

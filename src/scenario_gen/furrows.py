@@ -1,8 +1,9 @@
 """Ridge/furrow micro-relief along the crop rows, plus optional soil roughness (design.md,
 "The scenario pipeline").
 
-Rows sit on the ridges and lanes in the furrows between them, as in ridge-tilled maize. Relief
-is full over the planting area and fades to zero over ``taper`` metres outside it.
+Rows sit on the ridges and lanes in the furrows between them, as in ridge-tilled maize; on
+curved and contour rows the ridges follow the rows. Relief is full over the planting area and
+fades to zero over ``taper`` metres outside it.
 """
 
 from __future__ import annotations
@@ -32,11 +33,16 @@ def add_relief(
     h = terrain.heights.copy()
     gx, gy = np.meshgrid(terrain.xs, terrain.ys)
     if spec.enabled and spec.depth > 0:
-        _, s = rows.to_rows(gx, gy)
+        region = area.buffer(spec.taper)
+        if rows.curve is None:
+            _, s = rows.to_rows(gx, gy)
+            inside = shapely.contains_xy(region, gx, gy)
+        else:  # the offset from a curve costs a search: only where the relief is
+            inside = shapely.contains_xy(region, gx, gy)
+            s = np.zeros_like(gx)
+            s[inside] = rows.to_rows(gx[inside], gy[inside])[1]
         phase = (s - rows.offsets[0]) / rows.spacing
         q = np.abs(phase - np.round(phase))
-        region = area.buffer(spec.taper)
-        inside = shapely.contains_xy(region, gx, gy)
         dist = ndimage.distance_transform_edt(inside) * terrain.spacing
         weight = np.clip(dist / spec.taper, 0.0, 1.0)
         h += spec.depth * weight * ridge_profile(q, spec.profile)

@@ -26,6 +26,7 @@ from .layout import Layout, layout
 from .model import Plants, Scenario
 from .models import inspect_model
 from .routes import zigzag
+from .rowcurve import row_curve
 from .sources import Site, build_terrain, open_site
 from .spec import CropSpec, ScenarioSpec, TerrainSpec
 from .terrain import Terrain
@@ -33,7 +34,7 @@ from .waypoints import read_gps_waypoints, waypoint_route
 
 #: Independent random streams, one per generation step, spawned from the seed so that changing
 #: one parameter (say the weed density) does not reshuffle every other random choice.
-STREAMS = ("jitter", "gaps", "weeds", "plants", "roughness")
+STREAMS = ("jitter", "gaps", "weeds", "plants", "roughness", "rows")
 
 
 def orientation(zx: FloatArray, zy: FloatArray, yaw: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -127,6 +128,9 @@ def check_spec(spec: ScenarioSpec) -> None:
             "field.layer", spec.field.layer, "names a layer of field.geojson, which is not set"
         )
     lay = spec.layout
+    lo, hi = lay.curve_radius
+    if lo > hi:
+        raise InputError("layout.curve_radius", [lo, hi], "allowed: [low, high] with low <= high")
     # Jitter is clipped at 3 std: within half a spacing, no plant can pass the midpoint to its
     # neighbouring row (or position), so every plant's row stays what the layout says.
     for name, std, spacing in (
@@ -249,7 +253,8 @@ def generate(spec: ScenarioSpec, seed: int) -> Scenario:
     site, poly = plan.site, plan.poly
     base = build_terrain(site, plan.bounds, spec.terrain.lod)
 
-    lay = layout(poly, spec.layout, plan.angle, rng["jitter"], rng["gaps"], rng["weeds"])
+    curve = row_curve(spec.layout, poly, plan.angle, plan.bounds, site.heights, rng["rows"])
+    lay = layout(poly, spec.layout, plan.angle, rng["jitter"], rng["gaps"], rng["weeds"], curve)
     terrain = add_relief(base, lay.rows, lay.planting_area, spec.furrows, rng["roughness"])
     nominal = None  # crop.model_scale "native": the model's own height
     if user_model is not None and user_model.scale == "native":
@@ -266,7 +271,8 @@ def generate(spec: ScenarioSpec, seed: int) -> Scenario:
             "route.waypoints",
         )
     else:
-        route = zigzag(lay.rows, spec.route, terrain, poly)
+        crops = np.column_stack([lay.x, lay.y])[~lay.is_weed]
+        route = zigzag(lay.rows, spec.route, terrain, poly, crops)
     info = {
         "credit": site.credit,
         **site.info,

@@ -80,10 +80,13 @@ def _plain(g: Any) -> Any:
 def route_features(
     scn: Scenario, rlat: np.ndarray, rlon: np.ndarray, decimals: int | None = 8
 ) -> list[dict[str, Any]]:
-    """One LineString per furrow or headland run; runs share their junction point."""
+    """One LineString per furrow or headland run, a headland turn and each leg of it driven
+    in one direction being runs of their own; runs share their junction point."""
     r = scn.route
     seg = r.segment
-    cuts = np.flatnonzero(seg[1:] != seg[:-1]) + 1
+    change = (seg[1:] != seg[:-1]) | (r.turn[1:] != r.turn[:-1])
+    change |= r.direction[1:] != r.direction[:-1]
+    cuts = np.flatnonzero(change) + 1
     bounds = np.concatenate([[0], cuts, [len(seg)]]).astype(int)
     ralt = scn.geo.enu_to_geodetic(r.xyz[:, 0], r.xyz[:, 1], r.xyz[:, 2])[2]
     feats = []
@@ -96,6 +99,8 @@ def route_features(
                 "properties": {
                     "segment": str(seg[a]),
                     "lane": int(r.lane[a]),
+                    "turn": str(r.turn[a]),
+                    "direction": int(r.direction[a]),
                     "length_m": round(length, 3),
                 },
                 "geometry": _line(rlon[a:hi], rlat[a:hi], ralt[a:hi], decimals),
@@ -146,7 +151,7 @@ def row_features(scn: Scenario, decimals: int | None = 8, step: float = 1.0) -> 
     rows = scn.rows
     feats = []
     for i, (s, t0, t1) in enumerate(zip(rows.offsets, rows.starts, rows.ends, strict=True)):
-        n = max(2, int(np.ceil((t1 - t0) / step)) + 1)
+        n = max(2, int(np.ceil((t1 - t0) * rows.stretch(t0, t1, s) / step)) + 1)
         t = np.linspace(t0, t1, n)
         x, y = rows.to_enu(t, np.full(n, s))
         z = scn.terrain.height_at(x, y)
@@ -154,7 +159,7 @@ def row_features(scn: Scenario, decimals: int | None = 8, step: float = 1.0) -> 
         feats.append(
             {
                 "type": "Feature",
-                "properties": {"row": i, "length_m": round(float(t1 - t0), 3)},
+                "properties": {"row": i, "length_m": round(rows.row_length(t0, t1, s), 3)},
                 "geometry": _line(lon, lat, alt, decimals),
             }
         )

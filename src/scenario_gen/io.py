@@ -1,13 +1,15 @@
 """Scenario directories, written atomically (``reading.load`` reads them back, checked).
 
 Layout: ``scenario.json`` (format version, spec, seed, datum, CRS, LoD, counts, rows and their
-planted segments, the user plant model, versions), ``terrain.npz``, ``plants.csv`` (with each
-plant's ``row`` since format 2), ``route.csv``, ``field.geojson``, ``route.geojson`` and
-``plants.geojson`` (WGS84, one geometry type each), ``preview.png`` and, when the spec names a
-``crop.model``, ``models/<its file name>`` (or ``models/<mesh stem>/`` holding the mesh and
-the files it references in their folders): byte-identical copies, checked against the recorded
-SHA-256s. Everything is first written to a hidden sibling folder which is renamed
-into place only once complete, so a failure never leaves a half-written scenario.
+planted segments, the reference curve of curved or contour rows since format 3, the user plant
+model, versions), ``terrain.npz``, ``plants.csv`` (with each plant's ``row`` since format 2),
+``route.csv`` (with each waypoint's ``turn`` and ``direction`` since format 3),
+``field.geojson``, ``route.geojson`` and ``plants.geojson`` (WGS84, one geometry type each),
+``preview.png`` and, when the spec names a ``crop.model``, ``models/<its file name>`` (or
+``models/<mesh stem>/`` holding the mesh and the files it references in their folders):
+byte-identical copies, checked against the recorded SHA-256s. Everything is first written to a
+hidden sibling folder which is renamed into place only once complete, so a failure never
+leaves a half-written scenario.
 """
 
 from __future__ import annotations
@@ -30,8 +32,10 @@ from .preview import render_preview
 from .vertical import of_scenario
 
 FORMAT = "agrinav-scenario"
-FORMAT_VERSION = 2
-READABLE_VERSIONS = (1, 2)  # version 1: no row column, no segments, no models
+FORMAT_VERSION = 3
+# version 1: no row column, no segments, no models; version 2: straight rows only, no turn or
+# direction columns in route.csv
+READABLE_VERSIONS = (1, 2, 3)
 PLANT_HEADER_V1 = [
     "id",
     "species",
@@ -48,7 +52,8 @@ PLANT_HEADER_V1 = [
     "alt",
 ]
 PLANT_HEADER = [*PLANT_HEADER_V1, "row"]
-ROUTE_HEADER = ["index", "x", "y", "z", "lat", "lon", "segment"]
+ROUTE_HEADER_V2 = ["index", "x", "y", "z", "lat", "lon", "segment"]
+ROUTE_HEADER = [*ROUTE_HEADER_V2, "turn", "direction"]
 _VERSIONED = (
     "agrinav-gym",
     "numpy",
@@ -131,9 +136,9 @@ def _write_all(scn: Scenario, d: Path, preview: bool) -> None:
         w = csv.writer(f)
         w.writerow(ROUTE_HEADER)
         w.writerows(
-            (i, f"{x:.6f}", f"{y:.6f}", f"{z:.6f}", f"{la:.10f}", f"{lo:.10f}", s)
-            for i, ((x, y, z), la, lo, s) in enumerate(
-                zip(r.xyz, rlat, rlon, r.segment, strict=True)
+            (i, f"{x:.6f}", f"{y:.6f}", f"{z:.6f}", f"{la:.10f}", f"{lo:.10f}", s, tn, dn)
+            for i, ((x, y, z), la, lo, s, tn, dn) in enumerate(
+                zip(r.xyz, rlat, rlon, r.segment, r.turn, r.direction.tolist(), strict=True)
             )
         )
     t = scn.terrain
@@ -223,6 +228,8 @@ def metadata_dict(scn: Scenario) -> dict[str, Any]:
                 [int(r), float(a), float(b)]
                 for r, (a, b) in zip(rows.seg_row, rows.seg_t, strict=True)  # type: ignore[arg-type]
             ],
+            "geometry": rows.geometry,
+            "curve": None if rows.curve is None else rows.curve.to_dict(),
         },
         "crop_model": None if scn.crop_model is None else scn.crop_model.to_dict(),
         "info": info,

@@ -3,7 +3,7 @@
 A folder may be truncated, edited by hand or crafted: each file is bounded in size before it is
 read, parsed defensively and checked field by field, and any defect is an ``InputError`` naming
 the file, the field (or line and column) and what is allowed. Files must lie in the folder: a
-symbolic link pointing out of it is refused, not followed. Format versions 1 and 2 are read;
+symbolic link pointing out of it is refused, not followed. Format versions 1 to 3 are read;
 version 1 has no ``row`` column in plants.csv, so rows are recovered as the nearest row line
 (exact there, since jitter is bounded to half a row spacing).
 """
@@ -41,6 +41,7 @@ from .io import (
     PLANT_HEADER_V1,
     READABLE_VERSIONS,
     ROUTE_HEADER,
+    ROUTE_HEADER_V2,
 )
 from .layout import RowFrame
 from .model import Plants, Scenario
@@ -48,7 +49,8 @@ from .model_files import MAX_FILES as MAX_MODEL_FILES
 from .model_shape import ProxyShape
 from .models import MAX_TOTAL_BYTES as MAX_MODEL_BYTES
 from .models import SCALE_RULES, UserModel, sha256_file
-from .routes import SEGMENTS, Route
+from .routes import SEGMENTS, TURN_TAGS, Route
+from .rowcurve import RowCurve
 from .schema import parse_json
 from .spec import ScenarioSpec
 from .terrain import Terrain
@@ -86,7 +88,7 @@ def load(directory: str | Path) -> Scenario:
     rows = _rows(_get(meta, "rows", dict), version)
     field = _field(meta)
     plants = _plants(_member(d, "plants.csv", MAX_PLANTS * MAX_CSV_ROW_BYTES), rows, version)
-    route = _route(_member(d, "route.csv", MAX_ROUTE_WAYPOINTS * MAX_CSV_ROW_BYTES), rows)
+    route = _route(_member(d, "route.csv", MAX_ROUTE_WAYPOINTS * MAX_CSV_ROW_BYTES), rows, version)
     _on_terrain(terrain, plants.x, plants.y, "plants.csv")
     _on_terrain(terrain, route.xy[:, 0], route.xy[:, 1], "route.csv")
     info = meta.get("info", {})
@@ -230,7 +232,29 @@ def _rows(r: dict[str, Any], version: int) -> RowFrame:
         spacing,
         row.astype(np.int64),
         np.ascontiguousarray(arr[:, 1:]),
+        _curve(r.get("curve")) if version >= 3 else None,
     )
+
+
+def _curve(c: Any) -> RowCurve | None:
+    """The reference curve of curved or contour rows (null for straight rows)."""
+    if c is None:
+        return None
+    where = "scenario.json: rows.curve"
+    if not isinstance(c, dict):
+        raise InputError(where, type(c).__name__, "allowed: null or a mapping")
+    kind = c.get("kind")
+    if kind not in ("curved", "contour"):
+        raise InputError(f"{where}.kind", kind, "allowed: curved or contour")
+    cols = {k: _numbers(c, k) for k in ("t", "x", "y", "theta")}
+    n = len(cols["t"])
+    if n < 2 or any(len(v) != n for v in cols.values()) or (np.diff(cols["t"]) <= 0).any():
+        raise InputError(
+            where,
+            f"{n} points",
+            "allowed: at least 2 points, as many t, x, y and theta, t ascending",
+        )
+    return RowCurve(kind, np.column_stack([cols["x"], cols["y"]]), cols["t"], cols["theta"])
 
 
 def _field(meta: dict[str, Any]) -> Polygon | MultiPolygon:
@@ -537,8 +561,8 @@ def _nearest(values: np.ndarray, grid: np.ndarray) -> np.ndarray:
     return np.where(near_left, i - 1, i).astype(np.int64)
 
 
-def _route(path: Path, rows: RowFrame) -> Route:
-    _, c = _csv(path, [ROUTE_HEADER])
+def _route(path: Path, rows: RowFrame, version: int) -> Route:
+    _, c = _csv(path, [ROUTE_HEADER_V2] if version < 3 else [ROUTE_HEADER])
     n = len(c["x"])
     if n > MAX_ROUTE_WAYPOINTS:
         raise InputError(path.name, f"{n:,} waypoints", f"allowed: at most {MAX_ROUTE_WAYPOINTS:,}")
@@ -554,7 +578,28 @@ def _route(path: Path, rows: RowFrame) -> Route:
             str(segment[i]),
             f"allowed: one of {', '.join(SEGMENTS)}",
         )
+    turn, direction = np.full(n, "", "<U11"), np.ones(n, np.int8)
+    if version >= 3:
+        turn = c["turn"].astype(str)
+        bad = ~np.isin(turn, TURN_TAGS)
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise InputError(
+                f"{path.name}: line {i + 2}, column turn",
+                str(turn[i]),
+                f"allowed: empty or one of {', '.join(TURN_TAGS[1:])}",
+            )
+        d = c["direction"].astype(str)
+        bad = ~np.isin(d, ("1", "-1"))
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise InputError(
+                f"{path.name}: line {i + 2}, column direction", str(d[i]), "allowed: 1 or -1"
+            )
+        direction = d.astype(np.int8)
     lanes = 0.5 * (rows.offsets[:-1] + rows.offsets[1:])
     _, s = rows.to_rows(xyz[:, 0], xyz[:, 1])
     lane = _nearest(s, lanes) if len(lanes) else np.full(n, -1, np.int64)
-    return Route(xyz, segment, np.where(segment == "furrow", lane, -1).astype(np.int64))
+    return Route(
+        xyz, segment, np.where(segment == "furrow", lane, -1).astype(np.int64), turn, direction
+    )

@@ -16,6 +16,7 @@ import yaml
 from .crops import CROP_SPECIES
 from .schema import from_mapping, merge, plain
 from .schema import param as _f
+from .turns import TURN_TYPES
 
 
 @dataclass(frozen=True)
@@ -119,6 +120,20 @@ class LayoutSpec:
     weed_density: float = _f(0.0, "weeds per square metre of planted area", 0, 100)
     headland: float = _f(4.0, "unplanted strip at both row ends, metres", 0, 500)
     edge_margin: float = _f(0.3, "unplanted margin along the field edge, metres", 0, 500)
+    row_geometry: str = _f(
+        "straight",
+        "shape of the rows: straight (parallel lines at row_angle_deg), curved (concentric "
+        "arcs bending left or right at random, radius from curve_radius) or contour (parallel "
+        "to the terrain contour through the field centre); spacing is kept along the normal",
+        choices=("straight", "curved", "contour"),
+    )
+    curve_radius: tuple[float, float] = _f(
+        (30.0, 80.0),
+        "radius of the tightest row, metres: curved draws it uniformly from [low, high] per "
+        "seed; contour rows are straightened where they would curve tighter than low",
+        15,
+        100_000,
+    )
 
 
 @dataclass(frozen=True)
@@ -172,6 +187,31 @@ class RouteSpec:
         2.0, "headland run before the first lane and after the last, metres", 0, 100
     )
     turn_offset: float = _f(1.0, "how far past the crop the U-turn starts, metres", 0, 100)
+    turn: str = _f(
+        "semicircle",
+        "headland turn between lanes: semicircle (diameter = the lane spacing), omega (bulb: "
+        "away, loop, away; forward), keyhole (toward, loop through the neck; forward) or "
+        "three_point (forward, reverse, forward: two cusps); all but semicircle keep "
+        "turn_radius, start where the swept footprint clears the crop by turn_clearance and "
+        "must fit the field",
+        choices=TURN_TYPES,
+    )
+    turn_radius: float = _f(
+        0.9,
+        "smallest turning radius of the omega, keyhole and three_point turns, metres (0.9: "
+        "where Nav2 RPP starts slowing down for curvature)",
+        0.1,
+        100,
+    )
+    footprint: tuple[float, float] = _f(
+        (0.724, 0.616),
+        "robot footprint length and width the turns are sized for, metres (Summit-XL)",
+        0.05,
+        20,
+    )
+    turn_clearance: float = _f(
+        0.1, "room between the turn's swept footprint and any crop plant, metres", 0, 10
+    )
     waypoints: str | None = _f(
         None,
         "Nav2 GPS waypoint YAML ({waypoints: [{latitude, longitude, yaw}]}): the route is the "

@@ -99,6 +99,33 @@ def test_pytorchs_default_collation_batches_frames(dataset: Path) -> None:
     assert json.loads(batch["labels"][0])["key"] == batch["key"][0]
 
 
+def test_lane_offset_on_curved_rows_is_measured_from_the_curve() -> None:
+    import math
+
+    from baselines.dataset.labels import lane_offset
+    from scenario_gen import generate as generate_scenario
+    from scenario_gen import preset
+
+    spec = preset(
+        "default",
+        field={"width": 10.0, "length": 14.0},
+        layout={"headland": 2.0, "row_geometry": "curved", "curve_radius": [15.0, 15.0]},
+        terrain={"margin": 4.0},
+    )
+    scn = generate_scenario(spec, 1)
+    rows = scn.rows
+    mid = 0.5 * (rows.offsets[1] + rows.offsets[2])
+    for t in (rows.starts[1] + 1.0, 0.5 * (rows.starts[1] + rows.ends[1]), rows.ends[1] - 1.0):
+        (x,), (y,) = rows.to_enu(np.array([t]), np.array([mid + 0.1]))
+        (h,) = rows.heading(np.array([t]))
+        lab = lane_offset(scn, np.array([x, y]), float(h) + 0.05)
+        assert lab["lane"] == 1
+        assert lab["lateral_offset"] == pytest.approx(0.1, abs=1e-4)
+        assert lab["heading_offset"] == pytest.approx(0.05, abs=1e-4)
+        back = lane_offset(scn, np.array([x, y]), float(h) + math.pi)  # driving the other way
+        assert back["lateral_offset"] == pytest.approx(-0.1, abs=1e-4)
+
+
 @pytest.mark.parametrize("overlap", [False, True])
 def test_the_same_spec_and_seed_give_byte_identical_shards(
     dataset: Path, tmp_path: Path, overlap: bool

@@ -44,7 +44,7 @@ def test_csv_headers_and_metadata(saved) -> None:
     with open(out / "route.csv") as f:
         assert next(csv.reader(f)) == ROUTE_HEADER
     meta = json.loads((out / "scenario.json").read_text())
-    assert meta["format_version"] == 2 and meta["seed"] == 11
+    assert meta["format_version"] == 3 and meta["seed"] == 11
     assert meta["counts"]["plants"] + meta["counts"]["weeds"] == len(scn.plants)
     assert meta["datum"]["lat"] == scn.geo.lat and meta["lod"] == 20
     assert {"numpy", "pyproj", "PROJ", "agrinav-gym"} <= set(meta["versions"])
@@ -170,6 +170,10 @@ def test_load_recovers_rows_of_a_version_1_folder(saved, tmp_path: Path) -> None
     lines = (old / "plants.csv").read_text().splitlines()
     (old / "plants.csv").write_text(
         "\n".join(",".join(line.split(",")[:-1]) for line in lines) + "\n"
+    )
+    lines = (old / "route.csv").read_text().splitlines()  # no turn, direction before 3
+    (old / "route.csv").write_text(
+        "\n".join(",".join(line.split(",")[:-2]) for line in lines) + "\n"
     )
     back = load(old)
     np.testing.assert_array_equal(back.plants.row, scn.plants.row)

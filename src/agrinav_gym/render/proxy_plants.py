@@ -54,7 +54,7 @@ class PlantField:
         leaf = np.empty(len(p))
         base = np.empty(len(p))
         # fraction of the leaf plane's reach that points across the rows
-        across = np.abs(np.sin(p.yaw - scn.rows.angle))
+        across = np.abs(np.sin(p.yaw - scn.rows.direction_at(p.x, p.y)))
         for name in names:
             sp = CATALOG[str(name)]
             m = p.species == name

@@ -53,13 +53,18 @@ def lane_offset(scn: Scenario, xy: FloatArray, yaw: float) -> dict[str, Any]:
     lane centre (m, left positive looking along the rows) and the heading offset (rad, to the
     row direction the robot faces)."""
     rows = scn.rows
-    s = float((xy - np.asarray(rows.origin)) @ rows.n)
+    if rows.curve is None:
+        s = float((xy - np.asarray(rows.origin)) @ rows.n)
+        angle = rows.angle
+    else:  # curved or contour rows: the offset from their curve, their local direction
+        t_arr, s_arr = rows.to_rows(np.array([xy[0]]), np.array([xy[1]]))
+        s, angle = float(s_arr[0]), float(rows.heading(t_arr)[0])
     centres = 0.5 * (rows.offsets[1:] + rows.offsets[:-1])
     if len(centres) == 0:
         return {"lane": -1, "lateral_offset": None, "heading_offset": None}
     k = int(np.argmin(np.abs(centres - s)))
-    dh = (yaw - rows.angle + math.pi / 2) % math.pi - math.pi / 2  # either direction of travel
-    forward = abs((yaw - rows.angle + math.pi) % (2 * math.pi) - math.pi) < math.pi / 2
+    dh = (yaw - angle + math.pi / 2) % math.pi - math.pi / 2  # either direction of travel
+    forward = abs((yaw - angle + math.pi) % (2 * math.pi) - math.pi) < math.pi / 2
     lateral = (s - centres[k]) * (1.0 if forward else -1.0)
     return {"lane": k, "lateral_offset": round(lateral, 4), "heading_offset": round(dh, 5)}
 
@@ -71,7 +76,11 @@ def row_lines(
     projection in every camera (NaN outside the image)."""
     rows = scn.rows
     out = []
-    t_robot = float((pos[:2] - np.asarray(rows.origin)) @ rows.u)
+    t_robot = (
+        float((pos[:2] - np.asarray(rows.origin)) @ rows.u)
+        if rows.curve is None
+        else float(rows.to_rows(pos[:1], pos[1:2])[0][0])
+    )
     for k, off in enumerate(rows.offsets):
         t0 = max(float(rows.starts[k]), t_robot - reach)
         t1 = min(float(rows.ends[k]), t_robot + reach)

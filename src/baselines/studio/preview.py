@@ -25,6 +25,7 @@ from scenario_gen.errors import InputError
 from scenario_gen.generate import FieldPlan, check_spec, growth_of, plan_field, streams
 from scenario_gen.layout import Layout, layout
 from scenario_gen.routes import Route, zigzag
+from scenario_gen.rowcurve import row_curve
 from scenario_gen.sources import Site, open_site, terrain_grid
 from scenario_gen.spec import ScenarioSpec, TerrainSpec
 from scenario_gen.terrain import Terrain
@@ -138,9 +139,15 @@ def plan_layout(
     x0, y0, nx, ny, step = terrain_grid(plan.site, plan.bounds, spec.terrain.lod)
     extent = (x0, y0, x0 + (nx - 1) * step, y0 + (ny - 1) * step)
     sites.check_extent(plan.site, extent)
-    lay = layout(plan.poly, spec.layout, plan.angle, rng["jitter"], rng["gaps"], rng["weeds"])
+    curve = row_curve(
+        spec.layout, plan.poly, plan.angle, plan.bounds, plan.site.heights, rng["rows"]
+    )
+    lay = layout(
+        plan.poly, spec.layout, plan.angle, rng["jitter"], rng["gaps"], rng["weeds"], curve
+    )
     ground = FlatGround(np.zeros((2, 2)), x0, y0, step, spec.terrain.lod, extent=extent)
-    route = zigzag(lay.rows, spec.route, ground, plan.poly)
+    crop_xy = np.column_stack([lay.x, lay.y])[~lay.is_weed]
+    route = zigzag(lay.rows, spec.route, ground, plan.poly, crop_xy)
     return plan, lay, route
 
 

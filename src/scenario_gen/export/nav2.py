@@ -1,8 +1,10 @@
 """ROS 2 / Nav2: the Gazebo world plus a launch file, GPS waypoints and the reference path.
 
-Waypoints are sparse — every lane entry and exit, the apex of every headland turn and the end
-of the lead-out — since a waypoint follower plans between them; the 0.1 m reference path is
-for measuring cross-track error afterwards, not for driving.
+Waypoints are sparse — every lane entry and exit, the apex of every headland turn (and the
+cusps of a three-point turn) and the end of the lead-out — since a waypoint follower plans
+between them; the 0.1 m reference path is for measuring cross-track error afterwards, not for
+driving. Yaw is the way the robot faces: against the direction of travel where the route is
+driven backwards.
 """
 
 from __future__ import annotations
@@ -25,11 +27,15 @@ from .options import ExportOptions
 SPAWN_CLEARANCE = 0.13
 
 
-def route_yaw(xy: FloatArray) -> FloatArray:
-    """Heading (rad, ENU: 0 east, counter-clockwise) of the path at each point."""
+def route_yaw(xy: FloatArray, direction: np.ndarray | None = None) -> FloatArray:
+    """Heading (rad, ENU: 0 east, counter-clockwise) of the path at each point; with the
+    route's ``direction``, the way the robot faces (turned round where it reverses)."""
     if len(xy) < 2:
         return np.zeros(len(xy))
     d = np.gradient(xy, axis=0)
+    if direction is not None and (np.asarray(direction) < 0).any():
+        fwd = np.diff(xy, axis=0) * np.asarray(direction[:-1], np.float64)[:, None]
+        d = np.vstack([fwd, fwd[-1:]])  # the facing along the segment leaving each point
     return np.arctan2(d[:, 1], d[:, 0])
 
 
@@ -45,7 +51,14 @@ def sparse_waypoints(scn: Scenario) -> list[tuple[int, str]]:
         if seg[a] == "furrow":
             lane = int(r.lane[a])
             out += [(a, f"lane {lane} entry"), (b - 1, f"lane {lane} exit")]
-        elif 0 < k < len(runs) - 1:  # a turn between two lanes: its apex
+        elif 0 < k < len(runs) - 1:  # a turn between two lanes: its apex (and cusps)
+            flips = a + np.flatnonzero(np.diff(r.direction[a:b]) != 0) + 1
+            if len(flips):
+                out += [
+                    (int(i), "cusp: reverse" if r.direction[i] < 0 else "cusp: forward")
+                    for i in flips
+                ]
+                continue
             xy = r.xy[a:b]
             chord = xy[-1] - xy[0]
             length = float(np.hypot(*chord))
@@ -66,7 +79,23 @@ def _reference_path(scn: Scenario, path: Path, yaw: FloatArray) -> None:
     s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(r.xy, axis=0).T))])
     with open(path, "w", newline="") as f:
         w = csv.writer(f)
-        w.writerow(["index", "x", "y", "z", "lat", "lon", "alt", "yaw", "segment", "lane", "s"])
+        w.writerow(
+            [
+                "index",
+                "x",
+                "y",
+                "z",
+                "lat",
+                "lon",
+                "alt",
+                "yaw",
+                "segment",
+                "lane",
+                "s",
+                "turn",
+                "direction",
+            ]
+        )
         for i in range(len(r)):
             w.writerow(
                 [
@@ -81,6 +110,8 @@ def _reference_path(scn: Scenario, path: Path, yaw: FloatArray) -> None:
                     r.segment[i],
                     int(r.lane[i]),
                     f"{s[i]:.4f}",
+                    r.turn[i],
+                    int(r.direction[i]),
                 ]
             )
 
@@ -98,7 +129,7 @@ def export_nav2(scn: Scenario, out: Path, opts: ExportOptions) -> dict[str, Any]
     (out / "launch").mkdir()
     shutil.copyfile(opts.robot_urdf, out / "robot" / "summit_xl.urdf")
     r = scn.route
-    yaw = route_yaw(r.xy)
+    yaw = route_yaw(r.xy, r.direction)
     wps = sparse_waypoints(scn)
     idx = np.array([i for i, _ in wps], np.int64)
     lat, lon, _ = scn.geo.enu_to_geodetic(r.xyz[idx, 0], r.xyz[idx, 1], r.xyz[idx, 2])

@@ -94,8 +94,8 @@ yaw {info["spawn"][3]:.4f} rad). Gazebo sensors and a drive plugin are yours to 
   ENU frame: `use_local_cartesian: true`, `wait_for_datum: true`,
   `datum: [{lat:.10f}, {lon:.10f}, 0.0]`.
 - `reference_path.csv` — the dense reference path ({len(scn.route)} points, ≤ 0.1 m apart; x, y, z
-  ENU, lat, lon, alt, yaw, segment furrow/headland, lane, arc length s) for cross-track
-  evaluation of a recorded run.
+  ENU, lat, lon, alt, yaw, segment furrow/headland, lane, arc length s, turn type, direction
+  +1 forward / -1 reverse) for cross-track evaluation of a recorded run.
 
 """
         + gazebo_section(g)

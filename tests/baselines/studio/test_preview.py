@@ -55,6 +55,22 @@ def test_preview_is_the_generated_layout_to_the_bit(tmp_path: Path, drawn: bool)
     assert np.allclose(pv.plants, np.column_stack([lat, lon]), atol=1e-12, rtol=0)
 
 
+@pytest.mark.parametrize(("geometry", "turn"), [("curved", "omega"), ("contour", "three_point")])
+def test_preview_draws_curved_rows_and_sized_turns_where_generate_puts_them(
+    geometry: str, turn: str
+) -> None:
+    s = Session(seed=3)
+    s.set("terrain.site", "steepest")
+    s.set("terrain.max_slope_deg", 15.0)
+    s.set("layout.row_geometry", geometry)
+    s.set("route.turn", turn)
+    _, lay, route = plan_layout(s.spec(), s.seed, None, SiteCache())
+    scn = generate(s.spec(), s.seed)
+    assert np.array_equal(lay.x, scn.plants.x) and np.array_equal(lay.y, scn.plants.y)
+    assert np.array_equal(route.xyz[:, :2], scn.route.xyz[:, :2])
+    assert np.array_equal(route.turn, scn.route.turn)
+
+
 def test_large_fields_are_drawn_decimated_with_the_true_count() -> None:
     s = Session()
     full = layout_preview(s.spec(), 0, None, SiteCache())
