@@ -1,6 +1,6 @@
 """The video of ``agrinav run --video``: frames per second of its renderer, and its encoding.
 
-The 640 × 480 chase view (``agrinav_gym.sim.render.ChaseView``, what ``env.render()`` returns)
+The 640 × 480 chase view (``agrinav_gym.chase_view.ChaseView``, what ``env.render()`` returns)
 at poses of an RPP drive along the default FieldRoute-v2 field — inside the maize, along the
 lanes and through the headland turns:
 
@@ -32,7 +32,7 @@ import numpy as np
 
 import agrinav_gym  # noqa: F401  (registers the envs)
 from agrinav_gym.scenarios import FixedFieldWarning
-from agrinav_gym.sensors import native
+from agrinav_gym.render import native
 from baselines.episodes import VIDEO_BITRATE, VideoWriter, run_episode
 from policies import make_policy
 

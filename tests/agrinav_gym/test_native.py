@@ -576,10 +576,9 @@ def test_proxy_kernel_hits_the_first_surface_exactly(
 def test_the_rasterised_chase_view_is_the_ray_cast_one(maize: MeshScene) -> None:
     """The video's frame drawn by the rasteriser (with the robot cast into it in its true,
     tilted pose) against every pixel ray-cast: the same picture to a few stray edge pixels."""
-    from agrinav_gym.sim.render import ChaseView
-
+    from agrinav_gym.chase_view import ChaseView
     from agrinav_gym.config import RenderConfig
-    from agrinav_gym.sim.world import RobotState
+    from agrinav_gym.robot import RobotState
 
     cfg = EnvConfig.from_dict({"render": {"width": 320, "height": 240}})
     model = robot_interface(cfg, RobotGeometry.from_urdf()).camera

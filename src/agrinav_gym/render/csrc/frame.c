@@ -1,7 +1,7 @@
 /* Per-pixel work on rasterised views (raster.c): what the hits are, the D455's stereo pair,
  * the depth image and the colour image. Each function is the compiled twin of numpy code that
- * stays the reference (sim/mesh_scene.py, sensors/mesh_camera.py, sensors/d455.py,
- * sensors/shading.py); tests compare the two.
+ * stays the reference (render/mesh_scene.py, sensors/mesh_camera.py, sensors/d455.py,
+ * render/shading.py); tests compare the two.
  */
 #include <stdlib.h>
 

@@ -262,7 +262,7 @@ EXPORT int embree_packets(const embree_packets_args_t *a);
 #define MIN2(a, b) ((a) < (b) ? (a) : (b))
 #define MAX2(a, b) ((a) > (b) ? (a) : (b))
 
-/* semantic classes (sim/plant_meshes.py) */
+/* semantic classes (render/classes.py) */
 #define CLS_OTHER 0
 #define CLS_SOIL 1
 #define CLS_ROBOT 4

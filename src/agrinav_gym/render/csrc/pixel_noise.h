@@ -1,4 +1,4 @@
-/* Per-pixel standard normal draws from a counter (sensors/pixel_noise.py documents the design
+/* Per-pixel standard normal draws from a counter (render/pixel_noise.py documents the design
  * and builds the tables; its numpy twin gives the same bits): pixel i's draw is a function of
  * the frame's key and i alone, so a band computes only the pixels it needs.
  */
