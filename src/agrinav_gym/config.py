@@ -116,7 +116,19 @@ class GnssFixConfig:
     )
     elevation_mask_deg: float = _f(10.0, "satellites below this elevation are not used", 0, 60)
     foliage_db_per_m: float = _f(
-        2.0, "L-band signal loss per metre of path through crop canopy, dB/m", 0.0, 50.0
+        2.0,
+        "L-band signal loss per metre of path through crop canopy, dB/m (sources: mature "
+        "maize ≈ 0.4-1.5, tree crowns ≈ 1-2; 2 is assumed, the upper end: "
+        "docs/localisation.md)",
+        0.0,
+        50.0,
+    )
+    foliage_profile: str = _f(
+        "uniform",
+        "foliage across each plant's canopy: uniform, or stalk (density 2(1 - r²/ρ²): leaves "
+        "thin towards the canopy's edge, so the lane centre sees more sky than the row; "
+        "assumed)",
+        choices=("uniform", "stalk"),
     )
     carrier_db: float = _f(
         3.0, "foliage loss up to which carrier phase stays usable for RTK, dB", 0, 60
@@ -137,6 +149,57 @@ class GnssFixConfig:
     azimuth_cells: int = _f(24, "sky model azimuth cells", 4, 360)
     elevation_cells: int = _f(6, "sky model elevation cells above the mask", 1, 90)
     update_m: float = _f(0.5, "recompute the sky when the antenna has moved this far, m", 0, 10)
+    # Receiver faults under canopy (docs/localisation.md "GNSS faults"), all off by default.
+    across_row_update_m: float | None = _f(
+        None,
+        "recompute the sky when the antenna has moved this far across the rows, m, so that the "
+        "mode follows the antenna's place between the rows (null: update_m in every direction)",
+        0.01,
+        10,
+    )
+    refix_sky_exponent: float = _f(
+        0.0,
+        "re-fix slows with the clean sky: mean time from float to fixed is acquire_fixed_s / "
+        "q_carrier^k (0: today's constant; assumed, swept 0-3)",
+        0.0,
+        10.0,
+    )
+    jump_rate_hz: float = _f(
+        0.0,
+        "multipath position jumps per second in float and standalone, times the foliage-"
+        "covered sky fraction 1 - q_carrier, 1/s (0: off; assumed, swept 0-0.2)",
+        0.0,
+        10.0,
+    )
+    jump_float_m: float = _f(
+        0.3, "RMS horizontal size of a multipath jump in RTK float, m", 0.0, 50.0
+    )
+    jump_standalone_m: float = _f(
+        2.0, "RMS horizontal size of a multipath jump in a standalone fix, m", 0.0, 100.0
+    )
+    jump_duration_s: float = _f(
+        2.0, "mean time a multipath jump lasts (reflection geometry changes), s", 0.05, 600
+    )
+    false_fix_prob: float = _f(
+        0.0,
+        "probability that an ambiguity fix is wrong (wrong integers, reported as RTK fixed "
+        "with its optimistic accuracy) when the clean sky is just enough to fix (q_carrier = "
+        "fixed_sky), falling linearly to 0 under open sky (0: off; swept 0-0.3)",
+        0.0,
+        1.0,
+    )
+    false_fix_m: float = _f(0.3, "RMS horizontal offset of a wrong-integer fix, m", 0.0, 10.0)
+    false_fix_duration_s: float = _f(
+        20.0,
+        "mean time until the receiver detects a wrong fix and drops to float, s",
+        0.1,
+        3600,
+    )
+
+    @property
+    def faults(self) -> bool:
+        """Whether any receiver fault is switched on (they draw from a stream of their own)."""
+        return self.jump_rate_hz > 0.0 or self.false_fix_prob > 0.0
 
 
 @dataclass(frozen=True)

@@ -431,8 +431,10 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
     def _apply_env_values(self, values: dict[str, Any]) -> None:
         """This reset's draws of the env-side ``randomize`` keys (``scenarios.ENV_KEYS``); the
         config's values where a key is not randomized."""
-        if "gnss.mode" in values:
-            self.sensors.set_gnss_mode(str(values["gnss.mode"]))
+        fix = {k.rpartition(".")[2]: v for k, v in values.items() if k.startswith("gnss.fix.")}
+        if "gnss.mode" in values or fix:
+            mode = values.get("gnss.mode")
+            self.sensors.set_gnss(None if mode is None else str(mode), fix)
         light = self.cfg.lighting
         self._lighting = (
             values.get("lighting.soil_rgb", light.soil_rgb),
