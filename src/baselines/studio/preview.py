@@ -21,6 +21,7 @@ from shapely.geometry.base import BaseGeometry
 
 from scenario_gen import crops
 from scenario_gen.arrays import FloatArray
+from scenario_gen.drift import apply_drift
 from scenario_gen.errors import InputError
 from scenario_gen.generate import FieldPlan, check_spec, growth_of, plan_field, streams
 from scenario_gen.layout import Layout, layout
@@ -139,6 +140,7 @@ def plan_layout(
     extent = (x0, y0, x0 + (nx - 1) * step, y0 + (ny - 1) * step)
     sites.check_extent(plan.site, extent)
     lay = layout(plan.poly, spec.layout, plan.angle, rng["jitter"], rng["gaps"], rng["weeds"])
+    lay = apply_drift(lay, spec.layout, plan.poly, rng["drift"])
     ground = FlatGround(np.zeros((2, 2)), x0, y0, step, spec.terrain.lod, extent=extent)
     route = zigzag(lay.rows, spec.route, ground, plan.poly)
     return plan, lay, route
