@@ -19,7 +19,7 @@ none < standalone < float < fixed evaluated at each fix epoch: above the support
 to it after a mean ``loss_s`` (lock is lost within a few epochs); below it, it climbs one level
 after a mean ``acquire_*_s`` (reacquisition, corrections, ambiguity resolution). In the
 supported fixed mode, multipath slips it to float at a mean interval ``multipath_mtbf_s``
-divided by the clear-sky fraction (fewer clean satellites, more slips). With
+times the clear-sky fraction (fewer clean satellites, more slips). With
 ``refix_sky_exponent`` k > 0 the mean time from float to fixed is ``acquire_fixed_s /
 q_carrier^k`` (fewer clean satellites, slower ambiguity resolution). Every draw comes from
 the rng passed in: same seed, same modes. Multipath jumps and false fixes are
