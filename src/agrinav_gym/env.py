@@ -397,6 +397,9 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         if name == "ideal":
             return "ideal (ground truth pose)"
         fix = "canopy/multipath fix modes" if g.fix.model == "canopy" else "constant mode"
+        if g.fix.faults:  # opt-in: every row the faults touched says so
+            f = g.fix
+            fix += f" + faults (jumps {f.jump_rate_hz:g}/s, wrong fixes {f.false_fix_prob:g})"
         return f"{name}, GNSS {g.mode} best, {fix}, {g.latency_s:g} s latency"
 
     def _localisation_info(self) -> dict[str, Any]:

@@ -275,6 +275,7 @@ def test_randomize_draws_the_receiver_under_canopy_per_reset() -> None:
             assert 0.4 <= cfg.fix.foliage_db_per_m <= 1.5 and 0.0 <= cfg.fix.jump_rate_hz <= 0.2
             assert cfg.fix.false_fix_prob == 0.1  # the config's value where not randomized
             seen.add(round(cfg.fix.foliage_db_per_m, 6))
+            assert "+ faults" in env.unwrapped.conditions()["localisation"]
             env.step(np.array([0.5, 0.0], np.float32))
         assert len(seen) == 6
     finally:
