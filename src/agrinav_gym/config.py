@@ -116,7 +116,19 @@ class GnssFixConfig:
     )
     elevation_mask_deg: float = _f(10.0, "satellites below this elevation are not used", 0, 60)
     foliage_db_per_m: float = _f(
-        2.0, "L-band signal loss per metre of path through crop canopy, dB/m", 0.0, 50.0
+        2.0,
+        "L-band signal loss per metre of path through crop canopy, dB/m (sources: mature "
+        "maize ≈ 0.4-1.5, tree crowns ≈ 1-2; 2 is assumed, the upper end: "
+        "docs/localisation.md)",
+        0.0,
+        50.0,
+    )
+    foliage_profile: str = _f(
+        "uniform",
+        "foliage across each plant's canopy: uniform, or stalk (density 2(1 - r²/ρ²): leaves "
+        "thin towards the canopy's edge, so the lane centre sees more sky than the row; "
+        "assumed)",
+        choices=("uniform", "stalk"),
     )
     carrier_db: float = _f(
         3.0, "foliage loss up to which carrier phase stays usable for RTK, dB", 0, 60
@@ -137,6 +149,57 @@ class GnssFixConfig:
     azimuth_cells: int = _f(24, "sky model azimuth cells", 4, 360)
     elevation_cells: int = _f(6, "sky model elevation cells above the mask", 1, 90)
     update_m: float = _f(0.5, "recompute the sky when the antenna has moved this far, m", 0, 10)
+    # Receiver faults under canopy (docs/localisation.md "GNSS faults"), all off by default.
+    across_row_update_m: float | None = _f(
+        None,
+        "recompute the sky when the antenna has moved this far across the rows, m, so that the "
+        "mode follows the antenna's place between the rows (null: update_m in every direction)",
+        0.01,
+        10,
+    )
+    refix_sky_exponent: float = _f(
+        0.0,
+        "re-fix slows with the clean sky: mean time from float to fixed is acquire_fixed_s / "
+        "q_carrier^k (0: today's constant; assumed, swept 0-3)",
+        0.0,
+        10.0,
+    )
+    jump_rate_hz: float = _f(
+        0.0,
+        "multipath position jumps per second in float and standalone, times the foliage-"
+        "covered sky fraction 1 - q_carrier, 1/s (0: off; assumed, swept 0-0.2)",
+        0.0,
+        10.0,
+    )
+    jump_float_m: float = _f(
+        0.3, "RMS horizontal size of a multipath jump in RTK float, m", 0.0, 50.0
+    )
+    jump_standalone_m: float = _f(
+        2.0, "RMS horizontal size of a multipath jump in a standalone fix, m", 0.0, 100.0
+    )
+    jump_duration_s: float = _f(
+        2.0, "mean time a multipath jump lasts (reflection geometry changes), s", 0.05, 600
+    )
+    false_fix_prob: float = _f(
+        0.0,
+        "probability that an ambiguity fix is wrong (wrong integers, reported as RTK fixed "
+        "with its optimistic accuracy) when the clean sky is just enough to fix (q_carrier = "
+        "fixed_sky), falling linearly to 0 under open sky (0: off; swept 0-0.3)",
+        0.0,
+        1.0,
+    )
+    false_fix_m: float = _f(0.3, "RMS horizontal offset of a wrong-integer fix, m", 0.0, 10.0)
+    false_fix_duration_s: float = _f(
+        20.0,
+        "mean time until the receiver detects a wrong fix and drops to float, s",
+        0.1,
+        3600,
+    )
+
+    @property
+    def faults(self) -> bool:
+        """Whether any receiver fault is switched on (they draw from a stream of their own)."""
+        return self.jump_rate_hz > 0.0 or self.false_fix_prob > 0.0
 
 
 @dataclass(frozen=True)
@@ -173,16 +236,95 @@ class OdomConfig:
     noise: float = _f(0.01, "relative std of each wheel speed reading", 0, 1)
 
 
+#: robot_localization's process_noise_covariance diagonal for x, y, yaw, vx, vy, vyaw, ax, ay:
+#: its default (``FilterBase::reset`` in src/filter_base.cpp and params/ekf.yaml, humble-devel)
+RL_PROCESS_NOISE = (0.05, 0.05, 0.06, 0.025, 0.025, 0.02, 0.01, 0.01)
+
+
+@dataclass(frozen=True)
+class RobotLocalizationConfig:
+    """``localisation.kind: robot_localization``: robot_localization's ``ekf_node`` (Humble) in
+    ``two_d_mode`` with ``navsat_transform_node``, configured as Nav2's GPS tutorial does
+    (``odom0`` twist vx, vy, vyaw; ``imu0`` yaw; ``odom1`` the GPS odometry x, y). Defaults are
+    robot_localization's own or the drivers' documented values (docs/localisation.md)."""
+
+    process_noise: tuple[float, float, float, float, float, float, float, float] = _f(
+        RL_PROCESS_NOISE,
+        "process_noise_covariance diagonal for x, y, yaw, vx, vy, vyaw, ax, ay, per second "
+        "(robot_localization scales it by the step; its Humble default)",
+        0.0,
+        100.0,
+    )
+    initial_covariance: float = _f(
+        1e-9,
+        "initial_estimate_covariance of the variables no first reading sets (ax, ay), "
+        "robot_localization's default",
+        0.0,
+        1e6,
+    )
+    odom_twist_variance: tuple[float, float, float] = _f(
+        (0.001, 0.001, 0.01),
+        "variance of the odometry's vx (m²/s²), vy and vyaw (rad²/s²) as the diff-drive "
+        "controller reports it (twist_covariance_diagonal: ros2_controllers' suggested start; "
+        "its default 0 is floored to 1e-9 by robot_localization)",
+        0.0,
+        100.0,
+    )
+    imu_yaw_sigma_deg: float = _f(
+        1.0,
+        "yaw std in the IMU driver's orientation covariance, degrees (the MTi-300 heading spec; "
+        "the Xsens driver's default 0 is floored to 1e-9)",
+        0.0,
+        180.0,
+    )
+    fuse_imu_yaw_rate: bool = _f(False, "also fuse the gyro's yaw rate (imu0_config vyaw)")
+    imu_yaw_rate_sigma_deg_s: float = _f(
+        0.05, "yaw-rate std in the IMU driver's angular velocity covariance, °/s", 0.0, 100.0
+    )
+    gps_lever_arm: bool = _f(
+        False,
+        "a base_link -> gps transform exists, so navsat_transform removes the antenna offset "
+        "(rotated by the filter's yaw); false: the fix is taken as base_link's position",
+    )
+    odom_rejection_threshold: float | None = _f(
+        None,
+        "odom0_twist_rejection_threshold: Mahalanobis distance beyond which a reading is "
+        "dropped (null: never, robot_localization's default)",
+        0.0,
+        1e6,
+    )
+    imu_rejection_threshold: float | None = _f(
+        None, "imu0_pose_rejection_threshold (and _twist_), Mahalanobis distance", 0.0, 1e6
+    )
+    gps_rejection_threshold: float | None = _f(
+        None, "odom1_pose_rejection_threshold for the GPS odometry, Mahalanobis distance", 0.0, 1e6
+    )
+    smooth_lagged_data: bool = _f(
+        False,
+        "revert to the state before a late reading and replay (false, the default: a reading "
+        "older than the filter's last one is fused into the current state as if current)",
+    )
+    history_length_s: float = _f(
+        0.0, "history kept for smooth_lagged_data, s (robot_localization's default 0)", 0.0, 10.0
+    )
+
+
 @dataclass(frozen=True)
 class LocalisationConfig:
     """Which pose the policies get (estimation/, docs/localisation.md) and the EKF's model.
 
-    ``ekf``: a robot_localization-style EKF fusing GNSS (with its latency), IMU and wheel
-    odometry; ``blend``: each fix through the lever arm, odometry between fixes, no filter;
-    ``ideal``: ground truth — for debugging only, no real robot has it.
+    ``ekf`` (also named ``ekf-oracle``): a robot_localization-style EKF fusing GNSS (with its
+    latency), IMU and wheel odometry whose noise models are the simulator's own — an upper
+    bound; ``robot_localization``: robot_localization as a Nav2 user runs it; ``blend``: each
+    fix through the lever arm, odometry between fixes, no filter; ``ideal``: ground truth — for
+    debugging only, no real robot has it.
     """
 
-    kind: str = _f("ekf", "estimator of the pose policies see", choices=("ekf", "blend", "ideal"))
+    kind: str = _f(
+        "ekf",
+        "estimator of the pose policies see (ekf-oracle: another name for ekf)",
+        choices=("ekf", "ekf-oracle", "robot_localization", "blend", "ideal"),
+    )
     init_position_sigma: float = _f(
         0.5, "std of the start position when there is no fix at the start, m", 0.0, 100
     )
@@ -222,6 +364,10 @@ class LocalisationConfig:
     gnss_tau_rtk_float_s: float = _f(30.0, "correlation time of RTK-float errors, s", 0.05, 1e4)
     gnss_tau_standalone_s: float = _f(60.0, "correlation time of standalone errors, s", 0.05, 1e4)
     history_s: float = _f(1.0, "oldest fix age processed (older ones are dropped), s", 0.05, 10)
+    robot_localization: RobotLocalizationConfig = dc_field(
+        default_factory=RobotLocalizationConfig,
+        metadata={"doc": "the robot_localization estimator's parameters (kind robot_localization)"},
+    )
 
 
 @dataclass(frozen=True)

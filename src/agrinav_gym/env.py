@@ -397,6 +397,9 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         if name == "ideal":
             return "ideal (ground truth pose)"
         fix = "canopy/multipath fix modes" if g.fix.model == "canopy" else "constant mode"
+        if g.fix.faults:  # opt-in: every row the faults touched says so
+            f = g.fix
+            fix += f" + faults (jumps {f.jump_rate_hz:g}/s, wrong fixes {f.false_fix_prob:g})"
         return f"{name}, GNSS {g.mode} best, {fix}, {g.latency_s:g} s latency"
 
     def _localisation_info(self) -> dict[str, Any]:
@@ -431,8 +434,10 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
     def _apply_env_values(self, values: dict[str, Any]) -> None:
         """This reset's draws of the env-side ``randomize`` keys (``scenarios.ENV_KEYS``); the
         config's values where a key is not randomized."""
-        if "gnss.mode" in values:
-            self.sensors.set_gnss_mode(str(values["gnss.mode"]))
+        fix = {k.rpartition(".")[2]: v for k, v in values.items() if k.startswith("gnss.fix.")}
+        if "gnss.mode" in values or fix:
+            mode = values.get("gnss.mode")
+            self.sensors.set_gnss(None if mode is None else str(mode), fix)
         light = self.cfg.lighting
         self._lighting = (
             values.get("lighting.soil_rgb", light.soil_rgb),

@@ -35,6 +35,11 @@ from .config import EnvConfig
 #: and choices are the config's).
 ENV_KEYS = (
     "gnss.mode",
+    # the receiver under canopy (docs/localisation.md): foliage loss and the opt-in faults
+    "gnss.fix.false_fix_prob",
+    "gnss.fix.foliage_db_per_m",
+    "gnss.fix.jump_rate_hz",
+    "gnss.fix.refix_sky_exponent",
     "lighting.soil_rgb",
     "lighting.sun_azimuth_deg",
     "lighting.sun_elevation_deg",

@@ -17,6 +17,7 @@ from shapely.geometry.base import BaseGeometry
 from . import crops
 from .arrays import FloatArray
 from .bounds import MAX_PLANE_RADIUS_M, check_budget, check_lod
+from .drift import apply_drift
 from .errors import InputError
 from .field import check_field, long_axis_deg, lonlat_to_enu, rectangle
 from .fieldfile import read_field
@@ -34,7 +35,7 @@ from .waypoints import read_gps_waypoints, waypoint_route
 
 #: Independent random streams, one per generation step, spawned from the seed so that changing
 #: one parameter (say the weed density) does not reshuffle every other random choice.
-STREAMS = ("jitter", "gaps", "weeds", "plants", "roughness", "rows")
+STREAMS = ("jitter", "gaps", "weeds", "plants", "roughness", "rows", "drift")
 
 
 def orientation(zx: FloatArray, zy: FloatArray, yaw: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -93,7 +94,7 @@ def place_plants(
 COUPLED_FIELDS: tuple[frozenset[str], ...] = (
     frozenset({"crop.species", "crop.stage"}),
     frozenset({"terrain.datum", "terrain.source"}),
-    frozenset({"layout.jitter_lateral", "layout.row_spacing"}),
+    frozenset({"layout.jitter_lateral", "layout.row_spacing", "layout.drift_amplitude"}),
     frozenset({"layout.jitter_longitudinal", "layout.plant_spacing"}),
 )
 
@@ -145,6 +146,15 @@ def check_spec(spec: ScenarioSpec) -> None:
                 f"allowed: at most layout.{which}/6 = {spacing / 6:.4g} m (the 3-std clip must "
                 f"stay within half the {spacing:g} m spacing)",
             )
+    # Drift moves a whole row: with the jitter's clip it must stay within half a row spacing of
+    # its logged line, so that no plant reaches the next lane's centre.
+    if lay.drift_amplitude + 3 * lay.jitter_lateral > lay.row_spacing / 2 + 1e-12:
+        room = lay.row_spacing / 2 - 3 * lay.jitter_lateral
+        raise InputError(
+            "layout.drift_amplitude",
+            lay.drift_amplitude,
+            f"allowed: at most layout.row_spacing/2 - 3 layout.jitter_lateral = {room:.4g} m",
+        )
 
 
 def resolve_paths(spec: ScenarioSpec) -> ScenarioSpec:
@@ -255,6 +265,7 @@ def generate(spec: ScenarioSpec, seed: int) -> Scenario:
 
     curve = row_curve(spec.layout, poly, plan.angle, plan.bounds, site.heights, rng["rows"])
     lay = layout(poly, spec.layout, plan.angle, rng["jitter"], rng["gaps"], rng["weeds"], curve)
+    lay = apply_drift(lay, spec.layout, poly, rng["drift"])
     terrain = add_relief(base, lay.rows, lay.planting_area, spec.furrows, rng["roughness"])
     nominal = None  # crop.model_scale "native": the model's own height
     if user_model is not None and user_model.scale == "native":

@@ -114,6 +114,30 @@ class LayoutSpec:
         0,
         1,
     )
+    # Planting drift (scenario_gen/drift.py, docs/localisation.md "Rows off the map"): the
+    # planted rows wander off the lines the planter logged; the route and exported rows stay
+    # on the logged lines. Off by default.
+    drift_amplitude: float = _f(
+        0.0,
+        "largest lateral offset of a planted row from its logged line, metres (RTK-guided "
+        "planter ≈ 0.02-0.05, SBAS or other non-RTK guidance ≈ 0.1-0.3; 0: none; "
+        "3 jitter_lateral + drift_amplitude <= row_spacing/2)",
+        0,
+        1,
+    )
+    drift_wavelength: float = _f(
+        50.0,
+        "longest wavelength of the drift along the row, metres (assumed; swept 10-500)",
+        1,
+        100_000,
+    )
+    drift_pass_rows: int = _f(
+        1,
+        "rows planted in one planter pass, which drift together (a planter's row count, e.g. "
+        "4-24; 1: every row on its own)",
+        1,
+        1000,
+    )
     gap_prob: float = _f(0.02, "probability that a single plant is missing", 0, 1)
     gap_run_prob: float = _f(0.0, "probability per plant that a run of missing plants starts", 0, 1)
     gap_run_mean: float = _f(4.0, "mean length of a run of missing plants, plants", 1, 10**4)

@@ -33,6 +33,13 @@ class Drive:
     errors: np.ndarray  # (T, 3): estimate − truth (x, y, yaw)
     covariances: np.ndarray  # (T, 3, 3)
     modes: list[str]
+    truth: np.ndarray  # (T, 3): x, y, yaw
+
+    def along_across(self) -> np.ndarray:
+        """(T, 2): the position error along and across the true heading."""
+        c, s = np.cos(self.truth[:, 2]), np.sin(self.truth[:, 2])
+        e = self.errors
+        return np.column_stack([c * e[:, 0] + s * e[:, 1], -s * e[:, 0] + c * e[:, 1]])
 
 
 def _truth(t: float, x: float, y: float, yaw: float) -> tuple[RobotState, float, float]:
@@ -83,7 +90,7 @@ def drive(
     gnss.reset(st.pos + st.rot @ lever, rng)
     est.reset(x, y, yaw, rng)
     est.update(readings(st, np.zeros(2)), DT)
-    errors, covs, modes = [], [], []
+    errors, covs, modes, truth = [], [], [], []
     for _ in range(round(seconds / DT)):
         for _ in range(10):  # integrate the truth finer than the control step
             _, v, w = _truth(t, x, y, yaw)
@@ -98,4 +105,5 @@ def drive(
         errors.append([ex - x, ey - y, (eyaw - yaw + math.pi) % (2 * math.pi) - math.pi])
         covs.append(est.covariance)
         modes.append(gnss.mode)
-    return Drive(np.asarray(errors), np.asarray(covs), modes)
+        truth.append([x, y, yaw])
+    return Drive(np.asarray(errors), np.asarray(covs), modes, np.asarray(truth))

@@ -4,7 +4,10 @@
 cell's ray from the antenna, the path length through the crop canopy is summed (each plant's
 canopy is a vertical cylinder of the catalog canopy width, from the bare lower stalk to the
 plant's top, holding its share of the row's foliage where neighbours overlap); the signal loses
-``foliage_db_per_m`` per metre of canopy. A satellite in that cell can
+``foliage_db_per_m`` per metre of canopy. The foliage fills each cylinder evenly
+(``foliage_profile`` uniform) or thins from the stalk to the canopy's edge (``stalk``: density
+2(1 − r²/ρ²), the same foliage in all), which makes the sky over the lane centre clearer than
+over a row. A satellite in that cell can
 be carrier-phase tracked (RTK) while the loss is below ``carrier_db`` and code tracked (a
 standalone fix) below ``code_db``. The solid-angle-weighted fractions of the sky where each
 holds are ``q_carrier`` and ``q_code``.
@@ -16,8 +19,11 @@ none < standalone < float < fixed evaluated at each fix epoch: above the support
 to it after a mean ``loss_s`` (lock is lost within a few epochs); below it, it climbs one level
 after a mean ``acquire_*_s`` (reacquisition, corrections, ambiguity resolution). In the
 supported fixed mode, multipath slips it to float at a mean interval ``multipath_mtbf_s``
-divided by the clear-sky fraction (fewer clean satellites, more slips). Every draw comes from
-the rng passed in: same seed, same modes.
+times the clear-sky fraction (fewer clean satellites, more slips). With
+``refix_sky_exponent`` k > 0 the mean time from float to fixed is ``acquire_fixed_s /
+q_carrier^k`` (fewer clean satellites, slower ambiguity resolution). Every draw comes from
+the rng passed in: same seed, same modes. Multipath jumps and false fixes are
+``sensors.gnss_faults``.
 """
 
 from __future__ import annotations
@@ -64,6 +70,8 @@ class Canopy:
             self.share = np.minimum(1.0, gap[:, 1] / np.maximum(2.0 * radius, 1e-9))
         self.max_radius = float(radius.max()) if len(radius) else 0.0
         self.max_top = float(self.top.max()) if len(self.top) else -math.inf
+        #: unit vector across the rows (ENU): ``across_row_update_m`` measures moves along it
+        self.across = np.asarray(scn.rows.n, np.float64)
 
     def __len__(self) -> int:
         return len(self.radius)
@@ -109,7 +117,15 @@ class SkyModel:
         # the ray is within the foliage's height band for s in [s_bottom, s_top]
         s_bot = np.maximum(c.bottom[idx] - antenna[2], 0.0)[:, None, None] / self.tan_el
         s_top = (c.top[idx] - antenna[2])[:, None, None] / self.tan_el
-        length = np.maximum(np.minimum(hi, s_top) - np.maximum(lo, s_bot), 0.0)
+        a, b = np.maximum(lo, s_bot), np.minimum(hi, s_top)
+        if self.cfg.foliage_profile == "uniform":
+            length = np.maximum(b - a, 0.0)
+        else:  # "stalk": density 2(1 − r²/ρ²), integrated along the chord
+            u1, u2 = a - t[..., None], b - t[..., None]
+            rho2 = rho[..., None] ** 2
+            w = 1.0 - (x * x)[..., None] / rho2
+            length = 2.0 * (w * (u2 - u1) - (u2**3 - u1**3) / (3.0 * rho2))
+            length = np.where(b > a, np.maximum(length, 0.0), 0.0)
         path = np.einsum("i,ijk->jk", c.share[idx], length) * self.sec_el
         out += self.cfg.foliage_db_per_m * path
         return out
@@ -135,6 +151,14 @@ class FixModeChain:
         self.p_loss = 1.0 - math.exp(-epoch_s / cfg.loss_s)
         self.level = self.best
 
+    def _p_up(self, level: int, q_carrier: float) -> float:
+        """Probability of climbing from ``level`` in one epoch."""
+        k = self.cfg.refix_sky_exponent
+        if level != 2 or k == 0.0:
+            return self.p_up[level]
+        mean = self.cfg.acquire_fixed_s / max(q_carrier, 0.05) ** k
+        return 1.0 - math.exp(-self.epoch_s / mean)
+
     def supported(self, q_carrier: float, q_code: float) -> int:
         c = self.cfg
         if q_code < c.standalone_sky:
@@ -157,7 +181,7 @@ class FixModeChain:
             if u < self.p_loss:
                 self.level = sup
         elif self.level < sup:
-            if u < self.p_up[self.level]:
+            if u < self._p_up(self.level, q_carrier):
                 self.level += 1
         elif self.level == 3:
             rate = 1.0 / (self.cfg.multipath_mtbf_s * max(q_carrier, 0.05))

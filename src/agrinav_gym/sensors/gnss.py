@@ -5,6 +5,7 @@ standalone 1.5 m CEP): a time-correlated Gauss-Markov error per ENU axis whose h
 equals the datasheet figure (σ per axis = CEP / 1.1774 for a circular normal), held between
 updates at ``rate_hz``. The mode itself changes with the canopy over the antenna and multipath
 (``sensors.fixmode``); on entering a mode its error starts from that mode's steady state.
+Multipath jumps and wrong-integer fixes (``sensors.gnss_faults``) are opt-in.
 A fix reaches the robot ``latency_s`` after its epoch (a fixed whole number of control steps)
 and carries its age. Readings are real WGS84 coordinates through the scenario's geodesy.
 """
@@ -19,7 +20,8 @@ from numpy.typing import NDArray
 
 from ..config import GnssConfig
 from ..interface import GNSS_NONE, GNSS_RTK_FIXED, GNSS_RTK_FLOAT, GNSS_STANDALONE
-from .fixmode import Canopy, FixModeChain, SkyModel
+from .fixmode import LEVELS, Canopy, FixModeChain, SkyModel
+from .gnss_faults import ReceiverFaults
 from .noise import GaussMarkov
 
 CEP_TO_SIGMA = 1.0 / 1.1774  # CEP = 1.1774 σ for a circular bivariate normal
@@ -67,6 +69,7 @@ class Gnss:
         self.errors = {m: GaussMarkov(error_sigma(cfg, m), MODES[m].tau, epoch, 3) for m in MODES}
         self.sigmas = {m: error_sigma(cfg, m) for m in MODES}
         self.chain = FixModeChain(cfg.fix, cfg.mode, epoch)
+        self.faults = ReceiverFaults(cfg.fix, epoch) if cfg.fix.faults else None
         self.sky: SkyModel | None = None
         self._sky_at = np.full(3, np.inf)
         self._q = (1.0, 1.0)
@@ -90,7 +93,13 @@ class Gnss:
         """(q_carrier, q_code) at the antenna, recomputed when it moved ``fix.update_m``."""
         if self.sky is None:
             return 1.0, 1.0
-        if float(np.abs(antenna - self._sky_at).max()) > self.cfg.fix.update_m:
+        d = antenna - self._sky_at
+        moved = float(np.abs(d).max()) > self.cfg.fix.update_m
+        across = self.cfg.fix.across_row_update_m
+        if not moved and across is not None:
+            n = self.sky.canopy.across
+            moved = abs(float(d[0] * n[0] + d[1] * n[1])) > across
+        if moved:
             self._q = self.sky.usable(antenna)
             self._sky_at = antenna.copy()
         return self._q
@@ -98,6 +107,8 @@ class Gnss:
     def reset(self, true_enu: NDArray[np.float64], rng: np.random.Generator) -> None:
         self._sky_at = np.full(3, np.inf)
         self.mode = self.chain.reset(*self.usable_sky(true_enu))
+        if self.faults is not None:
+            self.faults.reset(rng)
         self._queue.clear()
         # the receiver was running before the episode, the robot at rest: its last fix (taken
         # one latency ago) is the start position
@@ -127,10 +138,15 @@ class Gnss:
 
     def _epoch(self, true_enu: NDArray[np.float64], rng: np.random.Generator) -> None:
         before = self.chain.level
-        mode = self.chain.step(*self.usable_sky(true_enu), rng)
+        q = self.usable_sky(true_enu)
+        mode = self.chain.step(*q, rng)
+        offset = None
+        if self.faults is not None:
+            offset = self.faults.step(before, self.chain, q[0])
+            mode = LEVELS[self.chain.level]
         fix = None
         if mode != GNSS_NONE:
             gm = self.errors[mode]
             err = gm.reset(rng) if self.chain.level != before else gm.step(rng)
-            fix = true_enu + err
+            fix = true_enu + err if offset is None else true_enu + err + offset
         self._queue.append((self._k + self.delay, self._k, mode, fix))

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 
@@ -29,8 +30,17 @@ class SensorSuite:
 
     def set_gnss_mode(self, mode: str) -> None:
         """The receiver's best mode (e.g. standalone: no base-station corrections)."""
-        if mode != self.gnss.cfg.mode:
-            self.gnss = Gnss(replace(self.cfg.gnss, mode=mode), self.dt)
+        self.set_gnss(mode)
+
+    def set_gnss(self, mode: str | None = None, fix: dict[str, Any] | None = None) -> None:
+        """The receiver's best mode and fix-model fields (``gnss.fix.<name>``) for this episode;
+        the config's values where one is not given."""
+        base = self.cfg.gnss
+        cfg = replace(
+            base, mode=base.mode if mode is None else mode, fix=replace(base.fix, **(fix or {}))
+        )
+        if cfg != self.gnss.cfg:
+            self.gnss = Gnss(cfg, self.dt)
             self.gnss.set_canopy(self._canopy)
 
     def set_canopy(self, canopy: Canopy | None) -> None:

@@ -21,6 +21,7 @@ from shapely.geometry.base import BaseGeometry
 
 from scenario_gen import crops
 from scenario_gen.arrays import FloatArray
+from scenario_gen.drift import apply_drift
 from scenario_gen.errors import InputError
 from scenario_gen.generate import FieldPlan, check_spec, growth_of, plan_field, streams
 from scenario_gen.layout import Layout, layout
@@ -145,6 +146,7 @@ def plan_layout(
     lay = layout(
         plan.poly, spec.layout, plan.angle, rng["jitter"], rng["gaps"], rng["weeds"], curve
     )
+    lay = apply_drift(lay, spec.layout, plan.poly, rng["drift"])
     ground = FlatGround(np.zeros((2, 2)), x0, y0, step, spec.terrain.lod, extent=extent)
     crop_xy = np.column_stack([lay.x, lay.y])[~lay.is_weed]
     route = zigzag(lay.rows, spec.route, ground, plan.poly, crop_xy)
