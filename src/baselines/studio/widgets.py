@@ -10,14 +10,15 @@ value stays visible with its error under it instead of being silently clamped.
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable
-from typing import Any, get_args
+from typing import Any, get_args, get_origin
 
 from nicegui import ui
 from nicegui.elements.mixins.validation_element import ValidationElement
 
 from scenario_gen.errors import InputError
-from scenario_gen.schema import field_info, field_rows, is_integer_field
+from scenario_gen.schema import field_info, field_rows, is_integer_field, parse_yaml
 from scenario_gen.spec import ScenarioSpec
 
 #: Keys set elsewhere: the terrain source by the command line, the field by the map, the
@@ -51,13 +52,31 @@ def rows(section: str) -> list[tuple[str, str, str, str]]:
     ]
 
 
+def is_sequence(tp: Any) -> bool:
+    """A field holding a list or tuple (a range like [30, 80]): edited as text."""
+    if get_origin(tp) in (list, tuple):
+        return True
+    types = [a for a in get_args(tp) if a is not type(None)]
+    return any(get_origin(t) in (list, tuple) for t in types)
+
+
+def as_text(value: Any) -> str:
+    """What a text widget shows: nothing for null, JSON for a list, the value otherwise."""
+    if value is None:
+        return ""
+    return json.dumps(list(value)) if isinstance(value, (list, tuple)) else str(value)
+
+
 def parse(key: str, value: Any) -> Any:
     """A widget's value as the spec field's type: numbers that are whole become ints for int
-    fields, an empty number is null. Range and type are checked later, by the session."""
+    fields, an empty number is null, a list typed as text is read as YAML ("[30, 80]"). Range
+    and type are checked later, by the session."""
     info = field_info(ScenarioSpec, key)
     tp = info[0] if info else None
     if value == "" or value is None:
         return None
+    if tp is not None and is_sequence(tp) and isinstance(value, str):
+        return parse_yaml(value, key)
     if is_integer_field(tp) and isinstance(value, float) and value.is_integer():
         return int(value)
     return value
@@ -94,6 +113,8 @@ class Form:
             w = ui.select(list(choices), value=value, label=name, on_change=handler)
         elif types == [bool]:
             w = ui.switch(name, value=bool(value), on_change=handler)
+        elif is_sequence(tp):
+            w = ui.input(label=name, value=as_text(value), on_change=handler)
         elif types[0] in (int, float):
             w = ui.number(label=name, value=value, on_change=handler)
             if type(None) in get_args(tp):
@@ -123,7 +144,7 @@ class Form:
             for key, w in self.widgets.items():
                 if key in values:
                     v = values[key]
-                    w.value = "" if v is None and isinstance(w, ui.input) else v
+                    w.value = as_text(v) if isinstance(w, ui.input) else v
         finally:
             self._muted = False
 

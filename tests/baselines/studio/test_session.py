@@ -77,3 +77,17 @@ def test_every_spec_field_has_a_widget_or_a_named_owner() -> None:
     shown = {r[0] for section, _ in (*SECTIONS, ("name", "")) for r in rows(section)}
     every = {r[0] for r in field_rows(ScenarioSpec)}
     assert shown | NOT_IN_FORM == every and not shown & NOT_IN_FORM
+
+
+def test_a_range_field_is_edited_as_text_and_read_as_a_list() -> None:
+    """Fields holding a range ([low, high]) get a text widget: the page sends "[20, 40]"."""
+    from baselines.studio.widgets import as_text, is_sequence, parse
+    from scenario_gen.schema import field_info
+
+    tp = field_info(ScenarioSpec, "layout.curve_radius")[0]  # type: ignore[index]
+    assert is_sequence(tp) and not is_sequence(field_info(ScenarioSpec, "crop.stage")[0])  # type: ignore[index]
+    value = parse("layout.curve_radius", "[20, 40]")
+    assert value == [20, 40] and as_text((20.0, 40.0)) == "[20.0, 40.0]"
+    s = Session()
+    s.set("layout.curve_radius", value)
+    assert list(s.spec().layout.curve_radius) == [20.0, 40.0]
