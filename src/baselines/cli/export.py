@@ -6,7 +6,6 @@ import argparse
 import time
 from typing import Any
 
-from agrinav_gym.robot import urdf_path
 from scenario_gen.errors import InputError
 
 
@@ -17,7 +16,9 @@ def add(sub: Any) -> None:
         "export",
         help="export a scenario folder for Gazebo, Nav2, GIS or as meshes",
         description="Export a saved scenario folder: --to gazebo (SDF worlds and models), "
-        "nav2 (the world plus a ROS 2 launch file, GPS waypoints and the reference path), "
+        "nav2 (the world, the Summit-XL with its Gazebo sensors and drive, a ros_gz_bridge, "
+        "robot_localization and Nav2 configuration, a behaviour tree, a launch file, GPS "
+        "waypoints and the reference path), "
         "gis (GeoTIFF, GeoPackage, GeoJSON) or mesh (GLB/OBJ/PLY/DAE). See docs/exports.md.",
     )
     ex.add_argument("dir", metavar="DIR", help="a scenario folder written by agrinav scenario")
@@ -70,7 +71,9 @@ def run(args: argparse.Namespace) -> int:
     if args.tile_plants is not None:
         data["tile_plants"] = args.tile_plants
     if args.to == "nav2":
-        data["robot_urdf"] = urdf_path()
+        from ..nav2_robot import nav2_options
+
+        data = nav2_options(**data)
     if args.to != "mesh" and (args.with_plants or args.formats != "glb"):
         raise InputError("--formats/--with-plants", args.to, "allowed only with --to mesh")
     world_only = {

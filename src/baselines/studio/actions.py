@@ -104,15 +104,16 @@ def export(scenario: str, fmt: str, out: str, overwrite: bool = False) -> dict[s
     """Export a saved scenario through ``scenario_gen.export.export`` with the CLI's defaults
     (``agrinav export DIR --to FMT --out OUT``; the Nav2 bundle spawns the simulated robot's
     URDF); it checks everything before writing."""
-    from agrinav_gym.robot import urdf_path
     from scenario_gen.export import TARGETS, ExportOptions
     from scenario_gen.export import export as export_to
+
+    from ..nav2_robot import nav2_options
 
     if fmt not in TARGETS:
         raise InputError("export", fmt, f"allowed: one of {', '.join(TARGETS)}")
     if not (Path(scenario) / "scenario.json").is_file():
         raise InputError("scenario", scenario, "generate and save the scenario first")
-    data: dict[str, Any] = {"robot_urdf": urdf_path()} if fmt == "nav2" else {}
+    data: dict[str, Any] = nav2_options() if fmt == "nav2" else {}
     info: dict[str, Any] = export_to(
         scenario, fmt, out, ExportOptions.from_dict(data), overwrite=overwrite
     )

@@ -8,6 +8,7 @@ transformed into it with the robot's odometry pose, as tf's map → odom → bas
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 from typing import Any
@@ -27,6 +28,7 @@ from agrinav_gym.interface import (
     decode_route,
 )
 from scenario_gen.arrays import FloatArray
+from scenario_gen.schema import to_mapping
 
 from ..base import Obs, Policy
 from ..geometry import DepthProjector, local_plan
@@ -60,6 +62,17 @@ def kinematics(p: DWBParams, robot: RobotInterface) -> Kinematics:
         acc_lim_theta=pick(fp.acc_lim_theta, robot.alpha_max),
         decel_lim_theta=pick(fp.decel_lim_theta, -robot.alpha_max),
     )
+
+
+def resolved_config(p: DWBParams, robot: RobotInterface) -> dict[str, Any]:
+    """The configuration as a mapping under Nav2's names with the robot's own values where it
+    says null (its limits and footprint rectangle): what a Nav2 parameter file needs."""
+    out = to_mapping(p)
+    kin = kinematics(p, robot)
+    out["FollowPath"].update(dataclasses.asdict(kin))
+    if out["local_costmap"]["footprint"] is None:
+        out["local_costmap"]["footprint"] = rectangle_footprint(*robot.footprint).tolist()
+    return out
 
 
 def config_label(params: str | Path | dict[str, Any] | None) -> str:

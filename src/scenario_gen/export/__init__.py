@@ -63,6 +63,7 @@ def export_scenario(
         user_model_path(scn)
     if to == "nav2":
         _check_robot(opts.robot_urdf)
+        _check_nav2_robot(opts.nav2_robot)
     with output_dir(out, overwrite) as tmp:
         if to == "gazebo":
             from .gazebo import export_gazebo
@@ -85,6 +86,19 @@ def export_scenario(
         from .mesh import export_mesh
 
         return {"target": to, "out": str(out), **export_mesh(scn, tmp, opts)}
+
+
+def _check_nav2_robot(data: dict[str, Any] | None) -> None:
+    from .ros_robot import Nav2Robot
+
+    if data is None:
+        raise InputError(
+            "nav2_robot",
+            None,
+            "the nav2 export needs the simulated robot's sensors and DWB configuration "
+            "(the CLI passes baselines.nav2_robot.nav2_robot())",
+        )
+    Nav2Robot.from_dict(data)
 
 
 def _check_robot(path: str | None) -> None:

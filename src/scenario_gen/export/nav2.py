@@ -1,4 +1,6 @@
-"""ROS 2 / Nav2: the Gazebo world plus a launch file, GPS waypoints and the reference path.
+"""ROS 2 / Nav2: the Gazebo world, GPS waypoints and the reference path, and the runnable
+bundle around them (ros_bundle.py: the robot for Gazebo Sim, ros_gz_bridge, robot_localization,
+Nav2, the behaviour tree, the route follower and the launch file).
 
 Waypoints are sparse — every lane entry and exit, the apex of every headland turn (and the
 cusps of a three-point turn) and the end of the lead-out — since a waypoint follower plans
@@ -22,6 +24,7 @@ from ..arrays import FloatArray
 from ..model import Scenario
 from .gazebo import export_gazebo
 from .options import ExportOptions
+from .ros_bundle import write_ros_bundle
 
 #: base_link sits 0.11 m above the footprint (wheel radius); spawn 2 cm above the ground.
 SPAWN_CLEARANCE = 0.13
@@ -160,122 +163,13 @@ def export_nav2(scn: Scenario, out: Path, opts: ExportOptions) -> dict[str, Any]
         "# The same waypoints in the ENU frame at the datum (map frame of navsat_transform.yaml)\n"
         + yaml.safe_dump(enu, sort_keys=False)
     )
-    (config / "navsat_transform.yaml").write_text(navsat_yaml(scn))
     _reference_path(scn, out / "reference_path.csv", yaw)
     x0, y0, z0 = r.xyz[0] if len(r) else (0.0, 0.0, 0.0)
     spawn = (float(x0), float(y0), float(z0) + SPAWN_CLEARANCE, float(yaw[0]) if len(r) else 0.0)
-    (out / "launch" / "agrinav_field.launch.py").write_text(launch_py(spawn))
-    info = {"spawn": spawn, "waypoints": len(wps)}
-    (out / "README.md").write_text(nav2_readme(scn, g, info))
+    bundle = write_ros_bundle(scn, out, Path(opts.robot_urdf).read_text(), spawn, opts)
+    info = {"spawn": spawn, "waypoints": len(wps), "controller": bundle["controller"]}
+    (out / "README.md").write_text(nav2_readme(scn, g, {**info, **bundle}))
     render_export_preview(
         scn, out / "preview.png", gazebo=g, waypoints=(idx, yaw[idx]), spawn=spawn, opts=opts
     )
     return {**g.__dict__, **info}
-
-
-def navsat_yaml(scn: Scenario) -> str:
-    g = scn.geo
-    return f"""# robot_localization navsat_transform_node: its map frame = the export's ENU frame
-navsat_transform:
-  ros__parameters:
-    frequency: 10.0
-    use_local_cartesian: true   # ENU tangent plane at the datum, not UTM grid axes
-    wait_for_datum: true
-    datum: [{g.lat:.10f}, {g.lon:.10f}, 0.0]   # lat, lon (deg), heading (rad)
-    zero_altitude: true
-    yaw_offset: 0.0             # the IMU reads 0 facing east (ENU)
-    magnetic_declination_radians: 0.0
-    publish_filtered_gps: true
-    broadcast_cartesian_transform: false
-"""
-
-
-def launch_py(spawn: tuple[float, float, float, float]) -> str:
-    x, y, z, yaw = spawn
-    return LAUNCH.replace("@SPAWN@", f"{x:.4f}, {y:.4f}, {z:.4f}, {yaw:.6f}")
-
-
-LAUNCH = '''"""Gazebo with the AgriNav field and a Summit-XL at the route start (ROS 2 Humble).
-
-    ros2 launch launch/agrinav_field.launch.py               # Gazebo Sim (ros_gz_sim)
-    ros2 launch launch/agrinav_field.launch.py sim:=classic  # Gazebo Classic 11 (gazebo_ros)
-"""
-
-import os
-
-from ament_index_python.packages import get_package_share_directory as share
-from launch import LaunchDescription
-from launch.actions import (
-    DeclareLaunchArgument,
-    IncludeLaunchDescription,
-    OpaqueFunction,
-    SetEnvironmentVariable,
-)
-from launch.launch_description_sources import PythonLaunchDescriptionSource
-from launch.substitutions import LaunchConfiguration
-from launch_ros.actions import Node
-
-ROOT = os.path.dirname(os.path.dirname(os.path.realpath(__file__)))
-MODELS = os.path.join(ROOT, "models")
-URDF = os.path.join(ROOT, "robot", "summit_xl.urdf")
-SPAWN_X, SPAWN_Y, SPAWN_Z, SPAWN_YAW = @SPAWN@  # route start, ENU metres and radians
-
-
-def _path(var):
-    old = os.environ.get(var, "")
-    return MODELS + (os.pathsep + old if old else "")
-
-
-def _simulator(context, *args, **kwargs):
-    sim = LaunchConfiguration("sim").perform(context)
-    pose = ["-x", str(SPAWN_X), "-y", str(SPAWN_Y), "-z", str(SPAWN_Z), "-Y", str(SPAWN_YAW)]
-    if sim == "classic":
-        world = os.path.join(ROOT, "worlds", "field_classic.world")
-        gazebo = IncludeLaunchDescription(
-            PythonLaunchDescriptionSource(
-                os.path.join(share("gazebo_ros"), "launch", "gazebo.launch.py")
-            ),
-            launch_arguments={"world": world}.items(),
-        )
-        spawn = Node(
-            package="gazebo_ros",
-            executable="spawn_entity.py",
-            arguments=["-entity", "summit_xl", "-file", URDF, *pose],
-            output="screen",
-        )
-    else:
-        world = os.path.join(ROOT, "worlds", "field.sdf")
-        gazebo = IncludeLaunchDescription(
-            PythonLaunchDescriptionSource(
-                os.path.join(share("ros_gz_sim"), "launch", "gz_sim.launch.py")
-            ),
-            launch_arguments={"gz_args": "-r " + world}.items(),
-        )
-        spawn = Node(
-            package="ros_gz_sim",
-            executable="create",
-            arguments=["-name", "summit_xl", "-file", URDF, *pose],
-            output="screen",
-        )
-    return [gazebo, spawn]
-
-
-def generate_launch_description():
-    with open(URDF) as f:
-        description = f.read()
-    return LaunchDescription(
-        [
-            DeclareLaunchArgument("sim", default_value="gz", description="gz or classic"),
-            SetEnvironmentVariable("GAZEBO_MODEL_PATH", _path("GAZEBO_MODEL_PATH")),
-            SetEnvironmentVariable("IGN_GAZEBO_RESOURCE_PATH", _path("IGN_GAZEBO_RESOURCE_PATH")),
-            SetEnvironmentVariable("GZ_SIM_RESOURCE_PATH", _path("GZ_SIM_RESOURCE_PATH")),
-            Node(
-                package="robot_state_publisher",
-                executable="robot_state_publisher",
-                parameters=[{"robot_description": description, "use_sim_time": True}],
-                output="screen",
-            ),
-            OpaqueFunction(function=_simulator),
-        ]
-    )
-'''

@@ -37,6 +37,11 @@ class ExportOptions:
     robot_urdf: str | None = _f(
         None, "nav2: the robot URDF copied into the export and spawned at the route start"
     )
+    nav2_robot: dict[str, Any] | None = _f(
+        None,
+        "nav2: the simulated robot's drive, sensors and EKF model and the benchmarked DWB "
+        "configuration (ros_robot.Nav2Robot; the CLI passes baselines.nav2_robot's)",
+    )
 
     def __post_init__(self) -> None:
         if not self.formats or any(f not in MESH_FORMATS for f in self.formats):

@@ -4,7 +4,8 @@ from pathlib import Path
 
 import pytest
 
-from scenario_gen import Scenario, generate, save
+from scenario_gen import Scenario, generate, load, save
+from scenario_gen.export import ExportOptions, export
 
 from ..helpers import plane, small
 from .tools import build_sdf_check
@@ -42,3 +43,14 @@ def dem(tmp_path_factory: pytest.TempPathFactory) -> tuple[Scenario, Path]:
     out = tmp_path_factory.mktemp("dem") / "scn"
     save(scn, out, preview=False)
     return scn, out
+
+
+@pytest.fixture(scope="session")
+def nav2_bundle(dem, tmp_path_factory) -> tuple[Scenario, Path]:
+    """The dem scenario exported --to nav2 with the CLI's robot (env defaults, dwb:furrow)."""
+    from baselines.nav2_robot import nav2_options
+
+    _, src = dem
+    out = tmp_path_factory.mktemp("nav2") / "out"
+    export(src, "nav2", out, ExportOptions.from_dict(nav2_options(plants="tiles")))
+    return load(src), out

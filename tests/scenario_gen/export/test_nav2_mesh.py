@@ -20,11 +20,8 @@ URDF = Path(__file__).resolve().parents[3] / "src" / "agrinav_gym" / "assets" / 
 
 
 @pytest.fixture(scope="module")
-def nav2(dem, tmp_path_factory) -> tuple[Scenario, Path]:
-    _, src = dem
-    out = tmp_path_factory.mktemp("nav2") / "out"
-    export(src, "nav2", out, ExportOptions(plants="tiles", robot_urdf=str(URDF)))
-    return load(src), out
+def nav2(nav2_bundle) -> tuple[Scenario, Path]:
+    return nav2_bundle
 
 
 def test_gps_waypoints_are_sparse_and_on_the_route(nav2) -> None:
