@@ -15,7 +15,6 @@ from scenario_gen import Scenario, generate, load, save
 from scenario_gen.export import ExportOptions, export
 
 from ..helpers import small
-from .test_nav2_mesh import URDF
 from .tools import gdal
 
 
@@ -61,7 +60,9 @@ def test_gis_carries_curved_rows_and_tagged_turns(curved, tmp_path: Path) -> Non
 def test_nav2_carries_the_curved_route_and_its_cusps(curved, tmp_path: Path) -> None:
     _, src = curved
     out = tmp_path / "nav2"
-    export(src, "nav2", out, ExportOptions(plants="tiles", robot_urdf=str(URDF)))
+    from baselines.nav2_robot import nav2_options
+
+    export(src, "nav2", out, ExportOptions.from_dict(nav2_options(plants="tiles")))
     with open(out / "reference_path.csv", newline="") as f:
         path = list(csv.DictReader(f))
     r = load(src).route
