@@ -24,8 +24,6 @@ from .config import EnvConfig
 from .estimation import Readings
 from .interface import (
     FIX_CODES,
-    GPS_FIELDS,
-    IMU_FIELDS,
     OBS_DEPTH,
     OBS_GPS,
     OBS_IMU,
@@ -91,12 +89,36 @@ class VectorObservation(ObservationModel):
     low: ClassVar[tuple[float, ...]]
     high: ClassVar[tuple[float, ...]]
 
+    def __init__(self, cfg: EnvConfig, robot: RobotInterface) -> None:
+        super().__init__(cfg, robot)
+        # the bounds as numpy compares them (float64), converted once instead of every step
+        self._low, self._high = np.asarray(self.low), np.asarray(self.high)
+        self._inside = inner_bounds(self.low, self.high)
+
     def space(self) -> spaces.Box:
         return spaces.Box(np.asarray(self.low, np.float32), np.asarray(self.high, np.float32))
 
     def saturate(self, v: F32) -> F32:
-        np.minimum(np.maximum(v, self.low, out=v), self.high, out=v)
+        np.minimum(np.maximum(v, self._low, out=v), self._high, out=v)
         return v
+
+    def pack(self, values: list[float]) -> F32:
+        """``values`` as float32, saturated: where every value is well inside its range (the
+        usual case) saturation changes nothing and is skipped."""
+        out = np.array(values, np.float32)
+        for v, (lo, hi) in zip(values, self._inside, strict=True):
+            if not lo < v < hi:
+                return self.saturate(out)
+        return out
+
+
+def inner_bounds(low: tuple[float, ...], high: tuple[float, ...]) -> list[tuple[float, float]]:
+    """Per value, a range a little inside [low, high]: a float64 strictly inside it rounds to a
+    float32 inside [low, high] (float32 rounding moves a value by at most 2⁻²⁴ of it)."""
+    return [
+        (lo + 1e-6 * max(1.0, abs(lo)), hi - 1e-6 * max(1.0, abs(hi)))
+        for lo, hi in zip(low, high, strict=True)
+    ]
 
 
 OBSERVATION_MODELS: dict[str, type[ObservationModel]] = {}
@@ -118,11 +140,8 @@ class GpsObservation(VectorObservation):
 
     def encode(self, snap: Snapshot) -> F32:
         r = snap.readings
-        out = np.empty(len(GPS_FIELDS), np.float32)
-        out[:3] = r.gnss_enu
-        out[3] = FIX_CODES[r.gnss_mode]
-        out[4] = min(r.gnss_age, 60.0)
-        return self.saturate(out)
+        e, n, u = r.gnss_enu.tolist()
+        return self.pack([e, n, u, FIX_CODES[r.gnss_mode], min(r.gnss_age, 60.0)])
 
 
 @observation
@@ -135,10 +154,9 @@ class ImuObservation(VectorObservation):
 
     def encode(self, snap: Snapshot) -> F32:
         r = snap.readings
-        out = np.empty(len(IMU_FIELDS), np.float32)
-        out[:3], out[3:6], out[6:8] = r.accel, r.gyro, r.rpy[:2]
-        out[8], out[9] = math.sin(r.rpy[2]), math.cos(r.rpy[2])
-        return self.saturate(out)
+        roll, pitch, yaw = r.rpy.tolist()
+        values = [*r.accel.tolist(), *r.gyro.tolist(), roll, pitch, math.sin(yaw), math.cos(yaw)]
+        return self.pack(values)
 
 
 @observation
@@ -150,9 +168,9 @@ class OdomObservation(VectorObservation):
     high = (10.0, 20.0)
 
     def encode(self, snap: Snapshot) -> F32:
-        out = np.asarray(snap.readings.odom, np.float32).copy()
-        assert out.shape == (len(ODOM_FIELDS),)
-        return self.saturate(out)
+        values = np.asarray(snap.readings.odom, np.float64).tolist()
+        assert len(values) == len(ODOM_FIELDS)
+        return self.pack(values)
 
 
 @observation
@@ -166,8 +184,10 @@ class RouteObservation(ObservationModel):
         super().__init__(cfg, robot)
         k = robot.route_points
         self.offsets = robot.route_spacing * np.arange(1, k + 1)
+        self._offsets = self.offsets.tolist()
         self.low = np.tile(np.array([-100.0, -100.0, 0.0], np.float32), k)
         self.high = np.tile(np.array([100.0, 100.0, 1.0], np.float32), k)
+        ((self._lo, self._hi),) = inner_bounds((-100.0,), (100.0,))
         self.tracker: Tracker | None = None
 
     def space(self) -> spaces.Box:
@@ -181,13 +201,18 @@ class RouteObservation(ObservationModel):
         assert self.tracker is not None
         ex, ey, yaw = snap.estimate
         _, s, _ = self.tracker.update(ex, ey)
-        pts, furrow = snap.route.lookup(s + self.offsets)
+        pts, furrow = snap.route.lookup_points([s + o for o in self._offsets])
         c, sn = math.cos(yaw), math.sin(yaw)
-        out = np.empty((len(self.offsets), 3), np.float32)
-        out[:, :2] = (pts - (ex, ey)) @ np.array([[c, -sn], [sn, c]])  # world -> robot frame
-        out[:, 2] = furrow
-        flat = out.ravel()
-        np.minimum(np.maximum(flat, self.low, out=flat), self.high, out=flat)
+        rel = ((pts - (ex, ey)) @ np.array([[c, -sn], [sn, c]])).tolist()  # world -> robot
+        values: list[float] = []
+        inside = True
+        lo, hi = self._lo, self._hi
+        for (x, y), f in zip(rel, furrow, strict=True):
+            values += (x, y, 1.0 if f else 0.0)
+            inside = inside and lo < x < hi and lo < y < hi
+        flat = np.array(values, np.float32)
+        if not inside:  # saturate (the flags are 0 or 1: inside their range)
+            np.minimum(np.maximum(flat, self.low, out=flat), self.high, out=flat)
         return flat
 
 

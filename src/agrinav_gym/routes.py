@@ -13,6 +13,7 @@ from scenario_gen import Scenario
 from scenario_gen.arrays import FloatArray
 
 TABLE_STEP = 0.02  # m: route lookup table resolution (waypoints are ≤ 0.1 m apart)
+FEW = 32  # lookups of at most this many points run in Python floats (lookup_points)
 
 
 @dataclass(frozen=True, eq=False)
@@ -53,6 +54,8 @@ class RoutePath:
         """Points and furrow tags at arc lengths ``s``. Past the end the route's last segment
         goes on at true distances, so "keep going straight" is what an observation says there
         (the end point repeated would say "stop here")."""
+        if len(s) <= FEW:
+            return self.lookup_points(s.tolist())
         pts, tags, direction = self._table
         u = np.maximum(s, 0.0) / TABLE_STEP
         i = np.minimum(u.astype(np.intp), len(pts) - 2)
@@ -64,6 +67,36 @@ class RoutePath:
             out[past] = self.xy[-1] + (s[past] - self.length)[:, None] * direction
             tag = np.where(past, self.furrow[-1], tag)
         return out, tag
+
+    @cached_property
+    def _table_lists(self) -> tuple[list[list[float]], list[bool], float, float, float, float]:
+        pts, tags, direction = self._table
+        (x1, y1), (dx, dy) = self.xy[-1].tolist(), direction.tolist()
+        return pts.tolist(), tags.tolist(), x1, y1, dx, dy
+
+    def lookup_points(self, s: list[float]) -> tuple[FloatArray, NDArray[np.bool_]]:
+        """``lookup`` of a few arc lengths (an observation's points) in Python floats: the
+        same arithmetic, element by element, without numpy's per-call cost."""
+        pts, tags, x1, y1, dx, dy = self._table_lists
+        last = len(pts) - 2
+        end = (len(pts) - 1) * TABLE_STEP
+        length = self.length
+        xy: list[float] = []
+        tag: list[bool] = []
+        for v in s:
+            if v > end:  # past the end: the last segment goes on
+                t = v - length
+                xy += (x1 + t * dx, y1 + t * dy)
+                tag.append(bool(self.furrow[-1]))
+                continue
+            u = max(v, 0.0) / TABLE_STEP
+            i = min(int(u), last)
+            f = min(u - i, 1.0)
+            (ax, ay), (bx, by) = pts[i], pts[i + 1]
+            g = 1.0 - f
+            xy += (ax * g + bx * f, ay * g + by * f)
+            tag.append(tags[i])
+        return np.array(xy, np.float64).reshape(-1, 2), np.array(tag, bool)
 
     def sample(self, s: FloatArray) -> FloatArray:
         """Points at arc lengths ``s`` (clamped to the route)."""

@@ -90,7 +90,8 @@ class Gnss:
         """(q_carrier, q_code) at the antenna, recomputed when it moved ``fix.update_m``."""
         if self.sky is None:
             return 1.0, 1.0
-        if float(np.abs(antenna - self._sky_at).max()) > self.cfg.fix.update_m:
+        (ax, ay, az), (sx, sy, sz) = antenna.tolist(), self._sky_at.tolist()
+        if max(abs(ax - sx), abs(ay - sy), abs(az - sz)) > self.cfg.fix.update_m:
             self._q = self.sky.usable(antenna)
             self._sky_at = antenna.copy()
         return self._q
