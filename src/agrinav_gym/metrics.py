@@ -15,6 +15,7 @@ reports ``None``, not NaN, so results compare and serialize cleanly.
 
 from __future__ import annotations
 
+import ctypes
 import math
 from bisect import bisect_left, bisect_right
 from typing import Any
@@ -25,6 +26,8 @@ from scipy.spatial import cKDTree
 
 from scenario_gen.arrays import FloatArray
 
+from .render import native as _native
+
 
 class RouteProjector:
     """Exact nearest segment of a polyline to a point.
@@ -34,10 +37,14 @@ class RouteProjector:
     of the answer — the distance to the nearest vertex, or to any one segment (the task's
     tracker knows one). Only the segments touching the vertices in that disc are tested (any
     set of segments that holds those gives the same answer, ties to the lowest index); a
-    uniform grid of the vertices finds them with a few dictionary lookups.
+    uniform grid of the vertices finds them with a few dictionary lookups. Where the extension
+    is built (``native`` None: when available) the search runs in the kernel ``route_nearest``,
+    the Python below its twin (the same bits).
     """
 
-    def __init__(self, xy: FloatArray, furrow: NDArray[np.bool_]) -> None:
+    def __init__(
+        self, xy: FloatArray, furrow: NDArray[np.bool_], native: bool | None = None
+    ) -> None:
         self.xy = np.asarray(xy, np.float64)
         if len(self.xy) < 2:
             raise ValueError(f"a route needs at least 2 points, got {len(self.xy)}")
@@ -74,6 +81,44 @@ class RouteProjector:
             xs, cells = self._rows.setdefault(cy, ([], []))
             xs.append(cx)
             cells.append([(v, *self._pts[v]) for v in verts])
+        self._nearest: _native.RouteNearestArgs | None = None
+        if _native.available() if native is None else native:
+            self._nearest = _native.RouteNearestArgs(
+                grid=self._grid_block(), x=0.0, y=0.0, bound=0.0, d=0.0, s=0.0, k=0
+            )
+            self._call = _native.kernel("route_nearest")
+            self._ref = ctypes.byref(self._nearest)
+
+    def _grid_block(self) -> _native.RouteGrid:
+        """The search as the kernel ``route_nearest`` reads it: the segments, and the vertices
+        in a dense grid of cells (coarser than ``cell`` where the route's box would need more
+        than 2²⁰ of them: the candidates are a superset, the answer the same)."""
+        cell = self.cell
+        while True:
+            ij = np.floor(self.xy / cell).astype(np.int64)
+            lo = ij.min(axis=0)
+            ncx, ncy = (ij.max(axis=0) - lo + 1).tolist()
+            if ncx * ncy <= 1 << 20:
+                break
+            cell *= 2.0
+        ids = (ij[:, 1] - lo[1]) * ncx + (ij[:, 0] - lo[0])
+        order = np.argsort(ids, kind="stable")  # by cell, each cell's vertices in order
+        start = np.searchsorted(ids[order], np.arange(ncx * ncy + 1)).astype(np.int32)
+        return _native.RouteGrid(
+            n=len(self.xy),
+            segs=np.array(self._segs, np.float64).reshape(-1, 5),
+            seg_len=np.ascontiguousarray(self.seg_len, np.float64),
+            arc=np.ascontiguousarray(self.arc, np.float64),
+            half=self.half,
+            cell=cell,
+            cx0=int(lo[0]),
+            cy0=int(lo[1]),
+            ncx=ncx,
+            ncy=ncy,
+            cell_start=start,
+            cell_items=order.astype(np.int32),
+            xy=np.ascontiguousarray(self.xy, np.float64),
+        )
 
     @property
     def length(self) -> float:
@@ -84,6 +129,13 @@ class RouteProjector:
         bound of the distance (else the nearest vertex's distance is used)."""
         if bound is None:
             bound = float(self.tree.query((x, y))[0])
+        a = self._nearest
+        if a is not None:  # the kernel: the same search (tests compare the two)
+            a.x, a.y, a.bound = x, y, bound
+            status = self._call(self._ref)
+            if status:
+                raise _native.failed("route_nearest", status)
+            return a.d, a.k, a.s
         r = bound + self.half + 1e-9
         c = self.cell
         i0, i1 = math.floor((x - r) / c), math.floor((x + r) / c)

@@ -9,6 +9,7 @@ ranges, as real ones do. Every call returns a fresh array. A new observation is 
 
 from __future__ import annotations
 
+import ctypes
 import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
@@ -32,6 +33,7 @@ from .interface import (
     ODOM_FIELDS,
     RobotInterface,
 )
+from .render import native
 from .robot import RobotState
 from .routes import RoutePath, Tracker
 from .sensors import make_camera
@@ -189,6 +191,7 @@ class RouteObservation(ObservationModel):
         self.high = np.tile(np.array([100.0, 100.0, 1.0], np.float32), k)
         ((self._lo, self._hi),) = inner_bounds((-100.0,), (100.0,))
         self.tracker: Tracker | None = None
+        self._points: native.RoutePointsArgs | None = None
 
     def space(self) -> spaces.Box:
         return spaces.Box(self.low, self.high)
@@ -196,11 +199,28 @@ class RouteObservation(ObservationModel):
     def reset(self, snap: Snapshot) -> None:
         self.tracker = Tracker(snap.route)
         self.tracker.reset_at(snap.start_arc, snap.start[0], snap.start[1])
+        self._points = None
+        if native.available():  # the kernel route_points, else the Python below (its twin)
+            self._out = np.empty(3 * len(self._offsets), np.float32)
+            self._points = native.RoutePointsArgs(
+                route=snap.route.native, s=0.0, n=len(self._offsets),
+                offsets=np.ascontiguousarray(self.offsets, np.float64), x=0.0, y=0.0,
+                cos_yaw=1.0, sin_yaw=0.0, lo=-100.0, hi=100.0, out=self._out,
+            )  # fmt: skip
+            self._call = native.kernel("route_points")
+            self._ref = ctypes.byref(self._points)
 
     def encode(self, snap: Snapshot) -> F32:
         assert self.tracker is not None
         ex, ey, yaw = snap.estimate
         _, s, _ = self.tracker.update(ex, ey)
+        a = self._points
+        if a is not None:
+            a.s, a.x, a.y, a.cos_yaw, a.sin_yaw = s, ex, ey, math.cos(yaw), math.sin(yaw)
+            status = self._call(self._ref)
+            if status:
+                raise native.failed("route_points", status)
+            return self._out.copy()
         pts, furrow = snap.route.lookup_points([s + o for o in self._offsets])
         c, sn = math.cos(yaw), math.sin(yaw)
         rel = ((pts - (ex, ey)) @ np.array([[c, -sn], [sn, c]])).tolist()  # world -> robot

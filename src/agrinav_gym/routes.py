@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import ctypes
 import math
 from dataclasses import dataclass
 from functools import cached_property
@@ -11,6 +12,8 @@ from numpy.typing import NDArray
 
 from scenario_gen import Scenario
 from scenario_gen.arrays import FloatArray
+
+from .render import native as _native
 
 TABLE_STEP = 0.02  # m: route lookup table resolution (waypoints are ≤ 0.1 m apart)
 FEW = 32  # lookups of at most this many points run in Python floats (lookup_points)
@@ -98,6 +101,24 @@ class RoutePath:
             tag.append(tags[i])
         return np.array(xy, np.float64).reshape(-1, 2), np.array(tag, bool)
 
+    @cached_property
+    def native(self) -> _native.Route:
+        """The route as the compiled kernels read it (``route_t``)."""
+        pts, tags, direction = self._table
+        return _native.Route(
+            xy=np.ascontiguousarray(self.xy, np.float64),
+            arc=np.ascontiguousarray(self.arc, np.float64),
+            n=len(self.xy),
+            table=np.ascontiguousarray(pts, np.float64),
+            tags=np.ascontiguousarray(tags, np.uint8),
+            m=len(pts),
+            table_step=TABLE_STEP,
+            end=self.xy[-1].tolist(),
+            direction=direction.tolist(),
+            length=self.length,
+            furrow_last=int(bool(self.furrow[-1])),
+        )
+
     def sample(self, s: FloatArray) -> FloatArray:
         """Points at arc lengths ``s`` (clamped to the route)."""
         return np.column_stack(
@@ -125,15 +146,24 @@ def scenario_route(scn: Scenario) -> RoutePath:
 class Tracker:
     """Nearest route segment to a moving point, searched in a window around the last match.
 
-    Called twice per env step with a handful of segments, so it is plain Python: for windows
-    this small numpy's per-call overhead costs more than the arithmetic.
+    Called twice per env step with a handful of segments: in the compiled kernel
+    ``route_track`` where the extension is built (``native`` None: when available), else in
+    Python floats (for windows this small numpy's per-call cost exceeds the arithmetic); the
+    two give the same bits.
     """
 
-    def __init__(self, route: RoutePath) -> None:
+    def __init__(self, route: RoutePath, native: bool | None = None) -> None:
         self.route = route
         self.k = 0
         self._xy = route.xy.tolist()
         self._arc = route.arc.tolist()
+        self._args: _native.RouteTrackArgs | None = None
+        if _native.available() if native is None else native:
+            self._args = _native.RouteTrackArgs(
+                route=route.native, x=0.0, y=0.0, k=0, cte=0.0, s=0.0
+            )
+            self._call = _native.kernel("route_track")
+            self._ref = ctypes.byref(self._args)
 
     def reset(self, x: float, y: float) -> None:
         d = np.hypot(self.route.xy[:, 0] - x, self.route.xy[:, 1] - y)
@@ -164,6 +194,14 @@ class Tracker:
         Walks forward, then backward, from the last match while the distance shrinks, so a
         step costs a few segment tests; the route's continuity keeps it on the right lane.
         """
+        a = self._args
+        if a is not None:
+            a.x, a.y, a.k = x, y, self.k
+            status = self._call(self._ref)
+            if status:
+                raise _native.failed("route_track", status)
+            self.k = k = a.k
+            return a.cte, a.s, k
         last = len(self._xy) - 2
         k = min(self.k, last)
         best = self._seg(k, x, y)

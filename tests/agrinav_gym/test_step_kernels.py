@@ -1,21 +1,26 @@
 """The compiled per-step kernels against their Python twins: the tyre model (``tyre_forces``)
-bit for bit, the EKF (``ekf_update``) to rounding, and their refusals (statuses)."""
+and the route's (``route_track``, ``route_nearest``, ``route_points``) bit for bit, the EKF
+(``ekf_update``) to rounding, and their refusals (statuses)."""
 
 from __future__ import annotations
 
 import math
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
 from agrinav_gym.config import LocalisationConfig, RobotConfig, SoilConfig
 from agrinav_gym.estimation import ekf as ekf_module
+from agrinav_gym.metrics import RouteProjector
 from agrinav_gym.render import native
+from agrinav_gym.routes import RoutePath, Tracker, scenario_route
 from agrinav_gym.sim.tyres import TyreModel
 from agrinav_gym.sim.world import World
 from scenario_gen import Terrain, generate, preset
 
 from . import localisation_helpers
+from .helpers import TINY
 
 needs_kernels = pytest.mark.skipif(not native.available(), reason="compiled kernels not built")
 #: how far the EKF kernel's pose may part from the numpy filter's over a 40 s drive: the two
@@ -190,3 +195,71 @@ def test_ekf_kernel_raises_as_numpy_on_a_covariance_that_is_not_positive() -> No
         f.P[:] = -np.eye(12)  # no filter gets here; a kernel bug could
         with pytest.raises(np.linalg.LinAlgError, match="not positive"):
             f.update(r, 0.05)
+
+
+@pytest.fixture(scope="module")
+def field_route() -> RoutePath:
+    """A FieldRoute route: lanes 0.75 m apart joined by headland turns (points near several
+    lanes at once, ties between a segment's two ends)."""
+    return scenario_route(generate(preset("default", **TINY), 0))
+
+
+def _points_around(route: RoutePath, n: int, seed: int) -> np.ndarray:
+    """Points walking along the route with growing lateral offsets (to 3 m), and some far off."""
+    rng = np.random.default_rng(seed)
+    s = np.sort(rng.uniform(-1.0, route.length + 1.0, n))
+    xy = route.sample(s) + rng.normal(0.0, 1.0, (n, 2)) * np.linspace(0.0, 3.0, n)[:, None]
+    xy[::17] += rng.uniform(-30.0, 30.0, (len(xy[::17]), 2))
+    xy[5] = route.xy[7]  # on a vertex: two segments at the same distance
+    return xy
+
+
+@needs_kernels
+def test_route_tracker_kernel_gives_the_python_twins_bits(field_route: RoutePath) -> None:
+    kernel, twin = Tracker(field_route, native=True), Tracker(field_route, native=False)
+    pts = _points_around(field_route, 600, 0)
+    for t in (kernel, twin):
+        t.reset(*pts[0])
+    for x, y in pts.tolist():
+        assert kernel.update(x, y) == twin.update(x, y)
+
+
+@needs_kernels
+def test_nearest_segment_kernel_gives_the_python_twins_bits(field_route: RoutePath) -> None:
+    kernel = RouteProjector(field_route.xy, field_route.furrow, native=True)
+    twin = RouteProjector(field_route.xy, field_route.furrow, native=False)
+    tracker = Tracker(field_route, native=False)
+    pts = _points_around(field_route, 800, 1)
+    tracker.reset(*pts[0])
+    for x, y in pts.tolist():
+        cte, _, _ = tracker.update(x, y)
+        for bound in (abs(cte), None, abs(cte) + 5.0):  # the env's bound, none, a loose one
+            assert kernel.project(x, y, bound) == twin.project(x, y, bound)
+
+
+@needs_kernels
+def test_route_observation_kernel_gives_the_python_twins_floats(
+    field_route: RoutePath, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The same float32 observation: the rotation into the robot frame differs from numpy's
+    matmul only where that fuses a multiply-add, in a double's last bit."""
+    from agrinav_gym.config import EnvConfig
+    from agrinav_gym.observations import RouteObservation
+    from agrinav_gym.robot import RobotGeometry, robot_interface
+
+    cfg = EnvConfig.from_dict({})
+    robot = robot_interface(cfg, RobotGeometry.from_urdf())
+    models = {}
+    for name, available in (("kernel", True), ("twin", False)):
+        monkeypatch.setattr(native, "available", lambda a=available: a)
+        m = RouteObservation(cfg, robot)
+        snap = SimpleNamespace(route=field_route, start=(*field_route.xy[0], 0.0), start_arc=0.0)
+        m.reset(snap)  # type: ignore[arg-type]
+        models[name] = m
+    monkeypatch.undo()
+    assert models["kernel"]._points is not None and models["twin"]._points is None
+    rng = np.random.default_rng(2)
+    for x, y in _points_around(field_route, 500, 2).tolist():
+        snap = SimpleNamespace(estimate=(x, y, float(rng.uniform(-4.0, 4.0))), route=field_route)
+        a, b = (models[k].encode(snap) for k in ("kernel", "twin"))  # type: ignore[arg-type]
+        assert a.dtype == b.dtype == np.float32 and np.array_equal(a, b)

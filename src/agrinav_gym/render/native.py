@@ -1,5 +1,6 @@
 """The compiled kernels (``src/agrinav_gym/render/csrc``) through ctypes: the sensors', the tyre
-model's (``sim/tyres.py``) and the EKF's (``estimation/ekf.py``).
+model's (``sim/tyres.py``), the EKF's (``estimation/ekf.py``) and the route's (``routes.py``,
+``metrics.py``: the trackers, the route observation, the metrics' nearest segment).
 
 The kernels are plain C functions in the optional extension ``agrinav_gym.render._native`` (built by
 ``pip install``/``make`` where a C compiler exists). ctypes releases the GIL during each call,
@@ -543,6 +544,83 @@ class EkfUpdateArgs(Args, kernel="ekf_update"):
         ("dt", f64),
         ("reading", F64),
         ("gnss", F64),
+    ]
+
+
+class Route(Struct, c="route_t"):
+    """A route's waypoints and its lookup table (routes.RoutePath)."""
+
+    _fields_ = [
+        ("xy", F64),
+        ("arc", F64),
+        ("n", i32),
+        ("table", F64),
+        ("tags", U8),
+        ("m", i32),
+        ("table_step", f64),
+        ("end", vec(2)),
+        ("direction", vec(2)),
+        ("length", f64),
+        ("furrow_last", i32),
+    ]
+
+
+class RouteTrackArgs(Args, kernel="route_track"):
+    _fields_ = [
+        ("route", block(Route)),
+        ("x", f64),
+        ("y", f64),
+        ("k", i32),
+        ("cte", f64),
+        ("s", f64),
+    ]
+
+
+class RoutePointsArgs(Args, kernel="route_points"):
+    _fields_ = [
+        ("route", block(Route)),
+        ("s", f64),
+        ("n", i32),
+        ("offsets", F64),
+        ("x", f64),
+        ("y", f64),
+        ("cos_yaw", f64),
+        ("sin_yaw", f64),
+        ("lo", f64),
+        ("hi", f64),
+        ("out", F32),
+    ]
+
+
+class RouteGrid(Struct, c="route_grid_t"):
+    """The nearest-segment search's segments and vertex grid (metrics.RouteProjector)."""
+
+    _fields_ = [
+        ("n", i32),
+        ("segs", F64),
+        ("seg_len", F64),
+        ("arc", F64),
+        ("half", f64),
+        ("cell", f64),
+        ("cx0", i32),
+        ("cy0", i32),
+        ("ncx", i32),
+        ("ncy", i32),
+        ("cell_start", I32),
+        ("cell_items", I32),
+        ("xy", F64),
+    ]
+
+
+class RouteNearestArgs(Args, kernel="route_nearest"):
+    _fields_ = [
+        ("grid", block(RouteGrid)),
+        ("x", f64),
+        ("y", f64),
+        ("bound", f64),
+        ("d", f64),
+        ("s", f64),
+        ("k", i32),
     ]
 
 

@@ -166,6 +166,28 @@ static const layout_t LAYOUT[] = {
 
     SIZE(ekf_update_args_t), AT(ekf_update_args_t, config), AT(ekf_update_args_t, filter),
     AT(ekf_update_args_t, dt), AT(ekf_update_args_t, reading), AT(ekf_update_args_t, gnss),
+
+    SIZE(route_t), AT(route_t, xy), AT(route_t, arc), AT(route_t, n), AT(route_t, table),
+    AT(route_t, tags), AT(route_t, m), AT(route_t, table_step), AT(route_t, end),
+    AT(route_t, direction), AT(route_t, length), AT(route_t, furrow_last),
+
+    SIZE(route_track_args_t), AT(route_track_args_t, route), AT(route_track_args_t, x),
+    AT(route_track_args_t, y), AT(route_track_args_t, k), AT(route_track_args_t, cte),
+    AT(route_track_args_t, s),
+
+    SIZE(route_points_args_t), AT(route_points_args_t, route), AT(route_points_args_t, s),
+    AT(route_points_args_t, n), AT(route_points_args_t, offsets), AT(route_points_args_t, x),
+    AT(route_points_args_t, y), AT(route_points_args_t, cos_yaw), AT(route_points_args_t, sin_yaw),
+    AT(route_points_args_t, lo), AT(route_points_args_t, hi), AT(route_points_args_t, out),
+
+    SIZE(route_grid_t), AT(route_grid_t, n), AT(route_grid_t, segs), AT(route_grid_t, seg_len),
+    AT(route_grid_t, arc), AT(route_grid_t, half), AT(route_grid_t, cell), AT(route_grid_t, cx0),
+    AT(route_grid_t, cy0), AT(route_grid_t, ncx), AT(route_grid_t, ncy),
+    AT(route_grid_t, cell_start), AT(route_grid_t, cell_items), AT(route_grid_t, xy),
+
+    SIZE(route_nearest_args_t), AT(route_nearest_args_t, grid), AT(route_nearest_args_t, x),
+    AT(route_nearest_args_t, y), AT(route_nearest_args_t, bound), AT(route_nearest_args_t, d),
+    AT(route_nearest_args_t, s), AT(route_nearest_args_t, k),
 };
 
 /* the offset of ``field`` in struct ``type`` (field "": its size); -1 where there is none */

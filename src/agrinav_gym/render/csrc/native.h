@@ -342,6 +342,77 @@ typedef struct {
 } ekf_update_args_t;
 EXPORT int ekf_update(const ekf_update_args_t *a);
 
+/* A route (routes.RoutePath): n waypoints xy[2i], xy[2i+1] and their arc lengths; the table
+ * of points every table_step of arc length (m of them, each with its furrow tag) that lookups
+ * interpolate; past the table's end the last segment goes on from ``end`` along ``direction``
+ * (its unit vector) at true distances, tagged ``furrow_last``. */
+typedef struct {
+    const double *xy;  /* (n, 2) */
+    const double *arc; /* (n,) */
+    int32_t n;
+    const double *table; /* (m, 2) */
+    const uint8_t *tags; /* (m,) */
+    int32_t m;
+    double table_step;
+    double end[2], direction[2];
+    double length;
+    int32_t furrow_last;
+} route_t;
+
+/* routes.c: Tracker.update, the nearest segment searched from segment k (in/out) by walking
+ * forward, then backward, while the distance shrinks: the signed cross-track error and the
+ * arc length of (x, y) (out). */
+typedef struct {
+    const route_t *route;
+    double x, y;
+    int32_t k;
+    double cte, s; /* out */
+} route_track_args_t;
+EXPORT int route_track(route_track_args_t *a);
+
+/* routes.c: the route observation's points (observations.RouteObservation): the route at arc
+ * lengths s + offsets[i] (RoutePath.lookup), in the frame of a robot at (x, y) whose heading
+ * has cosine cos_yaw and sine sin_yaw, saturated to [lo, hi] as numpy saturates float32 against float64
+ * bounds; out[3i..3i+2] = forward, left, furrow tag (0 or 1). */
+typedef struct {
+    const route_t *route;
+    double s;
+    int32_t n;
+    const double *offsets; /* (n,) */
+    double x, y, cos_yaw, sin_yaw;
+    double lo, hi;
+    float *out; /* (n, 3) */
+} route_points_args_t;
+EXPORT int route_points(const route_points_args_t *a);
+
+/* The exact nearest-segment search of metrics.RouteProjector: per segment (ax, ay, dx, dy, dx^2
+ * + dy^2) and length, the route's arc lengths, half the longest segment; the vertices by square
+ * cell of side ``cell`` of an ncx x ncy grid whose first cell is (cx0, cy0) in cell units:
+ * cell (i, j) lists cell_items[cell_start[c] .. cell_start[c + 1]), c = j ncx + i. */
+typedef struct {
+    int32_t n; /* vertices */
+    const double *segs;    /* (n - 1, 5) */
+    const double *seg_len; /* (n - 1,) */
+    const double *arc;     /* (n,) */
+    double half;
+    double cell;
+    int32_t cx0, cy0, ncx, ncy;
+    const int32_t *cell_start; /* (ncx ncy + 1,) */
+    const int32_t *cell_items;
+    const double *xy; /* (n, 2) */
+} route_grid_t;
+
+/* routes.c: RouteProjector.project with a bound: the distance, segment and arc length of the
+ * route point nearest (x, y), given any upper bound of that distance (ties: the lowest
+ * segment). */
+typedef struct {
+    const route_grid_t *grid;
+    double x, y, bound;
+    double d, s; /* out */
+    int32_t k;   /* out */
+} route_nearest_args_t;
+EXPORT int route_nearest(route_nearest_args_t *a);
+
 /* ------------------------------------------------------------------ inside the kernels */
 /* what a visibility-buffer pixel holds besides an instance slot (>= 0) */
 #define VB_NONE (-1)
