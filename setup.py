@@ -1,8 +1,10 @@
-"""The compiled sensor kernels (src/agrinav_gym/render/csrc); everything else is in pyproject.toml.
+"""The compiled kernels (src/agrinav_gym/render/csrc: the sensors', the tyres', the EKF's, the
+route's); everything else is in pyproject.toml.
 
 The extension is optional: where it cannot be built the sensors fall back to numpy and Embree
-(the same images, slower). Flags: -O3 and no errno from math calls (sqrt inlines); no
--ffast-math, whose reordering would change results between builds.
+(the same images, slower), the tyre model, the EKF and the route to their Python twins. Flags:
+-O3 and no errno from math calls (sqrt inlines); no -ffast-math, whose reordering would change
+results between builds.
 """
 
 import hashlib
@@ -32,6 +34,9 @@ setup(
                 "src/agrinav_gym/render/csrc/raster.c",
                 "src/agrinav_gym/render/csrc/frame.c",
                 "src/agrinav_gym/render/csrc/packets.c",
+                "src/agrinav_gym/render/csrc/tyres.c",
+                "src/agrinav_gym/render/csrc/ekf.c",
+                "src/agrinav_gym/render/csrc/routes.c",
             ],
             depends=["src/agrinav_gym/render/csrc/native.h", "src/agrinav_gym/render/csrc/batch.h"],
             define_macros=[("AGRINAV_SOURCE_HASH", f'"{source_hash()}"')],

@@ -2,14 +2,24 @@
 
 1. env steps/s with gps/imu/odom/route observations (target ≥ 1,500);
 2. env steps/s with 64 x 48 depth added (target ≥ 300);
-3. env step cost / raw physics cost of the same robot making the same moves, in one run
-   (target ≤ 1.5), and, for reference, / the robot alone on a plane;
+3. one interleaved run (every setup once per repeat, medians over repeats): the env step over
+   raw physics of the same robot in the same world making the same moves — the wheel command,
+   the terrain window following the robot and the 12 substeps (tyre model + pybullet) —
+   with the default estimator (EKF; target ≤ 1.3) and the blend; and simulated seconds per
+   wall-clock second of the state-only env against pybullet's own ``RacecarGymEnv`` (target
+   ≥ 3×) and of the 64 x 48 depth env against ``RacecarZEDGymEnv`` (its 100 x 10 camera),
+   both run through ``pybullet_gym_shim`` (they were written for the old ``gym``);
 4. marginal memory per plant (target ≤ 2 KB): RSS of an env on the same field planted at two
    densities, each in a fresh process;
 5. load time of a 100,000-plant field (target ≤ 10 s): generate + build + reset;
-6. reset with a new randomized scenario (target ≤ 1 s).
+6. reset with a new randomized scenario (target ≤ 1 s);
+7. vector-env scaling: the state-only env in 1 and 2 subprocess workers
+   (``gymnasium.make_vec(..., vectorization_mode="async")``, an ``AsyncVectorEnv``), env steps/s
+   and the efficiency of 2 (target: 2 workers ≥ 1.7× one), interleaved.
 
-Medians of several runs; run with ``make bench`` or ``python benchmarks/bench_env.py``.
+Medians of several runs; run with ``make bench`` or ``python benchmarks/bench_env.py``
+(``--sections 3,7`` for some). Timings of steps only: resets are not timed (a racecar episode
+is 1,000 of its physics steps, 10 s).
 """
 
 from __future__ import annotations
@@ -29,17 +39,17 @@ import pybullet as p
 
 import agrinav_gym  # noqa: F401  (registers the envs)
 from common import drive, s_curve
+from pybullet_gym_shim import quiet, racecar_envs, sim_seconds
 
 STEPS = 1000
+ENV_ID = "AgriNav/FurrowFollow-v2"
+STATE_OBS = ("gps", "imu", "odom", "route")
+#: the benchmark drive's task: long enough that no step of it ends the episode
+TASK = {"task": {"max_crops_hit": 10**6, "corridor": 2.0}}
 
 
 def steps_per_second(observations: tuple[str, ...], repeat: int) -> tuple[float, float]:
-    env = gym.make(
-        "AgriNav/FurrowFollow-v2",
-        scenario="paper-p1",
-        observations=observations,
-        config={"task": {"max_crops_hit": 10**6, "corridor": 2.0}},
-    )
+    env = _env(observations)
     env.reset(seed=0)
     drive(env, 100)
     rates = [STEPS / drive(env, STEPS) for _ in range(repeat)]
@@ -47,56 +57,153 @@ def steps_per_second(observations: tuple[str, ...], repeat: int) -> tuple[float,
     return statistics.median(rates), min(rates)
 
 
-def step_cost_ratio(repeat: int) -> tuple[float, float, float]:
-    """(env step, raw substeps in the same world, robot alone on a plane), seconds per step."""
-    env = gym.make(
-        "AgriNav/FurrowFollow-v2",
+def _env(observations: tuple[str, ...] = STATE_OBS, localisation: str = "ekf") -> gym.Env:
+    return gym.make(
+        ENV_ID,
         scenario="paper-p1",
-        observations=("gps", "imu", "odom", "route"),
-        config={"task": {"max_crops_hit": 10**6, "corridor": 2.0}},
+        observations=observations,
+        config={**TASK, "localisation": {"kind": localisation}},
     )
-    u = env.unwrapped
-    env_t, raw_t = [], []
-    for r in range(repeat):
-        env.reset(seed=r)
-        env_t.append(drive(env, 400) / 400)
-        env.reset(seed=r)  # the same moves again, physics only: drive + substeps
-        t = 0.0
-        for i in range(400):
-            v, w = (s_curve(i) * (u.cfg.robot.v_max, u.cfg.robot.w_max)).tolist()
-            t0 = time.perf_counter()
-            u.world.drive(v, w)
-            u.world.step(u.substeps)
-            t += time.perf_counter() - t0
-        raw_t.append(t / 400)
-    env.close()
-    cid = p.connect(p.DIRECT)
-    p.setGravity(0, 0, -9.81, physicsClientId=cid)
-    p.setPhysicsEngineParameter(
-        fixedTimeStep=1 / 240, numSolverIterations=10, enableConeFriction=0, physicsClientId=cid
-    )
-    p.createMultiBody(
-        0, p.createCollisionShape(p.GEOM_PLANE, physicsClientId=cid), physicsClientId=cid
-    )
-    from agrinav_gym.robot import urdf_path
 
-    rob = p.loadURDF(
-        urdf_path(), [0, 0, 0.115], flags=p.URDF_MERGE_FIXED_LINKS, physicsClientId=cid
+
+def raw_physics(env: gym.Env, seed: int, n: int, window: bool = True) -> float:
+    """Seconds per step of the same moves as ``drive`` from a reset with ``seed``, physics
+    only: the wheel command, the terrain window following the robot (``window``) and the
+    substeps."""
+    u = env.unwrapped
+    env.reset(seed=seed)
+    w, scale = u.world, (u.cfg.robot.v_max, u.cfg.robot.w_max)
+    t = 0.0
+    for i in range(n):
+        v, om = (s_curve(i) * scale).tolist()
+        if window:  # where the robot is, as the env's last state query says (untimed)
+            pos, q = p.getBasePositionAndOrientation(w.robot, physicsClientId=w.client)
+            yaw = p.getEulerFromQuaternion(q)[2]
+        t0 = time.perf_counter()
+        w.drive(v, om)
+        if window:
+            w.follow(pos[0], pos[1], yaw)
+        w.step(u.substeps)
+        t += time.perf_counter() - t0
+    return t / n
+
+
+def racecar_seconds(env: object, n: int, start: int = 0) -> float:
+    """Seconds spent in ``step`` over ``n`` steps of an old-gym racecar env (S-curve throttle
+    and steering; an episode's end resets, untimed)."""
+    total = 0.0
+    for i in range(start, start + n):
+        a = s_curve(i).astype(np.float64)
+        t0 = time.perf_counter()
+        _, _, done, _ = env.step(a)  # type: ignore[attr-defined]
+        total += time.perf_counter() - t0
+        if done:
+            env.reset()  # type: ignore[attr-defined]
+    return total
+
+
+def interleaved(repeat: int, steps: int = 400) -> dict[str, float]:
+    """Section 3: every setup once per repeat, in turn (the machine's load drifts alike for
+    all); medians. Seconds per env step, and simulated seconds per wall second."""
+    ekf, blend, depth = _env(), _env(localisation="blend"), _env((*STATE_OBS, "depth"))
+    racecar_cls, zed_cls = racecar_envs()
+    with quiet():
+        racecar = racecar_cls()
+        racecar.reset()
+        zed = zed_cls(renders=False)  # its constructor resets
+    dt = ekf.unwrapped.dt
+    runs: dict[str, list[float]] = {
+        k: [] for k in ("ekf", "raw", "raw_nowin", "blend", "depth", "rc", "zed")
+    }
+    race_steps, zed_steps, depth_steps = 40, 4, 100
+    for r in range(repeat):
+        ekf.reset(seed=r)
+        runs["ekf"].append(drive(ekf, steps) / steps)
+        runs["raw"].append(raw_physics(ekf, r, steps))
+        runs["raw_nowin"].append(raw_physics(ekf, r, steps, window=False))
+        blend.reset(seed=r)  # the same physics as the EKF env's: the same raw
+        runs["blend"].append(drive(blend, steps) / steps)
+        depth.reset(seed=r)
+        runs["depth"].append(drive(depth, depth_steps) / depth_steps)
+        with quiet():
+            runs["rc"].append(racecar_seconds(racecar, race_steps, r * race_steps) / race_steps)
+            runs["zed"].append(racecar_seconds(zed, zed_steps, r * zed_steps) / zed_steps)
+    for env in (ekf, blend, depth):
+        env.close()
+    med = {k: statistics.median(v) for k, v in runs.items()}
+    med["rc_sim"] = sim_seconds(racecar) / med["rc"]
+    med["zed_sim"] = sim_seconds(zed) / med["zed"]
+    med["ekf_sim"] = dt / med["ekf"]
+    med["depth_sim"] = dt / med["depth"]
+    # per-repeat ratios (the same repeat's setups ran back to back), then their median
+    med["ratio"] = statistics.median(e / w for e, w in zip(runs["ekf"], runs["raw"], strict=True))
+    med["ratio_nowin"] = statistics.median(
+        e / w for e, w in zip(runs["ekf"], runs["raw_nowin"], strict=True)
     )
-    p.setJointMotorControlArray(
-        rob,
-        [0, 1, 2, 3],
-        p.VELOCITY_CONTROL,
-        targetVelocities=[5.0] * 4,
-        forces=[80.0] * 4,
-        physicsClientId=cid,
+    med["blend_ratio"] = statistics.median(
+        e / w for e, w in zip(runs["blend"], runs["raw"], strict=True)
     )
+    return med
+
+
+def report_interleaved(m: dict[str, float], repeat: int) -> None:
+    print(f"3. interleaved, median of {repeat} (FurrowFollow-v2 on paper-p1, 400 steps a run):")
+    print(
+        f"   env step {m['ekf'] * 1e3:.3f} ms (EKF) vs raw physics {m['raw'] * 1e3:.3f} ms: "
+        f"env / raw {m['ratio']:.2f} (target ≤ 1.3; raw without the terrain window's moves "
+        f"{m['raw_nowin'] * 1e3:.3f} ms: {m['ratio_nowin']:.2f})"
+    )
+    print(
+        f"   blend estimator: env step {m['blend'] * 1e3:.3f} ms, env / raw {m['blend_ratio']:.2f}"
+    )
+    print(
+        f"   sim s per wall s: state-only env {m['ekf_sim']:.1f} vs RacecarGymEnv "
+        f"{m['rc_sim']:.1f} ({m['rc'] * 1e3:.1f} ms per 0.5 s step): "
+        f"{m['ekf_sim'] / m['rc_sim']:.2f}x (target ≥ 3x)"
+    )
+    print(
+        f"   sim s per wall s: 64x48 depth env {m['depth_sim']:.1f} vs RacecarZEDGymEnv "
+        f"{m['zed_sim']:.2f} ({m['zed'] * 1e3:.0f} ms per 0.1 s step): "
+        f"{m['depth_sim'] / m['zed_sim']:.0f}x"
+    )
+
+
+def _vector_env(workers: int) -> gym.vector.VectorEnv:
+    return gym.make_vec(
+        ENV_ID,
+        num_envs=workers,
+        vectorization_mode="async",
+        vector_kwargs={"context": "spawn"},
+        scenario="paper-p1",
+        observations=STATE_OBS,
+        config=TASK,
+    )
+
+
+def vector_scaling(repeat: int, steps: int = 300) -> tuple[float, float]:
+    """Section 7: env steps/s of 1 and 2 subprocess workers, interleaved; medians."""
+    envs = {n: _vector_env(n) for n in (1, 2)}
+    rates: dict[int, list[float]] = {1: [], 2: []}
+    try:
+        for n, venv in envs.items():
+            venv.reset(seed=list(range(n)))
+            _vector_drive(venv, 20)
+        for _ in range(repeat):
+            for n, venv in envs.items():
+                rates[n].append(n * steps / _vector_drive(venv, steps))
+    finally:
+        for venv in envs.values():
+            venv.close()
+    return statistics.median(rates[1]), statistics.median(rates[2])
+
+
+def _vector_drive(venv: gym.vector.VectorEnv, n: int) -> float:
+    """Seconds for ``n`` batched steps of the S-curve (ended episodes reset themselves)."""
+    k = venv.num_envs
     t0 = time.perf_counter()
-    for _ in range(400 * 12):
-        p.stepSimulation(physicsClientId=cid)
-    plane = (time.perf_counter() - t0) / 400
-    p.disconnect(cid)
-    return statistics.median(env_t), statistics.median(raw_t), plane
+    for i in range(n):
+        venv.step(np.repeat(s_curve(i)[None], k, axis=0))
+    return time.perf_counter() - t0
 
 
 MEMORY_CHILD = r"""
@@ -195,35 +302,45 @@ def randomized_reset(repeat: int) -> float:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--sections", default="1,2,3,4,5,6,7", help="comma list of the sections to run")
     args = ap.parse_args()
+    run = {int(x) for x in args.sections.split(",") if x.strip()}
     print(
         f"machine: {platform.machine()}, {os.cpu_count()} cores, Python "
         f"{platform.python_version()}, pybullet {p.getAPIVersion()}; median of {args.repeat}\n"
     )
-    med, low = steps_per_second(("gps", "imu", "odom", "route"), args.repeat)
-    print(
-        f"1. gps/imu/odom/route      : {med:7.0f} steps/s (min {low:.0f}; target ≥ 1500; "
-        f"{med / 20:.0f}x real time)"
-    )
-    med, low = steps_per_second(("gps", "imu", "odom", "route", "depth"), args.repeat)
-    print(f"2. + depth 64x48           : {med:7.0f} steps/s (min {low:.0f}; target ≥ 300)")
-    env_s, raw_s, plane_s = step_cost_ratio(args.repeat)
-    print(
-        f"3. env step {env_s * 1e3:.3f} ms vs raw 12 substeps {raw_s * 1e3:.3f} ms in the same "
-        f"world: ratio {env_s / raw_s:.2f} (target ≤ 1.5); robot alone on a plane "
-        f"{plane_s * 1e3:.3f} ms: ratio {env_s / plane_s:.2f}"
-    )
-    a, b, per, rss = memory_per_plant()
-    print(
-        f"4. marginal memory         : {per:7.0f} B/plant traced, {rss:.0f} B/plant RSS "
-        f"({a} -> {b} plants; target ≤ 2048)"
-    )
-    n, g, bld, tot = load_100k(max(1, args.repeat // 2))
-    print(
-        f"5. {n:,}-plant field      : generate {g:.2f} s + env build/reset {bld:.2f} s = "
-        f"{tot:.2f} s (target ≤ 10 s)"
-    )
-    print(f"6. randomized reset        : {randomized_reset(args.repeat):7.3f} s (target ≤ 1 s)")
+    if 1 in run:
+        med, low = steps_per_second(STATE_OBS, args.repeat)
+        print(
+            f"1. gps/imu/odom/route      : {med:7.0f} steps/s (min {low:.0f}; target ≥ 1500; "
+            f"{med / 20:.0f}x real time)"
+        )
+    if 2 in run:
+        med, low = steps_per_second((*STATE_OBS, "depth"), args.repeat)
+        print(f"2. + depth 64x48           : {med:7.0f} steps/s (min {low:.0f}; target ≥ 300)")
+    if 3 in run:
+        report_interleaved(interleaved(args.repeat), args.repeat)
+    if 4 in run:
+        a, b, per, rss = memory_per_plant()
+        print(
+            f"4. marginal memory         : {per:7.0f} B/plant traced, {rss:.0f} B/plant RSS "
+            f"({a} -> {b} plants; target ≤ 2048)"
+        )
+    if 5 in run:
+        n, g, bld, tot = load_100k(max(1, args.repeat // 2))
+        print(
+            f"5. {n:,}-plant field      : generate {g:.2f} s + env build/reset {bld:.2f} s = "
+            f"{tot:.2f} s (target ≤ 10 s)"
+        )
+    if 6 in run:
+        print(f"6. randomized reset        : {randomized_reset(args.repeat):7.3f} s (target ≤ 1 s)")
+    if 7 in run:
+        one, two = vector_scaling(args.repeat)
+        print(
+            f"7. AsyncVectorEnv (spawn)  : 1 worker {one:.0f} env steps/s, 2 workers {two:.0f}: "
+            f"{two / one:.2f}x, efficiency {two / (2 * one):.0%} (target ≥ 1.7x on "
+            f"{os.cpu_count()} cores)"
+        )
 
 
 if __name__ == "__main__":

@@ -31,8 +31,8 @@ import gymnasium as gym
 import numpy as np
 
 import agrinav_gym  # noqa: F401  (registers the envs)
-from agrinav_gym.scenarios import FixedFieldWarning
 from agrinav_gym.render import native
+from agrinav_gym.scenarios import FixedFieldWarning
 from baselines.episodes import VIDEO_BITRATE, VideoWriter, run_episode
 from policies import make_policy
 

@@ -35,6 +35,7 @@ TESTS = [
     "tests/agrinav_gym/test_mesh_camera.py",
     "tests/agrinav_gym/test_pixel_noise.py",
     "tests/agrinav_gym/test_sensors.py",
+    "tests/agrinav_gym/test_step_kernels.py",
 ]
 SELECT = "not reference"
 FLAGS = [

@@ -205,8 +205,10 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         self.readings = self.sensors.step(self.state, self.np_random)
         self.estimator.update(self.readings, self.dt)
         ctx = self._context(a)
-        ctx = dataclasses.replace(ctx, termination=self.task.check(ctx))
-        self._ended = ctx.termination is not None
+        end = self.task.check(ctx)
+        if end is not None:
+            ctx = dataclasses.replace(ctx, termination=end)
+        self._ended = end is not None
         parts = rewards.evaluate(self.cfg.reward, ctx)
         self._prev_action = a
         obs = self._observe(self._snapshot())
@@ -470,6 +472,10 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
             raise gym.error.ResetNeeded(
                 "step() after the episode terminated: call reset() first (Gymnasium's contract)"
             )
+        if type(action) is np.ndarray and action.shape == (2,) and action.dtype.kind == "f":
+            a0, a1 = action.tolist()  # the usual action: checked without a copy
+            if math.isfinite(a0) and math.isfinite(a1):
+                return min(max(a0, -1.0), 1.0), min(max(a1, -1.0), 1.0)
         try:
             raw = np.asarray(action)
         except (TypeError, ValueError):

@@ -15,7 +15,9 @@ reports ``None``, not NaN, so results compare and serialize cleanly.
 
 from __future__ import annotations
 
+import ctypes
 import math
+from bisect import bisect_left, bisect_right
 from typing import Any
 
 import numpy as np
@@ -24,6 +26,8 @@ from scipy.spatial import cKDTree
 
 from scenario_gen.arrays import FloatArray
 
+from .render import native as _native
+
 
 class RouteProjector:
     """Exact nearest segment of a polyline to a point.
@@ -31,11 +35,16 @@ class RouteProjector:
     The nearest point q of the polyline lies on a segment whose nearer endpoint is within L/2
     of q (L: the longest segment), so within d + L/2 of the query point for any upper bound d
     of the answer — the distance to the nearest vertex, or to any one segment (the task's
-    tracker knows one). Only the segments touching the vertices in that disc are tested; a
-    uniform grid of the vertices finds them with a few dictionary lookups.
+    tracker knows one). Only the segments touching the vertices in that disc are tested (any
+    set of segments that holds those gives the same answer, ties to the lowest index); a
+    uniform grid of the vertices finds them with a few dictionary lookups. Where the extension
+    is built (``native`` None: when available) the search runs in the kernel ``route_nearest``,
+    the Python below its twin (the same bits).
     """
 
-    def __init__(self, xy: FloatArray, furrow: NDArray[np.bool_]) -> None:
+    def __init__(
+        self, xy: FloatArray, furrow: NDArray[np.bool_], native: bool | None = None
+    ) -> None:
         self.xy = np.asarray(xy, np.float64)
         if len(self.xy) < 2:
             raise ValueError(f"a route needs at least 2 points, got {len(self.xy)}")
@@ -53,6 +62,63 @@ class RouteProjector:
         self._pts = self.xy.tolist()
         self._len = self.seg_len.tolist()
         self._arc = self.arc.tolist()
+        n = len(self._pts) - 1
+        # per cell, the segments touching its vertices in index order; per segment what the
+        # distance test reads (the same expressions as computed in the loop before)
+        self._cell_segs = {
+            key: sorted({j for v in verts for j in (v - 1, v) if 0 <= j < n})
+            for key, verts in self.grid.items()
+        }
+        self._segs = []
+        for k in range(n):
+            (ax, ay), (bx, by) = self._pts[k], self._pts[k + 1]
+            dx, dy = bx - ax, by - ay
+            self._segs.append((ax, ay, dx, dy, dx * dx + dy * dy))
+        # per grid row (y cell), its occupied x cells in order and their vertices with their
+        # coordinates: a disc's vertices are found among the occupied cells only
+        self._rows: dict[int, tuple[list[int], list[list[tuple[int, float, float]]]]] = {}
+        for (cx, cy), verts in sorted(self.grid.items(), key=lambda kv: (kv[0][1], kv[0][0])):
+            xs, cells = self._rows.setdefault(cy, ([], []))
+            xs.append(cx)
+            cells.append([(v, *self._pts[v]) for v in verts])
+        self._nearest: _native.RouteNearestArgs | None = None
+        if _native.available() if native is None else native:
+            self._nearest = _native.RouteNearestArgs(
+                grid=self._grid_block(), x=0.0, y=0.0, bound=0.0, d=0.0, s=0.0, k=0
+            )
+            self._call = _native.kernel("route_nearest")
+            self._ref = ctypes.byref(self._nearest)
+
+    def _grid_block(self) -> _native.RouteGrid:
+        """The search as the kernel ``route_nearest`` reads it: the segments, and the vertices
+        in a dense grid of cells (coarser than ``cell`` where the route's box would need more
+        than 2²⁰ of them: the candidates are a superset, the answer the same)."""
+        cell = self.cell
+        while True:
+            ij = np.floor(self.xy / cell).astype(np.int64)
+            lo = ij.min(axis=0)
+            ncx, ncy = (ij.max(axis=0) - lo + 1).tolist()
+            if ncx * ncy <= 1 << 20:
+                break
+            cell *= 2.0
+        ids = (ij[:, 1] - lo[1]) * ncx + (ij[:, 0] - lo[0])
+        order = np.argsort(ids, kind="stable")  # by cell, each cell's vertices in order
+        start = np.searchsorted(ids[order], np.arange(ncx * ncy + 1)).astype(np.int32)
+        return _native.RouteGrid(
+            n=len(self.xy),
+            segs=np.array(self._segs, np.float64).reshape(-1, 5),
+            seg_len=np.ascontiguousarray(self.seg_len, np.float64),
+            arc=np.ascontiguousarray(self.arc, np.float64),
+            half=self.half,
+            cell=cell,
+            cx0=int(lo[0]),
+            cy0=int(lo[1]),
+            ncx=ncx,
+            ncy=ncy,
+            cell_start=start,
+            cell_items=order.astype(np.int32),
+            xy=np.ascontiguousarray(self.xy, np.float64),
+        )
 
     @property
     def length(self) -> float:
@@ -63,33 +129,51 @@ class RouteProjector:
         bound of the distance (else the nearest vertex's distance is used)."""
         if bound is None:
             bound = float(self.tree.query((x, y))[0])
+        a = self._nearest
+        if a is not None:  # the kernel: the same search (tests compare the two)
+            a.x, a.y, a.bound = x, y, bound
+            status = self._call(self._ref)
+            if status:
+                raise _native.failed("route_nearest", status)
+            return a.d, a.k, a.s
         r = bound + self.half + 1e-9
         c = self.cell
         i0, i1 = math.floor((x - r) / c), math.floor((x + r) / c)
         j0, j1 = math.floor((y - r) / c), math.floor((y + r) / c)
-        if (i1 - i0 + 1) * (j1 - j0 + 1) > 36:  # a loose bound: the KD-tree is cheaper
-            near = self.tree.query_ball_point((x, y), r)
-        else:
-            g = self.grid
-            near = [
-                v for i in range(i0, i1 + 1) for j in range(j0, j1 + 1) for v in g.get((i, j), ())
-            ]
         n = len(self._pts) - 1
-        segs = sorted({j for v in near for j in (v - 1, v) if 0 <= j < n})
+        if i0 == i1 and j0 == j1:  # the usual case: one cell, its segments listed
+            segs = self._cell_segs.get((i0, j0), [])
+        elif j1 - j0 > 40:  # a loose bound: the KD-tree is cheaper
+            near = self.tree.query_ball_point((x, y), r)
+            segs = sorted({j for v in near for j in (v - 1, v) if 0 <= j < n})
+        else:  # the vertices in the disc, from the occupied cells of its rows
+            rows, r2 = self._rows, r * r
+            near = []
+            for j in range(j0, j1 + 1):
+                row = rows.get(j)
+                if row is None:
+                    continue
+                xs, cells = row
+                for cell in cells[bisect_left(xs, i0) : bisect_right(xs, i1)]:
+                    for v, vx, vy in cell:
+                        ex, ey = vx - x, vy - y
+                        if ex * ex + ey * ey <= r2:
+                            near.append(v)
+            segs = sorted({j for v in near for j in (v - 1, v) if 0 <= j < n})
         if len(segs) > 24:
             return self._project_many(x, y, np.asarray(segs))
-        pts, best = self._pts, (math.inf, 0, 0.0)
+        best_d, best_k, best_u = math.inf, 0, 0.0
+        table = self._segs
         for k in segs:
-            ax, ay = pts[k]
-            bx, by = pts[k + 1]
-            dx, dy = bx - ax, by - ay
-            L2 = dx * dx + dy * dy
+            ax, ay, dx, dy, L2 = table[k]
             u = 0.0 if L2 <= 0 else min(max(((x - ax) * dx + (y - ay) * dy) / L2, 0.0), 1.0)
             ex, ey = x - ax - u * dx, y - ay - u * dy
             dist = math.sqrt(ex * ex + ey * ey)
-            if dist < best[0]:
-                best = (dist, k, self._arc[k] + u * self._len[k])
-        return best
+            if dist < best_d:
+                best_d, best_k, best_u = dist, k, u
+        if best_d == math.inf:
+            return best_d, 0, 0.0
+        return best_d, best_k, self._arc[best_k] + best_u * self._len[best_k]
 
     def _project_many(self, x: float, y: float, segs: NDArray[np.intp]) -> tuple[float, int, float]:
         a, b = self.xy[segs], self.xy[segs + 1]
@@ -109,6 +193,7 @@ class EpisodeMetrics:
 
     def __init__(self, xy: FloatArray, furrow: NDArray[np.bool_]) -> None:
         self.route = RouteProjector(xy, furrow)
+        self._seg_furrow = self.route.seg_furrow.tolist()
         self.poses: list[tuple[float, float]] = []
         self.errors: list[float] = []  # per pose, for figures
         # (poses, Σd², Σ|d|, max) over all poses, in furrow, on the headland
@@ -124,20 +209,23 @@ class EpisodeMetrics:
         d, k, _ = self.route.project(x, y, bound)
         self.poses.append((x, y))
         self.errors.append(d)
-        cat = "furrow" if self.route.seg_furrow[k] else "headland"
-        for key in ("all", cat):
-            a = self.sums[key]
+        cat = "furrow" if self._seg_furrow[k] else "headland"
+        sums = self.sums
+        dd = d * d
+        for a in (sums["all"], sums[cat]):
             a[0] += 1
-            a[1] += d * d
+            a[1] += dd
             a[2] += d
             a[3] = max(a[3], d)
         if self._last is not None:
             # Each pose owns half of the path on either side of it: standing still weighs nothing.
             px, py, pd, pcat = self._last
             half = 0.5 * math.hypot(x - px, y - py)
+            path = self.path
             for key, err in (("all", pd), (pcat, pd), ("all", d), (cat, d)):
-                self.path[key][0] += half
-                self.path[key][1] += half * err * err
+                acc = path[key]
+                acc[0] += half
+                acc[1] += half * err * err
         self._last = (x, y, d, cat)
         self.reached = max(self.reached, s)
 

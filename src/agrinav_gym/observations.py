@@ -9,6 +9,7 @@ ranges, as real ones do. Every call returns a fresh array. A new observation is 
 
 from __future__ import annotations
 
+import ctypes
 import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
@@ -24,8 +25,6 @@ from .config import EnvConfig
 from .estimation import Readings
 from .interface import (
     FIX_CODES,
-    GPS_FIELDS,
-    IMU_FIELDS,
     OBS_DEPTH,
     OBS_GPS,
     OBS_IMU,
@@ -34,6 +33,7 @@ from .interface import (
     ODOM_FIELDS,
     RobotInterface,
 )
+from .render import native
 from .robot import RobotState
 from .routes import RoutePath, Tracker
 from .sensors import make_camera
@@ -91,12 +91,36 @@ class VectorObservation(ObservationModel):
     low: ClassVar[tuple[float, ...]]
     high: ClassVar[tuple[float, ...]]
 
+    def __init__(self, cfg: EnvConfig, robot: RobotInterface) -> None:
+        super().__init__(cfg, robot)
+        # the bounds as numpy compares them (float64), converted once instead of every step
+        self._low, self._high = np.asarray(self.low), np.asarray(self.high)
+        self._inside = inner_bounds(self.low, self.high)
+
     def space(self) -> spaces.Box:
         return spaces.Box(np.asarray(self.low, np.float32), np.asarray(self.high, np.float32))
 
     def saturate(self, v: F32) -> F32:
-        np.minimum(np.maximum(v, self.low, out=v), self.high, out=v)
+        np.minimum(np.maximum(v, self._low, out=v), self._high, out=v)
         return v
+
+    def pack(self, values: list[float]) -> F32:
+        """``values`` as float32, saturated: where every value is well inside its range (the
+        usual case) saturation changes nothing and is skipped."""
+        out = np.array(values, np.float32)
+        for v, (lo, hi) in zip(values, self._inside, strict=True):
+            if not lo < v < hi:
+                return self.saturate(out)
+        return out
+
+
+def inner_bounds(low: tuple[float, ...], high: tuple[float, ...]) -> list[tuple[float, float]]:
+    """Per value, a range a little inside [low, high]: a float64 strictly inside it rounds to a
+    float32 inside [low, high] (float32 rounding moves a value by at most 2⁻²⁴ of it)."""
+    return [
+        (lo + 1e-6 * max(1.0, abs(lo)), hi - 1e-6 * max(1.0, abs(hi)))
+        for lo, hi in zip(low, high, strict=True)
+    ]
 
 
 OBSERVATION_MODELS: dict[str, type[ObservationModel]] = {}
@@ -118,11 +142,8 @@ class GpsObservation(VectorObservation):
 
     def encode(self, snap: Snapshot) -> F32:
         r = snap.readings
-        out = np.empty(len(GPS_FIELDS), np.float32)
-        out[:3] = r.gnss_enu
-        out[3] = FIX_CODES[r.gnss_mode]
-        out[4] = min(r.gnss_age, 60.0)
-        return self.saturate(out)
+        e, n, u = r.gnss_enu.tolist()
+        return self.pack([e, n, u, FIX_CODES[r.gnss_mode], min(r.gnss_age, 60.0)])
 
 
 @observation
@@ -135,10 +156,9 @@ class ImuObservation(VectorObservation):
 
     def encode(self, snap: Snapshot) -> F32:
         r = snap.readings
-        out = np.empty(len(IMU_FIELDS), np.float32)
-        out[:3], out[3:6], out[6:8] = r.accel, r.gyro, r.rpy[:2]
-        out[8], out[9] = math.sin(r.rpy[2]), math.cos(r.rpy[2])
-        return self.saturate(out)
+        roll, pitch, yaw = r.rpy.tolist()
+        values = [*r.accel.tolist(), *r.gyro.tolist(), roll, pitch, math.sin(yaw), math.cos(yaw)]
+        return self.pack(values)
 
 
 @observation
@@ -150,9 +170,9 @@ class OdomObservation(VectorObservation):
     high = (10.0, 20.0)
 
     def encode(self, snap: Snapshot) -> F32:
-        out = np.asarray(snap.readings.odom, np.float32).copy()
-        assert out.shape == (len(ODOM_FIELDS),)
-        return self.saturate(out)
+        values = np.asarray(snap.readings.odom, np.float64).tolist()
+        assert len(values) == len(ODOM_FIELDS)
+        return self.pack(values)
 
 
 @observation
@@ -166,9 +186,12 @@ class RouteObservation(ObservationModel):
         super().__init__(cfg, robot)
         k = robot.route_points
         self.offsets = robot.route_spacing * np.arange(1, k + 1)
+        self._offsets = self.offsets.tolist()
         self.low = np.tile(np.array([-100.0, -100.0, 0.0], np.float32), k)
         self.high = np.tile(np.array([100.0, 100.0, 1.0], np.float32), k)
+        ((self._lo, self._hi),) = inner_bounds((-100.0,), (100.0,))
         self.tracker: Tracker | None = None
+        self._points: native.RoutePointsArgs | None = None
 
     def space(self) -> spaces.Box:
         return spaces.Box(self.low, self.high)
@@ -176,18 +199,40 @@ class RouteObservation(ObservationModel):
     def reset(self, snap: Snapshot) -> None:
         self.tracker = Tracker(snap.route)
         self.tracker.reset_at(snap.start_arc, snap.start[0], snap.start[1])
+        self._points = None
+        if native.available():  # the kernel route_points, else the Python below (its twin)
+            self._out = np.empty(3 * len(self._offsets), np.float32)
+            self._points = native.RoutePointsArgs(
+                route=snap.route.native, s=0.0, n=len(self._offsets),
+                offsets=np.ascontiguousarray(self.offsets, np.float64), x=0.0, y=0.0,
+                cos_yaw=1.0, sin_yaw=0.0, lo=-100.0, hi=100.0, out=self._out,
+            )  # fmt: skip
+            self._call = native.kernel("route_points")
+            self._ref = ctypes.byref(self._points)
 
     def encode(self, snap: Snapshot) -> F32:
         assert self.tracker is not None
         ex, ey, yaw = snap.estimate
         _, s, _ = self.tracker.update(ex, ey)
-        pts, furrow = snap.route.lookup(s + self.offsets)
+        a = self._points
+        if a is not None:
+            a.s, a.x, a.y, a.cos_yaw, a.sin_yaw = s, ex, ey, math.cos(yaw), math.sin(yaw)
+            status = self._call(self._ref)
+            if status:
+                raise native.failed("route_points", status)
+            return self._out.copy()
+        pts, furrow = snap.route.lookup_points([s + o for o in self._offsets])
         c, sn = math.cos(yaw), math.sin(yaw)
-        out = np.empty((len(self.offsets), 3), np.float32)
-        out[:, :2] = (pts - (ex, ey)) @ np.array([[c, -sn], [sn, c]])  # world -> robot frame
-        out[:, 2] = furrow
-        flat = out.ravel()
-        np.minimum(np.maximum(flat, self.low, out=flat), self.high, out=flat)
+        rel = ((pts - (ex, ey)) @ np.array([[c, -sn], [sn, c]])).tolist()  # world -> robot
+        values: list[float] = []
+        inside = True
+        lo, hi = self._lo, self._hi
+        for (x, y), f in zip(rel, furrow, strict=True):
+            values += (x, y, 1.0 if f else 0.0)
+            inside = inside and lo < x < hi and lo < y < hi
+        flat = np.array(values, np.float32)
+        if not inside:  # saturate (the flags are 0 or 1: inside their range)
+            np.minimum(np.maximum(flat, self.low, out=flat), self.high, out=flat)
         return flat
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import ctypes
 import itertools
 import math
 from dataclasses import dataclass
@@ -14,10 +15,13 @@ from scenario_gen import Scenario
 from scenario_gen.arrays import FloatArray
 from scenario_gen.routes import lane_path
 
+from .render import native as _native
+
 TABLE_STEP = 0.02  # m: route lookup table resolution (waypoints are ≤ 0.1 m apart)
 #: A reversing route's cusp counts as reached this close along the route (m): a robot stops
 #: and reverses within a few centimetres of it.
 CUSP_REACH = 0.1
+FEW = 32  # lookups of at most this many points run in Python floats (lookup_points)
 
 
 @dataclass(frozen=True, eq=False)
@@ -72,6 +76,8 @@ class RoutePath:
         """Points and furrow tags at arc lengths ``s``. Past the end the route's last segment
         goes on at true distances, so "keep going straight" is what an observation says there
         (the end point repeated would say "stop here")."""
+        if len(s) <= FEW:
+            return self.lookup_points(s.tolist())
         pts, tags, direction = self._table
         u = np.maximum(s, 0.0) / TABLE_STEP
         i = np.minimum(u.astype(np.intp), len(pts) - 2)
@@ -83,6 +89,54 @@ class RoutePath:
             out[past] = self.xy[-1] + (s[past] - self.length)[:, None] * direction
             tag = np.where(past, self.furrow[-1], tag)
         return out, tag
+
+    @cached_property
+    def _table_lists(self) -> tuple[list[list[float]], list[bool], float, float, float, float]:
+        pts, tags, direction = self._table
+        (x1, y1), (dx, dy) = self.xy[-1].tolist(), direction.tolist()
+        return pts.tolist(), tags.tolist(), x1, y1, dx, dy
+
+    def lookup_points(self, s: list[float]) -> tuple[FloatArray, NDArray[np.bool_]]:
+        """``lookup`` of a few arc lengths (an observation's points) in Python floats: the
+        same arithmetic, element by element, without numpy's per-call cost."""
+        pts, tags, x1, y1, dx, dy = self._table_lists
+        last = len(pts) - 2
+        end = (len(pts) - 1) * TABLE_STEP
+        length = self.length
+        xy: list[float] = []
+        tag: list[bool] = []
+        for v in s:
+            if v > end:  # past the end: the last segment goes on
+                t = v - length
+                xy += (x1 + t * dx, y1 + t * dy)
+                tag.append(bool(self.furrow[-1]))
+                continue
+            u = max(v, 0.0) / TABLE_STEP
+            i = min(int(u), last)
+            f = min(u - i, 1.0)
+            (ax, ay), (bx, by) = pts[i], pts[i + 1]
+            g = 1.0 - f
+            xy += (ax * g + bx * f, ay * g + by * f)
+            tag.append(tags[i])
+        return np.array(xy, np.float64).reshape(-1, 2), np.array(tag, bool)
+
+    @cached_property
+    def native(self) -> _native.Route:
+        """The route as the compiled kernels read it (``route_t``)."""
+        pts, tags, direction = self._table
+        return _native.Route(
+            xy=np.ascontiguousarray(self.xy, np.float64),
+            arc=np.ascontiguousarray(self.arc, np.float64),
+            n=len(self.xy),
+            table=np.ascontiguousarray(pts, np.float64),
+            tags=np.ascontiguousarray(tags, np.uint8),
+            m=len(pts),
+            table_step=TABLE_STEP,
+            end=self.xy[-1].tolist(),
+            direction=direction.tolist(),
+            length=self.length,
+            furrow_last=int(bool(self.furrow[-1])),
+        )
 
     def sample(self, s: FloatArray) -> FloatArray:
         """Points at arc lengths ``s`` (clamped to the route)."""
@@ -117,15 +171,18 @@ def scenario_route(scn: Scenario) -> RoutePath:
 class Tracker:
     """Nearest route segment to a moving point, searched in a window around the last match.
 
-    Called twice per env step with a handful of segments, so it is plain Python: for windows
-    this small numpy's per-call overhead costs more than the arithmetic.
+    Called twice per env step with a handful of segments: in the compiled kernel
+    ``route_track`` where the extension is built (``native`` None: when available), else in
+    Python floats (for windows this small numpy's per-call cost exceeds the arithmetic); the
+    two give the same bits.
 
     A route that reverses (a three-point turn) doubles back on itself at its cusps, where the
     nearest segment may lie on the other leg: the search then stays within the leg it is on
-    and moves on to the next leg once the point's foot is within ``CUSP_REACH`` of the cusp.
+    and moves on to the next leg once the point's foot is within ``CUSP_REACH`` of the cusp
+    (in Python: the kernel searches one leg-free route).
     """
 
-    def __init__(self, route: RoutePath) -> None:
+    def __init__(self, route: RoutePath, native: bool | None = None) -> None:
         self.route = route
         self.k = 0
         self._xy = route.xy.tolist()
@@ -137,6 +194,14 @@ class Tracker:
             cuts = [0, *(np.flatnonzero(seg[1:] != seg[:-1]) + 1).tolist(), len(seg)]
             self._legs = [(a, b - 1) for a, b in itertools.pairwise(cuts)]
             self._leg_of = np.repeat(np.arange(len(self._legs)), np.diff(cuts)).tolist()
+        self._args: _native.RouteTrackArgs | None = None
+        use_kernel = _native.available() if native is None else native
+        if use_kernel and self._legs is None:
+            self._args = _native.RouteTrackArgs(
+                route=route.native, x=0.0, y=0.0, k=0, cte=0.0, s=0.0
+            )
+            self._call = _native.kernel("route_track")
+            self._ref = ctypes.byref(self._args)
 
     def reset(self, x: float, y: float) -> None:
         d = np.hypot(self.route.xy[:, 0] - x, self.route.xy[:, 1] - y)
@@ -167,6 +232,14 @@ class Tracker:
         Walks forward, then backward, from the last match while the distance shrinks, so a
         step costs a few segment tests; the route's continuity keeps it on the right lane.
         """
+        a = self._args
+        if a is not None:
+            a.x, a.y, a.k = x, y, self.k
+            status = self._call(self._ref)
+            if status:
+                raise _native.failed("route_track", status)
+            self.k = k = a.k
+            return a.cte, a.s, k
         last = len(self._xy) - 2
         k = min(self.k, last)
         lo, hi = 0, last

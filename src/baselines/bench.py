@@ -6,6 +6,7 @@ import json
 import warnings
 from collections import Counter
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -24,6 +25,8 @@ from .episodes import (
     run_with_interventions,
     trajectory_figure,
 )
+from .journal import Journal
+from .parallel import Tasks, check_spread
 from .report import METRICS, bar_chart, command_line, policy_labels, table
 from .suites import EVAL_SEED, Case, suite
 
@@ -205,8 +208,16 @@ def bench(
     command: str = "",
     force: bool = False,
     trust_checkpoint: bool = False,
+    workers: int = 1,
+    ray: str | None = None,
 ) -> list[dict[str, Any]]:
-    """Every policy on every case of a suite, the same held-out seeds for all."""
+    """Every policy on every case of a suite, the same held-out seeds for all.
+
+    Each episode is a task (``baselines.parallel``: this process, ``workers`` processes or Ray
+    tasks at ``ray``); an episode is a function of its case, policy and seed alone, so the
+    records are the same however they were spread (but ``seconds``, each episode's wall
+    time). Finished episodes are kept in ``.<out>.partial/`` as they come back
+    (``baselines.journal``): the same command after a kill runs only the missing ones."""
     if not 1 <= seeds <= CASE_SEEDS:
         raise InputError("--seeds", seeds, f"allowed: an integer in [1, {CASE_SEEDS}]")
     if not policies:
@@ -215,6 +226,7 @@ def bench(
     labels = policy_labels(policies)
     for spec in policies:
         check_policy_spec(spec)
+    check_spread(workers, ray)
     check_output_dir(out, force)
     for case in cases:  # every policy must fit every case before any episode runs
         env = _make_env(case)
@@ -223,41 +235,125 @@ def bench(
                 _policy(spec, env, trust_checkpoint)
         finally:
             env.close()
-    records: list[dict[str, Any]] = []
-    total = len(cases) * len(policies) * seeds
+    jobs = [
+        EpisodeJob(suite_name, ci, pi, spec, name, k, trust_checkpoint)
+        for ci in range(len(cases))
+        for pi, (spec, name) in enumerate(zip(policies, labels, strict=True))
+        for k in range(seeds)
+    ]
+    identity = {
+        "command": "bench",
+        "suite": suite_name,
+        "policies": list(policies),
+        "seeds": seeds,
+        "trust_checkpoint": trust_checkpoint,
+        "version": _version(),
+    }
+    journal = Journal(out, identity)
     with (
         output_dir(out, force) as tmp,
-        tqdm(total=total, desc=f"bench {suite_name}", unit="ep") as bar,
+        tqdm(total=len(jobs), desc=f"bench {suite_name}", unit="ep") as bar,
     ):
-        for ci, case in enumerate(cases):
-            env = _make_env(case)
+        done = journal.open(force)
+        bar.update(sum(j.key in done for j in jobs))
+        with Tasks(workers, ray) as tasks:
             try:
-                for spec, name in zip(policies, labels, strict=True):
-                    pi = _policy(spec, env, trust_checkpoint)
-                    for k in range(seeds):
-                        # each case its own sensor-noise draws: groups that differ only in
-                        # what a policy cannot see are still independent samples
-                        run = run_with_interventions if case.interventions else run_episode
-                        ep = run(env, pi, EVAL_SEED + CASE_SEEDS * ci + k, name)
-                        records.append(_record(ep, suite_name, case.group, env))
-                        trajectory_figure(  # every episode: the second seed is a field too
-                            ep,
-                            tmp / trajectory_name(case.group, name, k),
-                            f"{name} · {suite_name} · {case.group} · seed {ep.seed}",
-                        )
-                        bar.update(1)
-                        bar.set_postfix(case=case.group, policy=name)
+                for key, record, png in tasks.map(
+                    episode_task, [j for j in jobs if j.key not in done]
+                ):
+                    journal.save(key, record, {"png": png} if png is not None else None)
+                    done[key] = json.loads(json.dumps(record))  # as a resumed run reads it
+                    bar.update(1)
+                    bar.set_postfix(case=record["scenario"], policy=record["policy"])
             finally:
-                env.close()
-            atomic_write_text(tmp / "results.json", json.dumps(records, indent=1))
+                release_episode_envs()
+        records = [done[j.key] for j in jobs]
+        for j in jobs:
+            if j.figure:
+                case = cases[j.case]
+                (tmp / trajectory_name(case.group, j.label, j.seed)).write_bytes(
+                    journal.blob(j.key, "png")
+                )
+        atomic_write_text(tmp / "results.json", json.dumps(records, indent=1))
         (tmp / "benchmark.md").write_text(table(records, suite_name, command))
         bar_chart(records, tmp / "benchmark.png", suite_name)
+    journal.remove()
     return records
 
 
 def trajectory_name(group: str, policy: str, k: int) -> str:
     """The trajectory figure of a suite's case, policy and k-th seed."""
     return f"traj_{_slug(group)}_{_slug(policy)}_{k:03d}.png"
+
+
+@dataclass(frozen=True)
+class EpisodeJob:
+    """One episode of ``agrinav bench``: case ``case`` of suite ``suite``, policy ``policy``
+    (``spec``, shown as ``label``), the case's ``seed``-th evaluation seed."""
+
+    suite: str
+    case: int
+    policy: int
+    spec: str
+    label: str
+    seed: int
+    trust: bool
+
+    @property
+    def key(self) -> str:
+        return f"c{self.case:03d}-p{self.policy:02d}-s{self.seed:05d}"
+
+    @property
+    def figure(self) -> bool:
+        """Every episode draws its trajectory figure: the second seed is a field too."""
+        return True
+
+
+#: a worker's env and policies, kept while its episodes stay on one case
+_EPISODE_ENV: dict[str, Any] = {}
+
+
+def episode_task(job: EpisodeJob) -> tuple[str, dict[str, Any], bytes | None]:
+    """(key, record, trajectory figure PNG or None) of one bench episode (in any process)."""
+    import io
+
+    cached = _EPISODE_ENV
+    case = suite(job.suite)[job.case]
+    if cached.get("case") != (job.suite, job.case):
+        release_episode_envs()
+        cached.update(case=(job.suite, job.case), env=_make_env(case), policies={})
+    env, pols = cached["env"], cached["policies"]
+    if job.policy not in pols:
+        pols[job.policy] = _policy(job.spec, env, job.trust)
+    # each case its own sensor-noise draws: groups that differ only in what a policy cannot
+    # see are still independent samples
+    run = run_with_interventions if case.interventions else run_episode
+    ep = run(env, pols[job.policy], EVAL_SEED + CASE_SEEDS * job.case + job.seed, job.label)
+    record = _record(ep, job.suite, case.group, env)
+    png = None
+    if job.figure:
+        buf = io.BytesIO()
+        title = f"{job.label} · {job.suite} · {case.group} · seed {ep.seed}"
+        trajectory_figure(ep, buf, title)  # type: ignore[arg-type]
+        png = buf.getvalue()
+    return job.key, record, png
+
+
+def release_episode_envs() -> None:
+    """Close the env ``episode_task`` keeps (this process's)."""
+    env = _EPISODE_ENV.pop("env", None)
+    _EPISODE_ENV.clear()
+    if env is not None:
+        env.close()
+
+
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("agrinav-gym")
+    except PackageNotFoundError:
+        return "unknown"
 
 
 def _slug(s: str) -> str:

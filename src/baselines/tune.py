@@ -18,8 +18,8 @@ them), ``trials.csv`` (every trial), ``search.png`` and ``command.txt``.
 
 from __future__ import annotations
 
-import contextlib
 import csv
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -101,21 +101,58 @@ def run_trial(
     """``episodes`` episodes (reset seeds ``seed``, ``seed + 1``, ...) with ``params``."""
     from policies import make_policy
 
+    pi = make_policy(policy, env, **policy_kwargs(policy, params))
+    return [_episode(env, pi, policy, seed + k) for k in range(episodes)]
+
+
+def _episode(env: Any, pi: Any, policy: str, seed: int) -> dict[str, Any]:
     from .episodes import run_episode
 
-    pi = make_policy(policy, env, **policy_kwargs(policy, params))
-    out = []
-    for k in range(episodes):
-        ep = run_episode(env, pi, seed + k, policy)
-        out.append(
-            {
-                "finished": ep.termination == "success",
-                "path_rmse": ep.metrics["path_rmse"],
-                "completion": ep.metrics["completion"],
-                "crops_hit": ep.metrics["crops_hit"],
-            }
-        )
-    return out
+    ep = run_episode(env, pi, seed, policy)
+    return {
+        "finished": ep.termination == "success",
+        "path_rmse": ep.metrics["path_rmse"],
+        "completion": ep.metrics["completion"],
+        "crops_hit": ep.metrics["crops_hit"],
+    }
+
+
+@dataclass(frozen=True)
+class TrialEpisode:
+    """Episode ``episode`` of trial ``trial``: ``policy`` with ``params`` from reset ``seed``."""
+
+    trial: int
+    episode: int
+    policy: str
+    params: tuple[tuple[str, float], ...]
+    seed: int
+
+    @property
+    def key(self) -> str:
+        return f"t{self.trial:05d}-e{self.episode:04d}"
+
+
+#: a worker's training env and the policy it was built for (every trial drives the same fields)
+_TRAINING_ENV: list[tuple[str, Any]] = []
+
+
+def trial_episode(job: TrialEpisode) -> tuple[str, dict[str, Any]]:
+    """(key, result) of one episode of a trial (in any process; the env is built once)."""
+    from policies import make_policy
+
+    if _TRAINING_ENV and _TRAINING_ENV[0][0] != job.policy:
+        release_training_env()  # another controller observes other keys (DWB: depth)
+    if not _TRAINING_ENV:
+        _TRAINING_ENV.append((job.policy, training_env(job.policy)))
+    env = _TRAINING_ENV[0][1]
+    pi = make_policy(job.policy, env, **policy_kwargs(job.policy, dict(job.params)))
+    return job.key, _episode(env, pi, job.policy, job.seed)
+
+
+def release_training_env() -> None:
+    """Close the env ``trial_episode`` keeps (this process's)."""
+    while _TRAINING_ENV:
+        _TRAINING_ENV.pop()[1].close()
 
 
 def tune(
@@ -126,8 +163,16 @@ def tune(
     out: str | Path,
     command: str = "",
     force: bool = False,
+    workers: int = 1,
+    ray: str | None = None,
 ) -> dict[str, Any]:
-    """Search ``policy``'s parameters; returns the best trial (see the module docstring)."""
+    """Search ``policy``'s parameters; returns the best trial (see the module docstring).
+
+    A trial's episodes are tasks (``baselines.parallel``: ``workers`` processes or Ray tasks at
+    ``ray``); trials follow one another, each asked of the sampler after the one before was
+    scored, so the search is the same however its episodes were spread. Finished episodes
+    are kept in ``.<out>.partial/`` (``baselines.journal``): the same command after a kill
+    replays the trials it finished into the sampler without running them again."""
     try:
         import optuna
     except ImportError:
@@ -138,8 +183,13 @@ def tune(
 
     from scenario_gen.atomic import atomic_write_text
 
+    from .bench import _version
+    from .journal import Journal
+    from .parallel import Tasks, check_spread
+
     if policy not in SEARCH:
         raise InputError("--policy", policy, f"allowed: one of {', '.join(SEARCH)}")
+    check_spread(workers, ray)
     check_output_dir(out, force, "--out")
     space = SEARCH[policy]
     optuna.logging.set_verbosity(optuna.logging.WARNING)
@@ -147,30 +197,52 @@ def tune(
     # The published defaults are trial 0: the search can only match or beat them.
     study.enqueue_trial(default_params(policy))
     rows: list[dict[str, Any]] = []
-    with contextlib.closing(training_env(policy)) as env:
-        for _ in tqdm(range(trials), desc=f"tune {policy}", unit="trial"):
-            trial = study.ask()
-            params = {name: trial.suggest_float(name, lo, hi) for name, (lo, hi) in space.items()}
-            if policy == "rpp" and params["min_lookahead"] > params["max_lookahead"]:
-                params["min_lookahead"], params["max_lookahead"] = (
-                    params["max_lookahead"],
-                    params["min_lookahead"],
-                )
-            records = run_trial(env, policy, params, episodes, seed)
-            value = score(records)
-            study.tell(trial, value)
-            rows.append(
-                {
-                    "trial": trial.number,
-                    **{k: round(v, 4) for k, v in params.items()},
-                    "score": round(value, 5),
-                    "finished": sum(r["finished"] for r in records),
-                    "episodes": len(records),
-                    "crops_hit": sum(int(r["crops_hit"]) for r in records),
-                }
-            )
-    best = min(rows, key=lambda r: (r["score"], r["trial"]))
+    identity = {
+        "command": "tune",
+        "policy": policy,
+        "trials": trials,
+        "episodes": episodes,
+        "seed": seed,
+        "version": _version(),
+    }
+    journal = Journal(out, identity)
     with output_dir(out, force, "--out") as tmp:
+        done = journal.open(force, "--out")
+        with Tasks(workers, ray) as tasks:
+            try:
+                for _ in tqdm(range(trials), desc=f"tune {policy}", unit="trial"):
+                    trial = study.ask()
+                    params = {n: trial.suggest_float(n, lo, hi) for n, (lo, hi) in space.items()}
+                    if policy == "rpp" and params["min_lookahead"] > params["max_lookahead"]:
+                        params["min_lookahead"], params["max_lookahead"] = (
+                            params["max_lookahead"],
+                            params["min_lookahead"],
+                        )
+                    jobs = [
+                        TrialEpisode(trial.number, k, policy, tuple(params.items()), seed + k)
+                        for k in range(episodes)
+                    ]
+                    for key, result in tasks.map(
+                        trial_episode, [j for j in jobs if j.key not in done]
+                    ):
+                        journal.save(key, result)
+                        done[key] = result
+                    records = [done[j.key] for j in jobs]
+                    value = score(records)
+                    study.tell(trial, value)
+                    rows.append(
+                        {
+                            "trial": trial.number,
+                            **{k: round(v, 4) for k, v in params.items()},
+                            "score": round(value, 5),
+                            "finished": sum(r["finished"] for r in records),
+                            "episodes": len(records),
+                            "crops_hit": sum(int(r["crops_hit"]) for r in records),
+                        }
+                    )
+            finally:
+                release_training_env()
+        best = min(rows, key=lambda r: (r["score"], r["trial"]))
         with open(tmp / "trials.csv", "w", newline="") as f:
             w = csv.DictWriter(f, fieldnames=list(rows[0]))
             w.writeheader()
@@ -188,6 +260,7 @@ def tune(
         atomic_write_text(tmp / "best.yaml", header + yaml.safe_dump(chosen, sort_keys=True))
         atomic_write_text(tmp / "command.txt", (command or "agrinav tune ...") + "\n")
         search_figure(rows, tmp / "search.png", policy)
+    journal.remove()
     return best
 
 

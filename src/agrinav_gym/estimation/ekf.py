@@ -17,24 +17,35 @@ measurement: the antenna position is base_link plus the lever arm rotated by the
 pitch and the *state's* yaw. A fix is applied at its epoch (its age says how old it is): the
 filter keeps its recent posteriors and readings, applies the fix there and re-runs the steps
 since (robot_localization's history-based handling of lagged data).
+
+Each update runs in the compiled kernel ``ekf_update`` (``render/csrc/ekf.c``) where the
+extension is built; this module's numpy filter is its twin and reference (the same operations
+in the same order; numpy's matrix products and LAPACK's solve round differently, so the two
+agree to rounding, tests bound how closely).
 """
 
 from __future__ import annotations
 
+import ctypes
 import math
+import struct
 from collections import deque
 
 import numpy as np
 from scipy.linalg.lapack import dposv
 
 from ..config import LocalisationConfig
-from ..interface import GNSS_NONE, GNSS_RTK_FIXED, GNSS_RTK_FLOAT, GNSS_STANDALONE
+from ..interface import FIX_LEVELS, GNSS_NONE, GNSS_RTK_FIXED, GNSS_RTK_FLOAT, GNSS_STANDALONE
+from ..render import native as _native
 from .readings import FloatArray, Readings
 
 N = 12
 X, Y, PSI, VX, VY, W, AX, AY, BIAS, EE, EN, SCALE = range(N)
 G = 9.81
 DIFFUSE = 1e6  # m², a position prior the first fix overrides completely
+LEVEL = {mode: i for i, mode in enumerate(FIX_LEVELS)}
+#: a step's readings and fix, as the kernel takes them (csrc/native.h: EKF_READING, EKF_GNSS)
+_PACK = struct.Struct(f"{_native.EKF_READING + _native.EKF_GNSS}d")
 
 
 def _wrap(a: float) -> float:
@@ -42,11 +53,15 @@ def _wrap(a: float) -> float:
 
 
 class Ekf:
-    """See the module docstring; ``skid_factor`` is the controller's χ (odometry ω / χ)."""
+    """See the module docstring; ``skid_factor`` is the controller's χ (odometry ω / χ);
+    ``native`` picks the kernel (True) or the numpy twin (False); None: the kernel where the
+    extension is built (``AGRINAV_NATIVE=0`` disables it)."""
 
     name = "ekf"
 
-    def __init__(self, cfg: LocalisationConfig, skid_factor: float, dt: float) -> None:
+    def __init__(
+        self, cfg: LocalisationConfig, skid_factor: float, dt: float, native: bool | None = None
+    ) -> None:
         self.cfg = cfg
         self.chi = skid_factor
         self.dt = dt
@@ -78,6 +93,45 @@ class Ekf:
             [0.0, 0.0, cfg.lateral_sigma**2, self.gyro_var, math.radians(0.01) ** 2]
             + [cfg.accel_sigma**2] * 2
         )
+        self.native = _native.available() if native is None else native
+        if self.native:
+            self._kernel_setup()
+
+    def _kernel_setup(self) -> None:
+        """The kernel's constants, state and history buffers (filled once, by name)."""
+        c = self.cfg
+        cap = self._hist.maxlen
+        assert cap is not None
+        tau = [0.0] * len(FIX_LEVELS)
+        for mode, t in self.tau.items():
+            tau[LEVEL[mode]] = t
+        config = _native.EkfConfig(
+            chi=self.chi, phi_b=self.phi_b, q_bias=self.sb * self.sb * (1.0 - self.phi_b**2),
+            pose_noise=c.pose_noise, yaw_noise=c.yaw_noise, velocity_noise=c.velocity_noise,
+            yaw_accel_noise=c.yaw_accel_noise, accel_noise=c.accel_noise,
+            odom_scale_noise=c.odom_scale_noise, tau=tau, r_step=self._R.tolist(),
+            odom_speed_rel=c.odom_speed_rel, odom_yaw_rel=c.odom_yaw_rel,
+            odom_floor=c.odom_floor, gnss_white=c.gnss_white, history_s=c.history_s,
+            use_accel=int(c.use_accel),
+        )  # fmt: skip
+        self._s, self._P = np.zeros(N), np.zeros((N, N))
+        self._filter = _native.EkfFilter(
+            s=self._s, P=self._P, mode=-1, gnss_var=0.0, k=-1, capacity=cap, count=0, head=0,
+            hist_s=np.zeros((cap, N)), hist_P=np.zeros((cap, N * N)),
+            hist_r=np.zeros((cap, _native.EKF_READING)), hist_var=np.zeros(cap),
+            hist_mode=np.zeros(cap, np.int32),
+        )  # fmt: skip
+        self._io = np.zeros(_native.EKF_READING + _native.EKF_GNSS)
+        self._iov = self._io.data.cast("B")
+        self._args = _native.EkfUpdateArgs(
+            config=config,
+            filter=self._filter,
+            dt=self.dt,
+            reading=self._io[: _native.EKF_READING],
+            gnss=self._io[_native.EKF_READING :],
+        )
+        self._call = _native.kernel("ekf_update")
+        self._ref = ctypes.byref(self._args)
 
     # ------------------------------------------------------------------ protocol
     def reset(self, x: float, y: float, yaw: float, rng: np.random.Generator) -> None:
@@ -100,8 +154,16 @@ class Ekf:
         self._gnss_var = 0.0
         self.k = -1  # the first update is step 0 (the reset readings)
         self._hist.clear()
+        if self.native:  # the kernel's buffers hold the state from here on
+            self._s[:], self._P[:] = self.s, self.P
+            self.s, self.P = self._s, self._P
+            f = self._filter
+            f.mode, f.gnss_var, f.k, f.count, f.head = -1, 0.0, -1, 0, 0
 
     def update(self, r: Readings, dt: float) -> None:
+        if self.native:
+            self._kernel_update(r, dt)
+            return
         self.k += 1
         if self.k > 0:
             self._predict(dt)
@@ -114,6 +176,26 @@ class Ekf:
         self._remember(r)
         if r.gnss_new and r.gnss_mode != GNSS_NONE:
             self._fuse_lagged_fix(r, dt)
+
+    def _kernel_update(self, r: Readings, dt: float) -> None:
+        odom, rpy, enu, sigma, lever = r.odom, r.rpy, r.gnss_enu, r.gnss_sigma, r.antenna_lever
+        _PACK.pack_into(
+            self._iov, 0,
+            odom[0], odom[1], r.gyro[2], rpy[0], rpy[1], rpy[2], r.accel[0], r.accel[1],
+            1.0 if r.gnss_new else 0.0, LEVEL[r.gnss_mode], enu[0], enu[1], sigma[0], sigma[1],
+            r.gnss_age, lever[0], lever[2],
+        )  # fmt: skip
+        args = self._args
+        if dt != args.dt:
+            args.dt = dt
+        status = self._call(self._ref)
+        f = self._filter
+        self.k, self._gnss_var = f.k, f.gnss_var
+        self.gnss_mode = FIX_LEVELS[f.mode] if f.mode >= 0 else None
+        if status == _native.NOT_POSITIVE:
+            raise np.linalg.LinAlgError("EKF innovation covariance not positive (ekf_update)")
+        if status:
+            raise _native.failed("ekf_update", status)
 
     @property
     def pose(self) -> tuple[float, float, float]:

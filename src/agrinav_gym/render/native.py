@@ -1,4 +1,6 @@
-"""The compiled sensor kernels (``src/agrinav_gym/render/csrc``) through ctypes.
+"""The compiled kernels (``src/agrinav_gym/render/csrc``) through ctypes: the sensors', the tyre
+model's (``sim/tyres.py``), the EKF's (``estimation/ekf.py``) and the route's (``routes.py``,
+``metrics.py``: the trackers, the route observation, the metrics' nearest segment).
 
 The kernels are plain C functions in the optional extension ``agrinav_gym.render._native`` (built by
 ``pip install``/``make`` where a C compiler exists). ctypes releases the GIL during each call,
@@ -452,6 +454,176 @@ class EmbreePacketsArgs(Args, kernel="embree_packets"):
     ]
 
 
+class TyreGround(Struct, c="tyre_ground_t"):
+    """The terrain's height grid and the soil under the tyres (sim/tyres.py)."""
+
+    _fields_ = [
+        ("heights", F64),
+        ("nx", i32),
+        ("ny", i32),
+        ("x0", f64),
+        ("y0", f64),
+        ("spacing", f64),
+        ("radius", f64),
+        ("dt", f64),
+        ("kz", f64),
+        ("cz", f64),
+        ("friction", f64),
+        ("shear_modulus", f64),
+        ("contact_length", f64),
+        ("rolling_resistance", f64),
+        ("shear_damping", f64),
+    ]
+
+
+class TyreForcesArgs(Args, kernel="tyre_forces"):
+    _fields_ = [
+        ("ground", block(TyreGround)),
+        ("n", i32),
+        ("wheels", F64),
+        ("shear", F64),
+        ("normal", F64),
+        ("out", F64),
+    ]
+
+
+class EkfConfig(Struct, c="ekf_config_t"):
+    """The EKF's constants (estimation/ekf.py)."""
+
+    _fields_ = [
+        ("chi", f64),
+        ("phi_b", f64),
+        ("q_bias", f64),
+        ("pose_noise", f64),
+        ("yaw_noise", f64),
+        ("velocity_noise", f64),
+        ("yaw_accel_noise", f64),
+        ("accel_noise", f64),
+        ("odom_scale_noise", f64),
+        ("tau", vec(4)),
+        ("r_step", vec(7)),
+        ("odom_speed_rel", f64),
+        ("odom_yaw_rel", f64),
+        ("odom_floor", f64),
+        ("gnss_white", f64),
+        ("history_s", f64),
+        ("use_accel", i32),
+    ]
+
+
+class EkfFilter(Struct, c="ekf_filter_t"):
+    """The EKF's state and history, which ``ekf_update`` reads and writes."""
+
+    _fields_ = [
+        ("s", F64),
+        ("P", F64),
+        ("mode", i32),
+        ("gnss_var", f64),
+        ("k", i32),
+        ("capacity", i32),
+        ("count", i32),
+        ("head", i32),
+        ("hist_s", F64),
+        ("hist_P", F64),
+        ("hist_r", F64),
+        ("hist_var", F64),
+        ("hist_mode", I32),
+    ]
+
+
+#: values per step in ``EkfUpdateArgs.reading`` and ``.gnss`` (csrc/native.h)
+EKF_READING, EKF_GNSS = 8, 9
+#: the status of a matrix that must be positive definite and is not (csrc/native.h)
+NOT_POSITIVE = 7
+
+
+class EkfUpdateArgs(Args, kernel="ekf_update"):
+    _fields_ = [
+        ("config", block(EkfConfig)),
+        ("filter", block(EkfFilter)),
+        ("dt", f64),
+        ("reading", F64),
+        ("gnss", F64),
+    ]
+
+
+class Route(Struct, c="route_t"):
+    """A route's waypoints and its lookup table (routes.RoutePath)."""
+
+    _fields_ = [
+        ("xy", F64),
+        ("arc", F64),
+        ("n", i32),
+        ("table", F64),
+        ("tags", U8),
+        ("m", i32),
+        ("table_step", f64),
+        ("end", vec(2)),
+        ("direction", vec(2)),
+        ("length", f64),
+        ("furrow_last", i32),
+    ]
+
+
+class RouteTrackArgs(Args, kernel="route_track"):
+    _fields_ = [
+        ("route", block(Route)),
+        ("x", f64),
+        ("y", f64),
+        ("k", i32),
+        ("cte", f64),
+        ("s", f64),
+    ]
+
+
+class RoutePointsArgs(Args, kernel="route_points"):
+    _fields_ = [
+        ("route", block(Route)),
+        ("s", f64),
+        ("n", i32),
+        ("offsets", F64),
+        ("x", f64),
+        ("y", f64),
+        ("cos_yaw", f64),
+        ("sin_yaw", f64),
+        ("lo", f64),
+        ("hi", f64),
+        ("out", F32),
+    ]
+
+
+class RouteGrid(Struct, c="route_grid_t"):
+    """The nearest-segment search's segments and vertex grid (metrics.RouteProjector)."""
+
+    _fields_ = [
+        ("n", i32),
+        ("segs", F64),
+        ("seg_len", F64),
+        ("arc", F64),
+        ("half", f64),
+        ("cell", f64),
+        ("cx0", i32),
+        ("cy0", i32),
+        ("ncx", i32),
+        ("ncy", i32),
+        ("cell_start", I32),
+        ("cell_items", I32),
+        ("xy", F64),
+    ]
+
+
+class RouteNearestArgs(Args, kernel="route_nearest"):
+    _fields_ = [
+        ("grid", block(RouteGrid)),
+        ("x", f64),
+        ("y", f64),
+        ("bound", f64),
+        ("d", f64),
+        ("s", f64),
+        ("k", i32),
+    ]
+
+
 def call(args: Args) -> None:
     """Run ``args``'s kernel; a status other than 0 raises ``KernelError``."""
     kernel = args.kernel
@@ -459,6 +631,19 @@ def call(args: Args) -> None:
     status = _FUNCS[kernel](ctypes.byref(args))
     if status:
         raise KernelError(kernel, status, _LIB.agrinav_status(status).decode())
+
+
+def kernel(name: str) -> Any:
+    """Kernel ``name``'s foreign function, for a loop that calls it every step: it calls
+    ``f(ctypes.byref(args))`` on an ``Args`` it filled once (by name, checked) and hands a
+    status other than 0 to ``failed``."""
+    require(f"the kernel {name}")
+    return _FUNCS[name]
+
+
+def failed(kernel: str, status: int) -> KernelError:
+    """The error of kernel ``kernel`` returning ``status`` (to raise)."""
+    return KernelError(kernel, status, _LIB.agrinav_status(status).decode())
 
 
 # ------------------------------------------------------------------ loading

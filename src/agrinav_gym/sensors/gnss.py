@@ -93,12 +93,13 @@ class Gnss:
         """(q_carrier, q_code) at the antenna, recomputed when it moved ``fix.update_m``."""
         if self.sky is None:
             return 1.0, 1.0
-        d = antenna - self._sky_at
-        moved = float(np.abs(d).max()) > self.cfg.fix.update_m
+        (ax, ay, az), (sx, sy, sz) = antenna.tolist(), self._sky_at.tolist()
+        dx, dy = ax - sx, ay - sy
+        moved = max(abs(dx), abs(dy), abs(az - sz)) > self.cfg.fix.update_m
         across = self.cfg.fix.across_row_update_m
         if not moved and across is not None:
             n = self.sky.canopy.across
-            moved = abs(float(d[0] * n[0] + d[1] * n[1])) > across
+            moved = abs(dx * float(n[0]) + dy * float(n[1])) > across
         if moved:
             self._q = self.sky.usable(antenna)
             self._sky_at = antenna.copy()

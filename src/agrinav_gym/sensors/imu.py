@@ -61,16 +61,40 @@ class Imu:
 
         ``rot`` is body->world, ``vel``/``ang`` are world-frame velocities.
         """
-        acc = (vel - self.prev_vel) / self.dt
+        # Python floats, element by element in numpy's order: for 3-vectors numpy's per-call
+        # cost is most of the work
+        dt = self.dt
+        (vx, vy, vz), (px, py, pz) = vel.tolist(), self.prev_vel.tolist()
         self.prev_vel = vel
-        f_body = rot.T @ (acc + np.array([0.0, 0.0, G]))
-        w_body = rot.T @ ang
-        slow = self.slow.step(rng)
-        white = self.white * rng.standard_normal(6)
-        f = f_body + slow[3:6] + white[:3]
-        w = w_body + slow[:3] + white[3:]
-        est = rpy + slow[6:]
-        est[2] = (est[2] + math.pi) % (2 * math.pi) - math.pi
+        # specific force: acceleration + gravity's reaction (the + 0.0 as numpy adds it)
+        gx, gy, gz = (vx - px) / dt + 0.0, (vy - py) / dt + 0.0, (vz - pz) / dt + G
+        (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = rot.tolist()
+        wx, wy, wz = ang.tolist()
+        slow = self.slow.step_list(rng)
+        white = (self.white * rng.standard_normal(6)).tolist()
+        # body frame: rot.T @ v
+        f = np.array(
+            [
+                (r00 * gx + r10 * gy) + r20 * gz + slow[3] + white[0],
+                (r01 * gx + r11 * gy) + r21 * gz + slow[4] + white[1],
+                (r02 * gx + r12 * gy) + r22 * gz + slow[5] + white[2],
+            ]
+        )
+        w = np.array(
+            [
+                (r00 * wx + r10 * wy) + r20 * wz + slow[0] + white[3],
+                (r01 * wx + r11 * wy) + r21 * wz + slow[1] + white[4],
+                (r02 * wx + r12 * wy) + r22 * wz + slow[2] + white[5],
+            ]
+        )
+        roll, pitch, yaw = rpy.tolist()
+        est = np.array(
+            [
+                roll + slow[6],
+                pitch + slow[7],
+                (yaw + slow[8] + math.pi) % (2 * math.pi) - math.pi,
+            ]
+        )
         return f, w, est
 
 
@@ -83,6 +107,10 @@ class WheelOdometry:
         self.track = track
 
     def measure(self, wheel_speeds: list[float], rng: np.random.Generator) -> NDArray[np.float64]:
-        w = np.asarray(wheel_speeds) * (1.0 + self.cfg.noise * rng.standard_normal(4))
+        k = self.cfg.noise
+        w = [
+            v * (1.0 + k * z)
+            for v, z in zip(wheel_speeds, rng.standard_normal(4).tolist(), strict=True)
+        ]
         left, right = 0.5 * (w[0] + w[2]) * self.radius, 0.5 * (w[1] + w[3]) * self.radius
         return np.array([0.5 * (left + right), (right - left) / self.track])

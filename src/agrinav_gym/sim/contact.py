@@ -10,7 +10,7 @@ counting (they bend); weeds never count. A KD-tree of the crops finds the dozen 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
@@ -20,6 +20,9 @@ from scenario_gen import Scenario
 from scenario_gen.crops import scaled_by_height
 
 from ..robot import RobotGeometry
+
+#: m: how far the robot may move before the crops near it are asked for again
+NEAR_MARGIN = 0.25
 
 
 @dataclass(frozen=True, eq=False)
@@ -32,6 +35,10 @@ class CropContact:
     rects: tuple[tuple[float, float, float, float], ...]  # (cx, cy, half_x, half_y) in base_link
     half_width: float  # farthest footprint edge from the centreline, m
     reach: float  # farthest footprint corner from base_link, m
+    #: the crops near where the robot last asked the KD-tree: (x, y, [(plant, x, y), ...])
+    _near: tuple[float, float, list[tuple[int, float, float]]] | None = field(
+        default=None, repr=False
+    )
 
     @classmethod
     def from_scenario(cls, scn: Scenario, robot: RobotGeometry) -> CropContact:
@@ -54,15 +61,30 @@ class CropContact:
         )
 
     def touching(self, x: float, y: float, yaw: float) -> list[int]:
-        """Plant indices of the crops whose stalk touches the footprint at (x, y, yaw)."""
+        """Plant indices of the crops whose stalk touches the footprint at (x, y, yaw), in
+        index order.
+
+        The KD-tree is asked for the crops within ``NEAR_MARGIN`` more than the footprint's
+        reach, and the answer is kept while the robot stays within that margin of where it
+        was asked (a robot moves centimetres a step); each step tests only those within
+        reach."""
         if len(self.index) == 0:
             return []
-        found = self.tree.query_ball_point((x, y), self.reach + self.max_radius)
+        reach = self.reach + self.max_radius
+        near = self._near
+        if near is None or math.hypot(x - near[0], y - near[1]) > NEAR_MARGIN:
+            found = self.tree.query_ball_point((x, y), reach + NEAR_MARGIN)
+            idx = self.index
+            plants = sorted(int(idx[j]) for j in found)
+            near = (x, y, [(i, self.xy[i][0], self.xy[i][1]) for i in plants])
+            object.__setattr__(self, "_near", near)
         c, s = math.cos(yaw), math.sin(yaw)
+        r2 = reach * reach
         hits = []
-        for j in found:
-            i = int(self.index[j])
-            dx, dy = self.xy[i][0] - x, self.xy[i][1] - y
+        for i, px, py in near[2]:
+            dx, dy = px - x, py - y
+            if dx * dx + dy * dy > r2:
+                continue
             bx, by = c * dx + s * dy, -s * dx + c * dy  # stalk in base_link
             r = self.radius[i]
             for cx, cy, hx, hy in self.rects:

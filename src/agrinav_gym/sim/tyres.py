@@ -19,25 +19,37 @@ wheels do not collide with the ground at all; each physics step every wheel gets
 * a **rolling (motion) resistance** ``c_rr N`` against the wheel's travel.
 
 The forces act at the contact point on the wheel link, so the velocity-controlled wheel motors
-feel their reaction torque. Pure Python floats: four wheels cost less in scalars than in numpy.
+feel their reaction torque. The arithmetic runs in a compiled kernel (``render/csrc/tyres.c``)
+with this module's Python as its twin and reference, bit for bit; per physics step what is left
+in Python is pybullet's calls (two queries and four forces, docs/physics.md "Cost").
 """
 
 from __future__ import annotations
 
+import ctypes
 import math
+import struct
 from collections.abc import Sequence
+from typing import Any
 
+import numpy as np
 import pybullet as p
 
 from scenario_gen import Terrain
 
 from ..config import SoilConfig
+from ..render import native as _native
 
 #: plastic limit of the shear state, in units of K: beyond it τ is within 2 % of τ_max
 SHEAR_CAP = 4.0
 #: below this travel speed (m/s) the motion resistance fades in linearly, so it never pushes
 #: a robot at rest
 RR_SPEED = 0.01
+WHEELS = 4
+WORLD = p.WORLD_FRAME
+#: the kernel's wheel states in (14 doubles a wheel) and forces out (7 a wheel)
+_PACK_IN = struct.Struct(f"{14 * WHEELS}d")
+_UNPACK_OUT = struct.Struct(f"{7 * WHEELS}d")
 
 
 #: Stable corner damping, as fractions of ω·dt (ω = √(k_z / corner mass), dt the physics
@@ -66,25 +78,62 @@ def check_corner_stability(soil: SoilConfig, corner_mass: float, dt: float) -> N
 
 
 class TyreModel:
-    """Per-wheel normal, shear and rolling-resistance forces from the soil parameters."""
+    """Per-wheel normal, shear and rolling-resistance forces from the soil parameters.
 
-    def __init__(self, soil: SoilConfig, radius: float, corner_mass: float, dt: float) -> None:
+    Each physics step ``apply`` reads the wheels' link states from pybullet, computes the
+    forces — in the compiled kernel ``tyre_forces`` (``render/csrc/tyres.c``) where the
+    extension is built, else in ``_forces``, its Python twin: the same expressions in the same
+    order, so both give the same bits (tests compare them) — and applies them. ``native``
+    forces a choice (None: the kernel when available; ``AGRINAV_NATIVE=0`` disables it).
+    """
+
+    def __init__(
+        self,
+        soil: SoilConfig,
+        radius: float,
+        corner_mass: float,
+        dt: float,
+        native: bool | None = None,
+    ) -> None:
         self.soil = soil
         self.radius = radius
         self.dt = dt
         self.kz = soil.vertical_stiffness
         self.cz = 2.0 * soil.damping_ratio * math.sqrt(soil.vertical_stiffness * corner_mass)
-        self.shear = [[0.0, 0.0, 0.0] for _ in range(4)]
-        self.normal = [0.0, 0.0, 0.0, 0.0]
+        self.native = _native.available() if native is None else native
+        if self.native:
+            _native.require("the tyre model's kernel")
+        self.shear = np.zeros((WHEELS, 3))  # per wheel: the contact patch's shear state, m
+        self.normal = np.zeros(WHEELS)  # per wheel: the last step's normal force, N
+        self._out = np.zeros((WHEELS, 7))
+        self._wheels = np.zeros((WHEELS, 14))
+        self._in = self._wheels.data.cast("B")
+        self._outv = self._out.data.cast("B")
         self._terrain: Terrain | None = None
+        self._args: _native.TyreForcesArgs | None = None
 
     def reset(self, terrain: Terrain) -> None:
         self._terrain = terrain
-        self._h = terrain.heights
+        self._h = np.ascontiguousarray(terrain.heights, np.float64)
         self._x0, self._y0, self._sp = terrain.x0, terrain.y0, terrain.spacing
         self._ny, self._nx = terrain.heights.shape
-        self.shear = [[0.0, 0.0, 0.0] for _ in range(4)]
-        self.normal = [0.0, 0.0, 0.0, 0.0]
+        self.shear[:] = 0.0
+        self.normal[:] = 0.0
+        if self.native:
+            s = self.soil
+            ground = _native.TyreGround(
+                heights=self._h, nx=self._nx, ny=self._ny, x0=self._x0, y0=self._y0,
+                spacing=self._sp, radius=self.radius, dt=self.dt, kz=self.kz, cz=self.cz,
+                friction=s.friction, shear_modulus=s.shear_modulus,
+                contact_length=s.contact_length, rolling_resistance=s.rolling_resistance,
+                shear_damping=s.shear_damping,
+            )  # fmt: skip
+            self._args = _native.TyreForcesArgs(
+                ground=ground, n=WHEELS, wheels=self._wheels, shear=self.shear,
+                normal=self.normal, out=self._out,
+            )  # fmt: skip
+            self._call = _native.kernel("tyre_forces")
+            self._ref = ctypes.byref(self._args)
 
     def surface(self, x: float, y: float) -> tuple[float, float, float]:
         """Height and slope (∂z/∂x, ∂z/∂y) of the bilinear terrain at (x, y)."""
@@ -101,11 +150,43 @@ class TyreModel:
         return z0 + (z1 - z0) * fv, ((b - a) * (1.0 - fv) + (d - c) * fv) / sp, (z1 - z0) / sp
 
     def apply(self, client: int, robot: int, wheels: Sequence[int]) -> None:
-        """Compute and apply this step's forces on the four wheel links."""
-        links = p.getLinkStates(robot, wheels, computeLinkVelocity=1, physicsClientId=client)
-        spins = p.getJointStates(robot, wheels, physicsClientId=client)
+        """Compute and apply this step's forces on the four wheel links (fl, fr, bl, br)."""
+        # positional arguments: pybullet parses keywords on every call (≈ 2 µs a physics step)
+        links = p.getLinkStates(robot, wheels, 1, 0, client)  # with velocities
+        spins = p.getJointStates(robot, wheels, client)
+        o = self.forces(links, spins)
+        w0, w1, w2, w3 = wheels
+        if o[0]:
+            p.applyExternalForce(robot, w0, o[1:4], o[4:7], WORLD, client)
+        if o[7]:
+            p.applyExternalForce(robot, w1, o[8:11], o[11:14], WORLD, client)
+        if o[14]:
+            p.applyExternalForce(robot, w2, o[15:18], o[18:21], WORLD, client)
+        if o[21]:
+            p.applyExternalForce(robot, w3, o[22:25], o[25:28], WORLD, client)
+
+    def forces(self, links: Sequence[Any], spins: Sequence[Any]) -> tuple[float, ...]:
+        """This step's forces from pybullet's link states (``getLinkStates`` with velocities)
+        and joint states of the wheels: per wheel (in contact 1 or 0, force xyz, world point
+        xyz); updates the shear state and the normal forces."""
+        if not self.native:
+            return self._forces(links, spins)
+        (a, b, c, d), (e, f, g, h) = links, spins  # the four wheels, unrolled
+        _PACK_IN.pack_into(
+            self._in, 0,
+            *a[0], *a[5], *a[6], *a[7], e[1], *b[0], *b[5], *b[6], *b[7], f[1],
+            *c[0], *c[5], *c[6], *c[7], g[1], *d[0], *d[5], *d[6], *d[7], h[1],
+        )  # fmt: skip
+        status = self._call(self._ref)
+        if status:
+            raise _native.failed("tyre_forces", status)
+        return _UNPACK_OUT.unpack_from(self._outv, 0)
+
+    def _forces(self, links: Sequence[Any], spins: Sequence[Any]) -> tuple[float, ...]:
+        """The Python twin of the kernel (and the model's reference)."""
         s = self.soil
         dt, r, big_k, length = self.dt, self.radius, s.shear_modulus, s.contact_length
+        out: list[float] = []
         for i, link in enumerate(links):
             c, q, v, w = link[0], link[5], link[6], link[7]
             h, hx, hy = self.surface(c[0], c[1])
@@ -114,8 +195,9 @@ class TyreModel:
             dist = (c[2] - h) * nz  # wheel centre to the local tangent plane
             n_force = self.kz * (r - dist) - self.cz * (v[0] * nx + v[1] * ny + v[2] * nz)
             if dist >= r or n_force <= 0.0:  # airborne: the patch's shear is gone
-                self.shear[i] = [0.0, 0.0, 0.0]
+                self.shear[i] = 0.0
                 self.normal[i] = 0.0
+                out += (0.0,) * 7
                 continue
             self.normal[i] = n_force
             rx, ry, rz = -dist * nx, -dist * ny, -dist * nz  # centre -> contact point
@@ -125,7 +207,7 @@ class TyreModel:
             vz = v[2] + w[0] * ry - w[1] * rx
             vn = vx * nx + vy * ny + vz * nz
             sx, sy, sz = vx - vn * nx, vy - vn * ny, vz - vn * nz
-            jx, jy, jz = self.shear[i]
+            jx, jy, jz = self.shear[i].tolist()
             u = abs(spins[i][1]) * r  # tread speed through the patch
             if u > 1e-6:  # exact step of dj/dt = s − (u/l) j
                 decay = math.exp(-u * dt / length)
@@ -151,7 +233,7 @@ class TyreModel:
             if ft > tmax:
                 f = tmax / ft
                 fx, fy, fz = fx * f, fy * f, fz * f
-            self.shear[i] = [kx, ky, kz]
+            self.shear[i] = (kx, ky, kz)
             # rolling direction = axle × normal; the axle is the wheel frame's y axis
             qx, qy, qz, qw = q
             ax, ay, az = (
@@ -163,18 +245,16 @@ class TyreModel:
             en = math.sqrt(ex * ex + ey * ey + ez * ez)
             travel = (v[0] * ex + v[1] * ey + v[2] * ez) / en
             rr = -s.rolling_resistance * n_force * max(-1.0, min(1.0, travel / RR_SPEED)) / en
-            p.applyExternalForce(
-                robot,
-                wheels[i],
-                [
-                    fx + rr * ex + n_force * nx,
-                    fy + rr * ey + n_force * ny,
-                    fz + rr * ez + n_force * nz,
-                ],
-                [c[0] + rx, c[1] + ry, c[2] + rz],
-                p.WORLD_FRAME,
-                physicsClientId=client,
+            out += (
+                1.0,
+                fx + rr * ex + n_force * nx,
+                fy + rr * ey + n_force * ny,
+                fz + rr * ez + n_force * nz,
+                c[0] + rx,
+                c[1] + ry,
+                c[2] + rz,
             )
+        return tuple(out)
 
 
 def in_place_turn_ratio(soil: SoilConfig, wheelbase: float, track: float) -> float:

@@ -203,7 +203,7 @@ class World:
         cid, robot, wheels, tyres = self.client, self.robot, self.wheels, self.tyres
         for _ in range(substeps):
             tyres.apply(cid, robot, wheels)
-            p.stepSimulation(physicsClientId=cid)
+            p.stepSimulation(cid)
 
     def follow(self, x: float, y: float, heading: float | None = None) -> None:
         self.patch.follow(x, y, heading=heading)

@@ -44,8 +44,24 @@ def add(sub: Any) -> None:
     )
     be.add_argument("--seeds", type=episodes_type, default=3)
     be.add_argument("--out", required=True)
+    _spread(be, "episodes")
     _common(be)
     be.set_defaults(func=bench)
+
+
+def _spread(parser: Any, what: str) -> None:
+    """``--workers`` and ``--ray``: where the command's independent tasks run."""
+    parser.add_argument(
+        "--workers",
+        type=int_at_least(1),
+        default=1,
+        help=f"run the {what} in this many processes (the same results as 1)",
+    )
+    parser.add_argument(
+        "--ray",
+        metavar="ADDRESS",
+        help=f"run the {what} as Ray tasks (the ray extra): local, auto or host:port",
+    )
 
 
 def _common(parser: Any) -> None:
@@ -92,6 +108,8 @@ def bench(args: argparse.Namespace) -> int:
         command_line(args.argv),
         force=args.force,
         trust_checkpoint=args.trust_checkpoint,
+        workers=args.workers,
+        ray=args.ray,
     )
     print((Path(args.out) / "benchmark.md").read_text())
     return 0

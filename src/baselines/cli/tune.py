@@ -17,7 +17,8 @@ def add(sub: Any) -> None:
         help="search a classical controller's parameters on training fields (Optuna)",
         description="An Optuna TPE search of the controller's parameters on FieldRoute training "
         "fields (the same fields and reset seeds for every trial and controller); writes "
-        "best.yaml (run it with --policies NAME:best.yaml), trials.csv, search.png.",
+        "best.yaml (run it with --policies NAME:best.yaml), trials.csv, search.png. A killed "
+        "run resumes: the same command runs only the episodes it had not finished.",
     )
     tu.add_argument("--policy", required=True, choices=sorted(SEARCH))
     tu.add_argument("--trials", type=int_at_least(1, 10_000), default=40)
@@ -25,6 +26,17 @@ def add(sub: Any) -> None:
     tu.add_argument("--seed", type=seed_type, default=0)
     tu.add_argument("--out", required=True)
     tu.add_argument("--force", action="store_true", help="replace an earlier tune's --out")
+    tu.add_argument(
+        "--workers",
+        type=int_at_least(1),
+        default=1,
+        help="run each trial's episodes in this many processes (the same search as 1)",
+    )
+    tu.add_argument(
+        "--ray",
+        metavar="ADDRESS",
+        help="run each trial's episodes as Ray tasks (the ray extra): local, auto or host:port",
+    )
     tu.set_defaults(func=run)
 
 
@@ -40,6 +52,8 @@ def run(args: argparse.Namespace) -> int:
         args.out,
         command_line(["agrinav", *sys.argv[1:]]),
         args.force,
+        workers=args.workers,
+        ray=args.ray,
     )
     print(f"best trial {best['trial']}: score {best['score']} -> {args.out}/best.yaml")
     return 0

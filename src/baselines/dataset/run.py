@@ -1,9 +1,9 @@
-"""Running a perception dataset: shards in parallel workers, resumable, with a progress bar."""
+"""Running a perception dataset: shards in parallel workers (``baselines.parallel``), resumable,
+with a progress bar."""
 
 from __future__ import annotations
 
 import json
-import multiprocessing as mp
 import os
 import time
 from collections.abc import Callable
@@ -16,6 +16,7 @@ from scenario_gen.atomic import lock_output
 from scenario_gen.errors import InputError
 from scenario_gen.schema import parse_json, to_mapping
 
+from ..parallel import Tasks, check_spread
 from .perception import SPLIT_SEEDS, check, save_shard, shard_frames, split_of, write_shard
 from .spec import SCHEMA_VERSION, PerceptionSpec
 
@@ -107,16 +108,7 @@ def generate(
     """Write the dataset's missing shards (``workers`` processes, or Ray tasks on the cluster
     at ``ray``: ``local``, ``auto`` or an address); returns the frames written by this call.
     A finished dataset is a no-op."""
-    if workers < 1:
-        raise InputError("--workers", workers, "allowed: an integer >= 1")
-    if ray is not None and workers != 1:
-        raise InputError(
-            "--workers", workers, "allowed: 1 with --ray (the cluster's CPUs set the parallelism)"
-        )
-    if ray is not None:
-        from .cluster import check_address
-
-        check_address(ray)
+    check_spread(workers, ray)
     out = Path(out)
     out.absolute().parent.mkdir(parents=True, exist_ok=True)
     # A second run on the same --out is refused while this one holds it (two used to race
@@ -142,25 +134,21 @@ def _generate(
     jobs = [(spec, seed, i, str(out), overlap) for i in todo]
     written = 0
     try:
-        with tqdm(total=len(todo) * spec.frames_per_shard, unit="frame", desc="dataset") as bar:
-            if ray is not None and jobs:
-                from .cluster import ray_shards
+        with (
+            tqdm(total=len(todo) * spec.frames_per_shard, unit="frame", desc="dataset") as bar,
+            Tasks(procs if ray is None else 1, ray) as tasks,
+        ):
+            if ray is not None:  # the cluster returns each shard's bytes: written here
+                from .cluster import shard_task
 
-                for i, n, data in ray_shards(spec, seed, todo, ray):
+                for i, n, data in tasks.map(shard_task, [(spec, seed, i) for i in todo]):
                     save_shard(data, out / shard_name(i))
                     written += n
                     bar.update(n)
-            elif procs == 1:
-                results = map(_work, jobs)
-                for _, n, _ in results:
+            else:  # local workers write their shards themselves
+                for _, n, _ in tasks.map(_work, jobs):
                     written += n
                     bar.update(n)
-            else:
-                ctx = mp.get_context("spawn")  # pybullet and Embree state must not be forked
-                with ctx.Pool(procs) as pool:
-                    for _, n, _ in pool.imap_unordered(_work, jobs):
-                        written += n
-                        bar.update(n)
         if card is not None:
             card(out)
     except BaseException as exc:  # a full disk, a lost cluster, Ctrl-C: leave no partial file

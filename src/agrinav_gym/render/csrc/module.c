@@ -36,6 +36,7 @@ EXPORT const char *agrinav_status(int status) {
         "a parameter out of its range",
         "an invalid camera (size, focal lengths or clip depths)",
         "an invalid geometry block (counts, arrays or height grid)",
+        "a matrix that must be positive definite is not",
     };
     return status >= 0 && status < AGN_STATUSES ? what[status] : "unknown status";
 }
@@ -137,6 +138,56 @@ static const layout_t LAYOUT[] = {
     SIZE(embree_packets_args_t), AT(embree_packets_args_t, fn), AT(embree_packets_args_t, valid),
     AT(embree_packets_args_t, scene), AT(embree_packets_args_t, first),
     AT(embree_packets_args_t, count), AT(embree_packets_args_t, stride),
+
+    SIZE(tyre_ground_t), AT(tyre_ground_t, heights), AT(tyre_ground_t, nx),
+    AT(tyre_ground_t, ny), AT(tyre_ground_t, x0), AT(tyre_ground_t, y0),
+    AT(tyre_ground_t, spacing), AT(tyre_ground_t, radius), AT(tyre_ground_t, dt),
+    AT(tyre_ground_t, kz), AT(tyre_ground_t, cz), AT(tyre_ground_t, friction),
+    AT(tyre_ground_t, shear_modulus), AT(tyre_ground_t, contact_length),
+    AT(tyre_ground_t, rolling_resistance), AT(tyre_ground_t, shear_damping),
+
+    SIZE(tyre_forces_args_t), AT(tyre_forces_args_t, ground), AT(tyre_forces_args_t, n),
+    AT(tyre_forces_args_t, wheels), AT(tyre_forces_args_t, shear),
+    AT(tyre_forces_args_t, normal), AT(tyre_forces_args_t, out),
+
+    SIZE(ekf_config_t), AT(ekf_config_t, chi), AT(ekf_config_t, phi_b), AT(ekf_config_t, q_bias),
+    AT(ekf_config_t, pose_noise), AT(ekf_config_t, yaw_noise), AT(ekf_config_t, velocity_noise),
+    AT(ekf_config_t, yaw_accel_noise), AT(ekf_config_t, accel_noise),
+    AT(ekf_config_t, odom_scale_noise), AT(ekf_config_t, tau), AT(ekf_config_t, r_step),
+    AT(ekf_config_t, odom_speed_rel), AT(ekf_config_t, odom_yaw_rel),
+    AT(ekf_config_t, odom_floor), AT(ekf_config_t, gnss_white), AT(ekf_config_t, history_s),
+    AT(ekf_config_t, use_accel),
+
+    SIZE(ekf_filter_t), AT(ekf_filter_t, s), AT(ekf_filter_t, P), AT(ekf_filter_t, mode),
+    AT(ekf_filter_t, gnss_var), AT(ekf_filter_t, k), AT(ekf_filter_t, capacity),
+    AT(ekf_filter_t, count), AT(ekf_filter_t, head), AT(ekf_filter_t, hist_s),
+    AT(ekf_filter_t, hist_P), AT(ekf_filter_t, hist_r), AT(ekf_filter_t, hist_var),
+    AT(ekf_filter_t, hist_mode),
+
+    SIZE(ekf_update_args_t), AT(ekf_update_args_t, config), AT(ekf_update_args_t, filter),
+    AT(ekf_update_args_t, dt), AT(ekf_update_args_t, reading), AT(ekf_update_args_t, gnss),
+
+    SIZE(route_t), AT(route_t, xy), AT(route_t, arc), AT(route_t, n), AT(route_t, table),
+    AT(route_t, tags), AT(route_t, m), AT(route_t, table_step), AT(route_t, end),
+    AT(route_t, direction), AT(route_t, length), AT(route_t, furrow_last),
+
+    SIZE(route_track_args_t), AT(route_track_args_t, route), AT(route_track_args_t, x),
+    AT(route_track_args_t, y), AT(route_track_args_t, k), AT(route_track_args_t, cte),
+    AT(route_track_args_t, s),
+
+    SIZE(route_points_args_t), AT(route_points_args_t, route), AT(route_points_args_t, s),
+    AT(route_points_args_t, n), AT(route_points_args_t, offsets), AT(route_points_args_t, x),
+    AT(route_points_args_t, y), AT(route_points_args_t, cos_yaw), AT(route_points_args_t, sin_yaw),
+    AT(route_points_args_t, lo), AT(route_points_args_t, hi), AT(route_points_args_t, out),
+
+    SIZE(route_grid_t), AT(route_grid_t, n), AT(route_grid_t, segs), AT(route_grid_t, seg_len),
+    AT(route_grid_t, arc), AT(route_grid_t, half), AT(route_grid_t, cell), AT(route_grid_t, cx0),
+    AT(route_grid_t, cy0), AT(route_grid_t, ncx), AT(route_grid_t, ncy),
+    AT(route_grid_t, cell_start), AT(route_grid_t, cell_items), AT(route_grid_t, xy),
+
+    SIZE(route_nearest_args_t), AT(route_nearest_args_t, grid), AT(route_nearest_args_t, x),
+    AT(route_nearest_args_t, y), AT(route_nearest_args_t, bound), AT(route_nearest_args_t, d),
+    AT(route_nearest_args_t, s), AT(route_nearest_args_t, k),
 };
 
 /* the offset of ``field`` in struct ``type`` (field "": its size); -1 where there is none */

@@ -35,7 +35,8 @@ enum {
     AGN_BAD_VALUE = 4,    /* a parameter out of its range */
     AGN_BAD_CAMERA = 5,   /* the camera block: size, focal lengths or clip depths */
     AGN_BAD_GEOMETRY = 6, /* the geometry block: counts, arrays or the height grid */
-    AGN_STATUSES = 7
+    AGN_NOT_POSITIVE = 7, /* a matrix that must be positive definite is not */
+    AGN_STATUSES = 8
 };
 
 /* ------------------------------------------------------------------ shared blocks */
@@ -253,6 +254,164 @@ typedef struct {
     int64_t count, stride;
 } embree_packets_args_t;
 EXPORT int embree_packets(const embree_packets_args_t *a);
+
+/* ------------------------------------------------------------------ physics and estimation */
+
+/* The ground a tyre stands on: the terrain's height grid (row i at y0 + i spacing, column j at
+ * x0 + j spacing), read as its bilinear surface, and the soil (config.soil, docs/physics.md). */
+typedef struct {
+    const double *heights; /* (ny, nx) */
+    int32_t nx, ny;
+    double x0, y0, spacing;
+    double radius;             /* wheel radius, m */
+    double dt;                 /* physics step, s */
+    double kz, cz;             /* vertical stiffness N/m and corner damping N s/m */
+    double friction;           /* mu */
+    double shear_modulus;      /* Janosi-Hanamoto K, m */
+    double contact_length;     /* l, m */
+    double rolling_resistance; /* c_rr */
+    double shear_damping;      /* tau_d, s */
+} tyre_ground_t;
+
+/* tyres.c: one physics step of the tyre model (sim/tyres.py's twin, the same bits): per wheel
+ * k, wheels[14k..14k+13] = centre (3), link orientation quaternion x y z w (4), linear (3) and
+ * angular (3) velocity in the world, joint speed (1); shear[3k..3k+2] the patch's shear state
+ * (in and out); out: normal[k], and out[7k..7k+6] = 1 in contact (else 0 and no force),
+ * the force (3) and the world point it acts at (3). */
+typedef struct {
+    const tyre_ground_t *ground;
+    int32_t n;
+    const double *wheels; /* (n, 14) */
+    double *shear;        /* (n, 3) in/out */
+    double *normal;       /* (n,) out */
+    double *out;          /* (n, 7) out */
+} tyre_forces_args_t;
+EXPORT int tyre_forces(const tyre_forces_args_t *a);
+
+/* The EKF's constants (estimation/ekf.py, computed there from config.localisation): the state
+ * is x, y, yaw, vx, vy, vyaw, ax, ay, heading bias, GNSS error east, north, odometry scale. */
+typedef struct {
+    double chi;             /* the drive's skid factor: odometry yaw rate / chi */
+    double phi_b, q_bias;   /* heading-bias decay and process noise per step */
+    double pose_noise, yaw_noise, velocity_noise, yaw_accel_noise, accel_noise;
+    double odom_scale_noise; /* process noise densities (x dt per step) */
+    double tau[4];           /* GNSS error correlation time by fix level (interface.FIX_LEVELS) */
+    double r_step[7];        /* variances of the step measurements (the odometry's two unused) */
+    double odom_speed_rel, odom_yaw_rel, odom_floor;
+    double gnss_white; /* std of each fix's white error */
+    double history_s;  /* oldest fix age applied */
+    int32_t use_accel;
+} ekf_config_t;
+
+/* The EKF's state, read and written by ekf_update: s (12) and P (12 x 12, row-major); the GNSS
+ * error process (its fix level, -1 before the first fix, and variance); k, the steps since the
+ * reset (-1 before the first update); and the history of the last ``capacity`` steps (a ring
+ * from slot ``head``, ``count`` held): each step's posterior state, covariance, GNSS process
+ * and readings (EKF_READING values). */
+typedef struct {
+    double *s;
+    double *P;
+    int32_t mode;
+    double gnss_var;
+    int32_t k;
+    int32_t capacity, count, head;
+    double *hist_s;     /* (capacity, 12) */
+    double *hist_P;     /* (capacity, 144) */
+    double *hist_r;     /* (capacity, EKF_READING) */
+    double *hist_var;   /* (capacity,) */
+    int32_t *hist_mode; /* (capacity,) */
+} ekf_filter_t;
+
+/* the readings of one control step the EKF fuses: odometry v and yaw rate, gyro z, IMU roll,
+ * pitch and yaw, accelerometer x and y */
+#define EKF_READING 8
+/* the fix of this step: new (1 or 0), fix level (FIX_LEVELS), east, north, the receiver's sigma
+ * east and north, age (s), antenna lever arm x and up in base_link */
+#define EKF_GNSS 9
+
+/* ekf.c: Ekf.update, one control step (ekf.py is the reference; the same filter to rounding):
+ * predict (from the second update on), fuse the step's readings, remember them, and apply a new
+ * fix at its epoch, replaying the steps since. AGN_NOT_POSITIVE: an innovation covariance was
+ * not positive definite (the filter is left part-updated, as numpy's would raise). */
+typedef struct {
+    const ekf_config_t *config;
+    ekf_filter_t *filter;
+    double dt;
+    const double *reading; /* (EKF_READING,) */
+    const double *gnss;    /* (EKF_GNSS,) */
+} ekf_update_args_t;
+EXPORT int ekf_update(const ekf_update_args_t *a);
+
+/* A route (routes.RoutePath): n waypoints xy[2i], xy[2i+1] and their arc lengths; the table
+ * of points every table_step of arc length (m of them, each with its furrow tag) that lookups
+ * interpolate; past the table's end the last segment goes on from ``end`` along ``direction``
+ * (its unit vector) at true distances, tagged ``furrow_last``. */
+typedef struct {
+    const double *xy;  /* (n, 2) */
+    const double *arc; /* (n,) */
+    int32_t n;
+    const double *table; /* (m, 2) */
+    const uint8_t *tags; /* (m,) */
+    int32_t m;
+    double table_step;
+    double end[2], direction[2];
+    double length;
+    int32_t furrow_last;
+} route_t;
+
+/* routes.c: Tracker.update, the nearest segment searched from segment k (in/out) by walking
+ * forward, then backward, while the distance shrinks: the signed cross-track error and the
+ * arc length of (x, y) (out). */
+typedef struct {
+    const route_t *route;
+    double x, y;
+    int32_t k;
+    double cte, s; /* out */
+} route_track_args_t;
+EXPORT int route_track(route_track_args_t *a);
+
+/* routes.c: the route observation's points (observations.RouteObservation): the route at arc
+ * lengths s + offsets[i] (RoutePath.lookup), in the frame of a robot at (x, y) whose heading
+ * has cosine cos_yaw and sine sin_yaw, saturated to [lo, hi] as numpy saturates float32 against float64
+ * bounds; out[3i..3i+2] = forward, left, furrow tag (0 or 1). */
+typedef struct {
+    const route_t *route;
+    double s;
+    int32_t n;
+    const double *offsets; /* (n,) */
+    double x, y, cos_yaw, sin_yaw;
+    double lo, hi;
+    float *out; /* (n, 3) */
+} route_points_args_t;
+EXPORT int route_points(const route_points_args_t *a);
+
+/* The exact nearest-segment search of metrics.RouteProjector: per segment (ax, ay, dx, dy, dx^2
+ * + dy^2) and length, the route's arc lengths, half the longest segment; the vertices by square
+ * cell of side ``cell`` of an ncx x ncy grid whose first cell is (cx0, cy0) in cell units:
+ * cell (i, j) lists cell_items[cell_start[c] .. cell_start[c + 1]), c = j ncx + i. */
+typedef struct {
+    int32_t n; /* vertices */
+    const double *segs;    /* (n - 1, 5) */
+    const double *seg_len; /* (n - 1,) */
+    const double *arc;     /* (n,) */
+    double half;
+    double cell;
+    int32_t cx0, cy0, ncx, ncy;
+    const int32_t *cell_start; /* (ncx ncy + 1,) */
+    const int32_t *cell_items;
+    const double *xy; /* (n, 2) */
+} route_grid_t;
+
+/* routes.c: RouteProjector.project with a bound: the distance, segment and arc length of the
+ * route point nearest (x, y), given any upper bound of that distance (ties: the lowest
+ * segment). */
+typedef struct {
+    const route_grid_t *grid;
+    double x, y, bound;
+    double d, s; /* out */
+    int32_t k;   /* out */
+} route_nearest_args_t;
+EXPORT int route_nearest(route_nearest_args_t *a);
 
 /* ------------------------------------------------------------------ inside the kernels */
 /* what a visibility-buffer pixel holds besides an instance slot (>= 0) */

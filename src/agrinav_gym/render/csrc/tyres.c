@@ -1,0 +1,133 @@
+/* The tyre model of sim/tyres.py (docs/physics.md), one physics step of every wheel: normal
+ * force from the tyre and soil's vertical spring-damper on the terrain's bilinear surface,
+ * Janosi-Hanamoto shear with the relaxation-length shear state, rolling resistance.
+ *
+ * The Python model (TyreModel._forces) is the reference: every expression below is evaluated
+ * in the order Python evaluates its twin (C99, no floating-point contraction, exp from the same
+ * libm), so both give the same bits; tests compare them exactly. min and max follow Python's
+ * builtins (the first argument unless the second is strictly smaller / larger).
+ */
+#include "native.h"
+
+/* sim/tyres.py: SHEAR_CAP and RR_SPEED */
+#define SHEAR_CAP 4.0
+#define RR_SPEED 0.01
+
+static inline double py_min(double a, double b) { return b < a ? b : a; }
+static inline double py_max(double a, double b) { return b > a ? b : a; }
+
+/* height and slope (dz/dx, dz/dy) of the bilinear terrain at (x, y): TyreModel.surface */
+static void surface(const tyre_ground_t *g, double x, double y, double *z, double *hx,
+                    double *hy) {
+    double sp = g->spacing;
+    double u = py_min(py_max((x - g->x0) / sp, 0.0), g->nx - 1.0);
+    double v = py_min(py_max((y - g->y0) / sp, 0.0), g->ny - 1.0);
+    int32_t j = (int32_t)u, i = (int32_t)v;
+    if (j > g->nx - 2) j = g->nx - 2;
+    if (i > g->ny - 2) i = g->ny - 2;
+    double fu = u - j, fv = v - i;
+    const double *row0 = g->heights + (size_t)i * g->nx, *row1 = row0 + g->nx;
+    double a = row0[j], b = row0[j + 1], c = row1[j], d = row1[j + 1];
+    double z0 = a + (b - a) * fu, z1 = c + (d - c) * fu;
+    *z = z0 + (z1 - z0) * fv;
+    *hx = ((b - a) * (1.0 - fv) + (d - c) * fv) / sp;
+    *hy = (z1 - z0) / sp;
+}
+
+EXPORT int tyre_forces(const tyre_forces_args_t *a) {
+    if (!a || !a->ground) return AGN_NULL_ARRAY;
+    const tyre_ground_t *g = a->ground;
+    if (a->n < 0 || a->n > 64) return AGN_BAD_SIZE;
+    if (!g->heights || (a->n > 0 && (!a->wheels || !a->shear || !a->normal || !a->out)))
+        return AGN_NULL_ARRAY;
+    if (g->nx < 2 || g->ny < 2) return AGN_BAD_SIZE;
+    if (!(g->spacing > 0) || !(g->dt > 0) || !(g->shear_modulus > 0) ||
+        !(g->contact_length > 0) || !(g->radius > 0))
+        return AGN_BAD_VALUE;
+    double dt = g->dt, r = g->radius, big_k = g->shear_modulus, length = g->contact_length;
+    for (int32_t i = 0; i < a->n; i++) {
+        const double *s = a->wheels + 14 * i;
+        const double *c = s, *q = s + 3, *v = s + 7, *w = s + 10;
+        double *shear = a->shear + 3 * i, *out = a->out + 7 * i;
+        double h, hx, hy;
+        surface(g, c[0], c[1], &h, &hx, &hy);
+        double inv = 1.0 / sqrt(hx * hx + hy * hy + 1.0);
+        double nx = -hx * inv, ny = -hy * inv, nz = inv;
+        double dist = (c[2] - h) * nz; /* wheel centre to the local tangent plane */
+        double n_force = g->kz * (r - dist) - g->cz * (v[0] * nx + v[1] * ny + v[2] * nz);
+        if (dist >= r || n_force <= 0.0) { /* airborne: the patch's shear is gone */
+            shear[0] = shear[1] = shear[2] = 0.0;
+            a->normal[i] = 0.0;
+            for (int k = 0; k < 7; k++) out[k] = 0.0;
+            continue;
+        }
+        a->normal[i] = n_force;
+        double rx = -dist * nx, ry = -dist * ny, rz = -dist * nz; /* centre -> contact point */
+        /* velocity of the tyre material at the contact point, tangential part = slip */
+        double vx = v[0] + w[1] * rz - w[2] * ry;
+        double vy = v[1] + w[2] * rx - w[0] * rz;
+        double vz = v[2] + w[0] * ry - w[1] * rx;
+        double vn = vx * nx + vy * ny + vz * nz;
+        double sx = vx - vn * nx, sy = vy - vn * ny, sz = vz - vn * nz;
+        double jx = shear[0], jy = shear[1], jz = shear[2];
+        double u = fabs(s[13]) * r; /* tread speed through the patch */
+        double kx, ky, kz;
+        if (u > 1e-6) { /* exact step of dj/dt = s - (u/l) j */
+            double decay = exp(-u * dt / length);
+            double gain = length / u * (1.0 - decay);
+            kx = jx * decay + sx * gain;
+            ky = jy * decay + sy * gain;
+            kz = jz * decay + sz * gain;
+        } else {
+            kx = jx + sx * dt;
+            ky = jy + sy * dt;
+            kz = jz + sz * dt;
+        }
+        double kn = kx * nx + ky * ny + kz * nz;
+        kx = kx - kn * nx;
+        ky = ky - kn * ny;
+        kz = kz - kn * nz;
+        double mag = sqrt(kx * kx + ky * ky + kz * kz);
+        if (mag > SHEAR_CAP * big_k) {
+            double f = SHEAR_CAP * big_k / mag;
+            kx = kx * f;
+            ky = ky * f;
+            kz = kz * f;
+            mag = SHEAR_CAP * big_k;
+        }
+        double tmax = g->friction * n_force;
+        double elastic = mag > 0.0 ? tmax * (1.0 - exp(-mag / big_k)) / mag : 0.0;
+        /* soil viscosity on the deflection rate: damps the stiction spring at rest, zero in
+         * steady rolling */
+        double damp = tmax / big_k * g->shear_damping / dt;
+        double fx = -elastic * kx - damp * (kx - jx);
+        double fy = -elastic * ky - damp * (ky - jy);
+        double fz = -elastic * kz - damp * (kz - jz);
+        double ft = sqrt(fx * fx + fy * fy + fz * fz);
+        if (ft > tmax) {
+            double f = tmax / ft;
+            fx = fx * f;
+            fy = fy * f;
+            fz = fz * f;
+        }
+        shear[0] = kx;
+        shear[1] = ky;
+        shear[2] = kz;
+        /* rolling direction = axle x normal; the axle is the wheel frame's y axis */
+        double qx = q[0], qy = q[1], qz = q[2], qw = q[3];
+        double ax = 2 * (qx * qy - qw * qz), ay = 1 - 2 * (qx * qx + qz * qz),
+               az = 2 * (qy * qz + qw * qx);
+        double ex = ay * nz - az * ny, ey = az * nx - ax * nz, ez = ax * ny - ay * nx;
+        double en = sqrt(ex * ex + ey * ey + ez * ez);
+        double travel = (v[0] * ex + v[1] * ey + v[2] * ez) / en;
+        double rr = -g->rolling_resistance * n_force * py_max(-1.0, py_min(1.0, travel / RR_SPEED)) / en;
+        out[0] = 1.0;
+        out[1] = fx + rr * ex + n_force * nx;
+        out[2] = fy + rr * ey + n_force * ny;
+        out[3] = fz + rr * ez + n_force * nz;
+        out[4] = c[0] + rx;
+        out[5] = c[1] + ry;
+        out[6] = c[2] + rz;
+    }
+    return AGN_OK;
+}

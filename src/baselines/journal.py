@@ -1,0 +1,96 @@
+"""What a long command has finished so far, kept beside its output so a killed run resumes.
+
+``agrinav bench`` and ``agrinav tune`` write their output folder whole at the end
+(``scenario_gen.atomic.output_dir``); every finished task (an episode) is also written at once
+to ``.<out>.partial/`` next to it, each file whole or absent (write, then rename). The same
+command run again on the same ``--out`` reads those back and runs only the tasks that are
+missing; the folder goes once the output is in place. It belongs to one command: a run whose
+arguments (or package version) differ is refused while it exists, unless ``--force``, which
+discards it.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import shutil
+from functools import partial
+from pathlib import Path
+from typing import Any
+
+from scenario_gen.atomic import atomic_write
+from scenario_gen.errors import InputError
+
+RUN = "run.json"
+KEY = re.compile(r"^[A-Za-z0-9_.-]+$")
+
+
+class Journal:
+    """The finished tasks of the command ``identity`` (a JSON-able mapping) writing ``out``."""
+
+    def __init__(self, out: str | Path, identity: dict[str, Any]) -> None:
+        self.out = Path(out).absolute()
+        self.path = self.out.parent / f".{self.out.name}.partial"
+        self.identity = json.loads(json.dumps(identity))  # as it reads back
+
+    def open(self, force: bool = False, what: str = "--out") -> dict[str, dict[str, Any]]:
+        """Start or resume (call with the output's lock held); returns the finished tasks by
+        key. Another command's journal is refused, or discarded with ``force``."""
+        run = self.path / RUN
+        if self.path.is_dir():
+            try:
+                have = json.loads(run.read_text())
+            except (OSError, ValueError):
+                have = None  # killed before its run.json was whole: nothing to resume
+            if have is not None and have != self.identity:
+                if not force:
+                    raise InputError(
+                        what,
+                        str(self.out),
+                        f"has the unfinished tasks of another run in {self.path} "
+                        f"({_differs(have, self.identity)}); allowed: the same command to "
+                        "resume it, or --force to discard it",
+                    )
+                have = None
+            if have is None:
+                shutil.rmtree(self.path)
+        if not self.path.is_dir():
+            self.path.mkdir(parents=True)
+            atomic_write(run, lambda tmp: tmp.write_text(json.dumps(self.identity, indent=1)))
+        done = {}
+        for f in sorted(self.path.glob("*.json")):
+            if f.name == RUN:
+                continue
+            try:
+                done[f.stem] = json.loads(f.read_text())
+            except (OSError, ValueError):
+                f.unlink(missing_ok=True)  # not whole: run it again
+        return done
+
+    def save(
+        self, key: str, payload: dict[str, Any], blobs: dict[str, bytes] | None = None
+    ) -> None:
+        """Keep task ``key``'s result (and files named ``key.<suffix>``; written before the
+        JSON, which marks the task done)."""
+        if not KEY.match(key):
+            raise ValueError(f"bad journal key {key!r}")
+        for suffix, data in (blobs or {}).items():
+            atomic_write(self.path / f"{key}.{suffix}", partial(_write_bytes, data=data))
+        atomic_write(self.path / f"{key}.json", lambda tmp: tmp.write_text(json.dumps(payload)))
+
+    def blob(self, key: str, suffix: str) -> bytes:
+        return (self.path / f"{key}.{suffix}").read_bytes()
+
+    def remove(self) -> None:
+        shutil.rmtree(self.path, ignore_errors=True)
+
+
+def _write_bytes(path: Path, data: bytes) -> int:
+    return path.write_bytes(data)
+
+
+def _differs(have: Any, want: dict[str, Any]) -> str:
+    if not isinstance(have, dict):
+        return "unreadable"
+    keys = sorted(k for k in set(have) | set(want) if have.get(k) != want.get(k))
+    return ", ".join(f"{k} {have.get(k)!r} there, {want.get(k)!r} now" for k in keys[:3])
