@@ -180,21 +180,39 @@ def _vector_env(workers: int) -> gym.vector.VectorEnv:
     )
 
 
-def vector_scaling(repeat: int, steps: int = 300) -> tuple[float, float]:
-    """Section 7: env steps/s of 1 and 2 subprocess workers, interleaved; medians."""
+def _cpu_seconds(pid: int) -> float:
+    """User + system CPU seconds of process ``pid`` so far (Linux /proc)."""
+    with open(f"/proc/{pid}/stat") as f:
+        fields = f.read().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def vector_scaling(repeat: int, steps: int = 300) -> dict[int, tuple[float, list[float], float]]:
+    """Section 7: per worker count (1, 2), the median env steps/s of interleaved runs, each
+    worker's median busy share of the wall time, and the main process's."""
     envs = {n: _vector_env(n) for n in (1, 2)}
-    rates: dict[int, list[float]] = {1: [], 2: []}
+    runs: dict[int, list[tuple[float, list[float], float]]] = {1: [], 2: []}
     try:
         for n, venv in envs.items():
             venv.reset(seed=list(range(n)))
             _vector_drive(venv, 20)
         for _ in range(repeat):
             for n, venv in envs.items():
-                rates[n].append(n * steps / _vector_drive(venv, steps))
+                pids = [proc.pid for proc in venv.unwrapped.processes]
+                before = [_cpu_seconds(pid) for pid in pids]
+                main0 = time.process_time()
+                wall = _vector_drive(venv, steps)
+                busy = [(_cpu_seconds(pid) - b) / wall for pid, b in zip(pids, before, strict=True)]
+                runs[n].append((n * steps / wall, busy, (time.process_time() - main0) / wall))
     finally:
         for venv in envs.values():
             venv.close()
-    return statistics.median(rates[1]), statistics.median(rates[2])
+    out = {}
+    for n, rs in runs.items():
+        rate = statistics.median(r[0] for r in rs)
+        busy = [statistics.median(r[1][i] for r in rs) for i in range(n)]
+        out[n] = (rate, busy, statistics.median(r[2] for r in rs))
+    return out
 
 
 def _vector_drive(venv: gym.vector.VectorEnv, n: int) -> float:
@@ -335,11 +353,17 @@ def main() -> None:
     if 6 in run:
         print(f"6. randomized reset        : {randomized_reset(args.repeat):7.3f} s (target ≤ 1 s)")
     if 7 in run:
-        one, two = vector_scaling(args.repeat)
+        v = vector_scaling(args.repeat)
+        (one, busy1, main1), (two, busy2, main2) = v[1], v[2]
         print(
             f"7. AsyncVectorEnv (spawn)  : 1 worker {one:.0f} env steps/s, 2 workers {two:.0f}: "
             f"{two / one:.2f}x, efficiency {two / (2 * one):.0%} (target ≥ 1.7x on "
             f"{os.cpu_count()} cores)"
+        )
+        print(
+            f"   busy share of the wall time: 1 worker {busy1[0]:.0%} (main {main1:.0%}); "
+            f"2 workers {' + '.join(f'{b:.0%}' for b in busy2)} (main {main2:.0%}); load "
+            f"average {os.getloadavg()[0]:.1f}"
         )
 
 
