@@ -55,7 +55,7 @@ def legacy_dwb(rev: str, env: Any, tmp: Path) -> Any | None:
 
 def record(steps: int) -> tuple[list[dict[str, np.ndarray]], float]:
     """Observations of one episode driven by dwb:furrow, and the median env step (ms)."""
-    env = gym.make("AgriNav/FieldRoute-v2", observations=OBS)
+    env = gym.make("AgriNav/FieldRoute-v3", observations=OBS)
     pi = make_policy("dwb:furrow", env)
     obs, _ = env.reset(seed=1_000_000_000)
     pi.reset()
@@ -92,7 +92,7 @@ def main() -> int:
     ap.add_argument("--legacy-rev", default="8e8bbcc")
     args = ap.parse_args()
     seq, env_ms = record(args.steps)
-    env = gym.make("AgriNav/FieldRoute-v2", observations=OBS)
+    env = gym.make("AgriNav/FieldRoute-v3", observations=OBS)
     rows: list[tuple[str, float]] = []
     with tempfile.TemporaryDirectory() as tmp:
         legacy = legacy_dwb(args.legacy_rev, env, Path(tmp))

@@ -42,7 +42,7 @@ from common import drive, s_curve
 from pybullet_gym_shim import quiet, racecar_envs, sim_seconds
 
 STEPS = 1000
-ENV_ID = "AgriNav/FurrowFollow-v2"
+ENV_ID = "AgriNav/FurrowFollow-v3"
 STATE_OBS = ("gps", "imu", "odom", "route")
 #: the benchmark drive's task: long enough that no step of it ends the episode
 TASK = {"task": {"max_crops_hit": 10**6, "corridor": 2.0}}
@@ -147,7 +147,7 @@ def interleaved(repeat: int, steps: int = 400) -> dict[str, float]:
 
 
 def report_interleaved(m: dict[str, float], repeat: int) -> None:
-    print(f"3. interleaved, median of {repeat} (FurrowFollow-v2 on paper-p1, 400 steps a run):")
+    print(f"3. interleaved, median of {repeat} (FurrowFollow-v3 on paper-p1, 400 steps a run):")
     print(
         f"   env step {m['ekf'] * 1e3:.3f} ms (EKF) vs raw physics {m['raw'] * 1e3:.3f} ms: "
         f"env / raw {m['ratio']:.2f} (target ≤ 1.3; raw without the terrain window's moves "
@@ -236,7 +236,7 @@ scn = sg.generate(sg.preset("paper-p1", layout=lay), 0)
 _ = scn.terrain.tree
 before = rss()
 tracemalloc.start()
-env = gym.make("AgriNav/FurrowFollow-v2", scenario=scn)
+env = gym.make("AgriNav/FurrowFollow-v3", scenario=scn)
 env.reset(seed=0)
 for _ in range(50):
     env.step(env.action_space.sample() * 0)
@@ -281,7 +281,7 @@ def load_100k(repeat: int) -> tuple[int, float, float, float]:
         t0 = time.perf_counter()
         scn = sg.generate(spec, r)
         t1 = time.perf_counter()
-        env = gym.make("AgriNav/FurrowFollow-v2", scenario=scn)
+        env = gym.make("AgriNav/FurrowFollow-v3", scenario=scn)
         env.reset(seed=0)
         env.step(np.zeros(2, np.float32))
         t2 = time.perf_counter()
@@ -295,7 +295,7 @@ def load_100k(repeat: int) -> tuple[int, float, float, float]:
 
 def randomized_reset(repeat: int) -> float:
     env = gym.make(
-        "AgriNav/FurrowFollow-v2",
+        "AgriNav/FurrowFollow-v3",
         scenario="paper-p1",
         randomize={
             "crop.stage": [1, 5],

@@ -81,7 +81,7 @@ def run(seeds: int) -> tuple[dict[tuple[str, str], list[dict[str, float]]], dict
     with tqdm(total=len(CASES) * seeds, desc="episodes", unit="ep", leave=False) as bar:
         for case, gnss, stage in CASES:
             env = gym.make(
-                "AgriNav/FurrowFollow-v2",
+                "AgriNav/FurrowFollow-v3",
                 scenario_overrides={"crop": {"stage": stage}, "field": {"length": LENGTH}},
                 observations=["gps", "imu", "odom", "route"],
                 config={

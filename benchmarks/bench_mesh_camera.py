@@ -48,22 +48,22 @@ def step_costs(blocks: int) -> dict[str, float]:
     base = {"task": {"max_crops_hit": 10**6, "corridor": 2.0}}
     envs = {
         "state": gym.make(
-            "AgriNav/FurrowFollow-v2", scenario="paper-p1", observations=STATE, config=base
+            "AgriNav/FurrowFollow-v3", scenario="paper-p1", observations=STATE, config=base
         ),
         "proxy": gym.make(
-            "AgriNav/FurrowFollow-v2",
+            "AgriNav/FurrowFollow-v3",
             scenario="paper-p1",
             observations=(*STATE, "depth"),
             config=base,
         ),
         "mesh": gym.make(
-            "AgriNav/FurrowFollow-v2",
+            "AgriNav/FurrowFollow-v3",
             scenario="paper-p1",
             observations=(*STATE, "depth"),
             config={**base, "camera": {"model": "mesh", "segmentation": True}},
         ),
         "proxy-reference": gym.make(
-            "AgriNav/FurrowFollow-v2",
+            "AgriNav/FurrowFollow-v3",
             scenario="paper-p1",
             observations=(*STATE, "depth"),
             config=base,

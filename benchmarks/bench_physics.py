@@ -197,7 +197,7 @@ def accelerometer() -> None:
     }
     for name in ("legacy", "tyres"):
         env = gym.make(
-            "AgriNav/FurrowFollow-v2",
+            "AgriNav/FurrowFollow-v3",
             scenario_overrides=flat,
             config={"task": {"corridor": 5.0, "max_crops_hit": 10**6}},
         )
@@ -227,7 +227,7 @@ def step_cost(repeat: int) -> None:
     envs = []
     for name, loc, stage in setups:
         env = gym.make(
-            "AgriNav/FurrowFollow-v2",
+            "AgriNav/FurrowFollow-v3",
             scenario="paper-p1",
             scenario_overrides={"crop": {"stage": stage}} if stage else None,
             observations=("gps", "imu", "odom", "route"),
@@ -286,7 +286,7 @@ def estimate_errors(seeds: int) -> dict[tuple[str, str], list[float]]:
     with tqdm(total=len(CASES) * seeds, desc="episodes", unit="ep", leave=False) as bar:
         for case, gnss, stage in CASES:
             env = gym.make(
-                "AgriNav/FurrowFollow-v2",
+                "AgriNav/FurrowFollow-v3",
                 scenario_overrides={"crop": {"stage": stage}},
                 observations=["gps", "imu", "odom", "route"],
                 config={

@@ -62,7 +62,7 @@ def growth(op: Callable[[int], None], n: int, warm: int = 50) -> tuple[float, fl
 def env_op(model: str, randomize: bool) -> Callable[[int], None]:
     kw = {"randomize": {"crop.stage": [1, 5]}} if randomize else {}
     env = gym.make(
-        "AgriNav/FurrowFollowDepth-v2",
+        "AgriNav/FurrowFollowDepth-v3",
         scenario_overrides=TINY,
         config={"camera": {"model": model, "width": 64, "height": 48}},
         **kw,

@@ -1,7 +1,7 @@
 """The video of ``agrinav run --video``: frames per second of its renderer, and its encoding.
 
 The 640 × 480 chase view (``agrinav_gym.chase_view.ChaseView``, what ``env.render()`` returns)
-at poses of an RPP drive along the default FieldRoute-v2 field — inside the maize, along the
+at poses of an RPP drive along the default FieldRoute-v3 field — inside the maize, along the
 lanes and through the headland turns:
 
 1. rendering: frames per second rasterised (the compiled kernels, the default where they are
@@ -36,7 +36,7 @@ from agrinav_gym.scenarios import FixedFieldWarning
 from baselines.episodes import VIDEO_BITRATE, VideoWriter, run_episode
 from policies import make_policy
 
-ENV = "AgriNav/FieldRoute-v2"
+ENV = "AgriNav/FieldRoute-v3"
 OBS = ["gps", "imu", "odom", "route", "depth"]
 
 

@@ -1,6 +1,6 @@
 """Does a controller drive each headland turn type? RPP on FieldRoute over seeded episodes.
 
-For every turn type asked for, ``AgriNav/FieldRoute-v2`` on a preset (default ``hillside``:
+For every turn type asked for, ``AgriNav/FieldRoute-v3`` on a preset (default ``hillside``:
 two lanes, one turn) with ``route.turn`` set, Nav2's progress checker on (0.5 m within 10 s,
 else the episode fails as a stall) and the default localisation; one episode per reset seed.
 Counted per episode: the turn *completed* (the robot got past the turn's last waypoint along
@@ -68,7 +68,7 @@ def run(
     turn: str, episodes: int, preset: str, policy: str, first_seed: int, over: dict[str, Any]
 ) -> dict[str, Any]:
     env = gym.make(
-        "AgriNav/FieldRoute-v2",
+        "AgriNav/FieldRoute-v3",
         scenario=preset,
         scenario_overrides={**over, "route.turn": turn},
         config={"task": NAV2_PROGRESS},

@@ -102,12 +102,12 @@ def main() -> None:
     base = {"task": {"max_crops_hit": 10**6, "corridor": 2.0}}
     envs: dict[str, Any] = {
         "state": gym.make(
-            "AgriNav/FurrowFollow-v2", scenario="paper-p1", observations=STATE, config=base
+            "AgriNav/FurrowFollow-v3", scenario="paper-p1", observations=STATE, config=base
         )
     }
     for name, (tri, pri) in VARIANTS.items():
         env = gym.make(
-            "AgriNav/FurrowFollow-v2",
+            "AgriNav/FurrowFollow-v3",
             scenario="paper-p1",
             observations=(*STATE, "depth"),
             config=base,

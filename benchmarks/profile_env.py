@@ -1,4 +1,4 @@
-"""Where an env step's time goes: a per-part timer over FurrowFollow-v2 steps on paper-p1.
+"""Where an env step's time goes: a per-part timer over FurrowFollow-v3 steps on paper-p1.
 
 Each part of ``AgriNavEnv.step`` (design.md §3) is wrapped, on the env instance, in a timer;
 the table lists microseconds per env step and the share of the step. Nested rows (indented)
@@ -118,7 +118,7 @@ def instrument(env: Any, totals: dict[str, float]) -> Callable[[], None]:
 
 def make(localisation: str) -> Any:
     return gym.make(
-        "AgriNav/FurrowFollow-v2",
+        "AgriNav/FurrowFollow-v3",
         scenario="paper-p1",
         observations=("gps", "imu", "odom", "route"),
         config={
@@ -147,7 +147,7 @@ def table(localisation: str, steps: int, repeat: int) -> None:
     total = med["env step (total)"]
     top = sum(med[label] for label, _, _, depth in PARTS if depth == 0)
     raw = med["physics substeps"] + med["drive (wheel motor targets)"]
-    print(f"\nFurrowFollow-v2 on paper-p1, gps/imu/odom/route, {localisation}: µs per env step")
+    print(f"\nFurrowFollow-v3 on paper-p1, gps/imu/odom/route, {localisation}: µs per env step")
     print(f"(median of {repeat} runs of {steps} steps from a reset; kernels: {kernels()})\n")
     print("| part | µs / step | share |")
     print("|---|---|---|")

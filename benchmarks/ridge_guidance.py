@@ -3,7 +3,7 @@
 1. turn ratio: yaw rate achieved under a gentle turn (0.2 rad/s at 1 m/s) in a furrow between
    sine ridges, over the level-ground rate (1 = no guidance, 0 = a rail), for each assumed soil
    value at both ends of its plausible range (``agrinav_gym.sim.ridge_guidance``);
-2. blind completion: % of a FurrowFollow-v2 lane a constant command with no sensors drives
+2. blind completion: % of a FurrowFollow-v3 lane a constant command with no sensors drives
    before leaving it, over ridge height (``--seeds`` episodes each).
 
 Prints both tables and writes ``docs/img/ridge_guidance.png``.
@@ -31,7 +31,7 @@ DEPTHS = [0.0, 0.005, 0.01, 0.02, 0.03, 0.05, 0.08, 0.12]
 
 def blind_completion(depth: float, seed: int) -> float:
     over = {"furrows": {"enabled": depth > 0, "depth": max(depth, 1e-3)}}
-    env = gym.make("AgriNav/FurrowFollow-v2", scenario_overrides=over)
+    env = gym.make("AgriNav/FurrowFollow-v3", scenario_overrides=over)
     try:
         return float(
             run_episode(env, make_policy("blind", env), seed, "blind").metrics["completion"]
@@ -53,7 +53,7 @@ def main() -> None:
     print(f"{'soil':16}" + "".join(f"{d:>7.3f}" for d in DEPTHS))
     for name, row in ratios.items():
         print(f"{name:16}" + "".join(f"{r:7.2f}" for r in row))
-    print(f"\n2. blind completion (%, {args.seeds} seeds, FurrowFollow-v2, default soil)")
+    print(f"\n2. blind completion (%, {args.seeds} seeds, FurrowFollow-v3, default soil)")
     blind = []
     for d in tqdm(DEPTHS, desc="blind"):
         runs = [blind_completion(d, s) for s in range(args.seeds)]
@@ -85,7 +85,7 @@ def figure(ratios: dict[str, list[float]], blind: list[list[float]]) -> None:
     b.set_xticks(range(len(DEPTHS)), [f"{c:g}" for c in cm])
     b.set_xlabel("ridge height (cm)")
     b.set_ylabel("lane completed (%)")
-    b.set_title("a constant command, no sensors (FurrowFollow-v2)", fontsize=9)
+    b.set_title("a constant command, no sensors (FurrowFollow-v3)", fontsize=9)
     fig.suptitle("How much the simulated ridges steer the robot (point-contact tyres)")
     IMG.mkdir(parents=True, exist_ok=True)
     fig.savefig(IMG / "ridge_guidance.png", dpi=100)

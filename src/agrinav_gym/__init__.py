@@ -2,7 +2,7 @@
 
 >>> import gymnasium as gym
 >>> import agrinav_gym  # registers the AgriNav/ namespace
->>> env = gym.make("AgriNav/FurrowFollow-v2")
+>>> env = gym.make("AgriNav/FurrowFollow-v3")
 """
 
 from __future__ import annotations

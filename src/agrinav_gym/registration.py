@@ -35,13 +35,15 @@ class EnvDef:
 
 # Step limits: a default-field lane (22 m) at the slowest shipped controller's 0.3 m/s is 73 s,
 # 1,470 steps at 20 Hz; the paper's zigzag (≈ 60 m with the U-turn) at 0.3 m/s is 4,000.
+#: v3: the robot settles on its tyres before the first observation; the tyre model, the EKF and
+#: the route tracking in compiled kernels (the EKF to rounding, not to the bit).
 #: v2: flat planting by default (no ridges under every field: docs/physics.md).
 #: v1: drivable default fields, tyre–soil physics, the EKF's pose in the route observation,
 #: canopy-driven GNSS fix modes, fitted plant proxies (docs/design.md "Version history").
 ENVS = (
-    EnvDef("FurrowFollow", 2, "agrinav_gym.envs.furrow_follow:make_furrow_follow", 1500),
-    EnvDef("FurrowFollowDepth", 2, "agrinav_gym.envs.furrow_follow:make_furrow_follow_depth", 1500),
-    EnvDef("FieldRoute", 2, "agrinav_gym.envs.field_route:make_field_route", 4000),
+    EnvDef("FurrowFollow", 3, "agrinav_gym.envs.furrow_follow:make_furrow_follow", 1500),
+    EnvDef("FurrowFollowDepth", 3, "agrinav_gym.envs.furrow_follow:make_furrow_follow_depth", 1500),
+    EnvDef("FieldRoute", 3, "agrinav_gym.envs.field_route:make_field_route", 4000),
 )
 ENV_IDS = tuple(d.id for d in ENVS)
 _BY_NAME = {d.name: d for d in ENVS}

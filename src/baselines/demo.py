@@ -47,7 +47,7 @@ def demo(out: str | Path, seeds: int = 2) -> Path:
         )
     policies = ["blind", "dwb"]  # blind: what the field steers by itself, the reference row
     try:
-        shipped_model("AgriNav/FieldRoute-v2")
+        shipped_model("AgriNav/FieldRoute-v3")
         policies.append("ppo:shipped")
     except InputError as exc:  # a checkout without the trained model still runs the demo
         print(f"note: {exc}; benchmarking DWB and the blind reference only")

@@ -106,14 +106,14 @@ def _unseen() -> list[Case]:
     """FieldRoute on geometries drawn like the PPO training split's, from the eval seeds."""
     from .hyperparams import load
 
-    _, setup = load("AgriNav/FieldRoute-v2")
+    _, setup = load("AgriNav/FieldRoute-v3")
     kw = setup.env_kwargs
     over = dict(kw.get("scenario_overrides", {}))
     rand = {k: v for k, v in kw.get("randomize", {}).items() if "." in k}
     return [
         Case(
             "unseen fields",
-            "AgriNav/FieldRoute-v2",
+            "AgriNav/FieldRoute-v3",
             str(kw.get("scenario", "paper-p1")),
             over,
             RTK_EKF,
@@ -146,7 +146,7 @@ def _long() -> list[Case]:
     return [
         Case(
             g,
-            "AgriNav/FieldRoute-v2",
+            "AgriNav/FieldRoute-v3",
             "paper-p1",
             {**over, **o},
             config,
@@ -179,7 +179,7 @@ def _localisation() -> list[Case]:
         ("canopy 2.5 m", 5, RTK_EKF),
     )
     return [
-        Case(g, "AgriNav/FieldRoute-v2", "paper-p1", {**PAPER_FIELD, "crop": {"stage": s}}, c)
+        Case(g, "AgriNav/FieldRoute-v3", "paper-p1", {**PAPER_FIELD, "crop": {"stage": s}}, c)
         for g, s, c in rows
     ]
 
@@ -195,7 +195,7 @@ def suite(name: str) -> list[Case]:
             "layout": {"headland": 1.5},
             "terrain": {"margin": 4.0},
         }
-        return [Case("tiny", "AgriNav/FurrowFollow-v2", "default", tiny, max_steps=800)]
+        return [Case("tiny", "AgriNav/FurrowFollow-v3", "default", tiny, max_steps=800)]
     if name == "paper":
         # The source paper's experiment as it ran: four Nav2 GPS waypoints (33 m along a lane,
         # across the headland, 31 m back) read through the datum, the straight-leg plan between
@@ -205,7 +205,7 @@ def suite(name: str) -> list[Case]:
         return [
             Case(
                 f"corn-{label}",
-                "AgriNav/FieldRoute-v2",
+                "AgriNav/FieldRoute-v3",
                 "paper-p1",
                 {**PAPER_WAYPOINT_FIELD, "route": route, "crop": {"stage": stage}},
                 RTK_EKF,
@@ -219,7 +219,7 @@ def suite(name: str) -> list[Case]:
         return [
             Case(
                 f"corn-{label}",
-                "AgriNav/FieldRoute-v2",
+                "AgriNav/FieldRoute-v3",
                 "paper-p1",
                 {**PAPER_FIELD, "crop": {"stage": stage}},
                 RTK_EKF,
@@ -244,7 +244,7 @@ def suite(name: str) -> list[Case]:
         return [
             Case(
                 f"{h} m",
-                "AgriNav/FurrowFollow-v2",
+                "AgriNav/FurrowFollow-v3",
                 "default",
                 {"crop": {"stage": s}, "layout": {"row_spacing": 1.0}},
                 {"camera": {"model": model}},
@@ -256,7 +256,7 @@ def suite(name: str) -> list[Case]:
         return [
             Case(
                 p.upper(),
-                "AgriNav/FurrowFollow-v2",
+                "AgriNav/FurrowFollow-v3",
                 f"paper-{p}",
                 {"field": {"width": 20.0, "length": 30.0}},
             )
@@ -264,8 +264,8 @@ def suite(name: str) -> list[Case]:
         ]
     if name == "terrain":
         return [
-            Case("flat", "AgriNav/FurrowFollow-v2", "default"),
-            Case("hillside", "AgriNav/FurrowFollow-v2", "hillside"),
+            Case("flat", "AgriNav/FurrowFollow-v3", "default"),
+            Case("hillside", "AgriNav/FurrowFollow-v3", "hillside"),
         ]
     raise ScenarioError("--suite", name, f"allowed: one of {', '.join(SUITES)}")
 

@@ -59,7 +59,7 @@ SEARCH: dict[str, dict[str, tuple[float, float]]] = {
 CONFIG_TUNED = ("dwb",)
 FAIL_SCORE = 1.0  # m: an unfinished route scores like a metre of cross-track error
 CROP_PENALTY = 0.05  # m per stalk touched
-ENV_ID = "AgriNav/FieldRoute-v2"
+ENV_ID = "AgriNav/FieldRoute-v3"
 #: The benchmark's conditions (suites.RTK_EKF); the path trackers ignore the depth camera, so
 #: they run without it (DWB's costmap reads it).
 OBSERVATIONS = [OBS_GPS, OBS_IMU, OBS_ODOM, OBS_ROUTE]

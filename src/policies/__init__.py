@@ -36,9 +36,9 @@ POLICIES: dict[str, type[Policy]] = {
 
 #: Checkpoints shipped in the package, by the env id they were trained on.
 SHIPPED = {
-    "AgriNav/FurrowFollow-v2": "furrow_follow_ppo",
-    "AgriNav/FieldRoute-v2": "field_route_ppo",
-    "AgriNav/FurrowFollowDepth-v2": "furrow_follow_depth_ppo",
+    "AgriNav/FurrowFollow-v3": "furrow_follow_ppo",
+    "AgriNav/FieldRoute-v3": "field_route_ppo",
+    "AgriNav/FurrowFollowDepth-v3": "furrow_follow_depth_ppo",
 }
 
 

@@ -14,7 +14,7 @@ from ..fields import FLAT, STILL, TINY
 __all__ = ["FLAT", "STILL", "TINY", "lane_pose", "make", "make_camera", "mesh_camera"]
 
 
-def make(env_id: str = "AgriNav/FurrowFollow-v2", **kwargs: Any) -> gym.Env:
+def make(env_id: str = "AgriNav/FurrowFollow-v3", **kwargs: Any) -> gym.Env:
     kwargs.setdefault("scenario_overrides", TINY)
     return gym.make(env_id, **kwargs)
 

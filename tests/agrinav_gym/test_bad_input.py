@@ -10,7 +10,7 @@ from agrinav_gym import InputError
 
 from .helpers import TINY
 
-ID = "AgriNav/FurrowFollow-v2"
+ID = "AgriNav/FurrowFollow-v3"
 
 
 @pytest.mark.parametrize(
@@ -166,7 +166,7 @@ def test_a_route_too_short_to_drive_is_refused_not_a_success(tmp_path: Any) -> N
     path = tmp_path / "w.yaml"
     path.write_text(yaml.safe_dump({"waypoints": wps}))
     env = gym.make(
-        "AgriNav/FieldRoute-v2", scenario_overrides={**TINY, "route": {"waypoints": str(path)}}
+        "AgriNav/FieldRoute-v3", scenario_overrides={**TINY, "route": {"waypoints": str(path)}}
     )
     try:
         with pytest.raises(InputError, match="route of at least 1.3 m"):

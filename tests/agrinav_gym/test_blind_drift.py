@@ -17,7 +17,7 @@ FLAT = {"furrows": {"enabled": False}}
 
 
 def _drive_blind(overrides: dict[str, object], seed: int) -> dict[str, object]:
-    env = gym.make("AgriNav/FurrowFollow-v2", scenario_overrides=overrides)
+    env = gym.make("AgriNav/FurrowFollow-v3", scenario_overrides=overrides)
     try:
         return dict(drive(env, make_policy("blind", env), seed).info)
     finally:

@@ -27,7 +27,7 @@ def test_default_scenario_starts_clear_of_the_crop(env_id: str) -> None:
         env.close()
 
 
-@pytest.mark.parametrize("env_id", ["AgriNav/FurrowFollow-v2", "AgriNav/FieldRoute-v2"])
+@pytest.mark.parametrize("env_id", ["AgriNav/FurrowFollow-v3", "AgriNav/FieldRoute-v3"])
 def test_pure_pursuit_drives_the_default_scenario_without_touching_a_crop(env_id: str) -> None:
     from policies import make_policy
 
@@ -53,9 +53,9 @@ def test_shipped_field_route_ppo_drives_a_held_out_field_through_its_u_turn() ->
     from baselines import hyperparams
     from policies import make_policy
 
-    _, setup = hyperparams.load("AgriNav/FieldRoute-v2")
+    _, setup = hyperparams.load("AgriNav/FieldRoute-v3")
     env = gym.make(
-        "AgriNav/FieldRoute-v2", **setup.env_kwargs, scenario_seeds=list(setup.eval_seeds)
+        "AgriNav/FieldRoute-v3", **setup.env_kwargs, scenario_seeds=list(setup.eval_seeds)
     )
     try:
         pi = make_policy("ppo:shipped", env)

@@ -63,7 +63,7 @@ def test_gym_make_human_headless_is_refused_in_one_line(
         gym.make(env_id, render_mode="human", scenario_overrides=TINY)
 
 
-@pytest.mark.parametrize("env_id", ["AgriNav/FurrowFollowDepth-v2", "AgriNav/FieldRoute-v2"])
+@pytest.mark.parametrize("env_id", ["AgriNav/FurrowFollowDepth-v3", "AgriNav/FieldRoute-v3"])
 def test_camera_extras_and_fresh_arrays_every_step(env_id: str) -> None:
     """info carries the current RGB and segmentation after every step at every camera rate,
     and every observation is a new array (nothing the caller keeps changes under it)."""
@@ -151,7 +151,7 @@ def test_env_pickles(env_id: str) -> None:
 
 def test_async_vector_env() -> None:
     envs = gym.vector.AsyncVectorEnv(
-        [lambda: gym.make("AgriNav/FurrowFollow-v2", scenario_overrides=TINY)] * 2
+        [lambda: gym.make("AgriNav/FurrowFollow-v3", scenario_overrides=TINY)] * 2
     )
     try:
         obs, _ = envs.reset(seed=[0, 1])
@@ -171,7 +171,7 @@ def test_sb3_subproc_vec_env() -> None:
 
     # forkserver workers start fresh: the "module:id" form imports agrinav_gym there first
     venv = make_vec_env(
-        "agrinav_gym:AgriNav/FurrowFollow-v2",
+        "agrinav_gym:AgriNav/FurrowFollow-v3",
         n_envs=2,
         seed=0,
         vec_env_cls=SubprocVecEnv,
@@ -235,11 +235,11 @@ def test_design_notes_list_every_observation_with_its_shape() -> None:
         assert f"| ({n},) |" in rows[key]
 
 
-@pytest.mark.parametrize("old", ["v0", "v1"])
-def test_older_ids_point_to_v2(old: str) -> None:
+@pytest.mark.parametrize("old", ["v0", "v1", "v2"])
+def test_older_ids_point_to_the_current_version(old: str) -> None:
     from gymnasium.error import DeprecatedEnv
 
-    with pytest.raises(DeprecatedEnv, match="AgriNav/FurrowFollow-v2"):
+    with pytest.raises(DeprecatedEnv, match="AgriNav/FurrowFollow-v3"):
         gym.make(f"AgriNav/FurrowFollow-{old}")
 
 

@@ -103,7 +103,7 @@ def test_field_route_episode_matches_independent_computation() -> None:
     running metrics equal a brute-force nearest-segment computation over its pose log."""
     from policies import make_policy
 
-    env = gym.make("AgriNav/FieldRoute-v2", scenario_overrides=TINY, observations=["odom", "route"])
+    env = gym.make("AgriNav/FieldRoute-v3", scenario_overrides=TINY, observations=["odom", "route"])
     try:
         pi = make_policy("rpp", env)
         obs, _ = env.reset(seed=3)

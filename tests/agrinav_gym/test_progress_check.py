@@ -13,7 +13,7 @@ STOP = np.zeros(2, np.float32)
 
 
 def _steps_until_end(config: dict[str, object], action: np.ndarray, limit: int) -> tuple[int, dict]:
-    env = gym.make("AgriNav/FurrowFollow-v2", config=config, max_episode_steps=limit)
+    env = gym.make("AgriNav/FurrowFollow-v3", config=config, max_episode_steps=limit)
     try:
         env.reset(seed=3)
         for n in range(1, limit + 1):
@@ -45,5 +45,5 @@ def test_a_robot_that_keeps_moving_is_never_stopped() -> None:
 
 def test_the_progress_settings_are_checked() -> None:
     with pytest.raises(agrinav_gym.InputError) as e:
-        gym.make("AgriNav/FurrowFollow-v2", config={"task": {"progress_time": -1}})
+        gym.make("AgriNav/FurrowFollow-v3", config={"task": {"progress_time": -1}})
     assert "task.progress_time" in str(e.value)

@@ -31,7 +31,7 @@ def _rss_kb() -> int:
 @pytest.mark.parametrize("model", ["proxy", "mesh"])
 def test_resets_on_one_field_stay_within_the_memory_budget(model: str) -> None:
     env = make(
-        "AgriNav/FurrowFollowDepth-v2",
+        "AgriNav/FurrowFollowDepth-v3",
         config={"camera": {"model": model, "width": 32, "height": 24}},
     )
     try:

@@ -39,12 +39,12 @@ def test_register_scenario_refuses_objects_bad_tasks_and_built_in_names(tmp_path
     with pytest.raises(ScenarioError) as info:
         agrinav_gym.register_scenario("Tiny", tmp_path / "s", task="route")
     assert info.value.field == "task" and "FieldRoute" in str(info.value)
-    before = gym.spec("AgriNav/FurrowFollow-v2")
+    before = gym.spec("AgriNav/FurrowFollow-v3")
     for name in ("FurrowFollow", "FieldRoute", "FurrowFollowDepth"):
         with pytest.raises(ScenarioError, match="built-in"):
             agrinav_gym.register_scenario(name, tmp_path / "s")
-    assert gym.spec("AgriNav/FurrowFollow-v2") is before
-    assert gym.spec("AgriNav/FurrowFollow-v2").kwargs == {}
+    assert gym.spec("AgriNav/FurrowFollow-v3") is before
+    assert gym.spec("AgriNav/FurrowFollow-v3").kwargs == {}
 
 
 @pytest.mark.parametrize("env_id", list(agrinav_gym.ENV_IDS))
@@ -251,5 +251,5 @@ def test_a_scenario_object_is_checked_as_load_checks_a_folder(edit, field: str) 
     )
     edit(plants)
     with pytest.raises(ScenarioError) as e:
-        gym.make("AgriNav/FurrowFollow-v2", scenario=dataclasses.replace(scn, plants=plants))
+        gym.make("AgriNav/FurrowFollow-v3", scenario=dataclasses.replace(scn, plants=plants))
     assert e.value.field == field

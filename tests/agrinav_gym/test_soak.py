@@ -20,7 +20,7 @@ def _rss() -> int:
 
 @pytest.mark.slow
 def test_rss_stays_flat_over_steps_resets_and_env_lifetimes() -> None:
-    env = gym.make("AgriNav/FurrowFollow-v2", scenario_overrides=TINY)
+    env = gym.make("AgriNav/FurrowFollow-v3", scenario_overrides=TINY)
     rng = np.random.default_rng(0)
     env.reset(seed=0)
     for _ in range(2000):  # warm-up: caches, allocator pools
@@ -34,7 +34,7 @@ def test_rss_stays_flat_over_steps_resets_and_env_lifetimes() -> None:
     env.close()
 
     env = gym.make(
-        "AgriNav/FurrowFollow-v2",
+        "AgriNav/FurrowFollow-v3",
         scenario_overrides=TINY,
         randomize={"crop.stage": [1, 5], "layout.plant_spacing": [0.15, 0.3]},
     )
@@ -48,11 +48,11 @@ def test_rss_stays_flat_over_steps_resets_and_env_lifetimes() -> None:
     env.close()
 
     for _ in range(10):
-        gym.make("AgriNav/FurrowFollow-v2", scenario_overrides=TINY).close()
+        gym.make("AgriNav/FurrowFollow-v3", scenario_overrides=TINY).close()
     gc.collect()
     base = _rss()
     for i in range(200):
-        e = gym.make("AgriNav/FurrowFollow-v2", scenario_overrides=TINY)
+        e = gym.make("AgriNav/FurrowFollow-v3", scenario_overrides=TINY)
         e.reset(seed=i)
         e.close()
     gc.collect()

@@ -185,7 +185,7 @@ def test_trajectories_are_a_minari_dataset_that_recovers_its_env(tmp_path: Path)
     minari = pytest.importorskip("minari", reason="the dataset extra is not installed")
     from baselines.dataset.trajectories import INFO_KEYS, _datasets_root, load, record
 
-    path = record("AgriNav/FurrowFollow-v2", "rpp", 2, tmp_path / "m", seed=3)
+    path = record("AgriNav/FurrowFollow-v3", "rpp", 2, tmp_path / "m", seed=3)
     meta = load(tmp_path / "m").storage.metadata
     assert meta["requirements"][0].startswith("agrinav-gym==")
     assert meta["ref_min_score"] < meta["ref_max_score"]  # random actions score below RPP
@@ -197,7 +197,7 @@ def test_trajectories_are_a_minari_dataset_that_recovers_its_env(tmp_path: Path)
         assert set(INFO_KEYS) <= set(ep.infos) and "rewards" in ep.infos
         env = data.recover_environment()
         try:
-            assert env.spec is not None and env.spec.id == "AgriNav/FurrowFollow-v2"
+            assert env.spec is not None and env.spec.id == "AgriNav/FurrowFollow-v3"
             env.reset(seed=0)
         finally:
             env.close()

@@ -22,10 +22,10 @@ from scenario_gen import InputError
 from ..fields import TINY
 from ..policies.test_onnx_export import observations
 
-FR = "AgriNav/FieldRoute-v2"
+FR = "AgriNav/FieldRoute-v3"
 OBS = ["imu", "odom", "route"]
 #: rl-baselines3-zoo's names: the env id with "/" as "-"; run folders <log>/<algo>/<env>_<n>
-ZOO_ENV = "AgriNav-FieldRoute-v2"
+ZOO_ENV = "AgriNav-FieldRoute-v3"
 
 
 def _env() -> gym.Env:
@@ -126,7 +126,7 @@ def test_a_zoo_run_loads_with_its_normalisation_or_not_at_all(
         stats.unlink()
         with pytest.raises(
             InputError,
-            match=r"vecnormalize\.pkl'; not found at .*AgriNav-FieldRoute-v2/vecnormalize\.pkl",
+            match=r"vecnormalize\.pkl'; not found at .*AgriNav-FieldRoute-v3/vecnormalize\.pkl",
         ):
             _trusted(f"ppo:{run}", env)
         model = tmp_path / "model.zip"

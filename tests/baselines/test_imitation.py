@@ -20,14 +20,14 @@ def test_discounted_returns_run_backwards_from_the_end() -> None:
 
 def test_demonstrations_label_the_controllers_own_actions() -> None:
     ws = WarmStart(episodes=1, steer_noise=0.0)
-    d = demonstrate("AgriNav/FurrowFollow-v2", KWARGS, ws, 0.99, seed=0)
-    again = demonstrate("AgriNav/FurrowFollow-v2", KWARGS, ws, 0.99, seed=0)
+    d = demonstrate("AgriNav/FurrowFollow-v3", KWARGS, ws, 0.99, seed=0)
+    again = demonstrate("AgriNav/FurrowFollow-v3", KWARGS, ws, 0.99, seed=0)
     assert len(d) > 50 and d.successes == 1  # RPP drives a short straight lane to its end
     assert set(d.obs) == {"imu", "odom", "route"} and d.obs["route"].shape == (len(d), 30)
     np.testing.assert_array_equal(d.actions, again.actions)  # one seed, one rollout
     # with a perturbation executed the labels stay the controller's: they differ from what
     # was driven, but the states still come from a driven lane
-    noisy = demonstrate("AgriNav/FurrowFollow-v2", KWARGS, WarmStart(episodes=1), 0.99, seed=0)
+    noisy = demonstrate("AgriNav/FurrowFollow-v3", KWARGS, WarmStart(episodes=1), 0.99, seed=0)
     assert noisy.successes == 1 and not np.array_equal(noisy.actions[:50], d.actions[:50])
 
 
@@ -36,8 +36,8 @@ def test_the_clone_fits_the_demonstrated_actions_and_returns() -> None:
     from stable_baselines3.common.env_util import make_vec_env
     from stable_baselines3.common.vec_env import VecNormalize
 
-    d = demonstrate("AgriNav/FurrowFollow-v2", KWARGS, WarmStart(episodes=1), 0.95, seed=1)
-    venv = VecNormalize(make_vec_env("agrinav_gym:AgriNav/FurrowFollow-v2", 1, env_kwargs=KWARGS))
+    d = demonstrate("AgriNav/FurrowFollow-v3", KWARGS, WarmStart(episodes=1), 0.95, seed=1)
+    venv = VecNormalize(make_vec_env("agrinav_gym:AgriNav/FurrowFollow-v3", 1, env_kwargs=KWARGS))
     try:
         model = PPO("MultiInputPolicy", venv, seed=0, n_steps=64, batch_size=64)
         before = clone(model, venv, d, WarmStart(epochs=1, learning_rate=1e-12), seed=0)
@@ -54,11 +54,11 @@ def test_the_clone_fits_the_demonstrated_actions_and_returns() -> None:
 def test_a_bad_warm_start_section_is_refused() -> None:
     import dataclasses
 
-    _, setup = hpmod.load("AgriNav/FieldRoute-v2")
-    assert setup.warm("AgriNav/FieldRoute-v2").policy == "rpp"
+    _, setup = hpmod.load("AgriNav/FieldRoute-v3")
+    assert setup.warm("AgriNav/FieldRoute-v3").policy == "rpp"
     bad = dataclasses.replace(setup, warm_start={"policy": "rpp", "episdoes": 3})
     with pytest.raises(InputError, match="episdoes"):
-        bad.warm("AgriNav/FieldRoute-v2")
+        bad.warm("AgriNav/FieldRoute-v3")
     bad = dataclasses.replace(setup, warm_start={"policy": "pid"})
     with pytest.raises(InputError, match="pid"):
-        bad.warm("AgriNav/FieldRoute-v2")
+        bad.warm("AgriNav/FieldRoute-v3")

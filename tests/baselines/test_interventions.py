@@ -21,7 +21,7 @@ CONFIG = {"task": {"progress_time": 2.0, "max_crops_hit": 0}}
 
 def _env() -> Any:
     return gym.make(
-        "AgriNav/FurrowFollow-v2", scenario_overrides=SHORT, config=CONFIG, observations=["route"]
+        "AgriNav/FurrowFollow-v3", scenario_overrides=SHORT, config=CONFIG, observations=["route"]
     )
 
 
@@ -118,7 +118,7 @@ class _StallsLate:
 
 def test_after_an_intervention_in_the_second_lane_the_route_observation_is_right() -> None:
     env = gym.make(
-        "AgriNav/FieldRoute-v2",
+        "AgriNav/FieldRoute-v3",
         scenario_overrides={**SHORT, "field": {"width": 5.0, "length": 10.0}},
         # 4 s: RPP slows to a crawl in the 0.5 m-radius U-turn, 2 s would stop it there
         config={"task": {"progress_time": 4.0, "max_crops_hit": 0}},

@@ -21,12 +21,20 @@ EVIL = "from pathlib import Path\nPath('PWNED').write_text('ran')\n"
 
 @pytest.mark.parametrize(
     "env_id",
-    ["evilmod:Anything", "CartPole-v1", "AgriNav/FurrowFollow-v0", "AgriNav/Nope-v1", 3, ""],
+    [
+        "evilmod:Anything",
+        "CartPole-v1",
+        "AgriNav/FurrowFollow-v0",
+        "AgriNav/FurrowFollow-v2",
+        "AgriNav/Nope-v1",
+        3,
+        "",
+    ],
 )
 def test_only_agrinav_env_ids_pass(env_id: object) -> None:
     with pytest.raises(InputError) as e:
         check_env_id(env_id, "spec.env")
-    assert e.value.field == "spec.env" and "AgriNav/FurrowFollow-v2" in str(e.value)
+    assert e.value.field == "spec.env" and "AgriNav/FurrowFollow-v3" in str(e.value)
 
 
 def test_user_registered_scenarios_pass(tmp_path: Path) -> None:

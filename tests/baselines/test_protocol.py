@@ -36,7 +36,7 @@ def test_unseen_suite_draws_the_training_ranges() -> None:
 
 
 def _fields(kwargs: dict, seeds: range) -> list[tuple]:
-    env = gym.make("AgriNav/FieldRoute-v2", **kwargs)
+    env = gym.make("AgriNav/FieldRoute-v3", **kwargs)
     try:
         out = []
         for s in seeds:
@@ -95,7 +95,7 @@ def test_every_ood_case_lies_outside_the_training_ranges() -> None:
     training does not draw it)."""
     from scenario_gen import preset
 
-    _, setup = load("AgriNav/FieldRoute-v2")
+    _, setup = load("AgriNav/FieldRoute-v3")
     train = setup.env_kwargs["randomize"]
     spec = preset(setup.env_kwargs["scenario"])
 

@@ -24,7 +24,7 @@ from baselines.train import (
 from policies import checkpoint, shipped_model
 from scenario_gen import InputError
 
-FF = "AgriNav/FurrowFollow-v2"
+FF = "AgriNav/FurrowFollow-v3"
 no_cuda = pytest.mark.skipif(torch.cuda.is_available(), reason="this machine has CUDA")
 
 

@@ -40,7 +40,7 @@ def test_training_saves_safe_checkpoints_logs_and_resumes(
     tmp_path: Path, tiny_scenario: Path
 ) -> None:
     out = tmp_path / "ppo"
-    common = ["--env", "AgriNav/FurrowFollow-v2", "--seed", "3", "--scenario", str(tiny_scenario)]
+    common = ["--env", "AgriNav/FurrowFollow-v3", "--seed", "3", "--scenario", str(tiny_scenario)]
     common += ["--n-envs", "1", "--eval-episodes", "1", "--eval-every", "128"]
     proc = _train(
         [
@@ -65,7 +65,7 @@ def test_training_saves_safe_checkpoints_logs_and_resumes(
     assert config["env_kwargs"]["scenario"] == str(tiny_scenario.resolve())
     # the curve and checkpoint choice were made on validation fields, not the test range
     assert config["val_seeds"] == [500_000_000, 501_000_000] != config["eval_seeds"]
-    assert "agrinav train --env AgriNav/FurrowFollow-v2" in (out / "command.txt").read_text()
+    assert "agrinav train --env AgriNav/FurrowFollow-v3" in (out / "command.txt").read_text()
     csv = (out / "logs" / "progress.csv").read_text().splitlines()[0]
     assert "eval/rmse" in csv and "train/value_loss" in csv
     assert "eval/mean_reward" in csv and "eval/mean_ep_length" in csv  # SB3 EvalCallback's tags
@@ -98,7 +98,7 @@ def test_training_saves_safe_checkpoints_logs_and_resumes(
     import agrinav_gym  # noqa: F401
     from policies import make_policy
 
-    env = gym.make("AgriNav/FurrowFollow-v2", scenario=str(tiny_scenario))
+    env = gym.make("AgriNav/FurrowFollow-v3", scenario=str(tiny_scenario))
     try:
         pi = make_policy(f"ppo:{again}", env)
         obs, _ = env.reset(seed=0)
@@ -132,7 +132,7 @@ def test_bad_training_arguments_exit_2_before_writing(
     tmp_path: Path, args: list[str], needle: str, capsys: pytest.CaptureFixture[str]
 ) -> None:
     out = tmp_path / "run"
-    code = main(["train", "--env", "AgriNav/FurrowFollow-v2", "--out", str(out), *args])
+    code = main(["train", "--env", "AgriNav/FurrowFollow-v3", "--out", str(out), *args])
     err = capsys.readouterr().err
     assert code == 2 and needle in err and len(err.strip().splitlines()) == 1
     assert not out.exists()
@@ -199,7 +199,7 @@ def test_run_writes_metrics_plot_and_video(
             [
                 "run",
                 "--env",
-                "AgriNav/FurrowFollow-v2",
+                "AgriNav/FurrowFollow-v3",
                 "--policy",
                 "rpp",
                 "--episodes",
@@ -332,7 +332,7 @@ def test_bench_labels_tell_ppo_checkpoints_apart() -> None:
         (["run", "--policy", "rpp", "--seed", "-1"], "--seed"),
         (["bench", "--suite", "smoke", "--policies", ""], "--policies"),
         (["bench", "--suite", "smoke", "--policies", "dwb,dwb"], "--policies"),
-        (["train", "--env", "AgriNav/FieldRoute-v2", "--eval-every", "0"], "--eval-every"),
+        (["train", "--env", "AgriNav/FieldRoute-v3", "--eval-every", "0"], "--eval-every"),
     ],
 )
 def test_cli_refuses_before_creating_the_output(
@@ -363,7 +363,7 @@ def test_a_killed_run_leaves_nothing_stale(tmp_path: Path, sig: str) -> None:
 
     out = tmp_path / "run"
     cmd = [sys.executable, "-m", "baselines.cli", "run", "--policy", "rpp", "--episodes", "20"]
-    cmd += ["--env", "AgriNav/FurrowFollow-v2", "--out", str(out)]
+    cmd += ["--env", "AgriNav/FurrowFollow-v3", "--out", str(out)]
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         deadline = time.monotonic() + 60
@@ -385,7 +385,7 @@ def test_a_killed_run_leaves_nothing_stale(tmp_path: Path, sig: str) -> None:
                 "--policy",
                 "rpp",
                 "--env",
-                "AgriNav/FurrowFollow-v2",
+                "AgriNav/FurrowFollow-v3",
                 "--out",
                 str(out),
                 "--scenario",
@@ -434,7 +434,7 @@ def test_a_second_train_on_the_same_out_is_refused(
 
     out = tmp_path / "ppo"
     with lock_output(out.absolute(), "--out"):  # what a running `agrinav train` holds
-        argv = ["train", "--env", "AgriNav/FurrowFollow-v2", "--timesteps", "64"]
+        argv = ["train", "--env", "AgriNav/FurrowFollow-v3", "--timesteps", "64"]
         assert main([*argv, "--out", str(out)]) == 2
     assert "being written by another run" in capsys.readouterr().err
     assert not out.exists()
@@ -519,7 +519,7 @@ def test_run_on_one_field_notes_it_in_one_line(
 ) -> None:
     import warnings
 
-    args = ["run", "--env", "AgriNav/FurrowFollow-v2", "--policy", "blind", "--max-steps", "5"]
+    args = ["run", "--env", "AgriNav/FurrowFollow-v3", "--policy", "blind", "--max-steps", "5"]
     with warnings.catch_warnings():
         warnings.simplefilter("default")  # as outside the tests
         assert main([*args, "--episodes", "2", "--out", str(tmp_path / "run")]) == 0

@@ -35,7 +35,7 @@ def test_a_search_is_reproducible_starts_from_the_defaults_and_its_choice_runs(
         float(next(r["score"] for r in rows if all(float(r[k]) == best[k] for k in best)))
     )
     assert (outs[0] / "search.png").is_file() and (outs[0] / "command.txt").is_file()
-    env = gym.make("AgriNav/FurrowFollow-v2", observations=["route"])
+    env = gym.make("AgriNav/FurrowFollow-v3", observations=["route"])
     try:
         pi = make_policy(f"stanley:{outs[0] / 'best.yaml'}", env)
         assert pi.k == pytest.approx(best["k"])  # type: ignore[attr-defined]
@@ -55,7 +55,7 @@ def test_a_failed_route_scores_worse_than_any_finished_one() -> None:
 def test_a_bad_parameter_file_is_one_clear_error(tmp_path: Path, content: str, needle: str) -> None:
     p = tmp_path / "p.yaml"
     p.write_text(content)
-    env = gym.make("AgriNav/FurrowFollow-v2", observations=["route"])
+    env = gym.make("AgriNav/FurrowFollow-v3", observations=["route"])
     try:
         with pytest.raises(InputError, match=needle):
             make_policy(f"stanley:{p}", env)
@@ -82,7 +82,7 @@ def test_dwb_gets_a_search_too_starting_from_its_furrow_config(tmp_path: Path) -
     assert p.FollowPath.prune_distance == furrow.FollowPath.prune_distance  # furrow kept
     path = tmp_path / "best.yaml"
     path.write_text(yaml.safe_dump(dwb_changes(trial)))
-    env = gym.make("AgriNav/FurrowFollow-v2", observations=["route", "odom", "depth"])
+    env = gym.make("AgriNav/FurrowFollow-v3", observations=["route", "odom", "depth"])
     try:
         for pi in (
             make_policy(f"dwb:{path}", env),

@@ -19,7 +19,7 @@ from scenario_gen import InputError
 
 from ..fields import TINY
 
-FR = "AgriNav/FieldRoute-v2"
+FR = "AgriNav/FieldRoute-v3"
 OBS = ["imu", "odom", "route"]
 
 

@@ -67,7 +67,7 @@ def test_bad_dwb_configs_are_refused(tmp_path: Path) -> None:
     bad.write_text("FollowPath: {critics: [PathDist, Nope]}\n")
     with pytest.raises(InputError, match="Nope"):
         DWBParams.load(bad)
-    env = gym.make("AgriNav/FurrowFollow-v2", observations=ALL)
+    env = gym.make("AgriNav/FurrowFollow-v3", observations=ALL)
     try:
         with pytest.raises(InputError, match="dwb:nav2"):
             make_policy("dwb:fast", env)
@@ -83,7 +83,7 @@ def test_bad_dwb_configs_are_refused(tmp_path: Path) -> None:
 
 def _frame(overrides: dict | None, seed: int, steps: int) -> tuple:
     env = gym.make(
-        "AgriNav/FurrowFollow-v2",
+        "AgriNav/FurrowFollow-v3",
         observations=["odom", "route", "depth"],
         config={"camera": {"segmentation": True}},
         scenario_overrides=overrides,
@@ -137,7 +137,7 @@ def test_costmap_does_not_mark_the_furrow_ridges() -> None:
 
 
 def test_no_legal_trajectory_stops_and_clears_the_costmap() -> None:
-    env = gym.make("AgriNav/FurrowFollow-v2", observations=["gps", "imu", "odom", "route"])
+    env = gym.make("AgriNav/FurrowFollow-v3", observations=["gps", "imu", "odom", "route"])
     try:
         pi = make_policy("dwb:nav2", env)
         obs, _ = env.reset(seed=0)
@@ -170,7 +170,7 @@ def test_dwb_drives_a_straight_lane_without_touching_crops(
     spec: str, layout: dict, furrows: dict
 ) -> None:
     env = gym.make(
-        "AgriNav/FurrowFollow-v2",
+        "AgriNav/FurrowFollow-v3",
         scenario_overrides={**SHORT_LANE, "layout": layout, "furrows": furrows},
         observations=ALL,
     )

@@ -20,7 +20,7 @@ from ..fields import TINY
 pytest.importorskip("onnx", reason="the export extra is not installed")
 pytest.importorskip("onnxruntime", reason="the export extra is not installed")
 
-FR = "AgriNav/FieldRoute-v2"
+FR = "AgriNav/FieldRoute-v3"
 OBS = ["imu", "odom", "route"]
 
 
@@ -78,7 +78,7 @@ def test_onnx_actor_matches_the_torch_policy_on_1000_observations() -> None:
 
 
 def test_the_depth_cnn_exports_too() -> None:
-    loaded = checkpoint.load(shipped_model("AgriNav/FurrowFollowDepth-v2"))
+    loaded = checkpoint.load(shipped_model("AgriNav/FurrowFollowDepth-v3"))
     space = loaded.policy.observation_space
     space.seed(1)
     batch = _stack([space.sample() for _ in range(200)])

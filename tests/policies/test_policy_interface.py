@@ -15,7 +15,7 @@ ALL = list(OBSERVATION_KEYS)
 
 @pytest.mark.parametrize("name", [n for n in POLICIES if n != "ppo"])
 def test_every_policy_acts_in_the_action_space(name: str) -> None:
-    env = gym.make("AgriNav/FurrowFollow-v2", scenario_overrides=TINY, observations=ALL)
+    env = gym.make("AgriNav/FurrowFollow-v3", scenario_overrides=TINY, observations=ALL)
     try:
         pi = make_policy(name, env)
         obs, _ = env.reset(seed=0)
@@ -29,7 +29,7 @@ def test_every_policy_acts_in_the_action_space(name: str) -> None:
 
 
 def test_missing_observation_and_unknown_policy_are_clear_errors() -> None:
-    env = gym.make("AgriNav/FurrowFollowDepth-v2", scenario_overrides=TINY)
+    env = gym.make("AgriNav/FurrowFollowDepth-v3", scenario_overrides=TINY)
     try:
         with pytest.raises(ValueError, match="needs observations"):
             make_policy("rpp", env)
@@ -54,13 +54,13 @@ FLAT_1M = {
 @pytest.mark.parametrize(
     "name,env_id,rmse,max_cte",
     [
-        ("stanley", "AgriNav/FurrowFollow-v2", 0.03, 0.05),
+        ("stanley", "AgriNav/FurrowFollow-v3", 0.03, 0.05),
         # untuned (the paper's gains), Stanley cuts the U-turn by 0.1 m RMSE: no U-turn row
         # a straight lane: within the RTK GNSS + IMU heading noise of the estimated pose
-        *[(n, "AgriNav/FurrowFollow-v2", 0.03, 0.05) for n in ("dwb", "rpp")],
+        *[(n, "AgriNav/FurrowFollow-v3", 0.03, 0.05) for n in ("dwb", "rpp")],
         # the zigzag's headland U-turn (0.5 m radius) is the hard part for a path follower:
         # pure pursuit cuts it by up to half its 0.9 m maximum lookahead
-        *[(n, "AgriNav/FieldRoute-v2", 0.08, 0.45) for n in ("dwb", "rpp")],
+        *[(n, "AgriNav/FieldRoute-v3", 0.08, 0.45) for n in ("dwb", "rpp")],
     ],
 )
 def test_classical_controllers_follow_straight_and_curved_paths(
@@ -82,7 +82,7 @@ def test_depth_follower_finds_the_lane() -> None:
     0.5 m out): its mean error is below the 9.2 cm it has over the perception dataset's
     randomized fields (docs/datasets.md), which are harder than these flat ones."""
     env = gym.make(
-        "AgriNav/FurrowFollowDepth-v2", scenario_overrides={**FLAT_1M, "crop": {"stage": 2}}
+        "AgriNav/FurrowFollowDepth-v3", scenario_overrides={**FLAT_1M, "crop": {"stage": 2}}
     )
     try:
         pi = make_policy("depth", env)
@@ -110,7 +110,7 @@ def _mean_offset(integral_time: float | None) -> float:
     proportional gain (k 0.5) lets it show as an offset of centimetres."""
     side = {**FLAT_1M, "terrain": {**FLAT_1M["terrain"], "slope_deg": 10.0, "aspect_deg": 0.0}}
     side["field"] = {"width": 5.0, "length": 20.0}
-    env = gym.make("AgriNav/FurrowFollow-v2", scenario_overrides=side, observations=["route"])
+    env = gym.make("AgriNav/FurrowFollow-v3", scenario_overrides=side, observations=["route"])
     try:
         run = drive(env, make_policy("stanley", env, k=0.5, integral_time=integral_time), seed=0)
         assert run.success, run.info.get("termination")

@@ -15,18 +15,18 @@ class FieldRouteEnv(AgriNavEnv):
     U-turns, with lead-in and lead-out — as in the source paper's Summit-XL / Nav2 experiment.
 
     ## Action Space
-    As ``AgriNav/FurrowFollow-v2``: normalized (v, ω) in [-1, 1]², clipped; NaN raises.
+    As ``AgriNav/FurrowFollow-v3``: normalized (v, ω) in [-1, 1]², clipped; NaN raises.
 
     ## Observation Space
     Default ``gps`` (5,), ``imu`` (10,), ``odom`` (2,), ``route`` (30,), ``depth`` (1, 48, 64);
-    see ``AgriNav/FurrowFollow-v2``. Route points carry a furrow (1) / headland (0) flag.
+    see ``AgriNav/FurrowFollow-v3``. Route points carry a furrow (1) / headland (0) flag.
 
     ## Rewards
-    As ``AgriNav/FurrowFollow-v2``; the corridor is half the row spacing in furrows and
+    As ``AgriNav/FurrowFollow-v3``; the corridor is half the row spacing in furrows and
     ``config.task.headland_corridor`` (1 m) on the headland.
 
     ## Starting State
-    At rest 0.3 m along the lead-in, perturbed as in ``AgriNav/FurrowFollow-v2``.
+    At rest 0.3 m along the lead-in, perturbed as in ``AgriNav/FurrowFollow-v3``.
 
     ## Episode End
     Success at the route's end; failure on leaving the corridor, tipping over or hitting more
@@ -34,7 +34,7 @@ class FieldRouteEnv(AgriNavEnv):
     paper's running metrics (in-furrow and headland RMSE separately).
 
     ## Arguments
-    As ``AgriNav/FurrowFollow-v2``.
+    As ``AgriNav/FurrowFollow-v3``.
 
     ## Version History
     * v2: fields planted flat by default (roughness, no ridges; ``ridged`` preset for

@@ -89,22 +89,22 @@ class FurrowFollowDepthEnv(FurrowFollowEnv):
     image; no GNSS and no route observation.
 
     ## Action Space
-    As ``AgriNav/FurrowFollow-v2``.
+    As ``AgriNav/FurrowFollow-v3``.
 
     ## Observation Space
     Default ``depth`` (1, 48, 64) metres, ``imu`` (10,), ``odom`` (2,).
 
     ## Rewards
-    As ``AgriNav/FurrowFollow-v2`` (computed from the true pose).
+    As ``AgriNav/FurrowFollow-v3`` (computed from the true pose).
 
     ## Starting State
-    As ``AgriNav/FurrowFollow-v2``.
+    As ``AgriNav/FurrowFollow-v3``.
 
     ## Episode End
-    As ``AgriNav/FurrowFollow-v2``.
+    As ``AgriNav/FurrowFollow-v3``.
 
     ## Arguments
-    As ``AgriNav/FurrowFollow-v2``.
+    As ``AgriNav/FurrowFollow-v3``.
 
     ## Version History
     * v2: fields planted flat by default (roughness, no ridges; ``ridged`` preset for

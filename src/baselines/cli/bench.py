@@ -13,7 +13,7 @@ def add(sub: Any) -> None:
     ru = sub.add_parser(
         "run", help="run a policy for some episodes: metrics.json + trajectory plots"
     )
-    ru.add_argument("--env", default="AgriNav/FieldRoute-v2")
+    ru.add_argument("--env", default="AgriNav/FieldRoute-v3")
     ru.add_argument(
         "--policy",
         required=True,

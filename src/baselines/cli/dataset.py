@@ -26,7 +26,7 @@ def add(sub: Any) -> None:
     )
     pe.set_defaults(func=perception)
     tr = kinds.add_parser("trajectories", help="policy rollouts as a Minari dataset")
-    tr.add_argument("--env", default="AgriNav/FurrowFollow-v2")
+    tr.add_argument("--env", default="AgriNav/FurrowFollow-v3")
     tr.add_argument("--policy", required=True, help="dwb, rpp, depth or ppo:PATH")
     tr.add_argument("--episodes", type=episodes_type, default=10)
     tr.add_argument("--seed", type=seed_type, default=0)

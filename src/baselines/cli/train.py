@@ -17,7 +17,7 @@ def add(sub: Any) -> None:
         description="Train PPO with the env's entry of hyperparams/ppo.yml (rl-baselines3-zoo "
         "format) and envs.yml. Writes safe checkpoints, TensorBoard/CSV logs, config and curve.",
     )
-    tr.add_argument("--env", required=True, help="env id, e.g. AgriNav/FurrowFollow-v2")
+    tr.add_argument("--env", required=True, help="env id, e.g. AgriNav/FurrowFollow-v3")
     tr.add_argument("--algo", default="ppo", choices=["ppo"])
     tr.add_argument("--timesteps", type=int_at_least(1), help="total steps (default: the file's)")
     tr.add_argument("--seed", type=seed_type, default=0)

@@ -44,7 +44,7 @@ DEFAULT_RANDOMIZE: dict[str, Any] = {
 class PerceptionSpec:
     """One perception dataset: frames from randomized fields, seen by a robot that errs."""
 
-    env: str = param("AgriNav/FurrowFollow-v2", "env id the frames come from")
+    env: str = param("AgriNav/FurrowFollow-v3", "env id the frames come from")
     preset: str = param("default", "scenario preset the randomization starts from")
     field_length: float = param(
         14.0, "rows length of each field, m (short fields: many fields)", 4, 200

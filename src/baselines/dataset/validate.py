@@ -124,7 +124,7 @@ def depth_follower_check(root: str | Path) -> FollowerCheck:
     import agrinav_gym  # noqa: F401
     from policies.depth_follower import DepthFurrowFollower
 
-    env: Any = gym.make("AgriNav/FurrowFollowDepth-v2")
+    env: Any = gym.make("AgriNav/FurrowFollowDepth-v3")
     try:
         base = env.unwrapped.interface
         obs_space, act_space = env.observation_space, env.action_space

@@ -22,7 +22,7 @@ from .session import Session, field_file
 
 #: Policies the page offers: names ``policies.make_policy`` takes.
 POLICIES = ("dwb", "rpp", "stanley", "blind", "ppo:shipped")
-RUN_ENV = "AgriNav/FieldRoute-v2"
+RUN_ENV = "AgriNav/FieldRoute-v3"
 
 
 def inside_workspace(out: str, workspace: Path) -> None:

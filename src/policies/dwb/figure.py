@@ -137,7 +137,7 @@ def main(argv: list[str] | None = None) -> int:
     out = args[0] if args else "dwb_cycle.png"
     spec = args[1] if len(args) > 1 else "dwb:furrow"
     steps = int(args[2]) if len(args) > 2 else 1600
-    env = gym.make("AgriNav/FieldRoute-v2", observations=list(OBSERVATION_KEYS))
+    env = gym.make("AgriNav/FieldRoute-v3", observations=list(OBSERVATION_KEYS))
     try:
         pi = make_policy(spec, env)
         obs, _ = env.reset(seed=1_000_000_000)
