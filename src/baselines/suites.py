@@ -70,8 +70,9 @@ def paper_waypoints() -> str:
     return str(resources.files("baselines.hyperparams").joinpath("paper_waypoints.yml"))
 
 
-#: The paper's localisation: RTK through the EKF (robot_localization + navsat_transform), and
-#: Nav2 Humble's progress checker (SimpleProgressChecker: 0.5 m within 10 s, else the goal
+#: The paper's localisation: RTK through the oracle EKF (``ekf``: it knows the simulator's error
+#: models; the ``robot_localization`` kind is what a Nav2 stack runs), and Nav2 Humble's
+#: progress checker (SimpleProgressChecker: 0.5 m within 10 s, else the goal
 #: fails), so a stall is a failure after 10 s, not a run to the step limit.
 NAV2_PROGRESS: dict[str, Any] = {"progress_time": 10.0, "progress_radius": 0.5}
 RTK_EKF: dict[str, Any] = {

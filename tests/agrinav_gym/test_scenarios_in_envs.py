@@ -16,7 +16,7 @@ def test_register_scenario_from_a_directory(tmp_path: Path) -> None:
     sg.save(scn, tmp_path / "s")
     a = agrinav_gym.register_scenario("TinyDir", tmp_path / "s")
     b = agrinav_gym.register_scenario("TinyRoute", tmp_path / "s", task="FieldRoute")
-    assert (a, b) == ("AgriNav/TinyDir-v2", "AgriNav/TinyRoute-v2")  # the task's version
+    assert (a, b) == ("AgriNav/TinyDir-v3", "AgriNav/TinyRoute-v3")  # the task's version
     assert gym.spec(b).entry_point.endswith("make_field_route")
     for env_id in (a, b):
         gym.spec(env_id).to_json()  # serialisable: Minari and zoo tools rely on it

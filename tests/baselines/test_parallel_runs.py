@@ -40,7 +40,9 @@ def test_bench_with_two_workers_writes_the_serial_runs_records(
     out = tmp_path / "bench"
     assert main([*SMOKE, "--workers", "2", "--out", str(out)]) == 0
     assert _records(out) == _records(serial)
-    for name in ("traj_tiny_rpp.png", "traj_tiny_dwb-furrow.png"):
+    figures = sorted(p.name for p in serial.glob("traj_*.png"))
+    assert figures and figures == sorted(p.name for p in out.glob("traj_*.png"))  # every episode
+    for name in figures:
         assert (out / name).read_bytes() == (serial / name).read_bytes()
     assert not list(tmp_path.glob(".bench.partial"))  # the journal goes with a finished run
 
