@@ -261,19 +261,16 @@ def bench(
                 for key, record, png in tasks.map(
                     episode_task, [j for j in jobs if j.key not in done]
                 ):
-                    journal.save(key, record, {"png": png} if png is not None else None)
+                    journal.save(key, record, {"png": png})
                     done[key] = json.loads(json.dumps(record))  # as a resumed run reads it
                     bar.update(1)
                     bar.set_postfix(case=record["scenario"], policy=record["policy"])
             finally:
                 release_episode_envs()
         records = [done[j.key] for j in jobs]
-        for j in jobs:
-            if j.figure:
-                case = cases[j.case]
-                (tmp / trajectory_name(case.group, j.label, j.seed)).write_bytes(
-                    journal.blob(j.key, "png")
-                )
+        for j in jobs:  # every episode's figure: the second seed is a field too
+            name = trajectory_name(cases[j.case].group, j.label, j.seed)
+            (tmp / name).write_bytes(journal.blob(j.key, "png"))
         atomic_write_text(tmp / "results.json", json.dumps(records, indent=1))
         (tmp / "benchmark.md").write_text(table(records, suite_name, command))
         bar_chart(records, tmp / "benchmark.png", suite_name)
@@ -303,18 +300,13 @@ class EpisodeJob:
     def key(self) -> str:
         return f"c{self.case:03d}-p{self.policy:02d}-s{self.seed:05d}"
 
-    @property
-    def figure(self) -> bool:
-        """Every episode draws its trajectory figure: the second seed is a field too."""
-        return True
-
 
 #: a worker's env and policies, kept while its episodes stay on one case
 _EPISODE_ENV: dict[str, Any] = {}
 
 
-def episode_task(job: EpisodeJob) -> tuple[str, dict[str, Any], bytes | None]:
-    """(key, record, trajectory figure PNG or None) of one bench episode (in any process)."""
+def episode_task(job: EpisodeJob) -> tuple[str, dict[str, Any], bytes]:
+    """(key, record, trajectory figure PNG) of one bench episode (in any process)."""
     import io
 
     cached = _EPISODE_ENV
@@ -330,13 +322,10 @@ def episode_task(job: EpisodeJob) -> tuple[str, dict[str, Any], bytes | None]:
     run = run_with_interventions if case.interventions else run_episode
     ep = run(env, pols[job.policy], EVAL_SEED + CASE_SEEDS * job.case + job.seed, job.label)
     record = _record(ep, job.suite, case.group, env)
-    png = None
-    if job.figure:
-        buf = io.BytesIO()
-        title = f"{job.label} · {job.suite} · {case.group} · seed {ep.seed}"
-        trajectory_figure(ep, buf, title)  # type: ignore[arg-type]
-        png = buf.getvalue()
-    return job.key, record, png
+    buf = io.BytesIO()
+    title = f"{job.label} · {job.suite} · {case.group} · seed {ep.seed}"
+    trajectory_figure(ep, buf, title)  # type: ignore[arg-type]
+    return job.key, record, buf.getvalue()
 
 
 def release_episode_envs() -> None:

@@ -95,16 +95,6 @@ def training_env(policy: str = "rpp") -> Any:
     return gym.make(ENV_ID, **kw, config=config, scenario_seeds=list(setup.train_seeds))
 
 
-def run_trial(
-    env: Any, policy: str, params: dict[str, float], episodes: int, seed: int
-) -> list[dict[str, Any]]:
-    """``episodes`` episodes (reset seeds ``seed``, ``seed + 1``, ...) with ``params``."""
-    from policies import make_policy
-
-    pi = make_policy(policy, env, **policy_kwargs(policy, params))
-    return [_episode(env, pi, policy, seed + k) for k in range(episodes)]
-
-
 def _episode(env: Any, pi: Any, policy: str, seed: int) -> dict[str, Any]:
     from .episodes import run_episode
 
