@@ -38,6 +38,9 @@ from .schema import field_info
 from .spec import ScenarioSpec
 
 MAX_PLANTS = 1_000_000
+#: stones, litter and fallen stalks: each is a mesh of up to a few hundred triangles and, in
+#: the simulator, a collision body
+MAX_OBSTACLES = 20_000
 MAX_CANDIDATES = 4_000_000
 MAX_TERRAIN_SAMPLES = 10_000_000
 MAX_ROUTE_WAYPOINTS = 2_000_000
@@ -223,6 +226,19 @@ def check_budget(spec: ScenarioSpec, field: BaseGeometry, spacing: float) -> Non
             f"would add about {weeds:,.0f} weeds to {plants:,.0f} plants; allowed: at most "
             f"{MAX_PLANTS:,} plants and weeds in all",
         )
+    o = spec.obstacles
+    for key, count in (
+        ("stone_density", o.stone_density * area),
+        ("litter_density", o.litter_density * area),
+        ("stalk_lodging", o.stalk_lodging * plants),
+    ):
+        if count > MAX_OBSTACLES:
+            raise InputError(
+                f"obstacles.{key}",
+                getattr(o, key),
+                f"would place about {count:,.0f} obstacles on {area:,.0f} m²; allowed: at most "
+                f"{MAX_OBSTACLES:,} of each kind",
+            )
     r = spec.route
     diag = math.hypot(xmax - xmin, ymax - ymin)
     rows = diag / lay.row_spacing + 1

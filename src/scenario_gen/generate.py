@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -15,6 +15,7 @@ from shapely.geometry import MultiPolygon, Polygon
 from shapely.geometry.base import BaseGeometry
 
 from . import crops
+from .crops import scaled_by_height
 from .arrays import FloatArray
 from .bounds import MAX_PLANE_RADIUS_M, check_budget, check_lod
 from .drift import apply_drift
@@ -25,6 +26,7 @@ from .furrows import add_relief
 from .geodesy import GeoFrame
 from .layout import Layout, layout
 from .model import Plants, Scenario
+from .obstacles import place_obstacles
 from .models import inspect_model
 from .routes import zigzag
 from .rowcurve import row_curve
@@ -35,7 +37,8 @@ from .waypoints import read_gps_waypoints, waypoint_route
 
 #: Independent random streams, one per generation step, spawned from the seed so that changing
 #: one parameter (say the weed density) does not reshuffle every other random choice.
-STREAMS = ("jitter", "gaps", "weeds", "plants", "roughness", "rows", "drift")
+#: New streams go at the end: spawned children are indexed, so earlier streams keep their bits.
+STREAMS = ("jitter", "gaps", "weeds", "plants", "roughness", "rows", "drift", "obstacles")
 
 
 def orientation(zx: FloatArray, zy: FloatArray, yaw: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -132,6 +135,10 @@ def check_spec(spec: ScenarioSpec) -> None:
     lo, hi = lay.curve_radius
     if lo > hi:
         raise InputError("layout.curve_radius", [lo, hi], "allowed: [low, high] with low <= high")
+    for key in ("stone_size", "litter_size"):
+        lo, hi = getattr(spec.obstacles, key)
+        if lo > hi:
+            raise InputError(f"obstacles.{key}", [lo, hi], "allowed: [low, high] with low <= high")
     # Jitter is clipped at 3 std: within half a spacing, no plant can pass the midpoint to its
     # neighbouring row (or position), so every plant's row stays what the layout says.
     for name, std, spacing in (
@@ -271,6 +278,15 @@ def generate(spec: ScenarioSpec, seed: int) -> Scenario:
     if user_model is not None and user_model.scale == "native":
         nominal = user_model.size[2]
     plants = place_plants(lay, terrain, spec.crop, growth, rng["plants"], nominal)
+    lodged = _lodged(plants, spec.obstacles.stalk_lodging, rng["obstacles"])
+    stems = scaled_by_height(plants.species, plants.stage, plants.height,
+                             lambda sp, g: sp.stem_radius(g))  # fmt: skip
+    if lodged.any():  # a fallen plant leaves its place in the row empty
+        fallen = (np.column_stack([plants.x, plants.y])[lodged], stems[lodged],
+                  plants.height[lodged])  # fmt: skip
+        plants = _without(plants, lodged)
+        stems = stems[~lodged]
+        lay = replace(lay, x=plants.x, y=plants.y, row=plants.row, is_weed=plants.is_weed)
     if spec.route.waypoints is not None:
         route = waypoint_route(
             read_gps_waypoints(spec.route.waypoints, "route.waypoints"),
@@ -284,6 +300,17 @@ def generate(spec: ScenarioSpec, seed: int) -> Scenario:
     else:
         crops = np.column_stack([lay.x, lay.y])[~lay.is_weed]
         route = zigzag(lay.rows, spec.route, terrain, poly, crops)
+    crop = ~plants.is_weed
+    obstacles = place_obstacles(
+        spec.obstacles,
+        poly,
+        terrain,
+        np.column_stack([plants.x, plants.y])[crop],
+        stems[crop],
+        *(fallen if lodged.any() else (np.zeros((0, 2)), np.zeros(0), np.zeros(0))),
+        (float(route.xyz[0, 0]), float(route.xyz[0, 1])) if len(route) else None,
+        rng["obstacles"],
+    )
     info = {
         "credit": site.credit,
         **site.info,
@@ -292,8 +319,23 @@ def generate(spec: ScenarioSpec, seed: int) -> Scenario:
         "generate_seconds": time.perf_counter() - t_start,
     }
     return Scenario(
-        spec, int(seed), site.geo, terrain, poly, lay.rows, plants, route, info, user_model
-    )
+        spec, int(seed), site.geo, terrain, poly, lay.rows, plants, route, info, user_model,
+        obstacles,
+    )  # fmt: skip
+
+
+def _lodged(plants: Plants, fraction: float, rng: np.random.Generator) -> np.ndarray:
+    """Which crop plants fell (``obstacles.stalk_lodging``); none drawn when it is 0."""
+    out = np.zeros(len(plants), bool)
+    if fraction > 0:
+        crop = np.flatnonzero(~plants.is_weed)
+        out[crop] = rng.random(len(crop)) < fraction
+    return out
+
+
+def _without(plants: Plants, drop: np.ndarray) -> Plants:
+    keep = ~drop
+    return Plants(**{k: v[keep] for k, v in plants.arrays().items()})
 
 
 def check_on_plane(poly: BaseGeometry, terrain: TerrainSpec, geo: GeoFrame) -> None:

@@ -1,7 +1,7 @@
 """GeoJSON layers in WGS84 (RFC 7946): field, route, plants and planted rows.
 
 One geometry type per layer and file (``field.geojson``, ``route.geojson``,
-``plants.geojson``): GIS formats hold one geometry type per layer, so a file mixing polygons,
+``plants.geojson``, ``obstacles.geojson``: footprint polygons, only when there are obstacles): GIS formats hold one geometry type per layer, so a file mixing polygons,
 lines and points cannot be converted to a Shapefile. Every feature carries a unique top-level
 ``id`` (its index in the file), and plant numbers live in the ``plant_id`` property, so GDAL
 never takes a repeated property for its feature id (``ogr2ogr -f GPKG`` refused the old file).
@@ -21,7 +21,7 @@ import numpy as np
 from .antimeridian import cut_geometry
 from .model import Scenario
 
-LAYERS = ("field", "route", "plants")
+LAYERS = ("field", "route", "plants", "obstacles")
 
 
 def _coords(lon: Any, lat: Any, z: Any, decimals: int | None) -> list[list[float]]:
@@ -146,6 +146,32 @@ def plant_features(
     ]
 
 
+def obstacle_features(scn: Scenario, decimals: int | None = 8) -> list[dict[str, Any]]:
+    """Each obstacle's footprint rectangle on the ground, with its kind and size."""
+    o = scn.obstacles
+    feats = []
+    for i, ring in enumerate(o.footprints()):
+        x, y = ring[:, 0], ring[:, 1]
+        lat, lon, alt = scn.geo.enu_to_geodetic(x, y, scn.terrain.height_at(x, y))
+        closed = _coords(np.append(lon, lon[0]), np.append(lat, lat[0]), np.append(alt, alt[0]),
+                         decimals)  # fmt: skip
+        feats.append(
+            {
+                "type": "Feature",
+                "properties": {
+                    "obstacle_id": i,
+                    "kind": str(o.kind[i]),
+                    "length_m": round(float(o.length[i]), 4),
+                    "width_m": round(float(o.width[i]), 4),
+                    "height_m": round(float(o.height[i]), 4),
+                    "yaw": round(float(o.yaw[i]), 6),
+                },
+                "geometry": {"type": "Polygon", "coordinates": [closed]},
+            }
+        )
+    return feats
+
+
 def row_features(scn: Scenario, decimals: int | None = 8, step: float = 1.0) -> list[dict]:
     """Each planted row as a line on the terrain, a vertex at most ``step`` metres apart."""
     rows = scn.rows
@@ -174,9 +200,13 @@ def scenario_layers(
     rlat: np.ndarray,
     rlon: np.ndarray,
 ) -> dict[str, dict[str, Any]]:
-    """The GeoJSON files of a scenario folder, by layer name (``LAYERS``)."""
-    return {
+    """The GeoJSON files of a scenario folder, by layer name (``LAYERS``; obstacles only
+    when the field has some)."""
+    out = {
         "field": collection("field", field_features(scn)),
         "route": collection("route", route_features(scn, rlat, rlon)),
         "plants": collection("plants", plant_features(scn, lat, lon, alt)),
     }
+    if len(scn.obstacles):
+        out["obstacles"] = collection("obstacles", obstacle_features(scn))
+    return out

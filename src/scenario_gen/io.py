@@ -4,7 +4,9 @@ Layout: ``scenario.json`` (format version, spec, seed, datum, CRS, LoD, counts, 
 planted segments, the reference curve of curved or contour rows since format 3, the user plant
 model, versions), ``terrain.npz``, ``plants.csv`` (with each plant's ``row`` since format 2),
 ``route.csv`` (with each waypoint's ``turn`` and ``direction`` since format 3),
-``field.geojson``, ``route.geojson`` and ``plants.geojson`` (WGS84, one geometry type each),
+``obstacles.csv`` (since format 4: stones, litter and fallen stalks, ``obstacles.py``),
+``field.geojson``, ``route.geojson``, ``plants.geojson`` and, when there are obstacles,
+``obstacles.geojson`` (WGS84, one geometry type each),
 ``preview.png`` and, when the spec names a ``crop.model``, ``models/<its file name>`` (or
 ``models/<mesh stem>/`` holding the mesh and the files it references in their folders):
 byte-identical copies, checked against the recorded SHA-256s. Everything is first written to a
@@ -32,10 +34,10 @@ from .preview import render_preview
 from .vertical import of_scenario
 
 FORMAT = "agrinav-scenario"
-FORMAT_VERSION = 3
+FORMAT_VERSION = 4
 # version 1: no row column, no segments, no models; version 2: straight rows only, no turn or
-# direction columns in route.csv
-READABLE_VERSIONS = (1, 2, 3)
+# direction columns in route.csv; version 3: no obstacles.csv
+READABLE_VERSIONS = (1, 2, 3, 4)
 PLANT_HEADER_V1 = [
     "id",
     "species",
@@ -54,6 +56,10 @@ PLANT_HEADER_V1 = [
 PLANT_HEADER = [*PLANT_HEADER_V1, "row"]
 ROUTE_HEADER_V2 = ["index", "x", "y", "z", "lat", "lon", "segment"]
 ROUTE_HEADER = [*ROUTE_HEADER_V2, "turn", "direction"]
+OBSTACLE_HEADER = [
+    "id", "kind", "x", "y", "z", "roll", "pitch", "yaw", "length", "width", "height", "shape",
+    "lat", "lon", "alt",
+]  # fmt: skip
 _VERSIONED = (
     "agrinav-gym",
     "numpy",
@@ -141,6 +147,7 @@ def _write_all(scn: Scenario, d: Path, preview: bool) -> None:
                 zip(r.xyz, rlat, rlon, r.segment, r.turn, r.direction.tolist(), strict=True)
             )
         )
+    _write_obstacles(scn, d / "obstacles.csv")
     t = scn.terrain
     np.savez_compressed(
         d / "terrain.npz",
@@ -157,6 +164,22 @@ def _write_all(scn: Scenario, d: Path, preview: bool) -> None:
     (d / "scenario.json").write_text(json.dumps(metadata_dict(scn), indent=2) + "\n")
     if preview:
         render_preview(scn, d / "preview.png")
+
+
+def _write_obstacles(scn: Scenario, path: Path) -> None:
+    o = scn.obstacles
+    lat, lon, alt = scn.geo.enu_to_geodetic(o.x, o.y, o.z)
+    with open(path, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(OBSTACLE_HEADER)
+        w.writerows(
+            (i, k, *(f"{v:.6f}" for v in (x, y, z)), *(f"{v:.7f}" for v in (r, pi, ya)),
+             *(f"{v:.5f}" for v in (ln, wd, ht)), sh, f"{la:.10f}", f"{lo:.10f}", f"{al:.4f}")
+            for i, (k, x, y, z, r, pi, ya, ln, wd, ht, sh, la, lo, al) in enumerate(
+                zip(o.kind.tolist(), o.x, o.y, o.z, o.roll, o.pitch, o.yaw, o.length, o.width,
+                    o.height, o.shape.tolist(), lat, lon, alt, strict=True)
+            )
+        )  # fmt: skip
 
 
 def _copy_model(scn: Scenario, d: Path) -> None:
@@ -210,6 +233,7 @@ def metadata_dict(scn: Scenario) -> dict[str, Any]:
         "counts": {
             "plants": crops_n,
             "weeds": len(scn.plants) - crops_n,
+            "obstacles": scn.obstacles.counts(),
             "rows": len(rows.offsets),
             "lanes": len(scn.lanes),
             "route_waypoints": len(scn.route),

@@ -18,6 +18,7 @@ from .field import enu_to_lonlat
 from .geodesy import GeoFrame
 from .layout import RowFrame
 from .models import UserModel
+from .obstacles import Obstacles
 from .routes import Route, lane_lines, lane_segments
 from .spec import ScenarioSpec
 from .terrain import Terrain
@@ -65,6 +66,7 @@ class Scenario:
     route: Route
     info: dict[str, Any] = field(default_factory=dict)
     crop_model: UserModel | None = None  # the user's plant model (crop.model), if any
+    obstacles: Obstacles = field(default_factory=Obstacles.empty)  # stones, litter, stalks
 
     @property
     def lanes(self) -> FloatArray:
@@ -98,6 +100,7 @@ class Scenario:
             "datum": f"{self.geo.lat:.6f}, {self.geo.lon:.6f}, {self.geo.alt:.1f} m",
             "plants": int(crops_mask.sum()),
             "weeds": int((~crops_mask).sum()),
+            **({"obstacles": self.obstacles.counts()} if len(self.obstacles) else {}),
             "rows": len(self.rows.offsets),
             "field_area_m2": round(float(self.field.area), 1),
             "relief_m": round(self.terrain.relief, 2),

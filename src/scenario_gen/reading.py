@@ -3,7 +3,7 @@
 A folder may be truncated, edited by hand or crafted: each file is bounded in size before it is
 read, parsed defensively and checked field by field, and any defect is an ``InputError`` naming
 the file, the field (or line and column) and what is allowed. Files must lie in the folder: a
-symbolic link pointing out of it is refused, not followed. Format versions 1 to 3 are read;
+symbolic link pointing out of it is refused, not followed. Format versions 1 to 4 are read;
 version 1 has no ``row`` column in plants.csv, so rows are recovered as the nearest row line
 (exact there, since jitter is bounded to half a row spacing).
 """
@@ -26,6 +26,7 @@ from .bounds import (
     MAX_ENU_HEIGHT_M,
     MAX_ENU_OFFSET_M,
     MAX_GROUND_SPACING,
+    MAX_OBSTACLES,
     MAX_PLANT_HEIGHT_M,
     MAX_PLANTS,
     MAX_ROUTE_WAYPOINTS,
@@ -39,6 +40,7 @@ from .io import (
     FORMAT,
     PLANT_HEADER,
     PLANT_HEADER_V1,
+    OBSTACLE_HEADER,
     READABLE_VERSIONS,
     ROUTE_HEADER,
     ROUTE_HEADER_V2,
@@ -47,6 +49,7 @@ from .layout import RowFrame
 from .model import Plants, Scenario
 from .model_files import MAX_FILES as MAX_MODEL_FILES
 from .model_shape import ProxyShape
+from .obstacles import OBSTACLE_KINDS, Obstacles
 from .models import MAX_TOTAL_BYTES as MAX_MODEL_BYTES
 from .models import SCALE_RULES, UserModel, sha256_file
 from .routes import SEGMENTS, TURN_TAGS, Route
@@ -91,13 +94,19 @@ def load(directory: str | Path) -> Scenario:
     route = _route(_member(d, "route.csv", MAX_ROUTE_WAYPOINTS * MAX_CSV_ROW_BYTES), rows, version)
     _on_terrain(terrain, plants.x, plants.y, "plants.csv")
     _on_terrain(terrain, route.xy[:, 0], route.xy[:, 1], "route.csv")
+    obstacles = Obstacles.empty()
+    if version >= 4:
+        obstacles = _obstacles(_member(d, "obstacles.csv", MAX_OBSTACLES * MAX_CSV_ROW_BYTES))
+        _on_terrain(terrain, obstacles.x, obstacles.y, "obstacles.csv")
     info = meta.get("info", {})
     if not isinstance(info, dict):
         raise InputError("scenario.json: info", type(info).__name__, "allowed: a mapping")
     user_model = _user_model(d, meta.get("crop_model"), version)
     if user_model is not None:  # the folder's copy, wherever the folder now is
         spec = spec.replace({"crop.model": str(user_model.path)})
-    return Scenario(spec, seed, geo, terrain, field, rows, plants, route, dict(info), user_model)
+    return Scenario(
+        spec, seed, geo, terrain, field, rows, plants, route, dict(info), user_model, obstacles
+    )
 
 
 def _on_terrain(terrain: Terrain, x: np.ndarray, y: np.ndarray, name: str) -> None:
@@ -549,6 +558,59 @@ def _plants(path: Path, rows: RowFrame, version: int) -> Plants:
         species,
         f["stage"],
         row_idx,
+    )
+
+
+#: m: no obstacle is larger than this in any direction (a boulder; a fallen stalk of the
+#: tallest plant)
+MAX_OBSTACLE_SIZE_M = MAX_PLANT_HEIGHT_M
+
+
+def _obstacles(path: Path) -> Obstacles:
+    _, c = _csv(path, [OBSTACLE_HEADER])
+    n = len(c["x"])
+    if n > MAX_OBSTACLES:
+        raise InputError(path.name, f"{n:,} obstacles", f"allowed: at most {MAX_OBSTACLES:,}")
+    keys = ("x", "y", "z", "roll", "pitch", "yaw", "length", "width", "height", "shape")
+    f = {k: _floats(path, c, k) for k in keys}
+    kind = c["kind"].astype(str)
+    unknown = ~np.isin(kind, OBSTACLE_KINDS)
+    if unknown.any():
+        i = int(np.argmax(unknown))
+        raise InputError(
+            f"{path.name}: line {i + 2}, column kind",
+            str(kind[i]),
+            f"allowed: one of {', '.join(OBSTACLE_KINDS)}",
+        )
+    for k in ("length", "width", "height"):
+        bad = (f[k] <= 0) | (f[k] > MAX_OBSTACLE_SIZE_M)
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise InputError(
+                f"{path.name}: line {i + 2}, column {k}",
+                str(c[k][i]),
+                f"allowed: a size in (0, {MAX_OBSTACLE_SIZE_M:g}] m",
+            )
+    for k in ("roll", "pitch", "yaw"):
+        bad = np.abs(f[k]) > 2 * math.pi
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise InputError(
+                f"{path.name}: line {i + 2}, column {k}", str(c[k][i]), "allowed: radians within ±2π"
+            )
+    shape = f["shape"]
+    bad = (shape != np.round(shape)) | (shape < 0) | (shape >= 2**31)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise InputError(
+            f"{path.name}: line {i + 2}, column shape",
+            str(c["shape"][i]),
+            "allowed: an integer in [0, 2**31)",
+        )
+    return Obstacles(
+        kind.astype("<U6"),
+        *(f[k] for k in keys[:-1]),
+        shape.astype(np.int64),
     )
 
 

@@ -245,6 +245,44 @@ class RouteSpec:
 
 
 @dataclass(frozen=True)
+class ObstacleSpec:
+    stone_density: float = _f(
+        0.0,
+        "surface stones per square metre of field (assumed: 1/m² of 6-20 cm stones covers "
+        "≈ 1 % of the ground, FAO's 'very few' surface fragments)",
+        0,
+        50,
+    )
+    stone_size: tuple[float, float] = _f(
+        (0.06, 0.2),
+        "range of a stone's longest diameter, metres, drawn log-uniformly (FAO 2006 coarse "
+        "fragments: 'stones' 6-20 cm, 'boulders' 20-60 cm)",
+        0.01,
+        2,
+    )
+    litter_density: float = _f(
+        0.0, "litter items (bags, sheets, bottles, cans) per square metre of field", 0, 50
+    )
+    litter_size: tuple[float, float] = _f(
+        (0.08, 0.4), "range of a litter item's longest side, metres, log-uniform (assumed)", 0.01, 2
+    )
+    stalk_lodging: float = _f(
+        0.0,
+        "fraction of crop plants fallen (lodged) from their base across the ground (maize "
+        "loses 5-20 % of its yield to lodging: Flint-Garcia et al. 2003)",
+        0,
+        1,
+    )
+    lodging_spread_deg: float = _f(
+        30.0,
+        "std of a fallen stalk's direction about the field's wind direction (drawn per field), "
+        "degrees",
+        0,
+        180,
+    )
+
+
+@dataclass(frozen=True)
 class ScenarioSpec:
     name: str = _f("custom", "scenario name")
     terrain: TerrainSpec = dc_field(default_factory=TerrainSpec)
@@ -253,6 +291,7 @@ class ScenarioSpec:
     crop: CropSpec = dc_field(default_factory=CropSpec)
     furrows: FurrowSpec = dc_field(default_factory=FurrowSpec)
     route: RouteSpec = dc_field(default_factory=RouteSpec)
+    obstacles: ObstacleSpec = dc_field(default_factory=ObstacleSpec)
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> ScenarioSpec:

@@ -27,6 +27,7 @@ def test_directory_has_every_output(saved) -> None:
             "terrain.npz",
             "plants.csv",
             "route.csv",
+            "obstacles.csv",
             "field.geojson",
             "route.geojson",
             "plants.geojson",
@@ -44,7 +45,7 @@ def test_csv_headers_and_metadata(saved) -> None:
     with open(out / "route.csv") as f:
         assert next(csv.reader(f)) == ROUTE_HEADER
     meta = json.loads((out / "scenario.json").read_text())
-    assert meta["format_version"] == 3 and meta["seed"] == 11
+    assert meta["format_version"] == 4 and meta["seed"] == 11
     assert meta["counts"]["plants"] + meta["counts"]["weeds"] == len(scn.plants)
     assert meta["datum"]["lat"] == scn.geo.lat and meta["lod"] == 20
     assert {"numpy", "pyproj", "PROJ", "agrinav-gym"} <= set(meta["versions"])
