@@ -210,8 +210,10 @@ def bench(
     trust_checkpoint: bool = False,
     workers: int = 1,
     ray: str | None = None,
+    groups: Sequence[str] | None = None,
 ) -> list[dict[str, Any]]:
-    """Every policy on every case of a suite, the same held-out seeds for all.
+    """Every policy on every case of a suite (or on its cases named in ``groups``), the same
+    held-out seeds for all: a case keeps its seeds whichever others run with it.
 
     Each episode is a task (``baselines.parallel``: this process, ``workers`` processes or Ray
     tasks at ``ray``); an episode is a function of its case, policy and seed alone, so the
@@ -223,13 +225,14 @@ def bench(
     if not policies:
         raise InputError("--policies", "", "allowed: a comma list such as dwb,rpp,ppo:shipped")
     cases = suite(suite_name)
+    chosen = _chosen_cases(cases, groups, suite_name)
     labels = policy_labels(policies)
     for spec in policies:
         check_policy_spec(spec)
     check_spread(workers, ray)
     check_output_dir(out, force)
-    for case in cases:  # every policy must fit every case before any episode runs
-        env = _make_env(case)
+    for ci in chosen:  # every policy must fit every case before any episode runs
+        env = _make_env(cases[ci])
         try:
             for spec in policies:
                 _policy(spec, env, trust_checkpoint)
@@ -237,7 +240,7 @@ def bench(
             env.close()
     jobs = [
         EpisodeJob(suite_name, ci, pi, spec, name, k, trust_checkpoint)
-        for ci in range(len(cases))
+        for ci in chosen
         for pi, (spec, name) in enumerate(zip(policies, labels, strict=True))
         for k in range(seeds)
     ]
@@ -246,6 +249,7 @@ def bench(
         "suite": suite_name,
         "policies": list(policies),
         "seeds": seeds,
+        **({"cases": [cases[ci].group for ci in chosen]} if groups else {}),
         "trust_checkpoint": trust_checkpoint,
         "version": _version(),
     }
@@ -276,6 +280,21 @@ def bench(
         bar_chart(records, tmp / "benchmark.png", suite_name)
     journal.remove()
     return records
+
+
+def _chosen_cases(cases: Sequence[Any], groups: Sequence[str] | None, suite_name: str) -> list[int]:
+    """Indices of the suite's cases named in ``groups`` (all when None), in suite order."""
+    if not groups:
+        return list(range(len(cases)))
+    names = [c.group for c in cases]
+    unknown = [g for g in groups if g not in names]
+    if unknown:
+        raise InputError(
+            "--cases",
+            ",".join(unknown),
+            f"allowed: cases of the {suite_name} suite: {'; '.join(names)}",
+        )
+    return [i for i, n in enumerate(names) if n in groups]
 
 
 def trajectory_name(group: str, policy: str, k: int) -> str:

@@ -100,6 +100,25 @@ OOD_AXES: tuple[tuple[str, tuple[str, ...], dict[str, Any], dict[str, Any]], ...
         {"randomize": {"terrain.max_slope_deg": [9.0, 12.0]}},
     ),
     ("RTK float", (), {}, {"gnss": {"mode": GNSS_RTK_FLOAT, "fix": {"model": "constant"}}}),
+    # Appended, never inserted: a case's evaluation seeds follow from its index.
+    (
+        "curved rows R 15-30 m",
+        (),
+        {"layout": {"row_geometry": "curved", "curve_radius": [15.0, 30.0]}},
+        {},
+    ),
+    (
+        "contour rows, slope 4-8 deg",
+        ("terrain.max_slope_deg",),
+        {"layout": {"row_geometry": "contour"}},
+        {"randomize": {"terrain.max_slope_deg": [4.0, 8.0]}},
+    ),
+    (
+        "stones 0.3/m², 5 % lodged",
+        (),
+        {"obstacles": {"stone_density": 0.3, "stalk_lodging": 0.05}},
+        {},
+    ),
 )
 
 

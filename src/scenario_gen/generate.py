@@ -15,9 +15,9 @@ from shapely.geometry import MultiPolygon, Polygon
 from shapely.geometry.base import BaseGeometry
 
 from . import crops
-from .crops import scaled_by_height
 from .arrays import FloatArray
 from .bounds import MAX_PLANE_RADIUS_M, check_budget, check_lod
+from .crops import scaled_by_height
 from .drift import apply_drift
 from .errors import InputError
 from .field import check_field, long_axis_deg, lonlat_to_enu, rectangle
@@ -26,8 +26,8 @@ from .furrows import add_relief
 from .geodesy import GeoFrame
 from .layout import Layout, layout
 from .model import Plants, Scenario
-from .obstacles import place_obstacles
 from .models import inspect_model
+from .obstacles import place_obstacles
 from .routes import zigzag
 from .rowcurve import row_curve
 from .sources import Site, build_terrain, open_site

@@ -1,8 +1,9 @@
 """GeoJSON layers in WGS84 (RFC 7946): field, route, plants and planted rows.
 
 One geometry type per layer and file (``field.geojson``, ``route.geojson``,
-``plants.geojson``, ``obstacles.geojson``: footprint polygons, only when there are obstacles): GIS formats hold one geometry type per layer, so a file mixing polygons,
-lines and points cannot be converted to a Shapefile. Every feature carries a unique top-level
+``plants.geojson``; ``obstacles.geojson``, footprint polygons, when there are obstacles): GIS
+formats hold one geometry type per layer, so a file mixing polygons, lines and points cannot be
+converted to a Shapefile. Every feature carries a unique top-level
 ``id`` (its index in the file), and plant numbers live in the ``plant_id`` property, so GDAL
 never takes a repeated property for its feature id (``ogr2ogr -f GPKG`` refused the old file).
 Coordinates are lon, lat, height (the scenario's heights: ``vertical``); ``decimals=None``

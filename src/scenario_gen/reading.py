@@ -38,9 +38,9 @@ from .errors import InputError
 from .geodesy import GeoFrame
 from .io import (
     FORMAT,
+    OBSTACLE_HEADER,
     PLANT_HEADER,
     PLANT_HEADER_V1,
-    OBSTACLE_HEADER,
     READABLE_VERSIONS,
     ROUTE_HEADER,
     ROUTE_HEADER_V2,
@@ -49,9 +49,9 @@ from .layout import RowFrame
 from .model import Plants, Scenario
 from .model_files import MAX_FILES as MAX_MODEL_FILES
 from .model_shape import ProxyShape
-from .obstacles import OBSTACLE_KINDS, Obstacles
 from .models import MAX_TOTAL_BYTES as MAX_MODEL_BYTES
 from .models import SCALE_RULES, UserModel, sha256_file
+from .obstacles import OBSTACLE_KINDS, Obstacles
 from .routes import SEGMENTS, TURN_TAGS, Route
 from .rowcurve import RowCurve
 from .schema import parse_json
@@ -596,7 +596,9 @@ def _obstacles(path: Path) -> Obstacles:
         if bad.any():
             i = int(np.argmax(bad))
             raise InputError(
-                f"{path.name}: line {i + 2}, column {k}", str(c[k][i]), "allowed: radians within ±2π"
+                f"{path.name}: line {i + 2}, column {k}",
+                str(c[k][i]),
+                "allowed: radians within ±2π",
             )
     shape = f["shape"]
     bad = (shape != np.round(shape)) | (shape < 0) | (shape >= 2**31)

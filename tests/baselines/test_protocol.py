@@ -115,8 +115,29 @@ def test_every_ood_case_lies_outside_the_training_ranges() -> None:
     lo, _ = cases["slope 9-12 deg"].randomize["terrain.max_slope_deg"]
     assert lo > train["terrain.max_slope_deg"][1]
     assert cases["RTK float"].config["gnss"]["mode"] == "rtk_float"
+    for group, shape in (("curved rows R 15-30 m", "curved"),
+                         ("contour rows, slope 4-8 deg", "contour")):  # fmt: skip
+        assert outside("layout.row_geometry", cases[group].overrides["layout"]["row_geometry"])
+        assert cases[group].overrides["layout"]["row_geometry"] == shape
+    obstacles = cases["stones 0.3/m², 5 % lodged"].overrides["obstacles"]
+    assert outside("obstacles.stone_density", obstacles["stone_density"])
+    assert outside("obstacles.stalk_lodging", obstacles["stalk_lodging"])
     for case in cases.values():  # every other axis drawn as in training, from the eval seeds
         assert case.env_kwargs()["scenario_seeds"] == list(EVAL_SCENARIO_SEEDS)
+
+
+def test_a_chosen_case_keeps_its_seeds_and_an_unknown_one_is_named() -> None:
+    from baselines.bench import _chosen_cases
+    from scenario_gen.errors import InputError
+
+    cases = suite("ood")
+    last = cases[-1].group
+    # the jobs' seeds follow from the index in the whole suite, which choosing keeps
+    assert _chosen_cases(cases, [last], "ood") == [len(cases) - 1]
+    assert _chosen_cases(cases, None, "ood") == list(range(len(cases)))
+    with pytest.raises(InputError) as e:
+        _chosen_cases(cases, ["rows 0.9 m"], "ood")
+    assert "--cases" in str(e.value) and "rows 0.9 m" in str(e.value) and last in str(e.value)
 
 
 def test_the_paper_suite_drives_the_seed_robots_four_waypoints() -> None:

@@ -49,8 +49,12 @@ def test_lodged_plants_leave_their_place_and_lie_from_it() -> None:
     lodged = generate(small(obstacles={"stalk_lodging": 0.1}, **RIDGED), seed=3)
     o = lodged.obstacles
     stalks = o.kind == "stalk"
-    standing = {(round(x, 9), round(y, 9)) for x, y in zip(lodged.plants.x, lodged.plants.y)}
-    before = {(round(x, 9), round(y, 9)) for x, y in zip(plain.plants.x, plain.plants.y)}
+    standing = {
+        (round(x, 9), round(y, 9)) for x, y in zip(lodged.plants.x, lodged.plants.y, strict=True)
+    }
+    before = {
+        (round(x, 9), round(y, 9)) for x, y in zip(plain.plants.x, plain.plants.y, strict=True)
+    }
     gone = before - standing
     assert standing <= before and len(gone) >= stalks.sum() > 0
     # each stalk's base (its centre minus half its length along its yaw) is a plant that fell

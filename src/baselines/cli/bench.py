@@ -32,12 +32,19 @@ def add(sub: Any) -> None:
     _common(ru)
     ru.set_defaults(func=run)
 
+    from baselines.suites import SUITES
+
     be = sub.add_parser("bench", help="benchmark policies on a suite: results.json, benchmark.md")
     be.add_argument(
         "--suite",
         required=True,
-        help="smoke, paper, unseen, localisation, growth (mesh camera), growth-proxy, density or "
-        "terrain",
+        help=f"one of {', '.join(SUITES)} (growth: mesh camera)",
+    )
+    be.add_argument(
+        "--cases",
+        help="only these cases of the suite, separated by ';' (their names as benchmark.md "
+        "shows them, e.g. 'curved rows R 15-30 m;contour rows, slope 4-8 deg'); each keeps "
+        "its seeds",
     )
     be.add_argument(
         "--policies", required=True, help="comma list, e.g. dwb:nav2,dwb:furrow,rpp,depth,ppo:PATH"
@@ -110,6 +117,7 @@ def bench(args: argparse.Namespace) -> int:
         trust_checkpoint=args.trust_checkpoint,
         workers=args.workers,
         ray=args.ray,
+        groups=[c.strip() for c in args.cases.split(";") if c.strip()] if args.cases else None,
     )
     print((Path(args.out) / "benchmark.md").read_text())
     return 0
