@@ -300,6 +300,8 @@ def generate(spec: ScenarioSpec, seed: int) -> Scenario:
     else:
         crops = np.column_stack([lay.x, lay.y])[~lay.is_weed]
         route = zigzag(lay.rows, spec.route, terrain, poly, crops)
+    if not lodged.any():
+        fallen = (np.zeros((0, 2)), np.zeros(0), np.zeros(0))
     crop = ~plants.is_weed
     obstacles = place_obstacles(
         spec.obstacles,
@@ -307,7 +309,9 @@ def generate(spec: ScenarioSpec, seed: int) -> Scenario:
         terrain,
         np.column_stack([plants.x, plants.y])[crop],
         stems[crop],
-        *(fallen if lodged.any() else (np.zeros((0, 2)), np.zeros(0), np.zeros(0))),
+        fallen[0],
+        fallen[1],
+        fallen[2],
         (float(route.xyz[0, 0]), float(route.xyz[0, 1])) if len(route) else None,
         rng["obstacles"],
     )

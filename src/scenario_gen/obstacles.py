@@ -29,6 +29,7 @@ from scipy.spatial import cKDTree
 from shapely.geometry.base import BaseGeometry
 
 from .arrays import FloatArray, IntArray
+from .spec import ObstacleSpec
 from .terrain import Terrain
 
 #: what an obstacle can be (one word each: files, labels, metrics and exports use these)
@@ -306,7 +307,7 @@ def _lying(
 
 
 def place_obstacles(
-    spec: object,
+    spec: ObstacleSpec,
     field: BaseGeometry,
     terrain: Terrain,
     crops_xy: FloatArray,
@@ -317,7 +318,7 @@ def place_obstacles(
     start: tuple[float, float] | None,
     rng: np.random.Generator,
 ) -> Obstacles:
-    """The obstacles of one field (``spec`` an ``ObstacleSpec``).
+    """The obstacles of one field.
 
     ``crops_xy`` and ``stems`` (stalk radii) are the standing crop plants'; each fallen plant
     (``fallen_*``: base, stalk radius, height) becomes a stalk lying from its base towards the
@@ -326,8 +327,8 @@ def place_obstacles(
     nor within ``START_CLEAR`` of the route's start."""
     o = spec
     area = float(field.area)
-    n_st = int(rng.poisson(o.stone_density * area)) if o.stone_density > 0 else 0  # type: ignore[attr-defined]
-    n_li = int(rng.poisson(o.litter_density * area)) if o.litter_density > 0 else 0  # type: ignore[attr-defined]
+    n_st = int(rng.poisson(o.stone_density * area)) if o.stone_density > 0 else 0
+    n_li = int(rng.poisson(o.litter_density * area)) if o.litter_density > 0 else 0
     wind = rng.uniform(-math.pi, math.pi)
     parts: list[dict[str, np.ndarray]] = []
     tree = cKDTree(crops_xy) if len(crops_xy) else None
@@ -345,7 +346,7 @@ def place_obstacles(
     for kind, count in ((STONE, n_st), (LITTER, n_li)):
         if count == 0:
             continue
-        lo, hi = o.stone_size if kind == STONE else o.litter_size  # type: ignore[attr-defined]
+        lo, hi = o.stone_size if kind == STONE else o.litter_size
         length = _log_uniform(rng, lo, hi, count)
         width = length * rng.uniform(0.5 if kind == STONE else 0.3, 1.0, count)
         if kind == STONE:  # stones lie on their flattest side
@@ -366,7 +367,7 @@ def place_obstacles(
     n_sk = len(fallen_xy)
     if n_sk:
         bx, by = fallen_xy[:, 0], fallen_xy[:, 1]
-        yaw = wind + np.radians(o.lodging_spread_deg) * rng.standard_normal(n_sk)  # type: ignore[attr-defined]
+        yaw = wind + np.radians(o.lodging_spread_deg) * rng.standard_normal(n_sk)
         length = STALK_LENGTH_SHARE * fallen_heights
         dia = 2.0 * fallen_stems
         x, y = bx + 0.5 * length * np.cos(yaw), by + 0.5 * length * np.sin(yaw)

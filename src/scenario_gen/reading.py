@@ -610,9 +610,17 @@ def _obstacles(path: Path) -> Obstacles:
             "allowed: an integer in [0, 2**31)",
         )
     return Obstacles(
-        kind.astype("<U6"),
-        *(f[k] for k in keys[:-1]),
-        shape.astype(np.int64),
+        kind=kind.astype("<U6"),
+        x=f["x"],
+        y=f["y"],
+        z=f["z"],
+        roll=f["roll"],
+        pitch=f["pitch"],
+        yaw=f["yaw"],
+        length=f["length"],
+        width=f["width"],
+        height=f["height"],
+        shape=shape.astype(np.int64),
     )
 
 
