@@ -37,6 +37,21 @@ def gazebo_section(g: GazeboSummary) -> str:
         if len(g.worlds) > 2
         else ""
     )
+    obstacles = ""
+    if g.obstacles:
+        counts = ", ".join(f"{n} {k}" for k, n in g.obstacles.items())
+        obstacles = f"- Obstacles ({counts}; {g.obstacle_triangles:,} triangles): " + (
+            "one static model each in the worlds, named `<kind>_<id>` (the id is the row "
+            "of the scenario's `obstacles.csv`) at the obstacle's pose, its visual and "
+            "collision its own mesh (`models/agrinav_obstacles/meshes/<kind>_<id>.stl`, in its "
+            "own frame), "
+            "coloured by kind; `models/agrinav_obstacles/model.sdf` holds them all as one "
+            "model to insert elsewhere.\n"
+            if g.obstacle_mode == "models"
+            else f"merged into {g.obstacle_tiles} static tiles "
+            "(`models/agrinav_obstacle_tile_*`: the meshes at their poses, one STL per "
+            "kind as the visuals, coloured by kind, and one collision mesh per tile).\n"
+        )
     return f"""## Gazebo
 
 - `worlds/field.sdf` — Gazebo Sim (Fortress, Garden, Harmonic; system plugins use the
@@ -46,7 +61,7 @@ def gazebo_section(g: GazeboSummary) -> str:
   rotated GPS frame, gazebo-classic bug report 2022; the poses are identical).
 {hm}- `models/` — `agrinav_terrain` (textured COLLADA mesh, also the collision) and {plants}.
   Triangles in the plants: {g.triangles:,}.
-
+{obstacles}
 ```bash
 . setup.bash                       # sets GAZEBO_MODEL_PATH and the Gazebo Sim resource paths
 gz sim worlds/field.sdf            # Garden and later  (Fortress: ign gazebo worlds/field.sdf)

@@ -1,0 +1,169 @@
+"""Obstacles (stones, litter, fallen stalks) in every export: Gazebo (checked by libsdformat),
+the Nav2 bundle, the meshes, the GeoPackage (checked by GDAL) and the previews; and an export
+without obstacles is the one it was before they existed."""
+
+from __future__ import annotations
+
+import dataclasses
+import filecmp
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from scenario_gen import Scenario
+from scenario_gen.export import ExportOptions, export, export_scenario
+from scenario_gen.export.obstacles import KIND_RGB, OBSTACLES_MODEL, TILE_PREFIX, names
+from scenario_gen.obstacles import OBSTACLE_KINDS, Obstacles
+
+from .tools import Check, quat_to_matrix, run_check, run_checks
+
+
+def _stl(path: Path) -> np.ndarray:
+    """(f, 3, 3) triangles of a binary STL, as written (float32)."""
+    import trimesh
+
+    return np.asarray(trimesh.load(path, process=False).triangles)
+
+
+# ---------------------------------------------------------------------------- Gazebo
+@pytest.fixture(scope="module")
+def gz_models(obstacle_hill, tmp_path_factory) -> tuple[Scenario, Path]:
+    _, src = obstacle_hill
+    out = tmp_path_factory.mktemp("gz_obstacles") / "include"
+    export(src, "gazebo", out, ExportOptions(plants="include"))
+    return obstacle_hill[0], out
+
+
+@pytest.fixture(scope="module")
+def gz_checks(gz_models, sdf_check) -> dict[str, Check]:
+    _, out = gz_models
+    worlds = ("field.sdf", "field_classic.world")
+    got = run_checks(sdf_check, [out / "worlds" / w for w in worlds], out / "models")
+    return dict(zip(worlds, got, strict=True))
+
+
+def test_each_obstacle_is_a_static_model_at_its_pose(gz_models, gz_checks) -> None:
+    scn, _ = gz_models
+    o = scn.obstacles
+    want = names(o)
+    assert want[0].startswith(str(o.kind[0]) + "_") and len(set(want)) == len(o)
+    for world, c in gz_checks.items():
+        assert c.returncode == 0 and c.valid, (world, c.stderr)
+        assert len(c.models) == len(scn.plants) + 1 + len(o)  # plants, terrain, obstacles
+        rows = np.array([c.models[n] for n in want])
+        np.testing.assert_allclose(rows[:, :3], np.column_stack([o.x, o.y, o.z]), atol=1e-6)
+        got = quat_to_matrix(rows[:, 3:7])
+        rot = np.array([o.rotation(i) for i in range(len(o))])
+        assert np.abs(got - rot).max() < 1e-6
+    # on this 20° slope the ground tilts every obstacle: the rotation is tested for real
+    assert np.abs(o.pitch).max() > 0.15 or np.abs(o.roll).max() > 0.15
+    kinds = {n.rsplit("_", 1)[0] for n in want}
+    assert kinds == set(OBSTACLE_KINDS)
+    assert {k: sum(n.startswith(k + "_") for n in want) for k in OBSTACLE_KINDS} == o.counts()
+
+
+def test_obstacle_meshes_are_their_own_shapes_for_visual_and_collision(
+    gz_models, gz_checks
+) -> None:
+    scn, out = gz_models
+    o = scn.obstacles
+    folder = out / "models" / OBSTACLES_MODEL / "meshes"
+    resolved = [Path(m).resolve() for m in gz_checks["field.sdf"].meshes]
+    world = (out / "worlds" / "field.sdf").read_text()
+    for i, name in enumerate(names(o)):
+        stl = folder / f"{name}.stl"
+        # libsdformat resolved the mesh twice: the visual's and the collision's
+        assert resolved.count(stl.resolve()) == 2, name
+        v, f = o.local_mesh(i)
+        np.testing.assert_allclose(_stl(stl), v[f], atol=1e-6)  # float32 in its own frame
+        model = re.search(rf'<model name="{name}">.*?</model>', world).group(0)
+        rgb = np.array(KIND_RGB[str(o.kind[i])]) / 255.0
+        assert f"<diffuse>{' '.join(f'{c:.4f}' for c in rgb)} 1.0000</diffuse>" in model
+        assert "<static>true</static>" in model
+
+
+def test_the_obstacles_model_inserts_them_all(gz_models, sdf_check, tmp_path) -> None:
+    """models/agrinav_obstacles/model.sdf: every obstacle as a link at its ENU pose."""
+    scn, out = gz_models
+    world = (out / "worlds" / "field.sdf").read_text()
+    head, _, _ = world.partition("<include>")
+    one = tmp_path / "one.sdf"
+    one.write_text(
+        head + f"<include><uri>model://{OBSTACLES_MODEL}</uri><name>obstacles</name>"
+        "<pose>0 0 0 0 0 0</pose></include></world></sdf>"
+    )
+    c = run_check(sdf_check, one, out / "models")
+    assert c.returncode == 0 and c.valid, c.stderr
+    assert list(c.models) == ["obstacles"]
+    assert len(c.meshes) == 2 * len(scn.obstacles)
+
+
+def test_merged_obstacle_tiles_hold_every_mesh_at_its_pose(obstacle_hill, sdf_check, tmp_path):
+    scn, src = obstacle_hill
+    out = tmp_path / "tiles"
+    export(src, "gazebo", out, ExportOptions(plants="tiles", tile_plants=4))
+    c = run_check(sdf_check, out / "worlds" / "field.sdf", out / "models")
+    assert c.returncode == 0 and c.valid, c.stderr
+    o = scn.obstacles
+    tiles = sorted((out / "models").glob(f"{TILE_PREFIX}_*"))
+    assert len(tiles) >= 3 and not (out / "models" / OBSTACLES_MODEL).exists()
+    assert not any(n in c.models for n in names(o))  # merged: no model per obstacle
+    got: dict[str, list[np.ndarray]] = {k: [] for k in OBSTACLE_KINDS}
+    for folder in tiles:
+        origin = c.models[folder.name.removeprefix("agrinav_")][:3]
+        parts = {k: _stl(folder / "meshes" / f"{k}.stl") + origin
+                 for k in OBSTACLE_KINDS if (folder / "meshes" / f"{k}.stl").is_file()}  # fmt: skip
+        every = np.concatenate(list(parts.values()))
+        np.testing.assert_allclose(_stl(folder / "meshes" / "collision.stl") + origin, every,
+                                   atol=1e-5)  # fmt: skip
+        for k, tri in parts.items():
+            got[k].append(tri)
+    for k in OBSTACLE_KINDS:
+        want = [o.mesh(i) for i in np.flatnonzero(o.kind == k)]
+        want_tri = np.concatenate([v[f] for v, f in want])
+        have = np.concatenate(got[k])
+        assert len(have) == len(want_tri)
+        # tiles take their obstacles in their own order: compare the sets of triangles
+        key = lambda t: np.lexsort(t.reshape(len(t), -1).T[::-1])  # noqa: E731
+        np.testing.assert_allclose(have[key(have)], want_tri[key(want_tri)], atol=1e-5)
+
+
+def test_obstacles_add_only_their_own_files(obstacle_hill, tmp_path) -> None:
+    """The same scenario exported with its obstacles emptied: every file is byte-identical
+    except the worlds (which lose exactly the obstacle models), the README and the preview."""
+    scn, _ = obstacle_hill
+    bare = dataclasses.replace(scn, obstacles=Obstacles.empty())
+    opts = ExportOptions(plants="include")
+    export_scenario(scn, "gazebo", tmp_path / "with", opts)
+    export_scenario(bare, "gazebo", tmp_path / "bare", opts)
+    a, b = tmp_path / "with", tmp_path / "bare"
+    files_a = {p.relative_to(a) for p in a.rglob("*") if p.is_file()}
+    files_b = {p.relative_to(b) for p in b.rglob("*") if p.is_file()}
+    extra = files_a - files_b
+    assert files_b <= files_a and extra
+    assert all(p.parts[:2] == ("models", OBSTACLES_MODEL) for p in extra)
+    differ = {p for p in files_b if not filecmp.cmp(a / p, b / p, shallow=False)}
+    worlds = {Path("worlds/field.sdf"), Path("worlds/field_classic.world")}
+    assert differ == worlds | {Path("README.md"), Path("preview.png")}
+    for w in worlds:
+        text = (a / w).read_text()
+        stripped = re.sub(r'\n    <model name="(stone|litter|stalk)_\d+">.*?</model>', "", text)
+        assert len(stripped) < len(text) and stripped == (b / w).read_text()
+    assert "Obstacles" in (a / "README.md").read_text()
+    assert "Obstacles" not in (b / "README.md").read_text()
+
+
+def test_nav2_bundle_carries_the_obstacles(obstacle_hill, sdf_check, tmp_path) -> None:
+    from baselines.nav2_robot import nav2_options
+
+    scn, src = obstacle_hill
+    out = tmp_path / "nav2"
+    export(src, "nav2", out, ExportOptions.from_dict(nav2_options(plants="include")))
+    c = run_check(sdf_check, out / "worlds" / "field.sdf", out / "models")
+    assert c.returncode == 0 and c.valid, c.stderr
+    o = scn.obstacles
+    rows = np.array([c.models[n] for n in names(o)])  # ≤ include_limit: one model each
+    np.testing.assert_allclose(rows[:, :3], np.column_stack([o.x, o.y, o.z]), atol=1e-6)
+    assert "Obstacles (" in (out / "README.md").read_text()
