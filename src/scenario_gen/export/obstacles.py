@@ -206,3 +206,136 @@ def _write_tiles(models_dir: Path, obs: Obstacles, tiles: list[Tile]) -> GazeboO
             f"<pose>{fmt(ox, oy, 0, 0, 0, 0)}</pose></include>"
         )
     return GazeboObstacles(body, "tiles", len(tiles), len(tiles), triangles)
+
+
+# ---------------------------------------------------------------------------- mesh export
+#: ENU (x east, y north, z up) to glTF's Y-up axes (x east, y up, z south)
+ENU_TO_Y_UP = np.array([[1.0, 0, 0, 0], [0, 0, 1, 0], [0, -1, 0, 0], [0, 0, 0, 1]])
+
+
+def write_obstacle_mesh(obs: Obstacles, path: Path) -> None:
+    """Every obstacle of ``obs`` into one file, by the suffix of ``path``.
+
+    GLB and COLLADA: one node per obstacle, named ``<kind>_<id>``, holding its mesh in its own
+    frame and its pose as the node's transform (GLB in glTF's Y-up axes), coloured by kind.
+    OBJ: one object (``o <kind>_<id>``) each, vertices in ENU (OBJ has no transforms). PLY has
+    no names: one mesh in ENU whose faces carry their colour, ``obstacle`` (the id) and
+    ``kind`` (an index into the header's ``comment kind`` lines).
+    """
+    suffix = path.suffix.lower().lstrip(".")
+    if suffix == "dae":
+        _write_dae(obs, path)
+    elif suffix == "ply":
+        _write_ply(obs, path)
+    elif suffix in ("glb", "obj"):
+        _scene(obs, y_up=suffix == "glb").export(path)
+    else:
+        raise ValueError(f"no obstacle writer for {path.name}")
+
+
+def _scene(obs: Obstacles, y_up: bool) -> object:
+    import trimesh
+
+    scene = trimesh.Scene()
+    for i, name in enumerate(names(obs)):
+        v, f = obs.local_mesh(i)
+        m = trimesh.Trimesh(v, f, process=False)
+        rgba = (*KIND_RGB[str(obs.kind[i])], 255)
+        m.visual = trimesh.visual.ColorVisuals(m, face_colors=np.tile(rgba, (len(f), 1)))
+        t = pose_matrix(obs, i)
+        scene.add_geometry(
+            m, node_name=name, geom_name=name, transform=ENU_TO_Y_UP @ t if y_up else t
+        )
+    return scene
+
+
+def _numbers(values: NDArray[np.float64], digits: int) -> str:
+    return " ".join(f"{v + 0.0:.{digits}f}" for v in np.asarray(values, np.float64).ravel())
+
+
+def _write_dae(obs: Obstacles, path: Path) -> None:
+    """COLLADA 1.4.1, Z up, metres: a geometry and a node per obstacle, a material per kind.
+    (trimesh's writer names everything by random UUIDs and says Y_UP: not reproducible.)"""
+    effects = []
+    materials = []
+    for kind in OBSTACLE_KINDS:
+        r, g, b = (np.array(KIND_RGB[kind]) / 255.0).tolist()
+        effects.append(
+            f'<effect id="{kind}-effect"><profile_COMMON><technique sid="common"><lambert>'
+            f"<diffuse><color>{r:.4f} {g:.4f} {b:.4f} 1</color></diffuse></lambert></technique>"
+            "</profile_COMMON></effect>"
+        )
+        materials.append(
+            f'<material id="{kind}-material" name="{kind}">'
+            f'<instance_effect url="#{kind}-effect"/></material>'
+        )
+    with open(path, "w") as f:
+        f.write(
+            '<?xml version="1.0" encoding="utf-8"?>\n'
+            '<COLLADA xmlns="http://www.collada.org/2005/11/COLLADASchema" version="1.4.1">\n'
+            "<asset><contributor><authoring_tool>agrinav export</authoring_tool></contributor>\n"
+            '<unit name="meter" meter="1"/><up_axis>Z_UP</up_axis></asset>\n'
+            f"<library_effects>{''.join(effects)}</library_effects>\n"
+            f"<library_materials>{''.join(materials)}</library_materials>\n"
+            "<library_geometries>\n"
+        )
+        for i, name in enumerate(names(obs)):
+            v, fc = obs.local_mesh(i)
+            f.write(
+                f'<geometry id="{name}-mesh" name="{name}"><mesh>'
+                f'<source id="{name}-positions"><float_array id="{name}-positions-array" '
+                f'count="{v.size}">{_numbers(v, 6)}</float_array><technique_common>'
+                f'<accessor source="#{name}-positions-array" count="{len(v)}" stride="3">'
+                '<param name="X" type="float"/><param name="Y" type="float"/>'
+                '<param name="Z" type="float"/></accessor></technique_common></source>'
+                f'<vertices id="{name}-vertices"><input semantic="POSITION" '
+                f'source="#{name}-positions"/></vertices>'
+                f'<triangles material="material" count="{len(fc)}">'
+                f'<input semantic="VERTEX" source="#{name}-vertices" offset="0"/>'
+                f"<p>{' '.join(map(str, fc.ravel().tolist()))}</p></triangles></mesh></geometry>\n"
+            )
+        f.write('</library_geometries>\n<library_visual_scenes><visual_scene id="scene">\n')
+        for i, name in enumerate(names(obs)):
+            kind = str(obs.kind[i])
+            f.write(
+                f'<node id="{name}" name="{name}" type="NODE">'
+                f'<matrix sid="transform">{_numbers(pose_matrix(obs, i), 9)}</matrix>'
+                f'<instance_geometry url="#{name}-mesh"><bind_material><technique_common>'
+                f'<instance_material symbol="material" target="#{kind}-material"/>'
+                "</technique_common></bind_material></instance_geometry></node>\n"
+            )
+        f.write(
+            "</visual_scene></library_visual_scenes>\n"
+            '<scene><instance_visual_scene url="#scene"/></scene>\n</COLLADA>\n'
+        )
+
+
+def _write_ply(obs: Obstacles, path: Path) -> None:
+    """Binary PLY: ENU vertices (double), faces with colour, obstacle id and kind index."""
+    v, faces, owner = obs.meshes()
+    kind_index = np.array([OBSTACLE_KINDS.index(str(k)) for k in obs.kind], np.uint8)
+    rgb = np.array([KIND_RGB[k] for k in OBSTACLE_KINDS], np.uint8)
+    face = np.zeros(
+        len(faces),
+        [("n", "u1"), ("v", "<i4", (3,)), ("rgb", "u1", (3,)), ("obstacle", "<i4"), ("kind", "u1")],
+    )
+    face["n"] = 3
+    face["v"] = faces
+    face["rgb"] = rgb[kind_index[owner]]
+    face["obstacle"] = owner
+    face["kind"] = kind_index[owner]
+    header = (
+        "ply\nformat binary_little_endian 1.0\n"
+        "comment agrinav export: obstacles, ENU metres (x east, y north, z up)\n"
+        + "".join(f"comment kind {k} {name}\n" for k, name in enumerate(OBSTACLE_KINDS))
+        + f"element vertex {len(v)}\n"
+        "property double x\nproperty double y\nproperty double z\n"
+        f"element face {len(faces)}\n"
+        "property list uchar int vertex_indices\n"
+        "property uchar red\nproperty uchar green\nproperty uchar blue\n"
+        "property int obstacle\nproperty uchar kind\nend_header\n"
+    )
+    with open(path, "wb") as f:
+        f.write(header.encode("ascii"))
+        f.write(np.ascontiguousarray(v, "<f8").tobytes())
+        f.write(face.tobytes())

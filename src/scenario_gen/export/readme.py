@@ -347,6 +347,16 @@ Raster ▸ Analysis ▸ Hillshade on `terrain.tif` gives the relief of `preview.
 
 def mesh_readme(scn: Scenario, files: list[str]) -> str:
     listing = "\n".join(f"- `{f}`" for f in files)
+    obstacles = ""
+    if any(f.startswith("obstacles.") for f in files):
+        counts = ", ".join(f"{n} {k}" for k, n in scn.obstacles.counts().items())
+        obstacles = f"""
+Obstacles ({counts}): `obstacles.*`, each named `<kind>_<id>` (the id is the row of the
+scenario's `obstacles.csv`) and coloured by kind. GLB and COLLADA: one node per obstacle
+holding its mesh in its own frame, the node's transform its pose; OBJ: one object per
+obstacle, vertices in ENU; PLY (no names in the format): one mesh in ENU whose faces carry
+`obstacle` (the id) and `kind` (the index the header's `comment kind` lines name).
+"""
     return (
         _head(scn, "meshes")
         + f"""Terrain (and, if asked, the plants merged) in the scenario's ENU frame, metres.
@@ -354,5 +364,5 @@ glTF/GLB files are Y-up as the format requires (x east, y up, z south); the othe
 (x east, y north, z up; COLLADA files say so: `<up_axis>Z_UP</up_axis>`).
 
 {listing}
-"""
+{obstacles}"""
     )

@@ -167,3 +167,127 @@ def test_nav2_bundle_carries_the_obstacles(obstacle_hill, sdf_check, tmp_path) -
     rows = np.array([c.models[n] for n in names(o)])  # ≤ include_limit: one model each
     np.testing.assert_allclose(rows[:, :3], np.column_stack([o.x, o.y, o.z]), atol=1e-6)
     assert "Obstacles (" in (out / "README.md").read_text()
+
+
+# ---------------------------------------------------------------------------- meshes
+@pytest.fixture(scope="module")
+def meshes(obstacle_hill, tmp_path_factory) -> tuple[Scenario, Path]:
+    _, src = obstacle_hill
+    out = tmp_path_factory.mktemp("mesh_obstacles") / "out"
+    export(src, "mesh", out, ExportOptions(formats=("glb", "obj", "ply", "dae"), mesh_plants=True))
+    return obstacle_hill[0], out
+
+
+def _sorted_triangles(tri: np.ndarray) -> np.ndarray:
+    """Triangles in a canonical order (a reader may reorder faces and split vertices)."""
+    flat = np.round(tri.reshape(len(tri), -1), 5)
+    return flat[np.lexsort(flat.T[::-1])]
+
+
+def test_glb_has_a_node_per_obstacle_at_its_pose(meshes) -> None:
+    import json
+    import struct
+
+    import trimesh
+
+    from scenario_gen.export.obstacles import ENU_TO_Y_UP, pose_matrix
+
+    scn, out = meshes
+    o = scn.obstacles
+    data = (out / "obstacles.glb").read_bytes()
+    (size,) = struct.unpack("<I", data[12:16])
+    gltf = json.loads(data[20 : 20 + size])
+    nodes = {n["name"]: n for n in gltf["nodes"]}
+    assert sorted(nodes) == sorted(names(o))
+    back = trimesh.load(out / "obstacles.glb")
+    for i, name in enumerate(names(o)):
+        matrix = np.array(nodes[name]["matrix"]).reshape(4, 4).T  # glTF: column-major
+        np.testing.assert_allclose(matrix, ENU_TO_Y_UP @ pose_matrix(o, i), atol=1e-9)
+        v, f = o.local_mesh(i)
+        got = back.geometry[name]
+        np.testing.assert_allclose(_sorted_triangles(got.triangles), _sorted_triangles(v[f]),
+                                   atol=2e-5)  # fmt: skip
+        colour = got.visual.face_colors[:, :3]
+        assert (colour == KIND_RGB[str(o.kind[i])]).all()
+
+
+def test_collada_has_a_node_per_obstacle_at_its_pose(meshes) -> None:
+    import xml.etree.ElementTree as ET
+
+    import trimesh
+
+    from scenario_gen.export.obstacles import pose_matrix
+
+    scn, out = meshes
+    o = scn.obstacles
+    ns = {"c": "http://www.collada.org/2005/11/COLLADASchema"}
+    root = ET.parse(out / "obstacles.dae").getroot()
+    assert root.find("c:asset/c:up_axis", ns).text == "Z_UP"
+    nodes = root.findall(".//c:visual_scene/c:node", ns)
+    assert [n.get("name") for n in nodes] == names(o)
+    for i, node in enumerate(nodes):
+        matrix = np.array(node.find("c:matrix", ns).text.split(), float).reshape(4, 4)
+        np.testing.assert_allclose(matrix, pose_matrix(o, i), atol=1e-8)
+        target = node.find(".//c:instance_material", ns).get("target")
+        assert target == f"#{o.kind[i]}-material"
+    back = trimesh.load(out / "obstacles.dae")  # pycollada reads it; the scene in ENU
+    v, _, _ = o.meshes()
+    np.testing.assert_allclose(back.bounds, [v.min(axis=0), v.max(axis=0)], atol=1e-5)
+
+
+def test_obj_has_an_object_per_obstacle_in_enu(meshes) -> None:
+    import trimesh
+
+    scn, out = meshes
+    o = scn.obstacles
+    text = (out / "obstacles.obj").read_text()
+    assert re.findall(r"^o (\S+)$", text, re.M) == names(o)
+    back = trimesh.load(out / "obstacles.obj", process=False)
+    v, f, _ = o.meshes()
+    np.testing.assert_allclose(_sorted_triangles(back.triangles), _sorted_triangles(v[f]),
+                               atol=2e-5)  # fmt: skip
+
+
+def test_ply_faces_carry_the_obstacle_and_its_kind(meshes) -> None:
+    import trimesh
+
+    scn, out = meshes
+    o = scn.obstacles
+    data = (out / "obstacles.ply").read_bytes()
+    head, _, body = data.partition(b"end_header\n")
+    lines = head.decode().splitlines()
+    assert [ln.split()[3] for ln in lines if ln.startswith("comment kind")] == list(OBSTACLE_KINDS)
+    v, f, owner = o.meshes()
+    vert = np.frombuffer(body[: v.size * 8], "<f8").reshape(-1, 3)
+    assert np.array_equal(vert, v)  # doubles: ENU to the bit
+    face = np.frombuffer(
+        body[v.size * 8 :],
+        [("n", "u1"), ("v", "<i4", (3,)), ("rgb", "u1", (3,)), ("obstacle", "<i4"), ("kind", "u1")],
+    )
+    assert np.array_equal(face["v"], f) and np.array_equal(face["obstacle"], owner)
+    kinds = np.array(OBSTACLE_KINDS)[face["kind"]]
+    assert np.array_equal(kinds, o.kind[owner])
+    assert all((face["rgb"][kinds == k] == KIND_RGB[k]).all() for k in OBSTACLE_KINDS)
+    back = trimesh.load(out / "obstacles.ply", process=False)  # a standard reader takes it
+    assert len(back.faces) == len(f)
+
+
+def test_mesh_export_writes_obstacles_only_with_plants_and_obstacles(
+    obstacle_hill, tmp_path
+) -> None:
+    scn, _ = obstacle_hill
+    bare = dataclasses.replace(scn, obstacles=Obstacles.empty())
+    opts = ExportOptions(formats=("glb", "obj", "ply", "dae"), mesh_plants=True)
+    terrain_only = export_scenario(scn, "mesh", tmp_path / "terrain", ExportOptions())
+    assert terrain_only["files"] == ["terrain.glb"]
+    assert not (tmp_path / "terrain" / "obstacles.glb").exists()
+    got = export_scenario(bare, "mesh", tmp_path / "bare", opts)
+    assert not any(f.startswith("obstacles.") for f in got["files"])
+    assert "Obstacles" not in (tmp_path / "bare" / "README.md").read_text()
+    # the obstacle writers are reproducible: the same bytes twice
+    from scenario_gen.export.obstacles import write_obstacle_mesh
+
+    for fmt in ("glb", "obj", "ply", "dae"):
+        write_obstacle_mesh(scn.obstacles, tmp_path / f"a.{fmt}")
+        write_obstacle_mesh(scn.obstacles, tmp_path / f"b.{fmt}")
+        assert filecmp.cmp(tmp_path / f"a.{fmt}", tmp_path / f"b.{fmt}", shallow=False), fmt
