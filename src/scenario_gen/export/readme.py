@@ -323,6 +323,17 @@ def gis_readme(scn: Scenario, info: dict[str, Any]) -> str:
         if info.get("dem_tif")
         else ""
     )
+    obstacles, obstacle_json = "", ""
+    if info["layers"].get("obstacles"):
+        counts = ", ".join(f"{n} {k}" for k, n in scn.obstacles.counts().items())
+        obstacles = (
+            f"- `layers.gpkg` layer `obstacles` ({counts}): each obstacle's footprint "
+            "(length × width about its centre, turned by its yaw) as a polygon on the ground, "
+            "with `obstacle_id` (its row in the scenario's `obstacles.csv`), `kind`, "
+            "`length_m`, `width_m`, `height_m` and its pose: roll/pitch/yaw and ENU x/y/z.\n"
+        )
+        obstacle_json = ", `obstacles.geojson`"
+    geojson = "- `field.geojson`, `rows.geojson`, `plants.geojson`, `route.geojson`" + obstacle_json
     return (
         _head(scn, "GIS layers")
         + f"""## Files
@@ -335,7 +346,7 @@ def gis_readme(scn: Scenario, info: dict[str, Any]) -> str:
 {utm}{dem}- `layers.gpkg` — layers `field` (polygon), `rows` (planted rows), `plants` (points with
   species, stage, height, roll/pitch/yaw and ENU x/y/z) and `route` (furrow/headland
   segments), WGS84 lon/lat (EPSG:4326) with the heights above.
-- `field.geojson`, `rows.geojson`, `plants.geojson`, `route.geojson` — the same layers as
+{obstacles}{geojson} — the same layers as
   RFC 7946 GeoJSON, one geometry type per file, so `ogr2ogr` converts each to GeoPackage or
   Shapefile.
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 import dataclasses
 import filecmp
 import re
+import subprocess
 from pathlib import Path
 
 import numpy as np
@@ -17,7 +18,7 @@ from scenario_gen.export import ExportOptions, export, export_scenario
 from scenario_gen.export.obstacles import KIND_RGB, OBSTACLES_MODEL, TILE_PREFIX, names
 from scenario_gen.obstacles import OBSTACLE_KINDS, Obstacles
 
-from .tools import Check, quat_to_matrix, run_check, run_checks
+from .tools import Check, gdal, quat_to_matrix, run_check, run_checks
 
 
 def _stl(path: Path) -> np.ndarray:
@@ -291,3 +292,60 @@ def test_mesh_export_writes_obstacles_only_with_plants_and_obstacles(
         write_obstacle_mesh(scn.obstacles, tmp_path / f"a.{fmt}")
         write_obstacle_mesh(scn.obstacles, tmp_path / f"b.{fmt}")
         assert filecmp.cmp(tmp_path / f"a.{fmt}", tmp_path / f"b.{fmt}", shallow=False), fmt
+
+
+# ---------------------------------------------------------------------------- GIS
+def _ogr(*cmd: str) -> str:
+    r = subprocess.run([gdal(cmd[0]), *cmd[1:]], capture_output=True, text=True, check=False)
+    assert r.returncode == 0 and "ERROR" not in r.stderr, (cmd, r.stderr)
+    return r.stdout
+
+
+def test_geopackage_obstacles_layer_read_back_by_gdal(obstacle_hill, tmp_path) -> None:
+    import csv
+    import io
+
+    from shapely import wkt
+
+    scn, src = obstacle_hill
+    out = tmp_path / "gis"
+    info = export(src, "gis", out, ExportOptions())
+    o = scn.obstacles
+    assert info["layers"]["obstacles"] == len(o)
+    gpkg = str(out / "layers.gpkg")
+    listing = _ogr("ogrinfo", "-so", "-q", gpkg)
+    assert "obstacles (3D Polygon)" in listing
+    assert f"Feature Count: {len(o)}" in _ogr("ogrinfo", "-so", gpkg, "obstacles")
+    sql = "SELECT HasSpatialIndex('obstacles', 'geom')"
+    assert "HasSpatialIndex (Integer) = 1" in _ogr("ogrinfo", "-q", gpkg, "-sql", sql)
+    text = _ogr("ogr2ogr", "-f", "CSV", "/vsistdout/", gpkg, "obstacles", "-lco",
+                "GEOMETRY=AS_WKT")  # fmt: skip
+    rows = list(csv.DictReader(io.StringIO(text)))
+    assert [int(r["obstacle_id"]) for r in rows] == list(range(len(o)))
+    assert [r["kind"] for r in rows] == o.kind.tolist()
+    for col, want, tol in (
+        ("length_m", o.length, 1e-4), ("width_m", o.width, 1e-4), ("height_m", o.height, 1e-4),
+        ("yaw", o.yaw, 1e-6), ("roll", o.roll, 1e-12), ("pitch", o.pitch, 1e-12),
+        ("x_enu", o.x, 1e-12), ("y_enu", o.y, 1e-12), ("z_enu", o.z, 1e-12),
+    ):  # fmt: skip
+        np.testing.assert_allclose([float(r[col]) for r in rows], want, atol=tol, err_msg=col)
+    # each polygon is the footprint: its corners' lon/lat back in ENU within 1 mm
+    feet = o.footprints()
+    for r, corners in zip(rows, feet, strict=True):
+        ring = np.array(wkt.loads(r["WKT"]).exterior.coords)
+        assert len(ring) == 5 and np.array_equal(ring[0], ring[-1])
+        x, y, _ = scn.geo.geodetic_to_enu(ring[:4, 1], ring[:4, 0], ring[:4, 2])
+        np.testing.assert_allclose(np.column_stack([x, y]), corners, atol=1e-3)
+    # the GeoJSON copy converts to a Shapefile (one geometry type per file)
+    _ogr("ogr2ogr", "-f", "ESRI Shapefile", str(tmp_path / "o.shp"), str(out / "obstacles.geojson"))
+    assert f"Feature Count: {len(o)}" in _ogr("ogrinfo", "-so", "-al", str(tmp_path / "o.shp"))
+    assert "`obstacles`" in (out / "README.md").read_text()
+
+
+def test_gis_without_obstacles_has_no_obstacle_layer(obstacle_hill, tmp_path) -> None:
+    scn, _ = obstacle_hill
+    bare = dataclasses.replace(scn, obstacles=Obstacles.empty())
+    info = export_scenario(bare, "gis", tmp_path / "bare", ExportOptions())
+    assert "obstacles" not in info["layers"]
+    assert not (tmp_path / "bare" / "obstacles.geojson").exists()
+    assert "obstacles" not in _ogr("ogrinfo", "-so", "-q", str(tmp_path / "bare" / "layers.gpkg"))
