@@ -29,6 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..obstacles import OBSTACLE_KINDS, Obstacles
+from ..preview import OBSTACLE_RGB
 from .meshes import write_stl
 from .plantmodels import fmt, model_config
 from .tiles import Tile, grid_tiles
@@ -39,14 +40,8 @@ TILE_PREFIX = "agrinav_obstacle_tile"
 #: The resource folder of the obstacles' meshes (model://agrinav_obstacles/meshes/<name>.stl).
 OBSTACLES_MODEL = "agrinav_obstacles"
 
-#: Colour per kind (sRGB 0-255): weathered grey stone, bright blue plastic litter (which the
-#: crop never is, so it reads at a glance), dry straw for a fallen stalk.
-KIND_RGB: dict[str, tuple[int, int, int]] = {
-    "stone": (132, 126, 118),
-    "litter": (40, 120, 220),
-    "stalk": (200, 172, 96),
-}
-assert set(KIND_RGB) == set(OBSTACLE_KINDS)
+#: Colour per kind (sRGB 0-255), the previews' (``preview.OBSTACLE_RGB``)
+KIND_RGB = OBSTACLE_RGB
 
 
 def obstacle_name(kind: str, i: int) -> str:

@@ -349,3 +349,61 @@ def test_gis_without_obstacles_has_no_obstacle_layer(obstacle_hill, tmp_path) ->
     assert "obstacles" not in info["layers"]
     assert not (tmp_path / "bare" / "obstacles.geojson").exists()
     assert "obstacles" not in _ogr("ogrinfo", "-so", "-q", str(tmp_path / "bare" / "layers.gpkg"))
+
+
+# ---------------------------------------------------------------------------- previews
+def _drawn_obstacles(fig) -> dict[str, np.ndarray]:
+    """What a preview drew for each kind, by its legend label: marker centres (stones,
+    litter) or line segments (stalks)."""
+    from matplotlib.collections import LineCollection, PathCollection
+
+    (ax, *_) = fig.axes
+    out = {}
+    for c in ax.collections:
+        label = c.get_label()
+        if isinstance(c, LineCollection) and label.startswith("fallen stalks"):
+            out[label] = np.array(c.get_segments())
+        elif isinstance(c, PathCollection) and label.startswith(("stones", "litter")):
+            out[label] = np.asarray(c.get_offsets())
+    return out
+
+
+def test_previews_draw_each_kind_in_the_legend(obstacle_hill) -> None:
+    from scenario_gen.preview import preview_figure
+
+    scn, _ = obstacle_hill
+    o = scn.obstacles
+    n = o.counts()
+    fig = preview_figure(scn)
+    legend = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
+    labels = [f"stones ({n['stone']})", f"litter ({n['litter']})", f"fallen stalks ({n['stalk']})"]
+    assert set(labels) <= set(legend)
+    drawn = _drawn_obstacles(fig)
+    for label, kind in zip(labels, OBSTACLE_KINDS, strict=True):
+        sel = o.kind == kind
+        if kind == "stalk":
+            seg = drawn[label]
+            np.testing.assert_allclose(seg.mean(axis=1), np.column_stack([o.x, o.y])[sel])
+            d = seg[:, 1] - seg[:, 0]  # along the stalk, its horizontal reach long
+            np.testing.assert_allclose(np.arctan2(d[:, 1], d[:, 0]), o.yaw[sel], atol=1e-9)
+            reach = o.length[sel] * np.cos(o.pitch[sel])
+            np.testing.assert_allclose(np.hypot(*d.T), reach, rtol=1e-9)
+        else:
+            np.testing.assert_array_equal(drawn[label], np.column_stack([o.x, o.y])[sel])
+    bare = dataclasses.replace(scn, obstacles=Obstacles.empty())
+    assert not _drawn_obstacles(preview_figure(bare))
+
+
+def test_gis_preview_draws_the_obstacles_it_read_back(obstacle_hill, tmp_path) -> None:
+    from scenario_gen.export.preview import export_preview_figure
+
+    scn, src = obstacle_hill
+    out = tmp_path / "gis"
+    export(src, "gis", out, ExportOptions())
+    fig = export_preview_figure(scn, geotiff=out / "terrain.tif")
+    drawn = _drawn_obstacles(fig)
+    o = scn.obstacles
+    stones = drawn[f"stones ({o.counts()['stone']})"]
+    # the GeoPackage's footprints, projected back: on the obstacles to 1 mm
+    np.testing.assert_allclose(stones, np.column_stack([o.x, o.y])[o.kind == "stone"], atol=1e-3)
+    assert not np.array_equal(stones, np.column_stack([o.x, o.y])[o.kind == "stone"])
