@@ -10,17 +10,18 @@ import numpy as np
 
 from .arrays import FloatArray
 from .model import Scenario
-from .obstacles import OBSTACLE_KINDS, Obstacles
+from .obstacles import LITTER, OBSTACLE_KINDS, STALK, STONE, Obstacles
 
 #: Colour of each obstacle kind (sRGB 0-255) in the previews and the exports' materials:
 #: weathered grey stone, bright blue plastic litter (which no crop or soil is, so it reads at a
 #: glance), dry straw for a fallen stalk.
 OBSTACLE_RGB: dict[str, tuple[int, int, int]] = {
-    "stone": (132, 126, 118),
-    "litter": (40, 120, 220),
-    "stalk": (200, 172, 96),
+    STONE: (132, 126, 118),
+    LITTER: (40, 120, 220),
+    STALK: (200, 172, 96),
 }
-OBSTACLE_LABELS = {"stone": "stones", "litter": "litter", "stalk": "fallen stalks"}
+#: plural labels for legends and counts (litter is its own plural)
+OBSTACLE_LABELS = {STONE: "stones", LITTER: LITTER, STALK: "fallen stalks"}
 assert set(OBSTACLE_RGB) == set(OBSTACLE_KINDS) == set(OBSTACLE_LABELS)
 
 
@@ -187,7 +188,7 @@ def draw_obstacles(
             continue
         rgb = np.array(OBSTACLE_RGB[kind]) / 255.0
         label = f"{OBSTACLE_LABELS[kind]} ({n})"
-        if kind == "stalk":
+        if kind == STALK:
             half = 0.5 * obs.length[sel] * np.cos(obs.pitch[sel])
             d = np.column_stack([np.cos(obs.yaw[sel]), np.sin(obs.yaw[sel])]) * half[:, None]
             seg = np.stack([xy[sel] - d, xy[sel] + d], axis=1)
@@ -201,8 +202,8 @@ def draw_obstacles(
             xy[sel, 1],
             s=across**2,
             color=rgb,
-            marker="o" if kind == "stone" else "s",
-            edgecolors="black" if kind == "stone" else "white",
+            marker="o" if kind == STONE else "s",
+            edgecolors="black" if kind == STONE else "white",
             linewidths=0.5,
             label=label,
             zorder=3.5,
