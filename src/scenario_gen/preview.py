@@ -192,7 +192,7 @@ def draw_obstacles(
             half = 0.5 * obs.length[sel] * np.cos(obs.pitch[sel])
             d = np.column_stack([np.cos(obs.yaw[sel]), np.sin(obs.yaw[sel])]) * half[:, None]
             seg = np.stack([xy[sel] - d, xy[sel] + d], axis=1)
-            lines = LineCollection(seg, colors=[rgb], linewidths=1.6, label=label, zorder=3.5)
+            lines = LineCollection(list(seg), colors=[rgb], linewidths=1.6, label=label, zorder=3.5)
             lines.set_path_effects([patheffects.withStroke(linewidth=2.8, foreground="0.15")])
             ax.add_collection(lines)
             continue

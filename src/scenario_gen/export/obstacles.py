@@ -24,6 +24,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -228,7 +229,7 @@ def write_obstacle_mesh(obs: Obstacles, path: Path) -> None:
         raise ValueError(f"no obstacle writer for {path.name}")
 
 
-def _scene(obs: Obstacles, y_up: bool) -> object:
+def _scene(obs: Obstacles, y_up: bool) -> Any:
     import trimesh
 
     scene = trimesh.Scene()
