@@ -27,11 +27,11 @@ from .geodesy import GeoFrame
 from .layout import Layout, layout
 from .model import Plants, Scenario
 from .models import inspect_model
-from .obstacles import place_obstacles
-from .routes import zigzag
+from .obstacles import Obstacles, place_obstacles
+from .routes import Route, zigzag
 from .rowcurve import row_curve
 from .sources import Site, build_terrain, open_site
-from .spec import CropSpec, ScenarioSpec, TerrainSpec
+from .spec import CropSpec, ObstacleSpec, ScenarioSpec, TerrainSpec
 from .terrain import Terrain
 from .waypoints import read_gps_waypoints, waypoint_route
 
@@ -278,15 +278,8 @@ def generate(spec: ScenarioSpec, seed: int) -> Scenario:
     if user_model is not None and user_model.scale == "native":
         nominal = user_model.size[2]
     plants = place_plants(lay, terrain, spec.crop, growth, rng["plants"], nominal)
-    lodged = _lodged(plants, spec.obstacles.stalk_lodging, rng["obstacles"])
-    stems = scaled_by_height(plants.species, plants.stage, plants.height,
-                             lambda sp, g: sp.stem_radius(g))  # fmt: skip
-    if lodged.any():  # a fallen plant leaves its place in the row empty
-        fallen = (np.column_stack([plants.x, plants.y])[lodged], stems[lodged],
-                  plants.height[lodged])  # fmt: skip
-        plants = _without(plants, lodged)
-        stems = stems[~lodged]
-        lay = replace(lay, x=plants.x, y=plants.y, row=plants.row, is_weed=plants.is_weed)
+    lodging = lodge(plants, lay, spec.obstacles.stalk_lodging, rng["obstacles"])
+    plants, lay = lodging.plants, lodging.layout  # a fallen plant leaves its place empty
     if spec.route.waypoints is not None:
         route = waypoint_route(
             read_gps_waypoints(spec.route.waypoints, "route.waypoints"),
@@ -300,21 +293,7 @@ def generate(spec: ScenarioSpec, seed: int) -> Scenario:
     else:
         crops = np.column_stack([lay.x, lay.y])[~lay.is_weed]
         route = zigzag(lay.rows, spec.route, terrain, poly, crops)
-    if not lodged.any():
-        fallen = (np.zeros((0, 2)), np.zeros(0), np.zeros(0))
-    crop = ~plants.is_weed
-    obstacles = place_obstacles(
-        spec.obstacles,
-        poly,
-        terrain,
-        np.column_stack([plants.x, plants.y])[crop],
-        stems[crop],
-        fallen[0],
-        fallen[1],
-        fallen[2],
-        (float(route.xyz[0, 0]), float(route.xyz[0, 1])) if len(route) else None,
-        rng["obstacles"],
-    )
+    obstacles = field_obstacles(spec.obstacles, poly, terrain, lodging, route, rng["obstacles"])
     info = {
         "credit": site.credit,
         **site.info,
@@ -326,6 +305,66 @@ def generate(spec: ScenarioSpec, seed: int) -> Scenario:
         spec, int(seed), site.geo, terrain, poly, lay.rows, plants, route, info, user_model,
         obstacles,
     )  # fmt: skip
+
+
+@dataclass(frozen=True, eq=False)
+class Lodging:
+    """The plants after lodging (``obstacles.stalk_lodging``): the standing ones, their layout
+    and stalk radii, and the fallen crops' bases, stalk radii and heights."""
+
+    plants: Plants
+    layout: Layout
+    stems: FloatArray
+    fallen_xy: FloatArray  # (k, 2)
+    fallen_stems: FloatArray
+    fallen_heights: FloatArray
+
+
+def lodge(plants: Plants, lay: Layout, fraction: float, rng: np.random.Generator) -> Lodging:
+    """Fell a ``fraction`` of the crop plants (stream ``obstacles``; nothing drawn at 0).
+
+    ``generate`` and the studio's live preview (which places the plants on flat ground: only
+    their x/y and heights matter here) both call this, so they lodge the same plants."""
+    lodged = _lodged(plants, fraction, rng)
+    stems = scaled_by_height(plants.species, plants.stage, plants.height,
+                             lambda sp, g: sp.stem_radius(g))  # fmt: skip
+    if not lodged.any():
+        return Lodging(plants, lay, stems, np.zeros((0, 2)), np.zeros(0), np.zeros(0))
+    standing = _without(plants, lodged)
+    return Lodging(
+        standing,
+        replace(lay, x=standing.x, y=standing.y, row=standing.row, is_weed=standing.is_weed),
+        stems[~lodged],
+        np.column_stack([plants.x, plants.y])[lodged],
+        stems[lodged],
+        plants.height[lodged],
+    )
+
+
+def field_obstacles(
+    spec: ObstacleSpec,
+    poly: BaseGeometry,
+    terrain: Terrain,
+    lodging: Lodging,
+    route: Route,
+    rng: np.random.Generator,
+) -> Obstacles:
+    """The field's obstacles around its standing crop, the fallen stalks and the route's
+    start (``obstacles.place_obstacles``); shared by ``generate`` and the studio's preview."""
+    p = lodging.plants
+    crop = ~p.is_weed
+    return place_obstacles(
+        spec,
+        poly,
+        terrain,
+        np.column_stack([p.x, p.y])[crop],
+        lodging.stems[crop],
+        lodging.fallen_xy,
+        lodging.fallen_stems,
+        lodging.fallen_heights,
+        (float(route.xyz[0, 0]), float(route.xyz[0, 1])) if len(route) else None,
+        rng,
+    )
 
 
 def _lodged(plants: Plants, fraction: float, rng: np.random.Generator) -> np.ndarray:

@@ -1,4 +1,5 @@
-"""preview.png: hillshaded terrain, field, plants coloured by species and stage, the route."""
+"""preview.png: hillshaded terrain, field, plants coloured by species and stage, obstacles by
+kind, the route."""
 
 from __future__ import annotations
 
@@ -7,7 +8,21 @@ from typing import Any
 
 import numpy as np
 
+from .arrays import FloatArray
 from .model import Scenario
+from .obstacles import LITTER, OBSTACLE_KINDS, STALK, STONE, Obstacles
+
+#: Colour of each obstacle kind (sRGB 0-255) in the previews and the exports' materials:
+#: weathered grey stone, bright blue plastic litter (which no crop or soil is, so it reads at a
+#: glance), dry straw for a fallen stalk.
+OBSTACLE_RGB: dict[str, tuple[int, int, int]] = {
+    STONE: (132, 126, 118),
+    LITTER: (40, 120, 220),
+    STALK: (200, 172, 96),
+}
+#: plural labels for legends and counts (litter is its own plural)
+OBSTACLE_LABELS = {STONE: "stones", LITTER: LITTER, STALK: "fallen stalks"}
+assert set(OBSTACLE_RGB) == set(OBSTACLE_KINDS) == set(OBSTACLE_LABELS)
 
 
 def render_preview(scn: Scenario, path: str | Path, dpi: int = 110) -> None:
@@ -101,6 +116,8 @@ def preview_figure(scn: Scenario, dpi: int = 110) -> Any:
             linewidths=0.6,
             label="weeds",
         )
+    if len(scn.obstacles):
+        draw_obstacles(ax, scn.obstacles, points_per_m)
     r = scn.route
     furrow = r.segment == "furrow"
     xy = r.xy.copy()
@@ -150,6 +167,47 @@ def preview_figure(scn: Scenario, dpi: int = 110) -> Any:
     ax.legend(loc="upper left", fontsize=7, framealpha=0.6)
     fig.tight_layout()
     return fig
+
+
+def draw_obstacles(
+    ax: Any, obs: Obstacles, points_per_m: float, centres: FloatArray | None = None
+) -> None:
+    """Obstacles on a plan view, each kind in the legend with its count: stones as grey discs,
+    litter as blue squares, both their size on paper but at least 3 points across (a 10 cm
+    stone is a fraction of a pixel over a whole field); fallen stalks as straw lines their
+    horizontal reach long. ``centres`` (n, 2) replaces the obstacles' x, y (an export's
+    preview drawing what it read back)."""
+    from matplotlib import patheffects
+    from matplotlib.collections import LineCollection
+
+    xy = np.column_stack([obs.x, obs.y]) if centres is None else np.asarray(centres)
+    for kind in OBSTACLE_KINDS:
+        sel = obs.kind == kind
+        n = int(sel.sum())
+        if n == 0:
+            continue
+        rgb = np.array(OBSTACLE_RGB[kind]) / 255.0
+        label = f"{OBSTACLE_LABELS[kind]} ({n})"
+        if kind == STALK:
+            half = 0.5 * obs.length[sel] * np.cos(obs.pitch[sel])
+            d = np.column_stack([np.cos(obs.yaw[sel]), np.sin(obs.yaw[sel])]) * half[:, None]
+            seg = np.stack([xy[sel] - d, xy[sel] + d], axis=1)
+            lines = LineCollection(list(seg), colors=[rgb], linewidths=1.6, label=label, zorder=3.5)
+            lines.set_path_effects([patheffects.withStroke(linewidth=2.8, foreground="0.15")])
+            ax.add_collection(lines)
+            continue
+        across = np.clip(obs.length[sel] * points_per_m, 3.0, 12.0)
+        ax.scatter(
+            xy[sel, 0],
+            xy[sel, 1],
+            s=across**2,
+            color=rgb,
+            marker="o" if kind == STONE else "s",
+            edgecolors="black" if kind == STONE else "white",
+            linewidths=0.5,
+            label=label,
+            zorder=3.5,
+        )
 
 
 def _model_panel(panel: Any, scn: Scenario) -> None:

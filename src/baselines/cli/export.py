@@ -30,18 +30,20 @@ def add(sub: Any) -> None:
         choices=("auto", "include", "tiles"),
         default="auto",
         help="gazebo/nav2: one <include> per plant, or merged static tiles "
-        "(auto: tiles above --include-limit plants)",
+        "(auto: tiles above --include-limit plants); obstacles alike: a model each, or tiles",
     )
     defaults = ExportOptions()
     ex.add_argument(
         "--include-limit",
         type=int,
-        help=f"gazebo/nav2: auto's limit (default {defaults.include_limit:,} plants)",
+        help=f"gazebo/nav2: auto's limit (default {defaults.include_limit:,} plants), "
+        "the same for obstacles, counted separately",
     )
     ex.add_argument(
         "--tile-plants",
         type=int,
-        help=f"gazebo/nav2: plants per merged tile (default {defaults.tile_plants:,})",
+        help=f"gazebo/nav2: plants per merged tile (default {defaults.tile_plants:,}); "
+        "obstacles per obstacle tile",
     )
     ex.add_argument(
         "--heightmap",
@@ -53,7 +55,9 @@ def add(sub: Any) -> None:
         default="glb",
         help=f"mesh: comma-separated formats from {','.join(MESH_FORMATS)} (default glb)",
     )
-    ex.add_argument("--with-plants", action="store_true", help="mesh: also the merged plants")
+    ex.add_argument(
+        "--with-plants", action="store_true", help="mesh: also the merged plants and the obstacles"
+    )
     ex.set_defaults(func=run)
 
 

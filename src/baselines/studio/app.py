@@ -20,6 +20,7 @@ from starlette.responses import Response
 from scenario_gen import crops, preset_names
 from scenario_gen.errors import InputError
 from scenario_gen.generate import growth_of
+from scenario_gen.preview import OBSTACLE_LABELS
 from scenario_gen.schema import parse_json
 
 from . import actions, fields, guard, layers
@@ -193,8 +194,9 @@ class Page:
         data["outline"] = self.s.field_geom is None
         ui.run_javascript(f"studio.show({json.dumps(data)})")
         shown = "" if pv.stride == 1 else f" (1 in {pv.stride} drawn)"
+        obstacles = "".join(f"{len(v):,} {OBSTACLE_LABELS[k]} · " for k, v in pv.obstacles.items())
         self.counts.set_text(
-            f"{pv.n_plants:,} plants{shown} · {pv.n_weeds:,} weeds · {pv.n_rows} rows · "
+            f"{pv.n_plants:,} plants{shown} · {pv.n_weeds:,} weeds · {obstacles}{pv.n_rows} rows · "
             f"{pv.area_m2:,.0f} m² · route {pv.route_m:.1f} m · "
             f"computed in {1000 * pv.seconds:.0f} ms"
         )

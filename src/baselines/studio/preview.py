@@ -5,16 +5,23 @@ plant on it (≈0.1 s for the default field, more for large ones). The plan view
 that: plant x/y come from the layout stage alone, and the route only needs the grid's extent.
 So the preview runs the generator's own ``plan_field``, ``layout`` and ``zigzag`` with the same
 random streams, and its plant positions are those ``generate`` produces, to the bit (tested).
+With obstacles asked for, it places the plants on flat ground (their heights, which lodging and
+the stones' clearance need, do not depend on the ground) and runs the generator's own ``lodge``
+and ``field_obstacles``: the same plants fall, the route avoids the same standing crop, and
+every obstacle lies where ``generate`` puts it, with its kind, size and heading (its height and
+tilt on the ground are not previewed).
 The field is still checked against the terrain (off the DEM or mesh, a nodata hole, a grid too
 large) on a coarse sample of the grid's extent, so those errors show while drawing.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from collections import OrderedDict
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 from shapely.geometry.base import BaseGeometry
@@ -23,8 +30,19 @@ from scenario_gen import crops
 from scenario_gen.arrays import FloatArray
 from scenario_gen.drift import apply_drift
 from scenario_gen.errors import InputError
-from scenario_gen.generate import FieldPlan, check_spec, growth_of, plan_field, streams
+from scenario_gen.generate import (
+    FieldPlan,
+    check_spec,
+    field_obstacles,
+    growth_of,
+    lodge,
+    place_plants,
+    plan_field,
+    streams,
+)
 from scenario_gen.layout import Layout, layout
+from scenario_gen.models import inspect_model
+from scenario_gen.obstacles import OBSTACLE_KINDS, Obstacles
 from scenario_gen.routes import Route, zigzag
 from scenario_gen.rowcurve import row_curve
 from scenario_gen.sources import Site, open_site, terrain_grid
@@ -91,6 +109,7 @@ class Preview:
 
     plants: FloatArray  # (k, 2) lat, lon of the drawn crops (every ``stride``-th)
     weeds: FloatArray  # (w, 2)
+    obstacles: dict[str, FloatArray]  # kind -> (n, 4, 2) lat, lon of each footprint's corners
     route: list[tuple[str, FloatArray]]  # ("furrow" | "headland", (n, 2) lat, lon)
     field: list[FloatArray]  # rings of the field outline, (n, 2) lat, lon
     n_plants: int
@@ -111,6 +130,9 @@ class Preview:
         return {
             "plants": r(self.plants),
             "weeds": r(self.weeds),
+            # every obstacle, never decimated: a stone dropped from the picture is one the
+            # robot still meets (the bounds allow 20,000 of each kind)
+            "obstacles": {k: r(v) for k, v in self.obstacles.items()},
             "route": [[tag, r(pts)] for tag, pts in self.route],
             "field": [r(ring) for ring in self.field],
             "n_plants": self.n_plants,
@@ -128,6 +150,20 @@ def plan_layout(
     spec: ScenarioSpec, seed: int, field_ll: BaseGeometry | None, sites: SiteCache
 ) -> tuple[FieldPlan, Layout, Route]:
     """The generator's field plan, layout and route for ``spec`` (no terrain sampled)."""
+    plan, lay, route, _ = plan_scene(spec, seed, field_ll, sites)
+    return plan, lay, route
+
+
+def wants_obstacles(spec: ScenarioSpec) -> bool:
+    o = spec.obstacles
+    return o.stone_density > 0 or o.litter_density > 0 or o.stalk_lodging > 0
+
+
+def plan_scene(
+    spec: ScenarioSpec, seed: int, field_ll: BaseGeometry | None, sites: SiteCache
+) -> tuple[FieldPlan, Layout, Route, Obstacles]:
+    """``plan_layout`` plus the obstacles, with the lodged plants gone from the layout (their
+    z, roll and pitch are those of flat ground; x, y, yaw and size are the generator's)."""
     check_spec(spec)
     rng = streams(seed)
     try:
@@ -148,9 +184,36 @@ def plan_layout(
     )
     lay = apply_drift(lay, spec.layout, plan.poly, rng["drift"])
     ground = FlatGround(np.zeros((2, 2)), x0, y0, step, spec.terrain.lod, extent=extent)
+    lodging = None
+    if wants_obstacles(spec):
+        plants = place_plants(
+            lay, ground, spec.crop, growth_of(spec.crop), rng["plants"], _nominal(spec)
+        )
+        lodging = lodge(plants, lay, spec.obstacles.stalk_lodging, rng["obstacles"])
+        lay = lodging.layout
     crop_xy = np.column_stack([lay.x, lay.y])[~lay.is_weed]
     route = zigzag(lay.rows, spec.route, ground, plan.poly, crop_xy)
-    return plan, lay, route
+    if lodging is None:
+        return plan, lay, route, Obstacles.empty()
+    obs = field_obstacles(spec.obstacles, plan.poly, ground, lodging, route, rng["obstacles"])
+    return plan, lay, route, obs
+
+
+def _nominal(spec: ScenarioSpec) -> float | None:
+    """A crop's height before its spread, as ``generate`` takes it: the user model's own with
+    ``crop.model_scale: native``, else the growth stage's (None)."""
+    if spec.crop.model is None or spec.crop.model_scale != "native":
+        return None
+    path = Path(spec.crop.model)
+    stat = path.stat()
+    return _native_height(str(path), stat.st_mtime_ns, stat.st_size)
+
+
+@functools.lru_cache(maxsize=8)
+def _native_height(path: str, mtime_ns: int, size: int) -> float:
+    # keyed by the file's time and size: reading a model takes a while, and a changed
+    # file is read again
+    return float(inspect_model(path, "native").size[2])
 
 
 def layout_preview(
@@ -162,7 +225,7 @@ def layout_preview(
 ) -> Preview:
     """The plan view of the scenario ``spec`` and ``seed`` make, for the map."""
     t0 = time.perf_counter()
-    plan, lay, route = plan_layout(spec, seed, field_ll, sites)
+    plan, lay, route, obs = plan_scene(spec, seed, field_ll, sites)
     geo = plan.site.geo
     crop = ~lay.is_weed
     n_crop = int(crop.sum())
@@ -189,9 +252,17 @@ def layout_preview(
             rings.append(ll(xy[:, 0], xy[:, 1]))
     sp = crops.species(spec.crop.species)
     height = float(sp.height(growth_of(spec.crop)))
+    feet = obs.footprints()
+    drawn = {}
+    for kind in OBSTACLE_KINDS:
+        sel = obs.kind == kind
+        if sel.any():
+            corners = feet[sel].reshape(-1, 2)
+            drawn[kind] = ll(corners[:, 0], corners[:, 1]).reshape(-1, 4, 2)
     return Preview(
         plants=ll(cx, cy),
         weeds=ll(wx, wy),
+        obstacles=drawn,
         route=pieces,
         field=rings,
         n_plants=n_crop,

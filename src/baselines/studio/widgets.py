@@ -39,6 +39,7 @@ SECTIONS = (
     ("crop", "Crop"),
     ("furrows", "Furrows"),
     ("route", "Route"),
+    ("obstacles", "Obstacles (stones, litter, fallen stalks)"),
     ("terrain", "Terrain"),
 )
 

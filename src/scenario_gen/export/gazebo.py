@@ -6,6 +6,7 @@ Layout of the export::
     worlds/field_classic.world  Gazebo Classic 11 (heading 180, see below)
     models/<name>/model.config, model.sdf, meshes/, materials/textures/ (a user crop.model
                                 referenced as its own files: user/ in its own layout)
+    models/agrinav_obstacles/   the obstacles' meshes (obstacles.py), when the field has any
     setup.bash                  GAZEBO_MODEL_PATH / IGN_GAZEBO_RESOURCE_PATH / GZ_SIM_RESOURCE_PATH
 
 The world frame is the scenario's ENU frame (x east, y north, z up) at the datum, so every
@@ -27,6 +28,7 @@ from tqdm import tqdm
 
 from ..model import Scenario
 from .meshes import save_png
+from .obstacles import write_gazebo_obstacles
 from .options import ExportOptions
 from .plantmodels import Assignment, assign, fmt, model_config, write_models
 from .terrainmesh import heightmap, save_png16, soil_texture, write_terrain_dae
@@ -55,6 +57,10 @@ class GazeboSummary:
     tiles: int
     triangles: int
     worlds: tuple[str, ...]
+    obstacles: dict[str, int] | None = None  # count per kind; None: the field has none
+    obstacle_mode: str = ""  # "models" (one static model each) or "tiles" (merged)
+    obstacle_tiles: int = 0
+    obstacle_triangles: int = 0
 
 
 def spherical_xml(scn: Scenario, heading_deg: float) -> str:
@@ -240,6 +246,16 @@ def export_gazebo(scn: Scenario, out: Path, opts: ExportOptions) -> GazeboSummar
         faces = np.array([len(pm.mesh.faces) for pm in a.models])
         triangles = int(faces[a.model].sum()) if len(a.model) else 0
         body += _plant_includes(scn, a)
+    obs = None
+    if len(scn.obstacles):  # nothing at all without obstacles: those exports keep their bytes
+        obs = write_gazebo_obstacles(
+            models,
+            scn.obstacles,
+            opts.use_tiles(len(scn.obstacles)),
+            opts.tile_plants,
+            float(scn.field.area),
+        )
+        body += obs.body
     names = ["field.sdf", "field_classic.world"]
     (worlds / names[0]).write_text(world_xml(scn, body, "sim"))
     (worlds / names[1]).write_text(world_xml(scn, body, "classic"))
@@ -252,10 +268,14 @@ def export_gazebo(scn: Scenario, out: Path, opts: ExportOptions) -> GazeboSummar
     return GazeboSummary(
         len(scn.plants),
         "tiles" if tiles_mode else "include",
-        n_models + 1 + int(opts.heightmap),
+        n_models + 1 + int(opts.heightmap) + (obs.models if obs else 0),
         n_tiles,
         triangles,
         tuple(f"worlds/{n}" for n in names),
+        scn.obstacles.counts() if obs else None,
+        obs.mode if obs else "",
+        obs.tiles if obs else 0,
+        obs.triangles if obs else 0,
     )
 
 

@@ -1,4 +1,5 @@
-"""GIS: the terrain as GeoTIFF and the field, rows, plants and route as GeoPackage and GeoJSON.
+"""GIS: the terrain as GeoTIFF and the field, rows, plants, route and (when the field has any)
+obstacles as GeoPackage and GeoJSON.
 
 The GeoTIFF lives in a local projected CRS whose x/y are the scenario's ENU x/y, so each pixel
 centre is a terrain node and no resampling happens: a transverse Mercator centred on the datum
@@ -25,7 +26,14 @@ from pyproj import CRS, Transformer
 from pyproj.crs import CompoundCRS
 
 from ..arrays import FloatArray
-from ..geojson import collection, field_features, plant_features, route_features, row_features
+from ..geojson import (
+    collection,
+    field_features,
+    obstacle_features,
+    plant_features,
+    route_features,
+    row_features,
+)
 from ..model import Scenario
 from ..vertical import ORTHOMETRIC, of_scenario
 from .crs import enu_crs_error, local_crs, utm_epsg
@@ -176,6 +184,8 @@ def export_gis(scn: Scenario, out: Path) -> dict[str, Any]:
         "plants": plant_features(scn, lat, lon, alt, None),
         "route": route_features(scn, rlat, rlon, None),
     }
+    if len(scn.obstacles):  # no layer at all without obstacles: those exports keep their bytes
+        full["obstacles"] = gis_obstacle_features(scn, None)
     kinds = {name: _layer_type(feats) for name, feats in full.items()}
     label = of_scenario(scn.info).label()
     write_gpkg(
@@ -192,6 +202,8 @@ def export_gis(scn: Scenario, out: Path) -> dict[str, Any]:
         "plants": plant_features(scn, lat, lon, alt),
         "route": route_features(scn, rlat, rlon),
     }
+    if len(scn.obstacles):
+        rounded["obstacles"] = gis_obstacle_features(scn)
     for name, feats in rounded.items():
         (out / f"{name}.geojson").write_text(json.dumps(collection(name, feats)))
     info["layers"] = {n: len(f) for n, f in full.items()}
@@ -199,6 +211,25 @@ def export_gis(scn: Scenario, out: Path) -> dict[str, Any]:
     (out / "README.md").write_text(gis_readme(scn, info))
     render_export_preview(scn, out / "preview.png", geotiff=out / "terrain.tif")
     return info
+
+
+def gis_obstacle_features(scn: Scenario, decimals: int | None = 8) -> list[dict[str, Any]]:
+    """The scenario's obstacle footprints (``geojson.obstacle_features``: id, kind, size, yaw)
+    with the rest of each pose, as the plants layer has it: roll, pitch and ENU x/y/z."""
+    o = scn.obstacles
+    feats = obstacle_features(scn, decimals)
+    for i, f in enumerate(feats):
+        extra = {
+            "roll": (float(o.roll[i]), 6),
+            "pitch": (float(o.pitch[i]), 6),
+            "x_enu": (float(o.x[i]), 4),
+            "y_enu": (float(o.y[i]), 4),
+            "z_enu": (float(o.z[i]), 4),
+        }
+        f["properties"] |= {
+            k: (round(v, d) if decimals is not None else v) for k, (v, d) in extra.items()
+        }
+    return feats
 
 
 def _layer_type(features: list[dict[str, Any]]) -> str:

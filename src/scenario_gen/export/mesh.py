@@ -1,8 +1,10 @@
-"""Meshes for 3-D tools: the terrain (and optionally every plant, merged) as GLB/OBJ/PLY/DAE.
+"""Meshes for 3-D tools: the terrain (and optionally every plant, merged, and every obstacle,
+one node each) as GLB/OBJ/PLY/DAE.
 
 The terrain goes through ``sources.export_terrain_mesh`` (the mesh a scenario can be generated
 from, so a round trip works). Plants are the Gazebo tiles' geometry in one mesh — each plant's
-model at its pose and exact size, coloured per face.
+model at its pose and exact size, coloured per face. Obstacles (``--with-plants`` too: the
+field's objects, beside the terrain) go to ``obstacles.*`` by ``obstacles.write_obstacle_mesh``.
 """
 
 from __future__ import annotations
@@ -70,6 +72,12 @@ def export_mesh(scn: Scenario, out: Path, opts: ExportOptions) -> dict[str, Any]
                 else:
                     save_mesh(plants, out / name)
                 files.append(name)
+        if len(scn.obstacles):  # the field's other objects, one node each (obstacles.py)
+            from .obstacles import write_obstacle_mesh
+
+            for fmt in opts.formats:
+                write_obstacle_mesh(scn.obstacles, out / f"obstacles.{fmt}")
+                files.append(f"obstacles.{fmt}")
     (out / "README.md").write_text(mesh_readme(scn, files))
     render_export_preview(scn, out / "preview.png")
     return {"files": files}

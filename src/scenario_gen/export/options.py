@@ -24,16 +24,27 @@ class ExportOptions:
     plants: str = _f(
         "auto",
         "Gazebo plants: one <include> per plant, merged static tiles, or auto (tiles above "
-        "include_limit)",
+        "include_limit); the obstacles likewise: one static model each, or merged tiles",
         choices=("auto", "include", "tiles"),
     )
-    include_limit: int = _f(INCLUDE_LIMIT, "auto: the most plants written as includes", 0, 10**7)
-    tile_plants: int = _f(1000, "merged tiles hold about this many plants each", 1, 10**6)
+    include_limit: int = _f(
+        INCLUDE_LIMIT,
+        "auto: the most plants written as includes (and obstacles as models, counted apart)",
+        0,
+        10**7,
+    )
+    tile_plants: int = _f(
+        1000, "merged tiles hold about this many plants (obstacle tiles: obstacles) each", 1, 10**6
+    )
     heightmap: bool = _f(
         False, "Gazebo: also write the terrain as a 16-bit heightmap and a world using it"
     )
     formats: tuple[str, ...] = _f(("glb",), "mesh export: file formats", choices=MESH_FORMATS)
-    mesh_plants: bool = _f(False, "mesh export: also write every plant merged into one mesh")
+    mesh_plants: bool = _f(
+        False,
+        "mesh export: also write every plant merged into one mesh and every obstacle as a "
+        "named node",
+    )
     robot_urdf: str | None = _f(
         None, "nav2: the robot URDF copied into the export and spawned at the route start"
     )

@@ -1,8 +1,9 @@
 """preview.png of an export: what was written, drawn over the terrain's hillshade.
 
-GIS: the hillshade of the GeoTIFF as read back from disk (so a misplaced raster shows).
-Gazebo: the merged tiles or the plants by size variant. Nav2: the waypoints with their yaw and
-the robot's spawn footprint.
+GIS: the hillshade of the GeoTIFF as read back from disk (so a misplaced raster shows), and
+the plants and obstacles of the GeoPackage as read back. Gazebo: the merged tiles or the plants
+by size variant. Nav2: the waypoints with their yaw and the robot's spawn footprint. Every
+export: the obstacles by kind, when the field has any.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from ..model import Scenario
+from ..preview import draw_obstacles
 from ..terrain import hillshade
 
 #: Summit-XL footprint (nav config), m: drawn at the spawn pose.
@@ -39,13 +41,21 @@ def _background(scn: Scenario, geotiff: Path | None) -> tuple[np.ndarray, Extent
 
 def _gpkg_plants(scn: Scenario, gpkg: Path) -> tuple[np.ndarray, np.ndarray]:
     """Plant points of a written GeoPackage in the GeoTIFF's CRS (its x/y are ENU x/y)."""
+    return _gpkg_points(scn, gpkg, "plants")
+
+
+def _gpkg_points(scn: Scenario, gpkg: Path, layer: str) -> tuple[np.ndarray, np.ndarray]:
+    """A layer's points (polygons: their centroids) in the GeoTIFF's CRS."""
     import shapely
     from pyproj import Transformer
 
     from .crs import local_crs
     from .gpkg import read_geometries
 
-    lonlat = shapely.get_coordinates(np.array(read_geometries(gpkg, "plants"), dtype=object))
+    geoms = np.array(read_geometries(gpkg, layer), dtype=object)
+    if layer != "plants":  # the footprints' centres (lon/lat: flat enough over a footprint)
+        geoms = shapely.centroid(geoms)
+    lonlat = shapely.get_coordinates(geoms)
     to_local = Transformer.from_crs("EPSG:4326", local_crs(scn.geo), always_xy=True)
     x, y = to_local.transform(lonlat[:, 0], lonlat[:, 1])
     return np.asarray(x), np.asarray(y)
@@ -61,6 +71,19 @@ def render_export_preview(
     opts: Any = None,
     dpi: int = 110,
 ) -> None:
+    export_preview_figure(scn, gazebo, waypoints, spawn, geotiff, opts, dpi).savefig(path)
+
+
+def export_preview_figure(
+    scn: Scenario,
+    gazebo: Any = None,
+    waypoints: tuple[np.ndarray, np.ndarray] | None = None,
+    spawn: tuple[float, float, float, float] | None = None,
+    geotiff: Path | None = None,
+    opts: Any = None,
+    dpi: int = 110,
+) -> Any:
+    """The export's preview as a matplotlib ``Figure`` (no pyplot)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
     from matplotlib.patches import Polygon as MplPolygon
@@ -102,6 +125,12 @@ def render_export_preview(
         fig.colorbar(sc, ax=ax, shrink=0.7, label="plant height (m)")
         if gazebo is not None:
             title += f"\nGazebo: one <include> per plant, {gazebo.models} models"
+    if len(scn.obstacles):
+        gpkg = geotiff.parent / "layers.gpkg" if geotiff is not None else None
+        centres = None
+        if gpkg is not None and gpkg.is_file():  # the GIS export: its own layer, read back
+            centres = np.column_stack(_gpkg_points(scn, gpkg, "obstacles"))
+        draw_obstacles(ax, scn.obstacles, per_m, centres)
     r = scn.route
     ax.plot(r.xy[:, 0], r.xy[:, 1], color="deepskyblue", lw=1.2, label="reference path")
     if waypoints is not None:
@@ -132,4 +161,4 @@ def render_export_preview(
     ax.set_title(title, fontsize=9)
     ax.legend(loc="upper right", fontsize=7, framealpha=0.8)
     fig.tight_layout()
-    fig.savefig(path)
+    return fig

@@ -37,6 +37,21 @@ def gazebo_section(g: GazeboSummary) -> str:
         if len(g.worlds) > 2
         else ""
     )
+    obstacles = ""
+    if g.obstacles:
+        counts = ", ".join(f"{n} {k}" for k, n in g.obstacles.items())
+        obstacles = f"- Obstacles ({counts}; {g.obstacle_triangles:,} triangles): " + (
+            "one static model each in the worlds, named `<kind>_<id>` (the id is the row "
+            "of the scenario's `obstacles.csv`) at the obstacle's pose, its visual and "
+            "collision its own mesh (`models/agrinav_obstacles/meshes/<kind>_<id>.stl`, in its "
+            "own frame), "
+            "coloured by kind; `models/agrinav_obstacles/model.sdf` holds them all as one "
+            "model to insert elsewhere.\n"
+            if g.obstacle_mode == "models"
+            else f"merged into {g.obstacle_tiles} static tiles "
+            "(`models/agrinav_obstacle_tile_*`: the meshes at their poses, one STL per "
+            "kind as the visuals, coloured by kind, and one collision mesh per tile).\n"
+        )
     return f"""## Gazebo
 
 - `worlds/field.sdf` — Gazebo Sim (Fortress, Garden, Harmonic; system plugins use the
@@ -46,7 +61,7 @@ def gazebo_section(g: GazeboSummary) -> str:
   rotated GPS frame, gazebo-classic bug report 2022; the poses are identical).
 {hm}- `models/` — `agrinav_terrain` (textured COLLADA mesh, also the collision) and {plants}.
   Triangles in the plants: {g.triangles:,}.
-
+{obstacles}
 ```bash
 . setup.bash                       # sets GAZEBO_MODEL_PATH and the Gazebo Sim resource paths
 gz sim worlds/field.sdf            # Garden and later  (Fortress: ign gazebo worlds/field.sdf)
@@ -308,6 +323,17 @@ def gis_readme(scn: Scenario, info: dict[str, Any]) -> str:
         if info.get("dem_tif")
         else ""
     )
+    obstacles, obstacle_json = "", ""
+    if info["layers"].get("obstacles"):
+        counts = ", ".join(f"{n} {k}" for k, n in scn.obstacles.counts().items())
+        obstacles = (
+            f"- `layers.gpkg` layer `obstacles` ({counts}): each obstacle's footprint "
+            "(length × width about its centre, turned by its yaw) as a polygon on the ground, "
+            "with `obstacle_id` (its row in the scenario's `obstacles.csv`), `kind`, "
+            "`length_m`, `width_m`, `height_m` and its pose: roll/pitch/yaw and ENU x/y/z.\n"
+        )
+        obstacle_json = ", `obstacles.geojson`"
+    geojson = "- `field.geojson`, `rows.geojson`, `plants.geojson`, `route.geojson`" + obstacle_json
     return (
         _head(scn, "GIS layers")
         + f"""## Files
@@ -320,7 +346,7 @@ def gis_readme(scn: Scenario, info: dict[str, Any]) -> str:
 {utm}{dem}- `layers.gpkg` — layers `field` (polygon), `rows` (planted rows), `plants` (points with
   species, stage, height, roll/pitch/yaw and ENU x/y/z) and `route` (furrow/headland
   segments), WGS84 lon/lat (EPSG:4326) with the heights above.
-- `field.geojson`, `rows.geojson`, `plants.geojson`, `route.geojson` — the same layers as
+{obstacles}{geojson} — the same layers as
   RFC 7946 GeoJSON, one geometry type per file, so `ogr2ogr` converts each to GeoPackage or
   Shapefile.
 
@@ -332,6 +358,16 @@ Raster ▸ Analysis ▸ Hillshade on `terrain.tif` gives the relief of `preview.
 
 def mesh_readme(scn: Scenario, files: list[str]) -> str:
     listing = "\n".join(f"- `{f}`" for f in files)
+    obstacles = ""
+    if any(f.startswith("obstacles.") for f in files):
+        counts = ", ".join(f"{n} {k}" for k, n in scn.obstacles.counts().items())
+        obstacles = f"""
+Obstacles ({counts}): `obstacles.*`, each named `<kind>_<id>` (the id is the row of the
+scenario's `obstacles.csv`) and coloured by kind. GLB and COLLADA: one node per obstacle
+holding its mesh in its own frame, the node's transform its pose; OBJ: one object per
+obstacle, vertices in ENU; PLY (no names in the format): one mesh in ENU whose faces carry
+`obstacle` (the id) and `kind` (the index the header's `comment kind` lines name).
+"""
     return (
         _head(scn, "meshes")
         + f"""Terrain (and, if asked, the plants merged) in the scenario's ENU frame, metres.
@@ -339,5 +375,5 @@ glTF/GLB files are Y-up as the format requires (x east, y up, z south); the othe
 (x east, y north, z up; COLLADA files say so: `<up_axis>Z_UP</up_axis>`).
 
 {listing}
-"""
+{obstacles}"""
     )

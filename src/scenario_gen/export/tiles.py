@@ -93,19 +93,25 @@ def stem_prisms(
 def make_tiles(scn: Scenario, plants_per_tile: int) -> list[Tile]:
     """Square tiles sized to hold about ``plants_per_tile`` plants at the field's density."""
     p = scn.plants
-    if len(p) == 0:
+    return grid_tiles(p.x, p.y, float(scn.field.area), plants_per_tile, "agrinav_tile")
+
+
+def grid_tiles(x: FloatArray, y: FloatArray, area: float, per_tile: int, prefix: str) -> list[Tile]:
+    """Square tiles named ``<prefix>_rRRR_cCCC`` holding about ``per_tile`` of the points
+    (x, y) spread over ``area`` m² (the plants', or the obstacles')."""
+    if len(x) == 0:
         return []
-    area = max(float(scn.field.area), 1e-6)
-    side = max(math.sqrt(plants_per_tile * area / len(p)), 0.5)
-    x0, y0 = float(p.x.min()), float(p.y.min())
-    ix = np.floor((p.x - x0) / side).astype(np.int64)
-    iy = np.floor((p.y - y0) / side).astype(np.int64)
-    order = np.lexsort((np.arange(len(p)), ix, iy))
+    area = max(area, 1e-6)
+    side = max(math.sqrt(per_tile * area / len(x)), 0.5)
+    x0, y0 = float(x.min()), float(y.min())
+    ix = np.floor((x - x0) / side).astype(np.int64)
+    iy = np.floor((y - y0) / side).astype(np.int64)
+    order = np.lexsort((np.arange(len(x)), ix, iy))
     keys = iy[order] * (int(ix.max()) + 1) + ix[order]
     cuts = np.flatnonzero(np.diff(keys)) + 1
     tiles = []
     # a dense corner of an irregular field may exceed the target; split it, never overfill
-    cap = 2 * plants_per_tile
+    cap = 2 * per_tile
     for members in np.split(order, cuts):
         r, c = int(iy[members[0]]), int(ix[members[0]])
         chunks = [members[i : i + cap] for i in range(0, len(members), cap)]
@@ -113,7 +119,7 @@ def make_tiles(scn: Scenario, plants_per_tile: int) -> list[Tile]:
             suffix = f"_{k}" if len(chunks) > 1 else ""
             tiles.append(
                 Tile(
-                    f"agrinav_tile_r{r:03d}_c{c:03d}{suffix}",
+                    f"{prefix}_r{r:03d}_c{c:03d}{suffix}",
                     (x0 + c * side, y0 + r * side),
                     side,
                     np.sort(chunk),

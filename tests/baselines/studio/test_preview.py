@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from shapely.geometry import Polygon
 
-from baselines.studio.preview import SiteCache, layout_preview, plan_layout
+from baselines.studio.preview import SiteCache, layout_preview, plan_layout, plan_scene
 from baselines.studio.session import Session
 from scenario_gen import generate
 from scenario_gen.errors import InputError
@@ -98,3 +98,68 @@ def test_errors_name_the_field_they_concern() -> None:
     with pytest.raises(InputError) as e:
         layout_preview(s.spec(), 0, None, sites)
     assert e.value.field == "route"  # the generator's own check, on the grid's exact extent
+
+
+OBSTACLES = {"stone_density": 0.3, "litter_density": 0.05, "stalk_lodging": 0.05}
+
+
+def _with_obstacles(s: Session) -> Session:
+    for key, value in OBSTACLES.items():
+        s.set(f"obstacles.{key}", value)
+    return s
+
+
+@pytest.mark.parametrize("turn", ["semicircle", "omega"])
+def test_preview_obstacles_are_where_generate_puts_them(turn: str) -> None:
+    """With obstacles, the same plants fall (and leave the drawn layout), the route avoids the
+    same standing crop, and every obstacle has generate's kind, position, heading and size."""
+    s = _with_obstacles(Session(seed=4))
+    s.set("route.turn", turn)
+    _, lay, route, obs = plan_scene(s.spec(), s.seed, None, SiteCache())
+    scn = generate(s.spec(), s.seed)
+    counts = scn.obstacles.counts()
+    assert all(n > 0 for n in counts.values()), counts
+    assert np.array_equal(lay.x, scn.plants.x) and np.array_equal(lay.y, scn.plants.y)
+    assert np.array_equal(route.xyz[:, :2], scn.route.xyz[:, :2])
+    for name in ("kind", "x", "y", "yaw", "length", "width", "height", "shape"):
+        assert np.array_equal(getattr(obs, name), getattr(scn.obstacles, name)), name
+    pv = layout_preview(s.spec(), s.seed, None, SiteCache())
+    assert pv.n_plants == int((~scn.plants.is_weed).sum())
+    o = scn.obstacles
+    feet = o.footprints()
+    assert sorted(pv.obstacles) == sorted(k for k, n in counts.items() if n)
+    for kind, drawn in pv.obstacles.items():
+        sel = o.kind == kind
+        lat, lon, _ = scn.geo.enu_to_geodetic(feet[sel, :, 0], feet[sel, :, 1])
+        np.testing.assert_allclose(drawn, np.stack([lat, lon], axis=-1), atol=1e-12, rtol=0)
+        # the page gets every corner of every obstacle, 1e-7° (≈ 1 cm)
+        flat = pv.payload()["obstacles"][kind]
+        assert len(flat) == 8 * int(sel.sum())
+        np.testing.assert_allclose(np.reshape(flat, (-1, 4, 2)), drawn, atol=5.1e-8, rtol=0)
+
+
+def test_preview_without_obstacles_draws_none_and_samples_nothing_more() -> None:
+    s = Session(seed=4)
+    _, lay, _, obs = plan_scene(s.spec(), s.seed, None, SiteCache())
+    assert (
+        len(obs) == 0
+        and layout_preview(s.spec(), 4, None, SiteCache()).payload()["obstacles"] == {}
+    )
+    # only stones: nothing lodged, so the drawn layout is the obstacle-free one
+    s.set("obstacles.stone_density", 0.2)
+    _, lay_st, _, obs_st = plan_scene(s.spec(), s.seed, None, SiteCache())
+    assert np.array_equal(lay_st.x, lay.x) and set(obs_st.kind.tolist()) == {"stone"}
+
+
+def test_preview_lodges_a_native_scale_user_model_as_generate_does(tmp_path: Path) -> None:
+    """crop.model_scale native: the plants' heights (and so the fallen stalks' lengths) come
+    from the model's own size, read as generate reads it."""
+    model = Path(__file__).parents[2] / "data" / "crop_models" / "cutout_plant" / "meshes"
+    s = Session(seed=2)
+    s.set("obstacles.stalk_lodging", 0.1)
+    s.set("crop.model", str(model / "plant.dae"))
+    s.set("crop.model_scale", "native")
+    _, _, _, obs = plan_scene(s.spec(), s.seed, None, SiteCache())
+    scn = generate(s.spec(), s.seed)
+    assert len(obs) and np.array_equal(obs.length, scn.obstacles.length)
+    assert np.array_equal(obs.x, scn.obstacles.x)

@@ -54,3 +54,27 @@ def nav2_bundle(dem, tmp_path_factory) -> tuple[Scenario, Path]:
     out = tmp_path_factory.mktemp("nav2") / "out"
     export(src, "nav2", out, ExportOptions.from_dict(nav2_options(plants="tiles")))
     return load(src), out
+
+
+#: obstacles on the hill field: seed 7 places 8 stones, 5 litter items and 2 fallen stalks
+OBSTACLES = {"stone_density": 0.6, "litter_density": 0.4, "stalk_lodging": 0.15}
+
+
+@pytest.fixture(scope="session")
+def obstacle_hill(tmp_path_factory: pytest.TempPathFactory) -> tuple[Scenario, Path]:
+    """The ``hill`` field with a few obstacles of each kind, on the same 20° slope (a pose's
+    roll and pitch are large there, so a convention slip shows)."""
+    spec = plane(
+        20.0,
+        30.0,
+        field={"width": 3.5, "length": 4.5},
+        layout={"weed_density": 1.0, "headland": 1.0, "plant_spacing": 0.4},
+        terrain={"margin": 3.0},
+        route={"lead_in": 1.0},
+        obstacles=OBSTACLES,
+    )
+    scn = generate(spec, seed=7)
+    assert all(n >= 2 for n in scn.obstacles.counts().values()), scn.obstacles.counts()
+    out = tmp_path_factory.mktemp("obstacle_hill") / "scn"
+    save(scn, out, preview=False)
+    return load(out), out

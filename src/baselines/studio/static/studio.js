@@ -17,12 +17,20 @@ window.studio = (function () {
     shown: 0, // previews drawn
   };
 
+  // Fill, outline and outline width of each obstacle kind: scenario_gen.preview.OBSTACLE_RGB's
+  // colours; a fallen stalk is thinner than a pixel, so its straw outline is what shows.
+  const OBSTACLE_STYLE = {
+    stone: ["#847e76", "#1a1a1a", 1],
+    litter: ["#2878dc", "#ffffff", 1],
+    stalk: ["#c8ac60", "#e8cf78", 2],
+  };
+
   // One canvas for every plant: thousands of dots in one pass, no object per plant. Built on
   // first use: NiceGUI loads Leaflet (window.L) only when the map component mounts.
   const dotLayer = (pane) => new (L.Layer.extend({
     initialize(pane) {
       this._pane = pane;
-      this._data = { plants: [], weeds: [], dot_m: 0.2 };
+      this._data = { plants: [], weeds: [], dot_m: 0.2, obstacles: {} };
     },
     onAdd(map) {
       this._canvas = L.DomUtil.create("canvas", "leaflet-zoom-hide studio-dots");
@@ -66,6 +74,33 @@ window.studio = (function () {
       };
       draw(this._data.plants, "#1f8a2a");
       draw(this._data.weeds, "#ff5a1f");
+      // Obstacles: each footprint (4 lat/lon corners) as its own quadrilateral, outlined so a
+      // thin fallen stalk still shows as a line; one smaller than MIN px becomes a MIN-px
+      // square on its centre (a 10 cm stone is a fraction of a pixel at the zoom a field fills).
+      const MIN = 4;
+      for (const [kind, flat] of Object.entries(this._data.obstacles || {})) {
+        const [fill, edge, width] = OBSTACLE_STYLE[kind] || ["#888888", "#000000", 1];
+        ctx.fillStyle = fill;
+        ctx.strokeStyle = edge;
+        ctx.lineWidth = width;
+        ctx.beginPath();
+        for (let i = 0; i < flat.length; i += 8) {
+          const pts = [0, 2, 4, 6].map((k) => map.latLngToContainerPoint([flat[i + k], flat[i + k + 1]]));
+          const cx = (pts[0].x + pts[2].x) / 2;
+          const cy = (pts[0].y + pts[2].y) / 2;
+          const span = Math.hypot(pts[0].x - pts[2].x, pts[0].y - pts[2].y);
+          if (cx < -span - MIN || cy < -span - MIN || cx > size.x + span + MIN || cy > size.y + span + MIN) continue;
+          if (span < MIN) {
+            ctx.rect(cx - MIN / 2, cy - MIN / 2, MIN, MIN);
+          } else {
+            ctx.moveTo(pts[0].x, pts[0].y);
+            for (let k = 1; k < 4; k++) ctx.lineTo(pts[k].x, pts[k].y);
+            ctx.closePath();
+          }
+        }
+        ctx.fill();
+        ctx.stroke();
+      }
     },
   }))(pane);
 
@@ -114,10 +149,11 @@ window.studio = (function () {
     S.map.fitBounds(bounds, { animate: false });
   };
 
-  // The preview: plants, weeds, route and field outline, then the time since the change.
+  // The preview: plants, weeds, obstacles, route and field outline, then the time since the
+  // change.
   S.show = function (d) {
     if (S.lastChange !== null) S.arrivals.push(performance.now() - S.lastChange);
-    S.plants.setData({ plants: d.plants, weeds: d.weeds, dot_m: d.dot_m });
+    S.plants.setData({ plants: d.plants, weeds: d.weeds, dot_m: d.dot_m, obstacles: d.obstacles });
     S.route.clearLayers();
     for (const [tag, flat] of d.route) {
       const pts = [];
