@@ -1,10 +1,13 @@
-"""Crop contact: which stalks the robot's wheels and chassis touch (analytic, no bodies).
+"""Crop and obstacle contact: which stalks and obstacles the robot's wheels and chassis touch
+(analytic, no bodies; the obstacles' bodies are for the physics, ``sim/obstacle_bodies.py``).
 
 Model: each crop is a vertical stalk, a circle of the catalog's stem diameter at its growth
 (scaled with the plant's height), at its position; the robot is its URDF collision footprint
 seen from above — the chassis box and the four wheels as rectangles in base_link — ignoring
 tilt. A crop is hit when its stalk circle overlaps any rectangle. Leaves brush the robot without
 counting (they bend); weeds never count. A KD-tree of the crops finds the dozen candidates.
+Obstacles (``ObstacleContact``) are rectangles too: the same footprint against each obstacle's
+footprint rectangle, by an exact separating-axis test.
 """
 
 from __future__ import annotations
