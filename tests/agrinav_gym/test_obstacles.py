@@ -503,3 +503,35 @@ def test_randomize_draws_fields_with_and_without_stones() -> None:
     finally:
         env.close()
         ranged.close()
+
+
+def test_a_world_full_of_shapes_rebuilds_itself(monkeypatch: pytest.MonkeyPatch) -> None:
+    """pybullet cannot free a collision shape a body used: past ``SHAPE_LIMIT`` the world resets
+    the simulation at the next reset (same terrain) and starts its shapes afresh."""
+    import agrinav_gym.sim.world as world_mod
+
+    resets = []
+    real = p.resetSimulation
+    monkeypatch.setattr(p, "resetSimulation", lambda **kw: (resets.append(1), real(**kw))[1])
+    monkeypatch.setattr(world_mod, "SHAPE_LIMIT", 3)
+    row = _obstacles(
+        *(
+            dict(kind="stone", ahead=a, length=0.1, width=0.08, height=0.04, shape=seed)
+            for seed, a in enumerate((1.0, 1.3, 1.6))
+        ),
+        # the same stone again: its shape is shared, not made twice
+        dict(kind="stone", ahead=1.3, left=-0.235, length=0.1, width=0.08, height=0.04, shape=0),
+    )
+    env = make(scenario=_with(row), scenario_overrides=None, config=CONFIG)
+    try:
+        env.reset(seed=0, options=LANE)
+        w = env.unwrapped.world
+        assert len(resets) == 1 and len(w._shapes) == 3  # the first build; three shapes made
+        env.reset(seed=0, options=LANE)
+        assert len(resets) == 2 and len(w._shapes) == 3  # rebuilt, the window made again
+        assert w.obstacles is not None and sorted(w.obstacles.bodies) == [0, 1, 2, 3]
+        for _ in range(80):  # and it drives over them as before
+            env.step(np.array([0.5, 0.0], np.float32))
+        assert env.unwrapped.obstacles_hit_ids == frozenset({0, 1, 2, 3})
+    finally:
+        env.close()
