@@ -90,7 +90,7 @@ class Drive:
     ahead: list[float]  # base_link's travel along the start heading, per step
     z: list[float]  # base height
     tilt: list[float]  # max(|roll|, |pitch|), rad
-    wheel_z: list[list[float]]  # wheel centre heights (fl, fr, bl, br)
+    wheel_z: list[list[float]]  # wheel centre heights above the plane (fl, fr, bl, br)
     contacts: list[set[tuple[int, int]]]  # (robot link, other body) pairs pybullet reports
     info: dict[str, Any]
     env: Any
@@ -102,6 +102,7 @@ def _drive(scn: sg.Scenario, steps: int, config: dict[str, Any] | None = None) -
     env.reset(seed=0, options=LANE)
     x0, y0, yaw = _start()
     c, s = math.cos(yaw), math.sin(yaw)
+    ground = float(_flat().terrain.height_at(x0, y0))  # the plane is level
     w = u.world
     out = Drive([], [], [], [], [], {}, env)
     for _ in range(steps):
@@ -111,7 +112,7 @@ def _drive(scn: sg.Scenario, steps: int, config: dict[str, Any] | None = None) -
         out.z.append(float(st.pos[2]))
         out.tilt.append(max(abs(float(st.rpy[0])), abs(float(st.rpy[1]))))
         out.wheel_z.append(
-            [p.getLinkState(w.robot, j, physicsClientId=w.client)[0][2] for j in w.wheels]
+            [p.getLinkState(w.robot, j, physicsClientId=w.client)[0][2] - ground for j in w.wheels]
         )
         out.contacts.append(
             {(c_[3], c_[2]) for c_ in p.getContactPoints(bodyA=w.robot, physicsClientId=w.client)}
