@@ -41,7 +41,7 @@ from .scenarios import FixedFieldWarning, ScenarioSource
 from .sensors.camera import FieldView
 from .sensors.fixmode import Canopy
 from .sensors.suite import SensorSuite
-from .sim.contact import CropContact
+from .sim.contact import CropContact, ObstacleContact
 from .sim.world import World
 from .tasks import TASKS
 
@@ -178,6 +178,7 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         self._ended = False
         self._hit_base = 0  # crops touched before the last intervention (resume_on_route)
         self._hit: set[int] = set()
+        self._obstacles_hit: set[int] = set()  # each counted once an episode
         self.state = self.world.state()
         self._anchor = (*self._xy(), 0.0)  # progress checker: where and when it last moved
         self.readings = self.sensors.reset(self.state, rng)
@@ -242,6 +243,11 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         """Plant indices (rows of plants.csv) of the crops touched this episode."""
         return frozenset(self._hit)
 
+    @property
+    def obstacles_hit_ids(self) -> frozenset[int]:
+        """Indices (rows of obstacles.csv) of the obstacles touched this episode."""
+        return frozenset(self._obstacles_hit)
+
     def conditions(self) -> dict[str, str]:
         """What produced this episode's numbers: localisation, camera model, speed limit."""
         c = self.cfg.camera
@@ -298,7 +304,8 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         return self._observe(snap), self._info(None, {})
 
     def episode_metrics(self) -> dict[str, Any]:
-        return self.metrics.result(len(self._hit))
+        kinds = self.scenario.obstacles.kind
+        return self.metrics.result(len(self._hit), [str(kinds[i]) for i in self._obstacles_hit])
 
     # ------------------------------------------------------------------ parts of a step
     def _command(self, a: tuple[float, float]) -> None:
@@ -320,6 +327,8 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
             i for i in self.contact.touching(x, y, float(self.state.rpy[2])) if i not in self._hit
         ]
         self._hit.update(new)
+        # obstacles are counted, never an end: a robot they block stalls (the progress check)
+        self._obstacles_hit.update(self.obstacle_contact.touching(x, y, float(self.state.rpy[2])))
         furrow = bool(self.route.furrow[k])
         return rewards.StepContext(
             dt=self.dt,
@@ -380,6 +389,7 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
             "progress": float((self._s - self._s0) / max(self.route.length - self._s0, 1e-9)),
             "segment": "furrow" if self.route.furrow[self._k] else "headland",
             "crops_hit": len(self._hit),
+            "obstacles_hit": len(self._obstacles_hit),
             "lat": self._latlon[0],
             "lon": self._latlon[1],
             "rewards": parts,
@@ -422,10 +432,12 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
     def _build_world(self) -> None:
         scn = self.scenario
         self.world.load(scn.terrain, scn.rows.angle if scn.rows.curve is None else None)
+        self.world.set_obstacles(scn.obstacles)  # a no-op while they are the same
         if self._fields_of is not scn:
             self.plants = PlantField.from_scenario(scn)
             self.field = FieldView(scn, self.plants, self._camera_scenes)
             self.contact = CropContact.from_scenario(scn, self.world.geometry)
+            self.obstacle_contact = ObstacleContact.from_scenario(scn, self.world.geometry)
             self.sensors.set_canopy(Canopy(scn))
             self._fields_of = scn
 

@@ -5,12 +5,13 @@ Cross-track error = perpendicular distance from each recorded pose (the ground p
 base_link) to the nearest segment of the reference path — the globally nearest one, found
 exactly in O(log n) per pose. Reported: global RMSE, MAE, max, in-furrow RMSE and headland RMSE
 (by the tag of each pose's nearest segment: furrow when both its waypoints are), completion
-(% of the route's length reached along the route) and crops hit. The paper's RMSEs weigh every
-recorded pose (every 20 Hz step: time-weighted, so a robot standing still adds its error again
-each step); the ``path_*`` RMSEs weigh each pose by the path driven around it (half of the
-distance to each neighbour, trapezoidal in arc length), so they measure where the robot went,
-not how long it stayed — the headline of the benchmark tables. A category without poses
-reports ``None``, not NaN, so results compare and serialize cleanly.
+(% of the route's length reached along the route) and crops hit; beside them the obstacles
+(stones, litter, fallen stalks) the robot's footprint touched, in all and per kind. The paper's
+RMSEs weigh every recorded pose (every 20 Hz step: time-weighted, so a robot standing still
+adds its error again each step); the ``path_*`` RMSEs weigh each pose by the path driven around
+it (half of the distance to each neighbour, trapezoidal in arc length), so they measure where
+the robot went, not how long it stayed — the headline of the benchmark tables. A category
+without poses reports ``None``, not NaN, so results compare and serialize cleanly.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from __future__ import annotations
 import ctypes
 import math
 from bisect import bisect_left, bisect_right
+from collections.abc import Iterable
 from typing import Any
 
 import numpy as np
@@ -25,6 +27,7 @@ from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from scenario_gen.arrays import FloatArray
+from scenario_gen.obstacles import OBSTACLE_KINDS
 
 from .render import native as _native
 
@@ -234,7 +237,13 @@ class EpisodeMetrics:
         route): no path is weighed between the two."""
         self._last = None
 
-    def result(self, crops_hit: int) -> dict[str, Any]:
+    def result(self, crops_hit: int, obstacles_hit: Iterable[str] = ()) -> dict[str, Any]:
+        """The metrics so far; ``obstacles_hit`` is the kind of each distinct obstacle
+        touched (``scenario_gen.obstacles.OBSTACLE_KINDS``)."""
+        by_kind = dict.fromkeys(OBSTACLE_KINDS, 0)
+        for kind in obstacles_hit:
+            by_kind[kind] += 1  # an unknown kind is a KeyError: no count is dropped silently
+
         def rmse(key: str) -> float | None:
             n, sq = self.sums[key][0], self.sums[key][1]
             return math.sqrt(sq / n) if n else None
@@ -257,6 +266,8 @@ class EpisodeMetrics:
             "headland_rmse": rmse("headland"),
             "completion": 100.0 * self.reached / length if length > 0 else 0.0,
             "crops_hit": int(crops_hit),
+            "obstacles_hit": sum(by_kind.values()),
+            "obstacles_hit_by_kind": by_kind,
             "poses": int(n),
         }
 

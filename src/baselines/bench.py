@@ -42,6 +42,7 @@ def _record(ep: Episode, suite_name: str, scenario: str, env: Any = None) -> dic
         "scenario": scenario,
         "seed": ep.seed,
         **{k: ep.metrics.get(k) for k in METRICS},
+        "obstacles_hit_by_kind": ep.metrics.get("obstacles_hit_by_kind"),
         "poses": len(ep.poses),
         "steps": ep.steps,
         "termination": ep.termination,

@@ -26,7 +26,7 @@ CTE_METRICS = (
     "in_furrow_rmse",
     "headland_rmse",
 )
-METRICS = (*CTE_METRICS, "completion", "crops_hit")
+METRICS = (*CTE_METRICS, "completion", "crops_hit", "obstacles_hit")
 BOOTSTRAP = 2000  # resamples of the per-episode values for a 95 % percentile interval
 
 
@@ -116,8 +116,9 @@ def table(records: list[dict[str, Any]], suite_name: str, command: str) -> str:
         "over the episodes that **finished** the route only: a failed episode is a failure, not a "
         "short RMSE (`—`: none finished). `path_*` weigh each pose by the path driven around it "
         "(the headline); the paper's `rmse`, `mae`, `in_furrow_rmse`, `headland_rmse` weigh every "
-        "20 Hz pose, standing still included. Completion in % of the route and crops hit per "
-        "episode over every episode.",
+        "20 Hz pose, standing still included. Completion in % of the route, crops hit and "
+        "obstacles hit (stones, litter, fallen stalks the footprint touched) per episode over "
+        "every episode.",
         "",
         "| " + " | ".join(head) + " |",
         "|" + "---|" * len(head),
@@ -218,9 +219,19 @@ RUN_CTE = ("path_rmse", "rmse", "mae", "max")
 
 def run_table(records: list[dict[str, Any]]) -> str:
     """``agrinav run``'s summary, a plain-text table: one row per policy with its episodes,
-    how many finished, the mean cross-track errors of those (m), mean completion and crops hit
-    of all, and the episodes' own seconds summed (with a video, its frames' seconds apart)."""
-    head = ["policy", "episodes", "finished", *RUN_CTE, "completion %", "crops hit", "seconds"]
+    how many finished, the mean cross-track errors of those (m), mean completion, crops hit and
+    obstacles hit of all, and the episodes' own seconds summed (with a video, its frames' seconds
+    apart)."""
+    head = [
+        "policy",
+        "episodes",
+        "finished",
+        *RUN_CTE,
+        "completion %",
+        "crops hit",
+        "obstacles hit",
+        "seconds",
+    ]
     video = any("render_seconds" in r for r in records)
     if video:
         head.append("video seconds")
@@ -235,6 +246,7 @@ def run_table(records: list[dict[str, Any]]) -> str:
 
         row = [p, str(len(mine)), f"{len(done)}/{len(mine)}", *(mean(m, done) for m in RUN_CTE)]
         row += [mean("completion", mine, ".1f"), mean("crops_hit", mine, ".3g")]
+        row.append(mean("obstacles_hit", mine, ".3g"))
         row.append(f"{sum(float(r.get('seconds', 0.0)) for r in mine):.1f}")
         if video:
             row.append(f"{sum(float(r.get('render_seconds', 0.0)) for r in mine):.1f}")
@@ -243,7 +255,7 @@ def run_table(records: list[dict[str, Any]]) -> str:
     lines = ["  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip() for r in rows]
     lines.append(
         "cross-track errors (m): means over the finished episodes (— none finished); "
-        "completion, crops hit: over all"
+        "completion, crops hit, obstacles hit: over all"
     )
     return "\n".join(lines)
 

@@ -97,6 +97,7 @@ def test_run_prints_a_short_table_not_records() -> None:
     head = lines[0].split()
     assert head[:7] == ["policy", "episodes", "finished", "path_rmse", "rmse", "mae", "max"]
     assert lines[0].rstrip().endswith("seconds  video seconds")
+    assert "crops hit  obstacles hit" in lines[0]
     row = lines[1].split()
     assert row[:4] == ["rpp", "2", "1/2", "0.020"]  # the corridor exit's 0.5 is not averaged in
     assert row[7] == "60.0" and row[-2:] == ["2.0", "30.0"]  # completion over both; seconds

@@ -170,6 +170,8 @@ def test_smoke_bench_writes_results_and_table(tmp_path: Path) -> None:
         "headland_rmse",
         "completion",
         "crops_hit",
+        "obstacles_hit",
+        "obstacles_hit_by_kind",
         "steps",
     }
     for r in records:

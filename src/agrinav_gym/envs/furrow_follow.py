@@ -50,10 +50,14 @@ class FurrowFollowEnv(AgriNavEnv):
     Terminated on success (lane end reached within 0.3 m), leaving the corridor (|cte| > half
     the row spacing), tipping over (roll or pitch > 60°), hitting more than 10 crops or, with
     ``config["task"]["progress_time"]`` set, moving less than ``progress_radius`` in that time
-    (Nav2's progress checker); truncated by ``max_episode_steps`` (1500). Every ``info``
-    carries the episode's running ``metrics`` (path-weighted and per-pose RMSE, MAE, max,
-    in-furrow / headland RMSE, completion, crops hit), so the last one holds the final values
-    however the episode ended; a terminating step also names its ``termination`` (success,
+    (Nav2's progress checker); truncated by ``max_episode_steps`` (1500). Obstacles (stones,
+    litter, fallen stalks: the spec's ``obstacles`` section) never end an episode: the robot
+    drives over what it can and stalls at what it cannot. Every ``info`` carries
+    ``crops_hit``, ``obstacles_hit`` (distinct obstacles the footprint touched) and the
+    episode's running ``metrics`` (path-weighted and per-pose RMSE, MAE, max, in-furrow /
+    headland RMSE, completion, crops hit, obstacles hit in all and
+    ``obstacles_hit_by_kind``), so the last one holds the final values however the episode
+    ended; a terminating step also names its ``termination`` (success,
     corridor, off_terrain, tip_over, crops_hit, progress). Stepping after a termination raises
     ``gymnasium.error.ResetNeeded``.
 

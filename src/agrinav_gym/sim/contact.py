@@ -1,10 +1,13 @@
-"""Crop contact: which stalks the robot's wheels and chassis touch (analytic, no bodies).
+"""Crop and obstacle contact: which stalks and obstacles the robot's wheels and chassis touch
+(analytic, no bodies; the obstacles' bodies are for the physics, ``sim/obstacle_bodies.py``).
 
 Model: each crop is a vertical stalk, a circle of the catalog's stem diameter at its growth
 (scaled with the plant's height), at its position; the robot is its URDF collision footprint
 seen from above — the chassis box and the four wheels as rectangles in base_link — ignoring
 tilt. A crop is hit when its stalk circle overlaps any rectangle. Leaves brush the robot without
 counting (they bend); weeds never count. A KD-tree of the crops finds the dozen candidates.
+Obstacles (``ObstacleContact``) are rectangles too: the same footprint against each obstacle's
+footprint rectangle, by an exact separating-axis test.
 """
 
 from __future__ import annotations
@@ -91,6 +94,106 @@ class CropContact:
                 fx = max(abs(bx - cx) - hx, 0.0)
                 fy = max(abs(by - cy) - hy, 0.0)
                 if fx * fx + fy * fy <= r * r:
+                    hits.append(i)
+                    break
+        return hits
+
+
+def rects_overlap(
+    dx: float,
+    dy: float,
+    hx: float,
+    hy: float,
+    ux: float,
+    uy: float,
+    hl: float,
+    hw: float,
+) -> bool:
+    """Whether two rectangles overlap (touching counts), by the separating-axis theorem.
+
+    The first is axis-aligned, half sizes (``hx``, ``hy``); the second's centre is (``dx``,
+    ``dy``) from the first's, its length axis the unit vector (``ux``, ``uy``), half length
+    ``hl`` and half width ``hw``. Two convex polygons are disjoint iff some edge normal of one
+    of them separates their projections; a rectangle has two edge directions, so four axes
+    decide it exactly."""
+    vx, vy = -uy, ux  # the second's width axis
+    aux, auy, avx, avy = abs(ux), abs(uy), abs(vx), abs(vy)
+    if abs(dx) > hx + hl * aux + hw * avx:
+        return False
+    if abs(dy) > hy + hl * auy + hw * avy:
+        return False
+    if abs(dx * ux + dy * uy) > hl + hx * aux + hy * auy:
+        return False
+    return abs(dx * vx + dy * vy) <= hw + hx * avx + hy * avy
+
+
+@dataclass(frozen=True, eq=False)
+class ObstacleContact:
+    """Which obstacles (stones, litter, fallen stalks) the robot's footprint touches.
+
+    The same footprint as ``CropContact`` — the chassis box and the four wheels as rectangles
+    in base_link, tilt ignored — against each obstacle's footprint rectangle seen from above
+    (``Obstacles.footprints``: length × width turned by its yaw). An obstacle is touched when
+    the rectangles overlap (exact separating-axis test), whatever its height: a stone that
+    passes under the chassis between the wheels was driven over. A KD-tree of the obstacles'
+    centres finds the candidates, asked again only after the robot has moved ``NEAR_MARGIN``."""
+
+    tree: cKDTree | None  # None without obstacles: every query is answered at once
+    #: per obstacle (plain lists: a few candidates are faster in Python): centre, unit length
+    #: axis, half length, half width
+    box: list[tuple[float, float, float, float, float, float]]
+    half_diagonal: list[float]
+    max_half_diagonal: float
+    rects: tuple[tuple[float, float, float, float], ...]  # (cx, cy, half_x, half_y) in base_link
+    reach: float  # farthest footprint corner from base_link, m
+    _near: tuple[float, float, list[int]] | None = field(default=None, repr=False)
+
+    @classmethod
+    def from_scenario(cls, scn: Scenario, robot: RobotGeometry) -> ObstacleContact:
+        o = scn.obstacles
+        rects = robot.contact_rects
+        reach = max(math.hypot(abs(cx) + hx, abs(cy) + hy) for cx, cy, hx, hy in rects)
+        if len(o) == 0:
+            return cls(None, [], [], 0.0, rects, reach)
+        hl, hw = 0.5 * np.asarray(o.length, float), 0.5 * np.asarray(o.width, float)
+        box = list(
+            zip(
+                np.asarray(o.x, float).tolist(),
+                np.asarray(o.y, float).tolist(),
+                np.cos(o.yaw).tolist(),
+                np.sin(o.yaw).tolist(),
+                hl.tolist(),
+                hw.tolist(),
+                strict=True,
+            )
+        )
+        diag = np.hypot(hl, hw)
+        tree = cKDTree(np.column_stack([o.x, o.y]))
+        return cls(tree, box, diag.tolist(), float(diag.max()), rects, reach)
+
+    def touching(self, x: float, y: float, yaw: float) -> list[int]:
+        """Indices (rows of obstacles.csv) of the obstacles whose footprint overlaps the
+        robot's at (x, y, yaw), in index order."""
+        if self.tree is None:
+            return []
+        near = self._near
+        if near is None or math.hypot(x - near[0], y - near[1]) > NEAR_MARGIN:
+            r = self.reach + self.max_half_diagonal + NEAR_MARGIN
+            near = (x, y, sorted(int(i) for i in self.tree.query_ball_point((x, y), r)))
+            object.__setattr__(self, "_near", near)
+        c, s = math.cos(yaw), math.sin(yaw)
+        hits = []
+        for i in near[2]:
+            ox, oy, ux, uy, hl, hw = self.box[i]
+            dx, dy = ox - x, oy - y
+            reach = self.reach + self.half_diagonal[i]
+            if dx * dx + dy * dy > reach * reach:
+                continue
+            # the obstacle in base_link: centre and length axis turned by −yaw
+            bx, by = c * dx + s * dy, -s * dx + c * dy
+            bux, buy = c * ux + s * uy, -s * ux + c * uy
+            for cx, cy, hx, hy in self.rects:
+                if rects_overlap(bx - cx, by - cy, hx, hy, bux, buy, hl, hw):
                     hits.append(i)
                     break
         return hits

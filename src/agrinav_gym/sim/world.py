@@ -1,7 +1,9 @@
-"""One pybullet client per env: the terrain heightfield and the Summit-XL.
+"""One pybullet client per env: the terrain heightfield, the Summit-XL and the obstacles.
 
 The wheels touch the ground through ``sim.tyres`` (explicit tyre–soil forces on the terrain's
-bilinear surface); the heightfield window is the ground the chassis would hit.
+bilinear surface); the heightfield window is the ground the chassis would hit. Obstacles
+(stones, litter, fallen stalks) are static bodies that the wheels and the chassis both meet
+(``sim.obstacle_bodies``: collision groups keep the wheels off the heightfield).
 """
 
 from __future__ import annotations
@@ -17,9 +19,17 @@ import numpy as np
 import pybullet as p
 
 from scenario_gen import Terrain
+from scenario_gen.obstacles import Obstacles
 
 from ..config import RobotConfig, SoilConfig
 from ..robot import RobotGeometry, RobotState, urdf_path
+from .obstacle_bodies import (
+    WHEEL_FRICTION,
+    WHEEL_GROUP,
+    WHEEL_MASK,
+    ObstacleBodies,
+    ShapeKey,
+)
 from .tyres import TyreModel, check_corner_stability, in_place_turn_ratio
 
 WHEEL_JOINTS = (
@@ -54,10 +64,14 @@ SETTLED_SPEED = 1e-4
 SETTLED_RATE = 1e-4
 SETTLED_STEPS = 24
 SETTLE_SECONDS = 10.0
+#: Obstacle collision shapes a world holds before it resets itself at the next ``load``:
+#: pybullet frees a used shape only with the whole simulation (≈ 26 KB each, ≈ 50 MB here).
+SHAPE_LIMIT = 2048
 
 
 class World:
-    """The physics client with terrain and robot; rebuilt only when the terrain changes."""
+    """The physics client with terrain, robot and obstacles; rebuilt only when the terrain
+    changes, the obstacles replaced when the scenario's are others (``set_obstacles``)."""
 
     def __init__(
         self, robot: RobotConfig, soil: SoilConfig | None = None, gui: bool = False
@@ -87,11 +101,21 @@ class World:
         self.robot = -1
         self.wheels: list[int] = []
         self.visuals_loaded = False
+        self.obstacles: ObstacleBodies | None = None  # None: no obstacles, no extra work
+        self._obstacles_of: Obstacles | None = None
+        self._shapes: dict[ShapeKey, int] = {}  # the obstacles' collision shapes in the client
+        # the robot's reach from base_link, a bound for any tilt: the wheel spheres' and the
+        # footprint's farthest corners
+        self._reach = g.wheel_radius + max(
+            math.hypot(abs(cx) + hx, abs(cy) + hy) for cx, cy, hx, hy in g.contact_rects
+        )
+        self._chassis_drop = 0.0  # chassis bottom below base_link, m (read at the first load)
 
     # ------------------------------------------------------------------ building
     def load(self, terrain: Terrain, row_angle: float | None = None) -> None:
-        """(Re)build the world for ``terrain``; a no-op when it is the same terrain object."""
-        if terrain is self._terrain:
+        """(Re)build the world for ``terrain``; a no-op when it is the same terrain object (and
+        the obstacles' shapes have not reached ``SHAPE_LIMIT``)."""
+        if terrain is self._terrain and len(self._shapes) < SHAPE_LIMIT:
             return
         cid = self.client
         p.resetSimulation(physicsClientId=cid)
@@ -102,15 +126,40 @@ class World:
             numSolverIterations=self.cfg.solver_iterations,
             enableConeFriction=0,
             deterministicOverlappingPairs=1,
+            # two shapes collide when (groupA & maskB) and (groupB & maskA): the collision
+            # groups of sim/obstacle_bodies.py mean what they say (this pybullet's default is
+            # "or", under which a wheel would meet the heightfield)
+            collisionFilterMode=0,
             physicsClientId=cid,
         )
         self._terrain = terrain
         self.tyres.reset(terrain)
         self.patch = TerrainPatch(cid, terrain, self.soil.friction, row_angle)
         self.robot = -1
-        self._spawn_robot([0, 0, float(terrain.heights.max()) + 1.0], [0, 0, 0, 1])
+        if self.obstacles is not None:  # resetSimulation removed their bodies and shapes
+            self.obstacles.forget()
+        self.obstacles, self._obstacles_of = None, None
+        self._shapes = {}
+        base_z = float(terrain.heights.max()) + 1.0
+        self._spawn_robot([0, 0, base_z], [0, 0, 0, 1])
+        (_, _, low), _ = p.getAABB(self.robot, -1, physicsClientId=cid)
+        self._chassis_drop = base_z - float(low)
         p.configureDebugVisualizer(p.COV_ENABLE_RENDERING, 1, physicsClientId=cid)
         self.visuals_loaded = False
+
+    def set_obstacles(self, obstacles: Obstacles) -> None:
+        """Make ``obstacles`` (a scenario's) the world's; a no-op when they are the ones it has.
+        Call after ``load``: the bodies appear around the robot when it is placed."""
+        if obstacles is self._obstacles_of:
+            return
+        if self.obstacles is not None:
+            self.obstacles.clear()
+        self.obstacles = (
+            ObstacleBodies(self.client, obstacles, self._reach, self._shapes)
+            if len(obstacles)
+            else None
+        )
+        self._obstacles_of = obstacles
 
     def place_robot(self, x: float, y: float, yaw: float, terrain: Terrain) -> None:
         """Put the robot at rest on the ground at (x, y) facing ``yaw``.
@@ -130,6 +179,14 @@ class World:
         rx = wx[:, None] + 0.5 * g.wheel_radius * np.cos(ring)[None, :]
         ry = wy[:, None] + 0.5 * g.wheel_radius * np.sin(ring)[None, :]
         h = np.maximum(terrain.height_at(wx, wy), terrain.height_at(rx, ry).max(axis=1))
+        obstacles = self.obstacles
+        if obstacles is not None:  # a wheel put down on a stone stands on its top
+            for k in range(4):
+                top = obstacles.top_over(
+                    float(wx[k]), float(wy[k]), c, s, g.wheel_radius, g.wheel_radius
+                )
+                if top is not None and top > h[k]:
+                    h[k] = top
         fl, fr, bl, br = (float(v) for v in h)
         roll = math.atan2(0.5 * (fl + bl) - 0.5 * (fr + br), g.track)
         pitch = math.atan2(0.5 * (bl + br) - 0.5 * (fl + fr), g.wheelbase)
@@ -139,11 +196,18 @@ class World:
             [-math.sin(pitch) * a + math.cos(pitch) * math.sin(roll) * b for a, b in local]
         )
         z = float(np.max(h - dz)) + g.wheel_radius + 0.005
+        if obstacles is not None:  # nor may the chassis be put down into a tall one
+            _, _, hx, hy = g.contact_rects[0]
+            top = obstacles.top_over(x, y, c, s, hx, hy)
+            if top is not None:
+                z = max(z, top + self._chassis_drop + 0.005)
         q = p.getQuaternionFromEuler([roll, pitch, yaw])
         self.patch.follow(x, y, force=True)
         # A fresh body: resetting the old one would keep its contact manifolds and warm-start
         # impulses, and the first steps of an episode would depend on the one before.
         self._spawn_robot([x, y, z], q)
+        if obstacles is not None:
+            obstacles.rebuild(x, y)
         self.tyres.reset(terrain)
         self.drive(0.0, 0.0)
 
@@ -181,8 +245,13 @@ class World:
             for j in range(p.getNumJoints(self.robot, physicsClientId=cid))
         ]
         self.wheels = [names.index(n) for n in WHEEL_JOINTS]
-        for j in self.wheels:  # the tyre model is the wheels' only contact with the ground
-            p.setCollisionFilterGroupMask(self.robot, j, 0, 0, physicsClientId=cid)
+        for j in self.wheels:
+            # the tyre model is the wheels' only contact with the ground; pybullet's collision
+            # meets the obstacles only (sim/obstacle_bodies.py, "Collision groups")
+            p.setCollisionFilterGroupMask(
+                self.robot, j, WHEEL_GROUP, WHEEL_MASK, physicsClientId=cid
+            )
+            p.changeDynamics(self.robot, j, lateralFriction=WHEEL_FRICTION, physicsClientId=cid)
 
     # ------------------------------------------------------------------ stepping
     def drive(self, v: float, w: float) -> None:
@@ -206,7 +275,10 @@ class World:
             p.stepSimulation(cid)
 
     def follow(self, x: float, y: float, heading: float | None = None) -> None:
+        """Keep the terrain window, and the obstacles' where there are some, around (x, y)."""
         self.patch.follow(x, y, heading=heading)
+        if self.obstacles is not None:
+            self.obstacles.follow(x, y)
 
     def state(self) -> RobotState:
         cid = self.client
