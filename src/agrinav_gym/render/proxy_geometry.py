@@ -44,6 +44,7 @@ class ProxyGeometry:
             cyl[:] = np.column_stack([plants.xy, plants.z, plants.top, plants.radius])
         self.weed = plants.is_weed
         self.obstacle = plants.is_obstacle
+        self.any_obstacle = bool(self.obstacle.any())
         self.ztop = float(plants.top.max()) if n else -np.inf  # the tallest plant
         g = self.CELL
         if n:
@@ -119,5 +120,8 @@ class ProxyGeometry:
         on = what >= 0
         if on.any():
             k = what[on]
-            lab[on] = np.where(self.obstacle[k], OBSTACLE, np.where(self.weed[k], WEED, CROP))
+            cls = np.where(self.weed[k], WEED, CROP)
+            if self.any_obstacle:  # a field without obstacles does the work it always did
+                cls = np.where(self.obstacle[k], OBSTACLE, cls)
+            lab[on] = cls
         return lab
