@@ -89,8 +89,9 @@ class CameraConfig:
     rgb: bool = _f(False, "also produce an RGB image (info['rgb'])")
     segmentation: bool = _f(
         False,
-        "also produce a mask 0 other, 1 soil, 2 crop, 3 weed, 4 robot (info['segmentation']); "
-        "mesh: and plant ids, rows of plants.csv, -1 elsewhere (info['instance'])",
+        "also produce a mask 0 other, 1 soil, 2 crop, 3 weed, 4 robot, 5 obstacle "
+        "(info['segmentation']); mesh: and instance ids, rows of plants.csv on crop and weed "
+        "pixels, of obstacles.csv on obstacle pixels, -1 elsewhere (info['instance'])",
     )
     threads: int = _f(
         1, "mesh: threads rendering a frame (1 for RL, where envs run in parallel)", 1, 64

@@ -239,7 +239,8 @@ class RouteObservation(ObservationModel):
 @observation
 class DepthObservation(ObservationModel):
     """D455-like z-depth (1, H, W) in metres, 0 = invalid, at ``camera.rate_hz``; the frame's
-    RGB, segmentation and (mesh camera) plant ids, when enabled, go to ``info``.
+    RGB, segmentation and (mesh camera) instance ids of plants and obstacles, when enabled, go
+    to ``info``.
 
     ``camera.model`` picks the fidelity: the analytic proxy (``DepthCamera``) or the crop meshes
     (``MeshCamera`` over the scenario's ``MeshScene``)."""

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from agrinav_gym.render.classes import CROP, WEED
 from baselines.cli import main
 from baselines.dataset import PerceptionDataset, generate, load_spec
 from baselines.dataset.perception import shard_frames, write_shard
@@ -38,12 +39,14 @@ def test_frames_hold_every_array_and_label(dataset: Path) -> None:
     for key in ("pose", "gnss", "imu", "cameras", "lane", "rows", "plants", "scenario"):
         assert key in lab
     assert set(lab["cameras"]) == {"depth", "rgb"}
-    shown = set(np.unique(s["instance"])) - {-1}
+    plant = np.isin(s["semantic"], (CROP, WEED))  # an obstacle's pixels name an obstacle
+    shown = set(np.unique(s["instance"][plant])) - {-1}
     labelled = {p["id"]: p for p in lab["plants"]}
     # every plant the instance image shows is labelled, with its pixel count
     assert shown <= set(labelled)
     for i in shown:
-        assert labelled[i]["visible_pixels"] == int((s["instance"] == i).sum())
+        assert labelled[i]["visible_pixels"] == int(((s["instance"] == i) & plant).sum())
+    assert lab["obstacles"] == []  # the default fields have none
 
 
 def test_lane_offset_agrees_with_the_envs_cross_track_error(dataset: Path) -> None:

@@ -14,6 +14,10 @@ ray whose first hit lies on a cut-out texel is cast again from just beyond it, u
 opaque texel, something else or nothing (``MAX_CUTOUTS`` times at most), for every query —
 depth, colour, labels and the stereo pair's occlusion test alike.
 
+Obstacles (stones, litter, fallen stalks: ``ObstacleMeshes``) are few and each of its own
+shape: they are one static Embree scene, always attached (an obstacle's geometry id in it is its
+index, so a hit names it), not tiles of instances.
+
 Terrain hits are refined by Newton's method onto the bilinear surface of the height grid
 (``Terrain.height_at``), the same surface the analytic camera intersects: the triangles only
 bracket the crossing.
@@ -31,11 +35,13 @@ from numpy.typing import NDArray
 
 from scenario_gen import Scenario, Terrain
 from scenario_gen.arrays import F32, FloatArray
+from scenario_gen.obstacles import Obstacles
 
 from . import native
-from .classes import OTHER, SOIL
+from .classes import OBSTACLE, OTHER, SOIL
 from .embree import Caster, Hits, Scene, device
-from .plant_meshes import PlantMeshes
+from .obstacle_meshes import ObstacleMeshes
+from .plant_meshes import PlantMeshes, Prototype
 
 TILE = 4.0  # m: a terrain tile is 34 × 34 cells at 0.12 m; a frame touches ≈ 10-15 tiles
 MARGIN = 1.0  # m: the view's hull is grown by this, so small moves reuse the same tiles
@@ -52,9 +58,11 @@ CUTOUT_STEP_MIN = 1e-6
 @dataclass
 class SceneHits:
     t: FloatArray  # ray parameter of the first hit, inf where none
-    label: NDArray[np.uint8]  # OTHER / SOIL / CROP / WEED
-    plant: NDArray[np.int32]  # plant index (row of plants.csv), -1 elsewhere
-    proto: NDArray[np.int32]  # prototype index of the plant hit, -1 elsewhere
+    label: NDArray[np.uint8]  # OTHER / SOIL / CROP / WEED / OBSTACLE
+    # the instance: a plant's row of plants.csv (CROP, WEED) or an obstacle's row of
+    # obstacles.csv (OBSTACLE), -1 elsewhere
+    plant: NDArray[np.int32]
+    proto: NDArray[np.int32]  # index in ``MeshScene.prototypes`` of what was hit, -1 elsewhere
     prim: NDArray[np.int32]  # triangle of the prototype (plants) or of the terrain tile
     u: F32
     v: F32
@@ -70,7 +78,8 @@ class _Tile:
 
 
 class MeshScene:
-    """Terrain and plants of one scenario, ray-cast through Embree around the camera."""
+    """Terrain, plants and obstacles of one scenario, ray-cast through Embree around the
+    camera. ``obstacles`` (``scenario_gen.Obstacles``) are meshed in this scene's coordinates."""
 
     def __init__(
         self,
@@ -80,6 +89,7 @@ class MeshScene:
         cache_tiles: int = CACHE_TILES,
         threads: int = 1,
         seed: int = 0,
+        obstacles: Obstacles | None = None,
     ) -> None:
         self.terrain = terrain
         self.seed = int(seed)  # of the soil texture
@@ -93,7 +103,16 @@ class MeshScene:
         self.dev = device()
         self.caster = Caster(self.dev, threads)
         self.top = Scene(self.dev, "medium")
-        self.reach = plants.reach if plants is not None else 0.0
+        self.obstacles = (
+            ObstacleMeshes.of(obstacles, self.origin)
+            if obstacles is not None and len(obstacles)
+            else None
+        )
+        # tiles are chosen within this of the view: the farthest plant or obstacle reaches
+        self.reach = max(
+            plants.reach if plants is not None else 0.0,
+            self.obstacles.reach if self.obstacles is not None else 0.0,
+        )
         self._order = np.empty(0, np.int32)
         self._labels = np.zeros(0, np.uint8)
         self._starts: dict[int, tuple[int, int]] = {}
@@ -120,16 +139,40 @@ class MeshScene:
         self._n_plants = len(plants) if plants is not None else 0
         self._n_ground = self._n_plants + self.nx * self.ny
         self._statics = 0
+        self._n_plant_protos = len(plants.prototypes) if plants is not None else 0
+        #: every prototype: the plants', then one per obstacle (``SceneHits.proto`` indexes it)
+        self.prototypes: tuple[Prototype, ...] = (
+            plants.prototypes if plants is not None else ()
+        ) + (self.obstacles.prototypes if self.obstacles is not None else ())
+        self._obstacle_gid = -1  # the obstacles' static scene's geometry id (-1: none)
+        self._obstacle_tile = np.zeros(0, np.int64)
+        if self.obstacles is not None:
+            ob = Scene(self.dev, "high")
+            for i, pr in enumerate(self.obstacles.prototypes):  # geometry id = obstacle index
+                ob.attach_triangles(i, pr.vertices, pr.faces)
+            ob.commit()
+            self._obstacle_scene = ob  # kept alive with the scene
+            self._obstacle_gid = self.add_static(ob)
+            self.top.commit()
+            self._obstacle_tile = self._key(self.obstacles.x, self.obstacles.y)
         self._last_view: tuple[FloatArray, FloatArray] | None = None  # hull edge normals, offsets
-        # instances_near's last answer: its tiles, plant ids, transforms and hull edges
+        # instances_near's last answer: its tiles, plant ids, transforms and hull edges, and
+        # the obstacles of those tiles
         self._near: tuple[frozenset[int], NDArray[np.int32], F32, Any] | None = None
+        self._near_obstacles = np.zeros(0, np.int32)
         # the height grid as the compiled refinement (refine_rays) reads it
         self._grid: native.Geometry | None = None
         self.tiles_built = 0
 
     @classmethod
     def from_scenario(cls, scn: Scenario, **kwargs: object) -> MeshScene:
-        return cls(scn.terrain, PlantMeshes.from_scenario(scn), seed=scn.seed, **kwargs)  # type: ignore[arg-type]
+        return cls(
+            scn.terrain,
+            PlantMeshes.from_scenario(scn),
+            seed=scn.seed,
+            obstacles=scn.obstacles,
+            **kwargs,  # type: ignore[arg-type]
+        )
 
     # ------------------------------------------------------------------ tiles
     def _key(self, x: FloatArray, y: FloatArray) -> NDArray[np.int64]:
@@ -243,7 +286,16 @@ class MeshScene:
             else np.zeros((0, 12), np.float32)
         )
         self._near = (want, ids, xfm, _edges(hull))
+        self._near_obstacles = np.flatnonzero(
+            np.isin(self._obstacle_tile, np.fromiter(want, np.int64, len(want)))
+        ).astype(np.int32)
         return ids, xfm
+
+    @property
+    def near_obstacles(self) -> NDArray[np.int32]:
+        """The obstacles of the tiles ``instances_near`` last chose (ascending indices; a new
+        array exactly when its plant ids are one)."""
+        return self._near_obstacles
 
     def _evict(self, keep: set[int] | frozenset[int]) -> None:
         """Drop the least recently used cached tiles beyond ``cache_tiles``, never ``keep``."""
@@ -309,6 +361,12 @@ class MeshScene:
         proto = np.where(on_plant, h.geom, -1).astype(np.int32)
         if on_plant.any():
             label[on_plant] = self._labels[proto[on_plant]]
+        if self._obstacle_gid >= 0:
+            on_obs = inst == self._obstacle_gid
+            if on_obs.any():  # the static scene's geometry id is the obstacle's index
+                label[on_obs] = OBSTACLE
+                plant[on_obs] = h.geom[on_obs]
+                proto[on_obs] = self._n_plant_protos + h.geom[on_obs]
         if refine and ground.any():
             oo = np.asarray(o, np.float64)
             if native.available() and oo.ndim == 1:  # the same Newton steps, compiled

@@ -9,7 +9,7 @@ from scenario_gen import Terrain
 from scenario_gen.arrays import FloatArray
 
 from . import native
-from .classes import CROP, OTHER, SOIL, WEED
+from .classes import CROP, OBSTACLE, OTHER, SOIL, WEED
 from .proxy_plants import PlantField
 
 
@@ -43,6 +43,8 @@ class ProxyGeometry:
         if n:
             cyl[:] = np.column_stack([plants.xy, plants.z, plants.top, plants.radius])
         self.weed = plants.is_weed
+        self.obstacle = plants.is_obstacle
+        self.any_obstacle = bool(self.obstacle.any())
         self.ztop = float(plants.top.max()) if n else -np.inf  # the tallest plant
         g = self.CELL
         if n:
@@ -117,5 +119,9 @@ class ProxyGeometry:
         lab[what == -1] = SOIL
         on = what >= 0
         if on.any():
-            lab[on] = np.where(self.weed[what[on]], WEED, CROP)
+            k = what[on]
+            cls = np.where(self.weed[k], WEED, CROP)
+            if self.any_obstacle:  # a field without obstacles does the work it always did
+                cls = np.where(self.obstacle[k], OBSTACLE, cls)
+            lab[on] = cls
         return lab

@@ -32,6 +32,9 @@ from .plant_meshes import Prototype
 
 ZNEAR = 1e-3  # m: the ray casts start at the camera; nothing of the scene comes this close
 
+#: a row-major 3×4 identity transform: an obstacle's slot (its vertices are in scene coordinates)
+_IDENTITY_ROW = np.array([1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0], np.float32)
+
 
 @dataclass
 class VisBuffer:
@@ -101,12 +104,17 @@ CLUSTER_FACES = 32
 
 class SceneGeometry:
     """A ``MeshScene``'s prototypes, terrain and shading tables as the kernels read them, and
-    the plant instances near the current view. Built once per scene; keeps the arrays alive."""
+    the plant instances near the current view. Built once per scene; keeps the arrays alive.
+
+    Obstacles are prototypes of their own (after the plants', as ``MeshScene.prototypes``),
+    their vertices already in scene coordinates: each obstacle near the view is a slot with the
+    identity transform after the plants' slots, its plant id the obstacle's index."""
 
     def __init__(self, scene: MeshScene) -> None:
         self.scene = scene
-        protos: tuple[Prototype, ...] = scene.plants.prototypes if scene.plants else ()
+        protos: tuple[Prototype, ...] = scene.prototypes
         self.protos = protos
+        self._n_plant_protos = len(scene.plants.prototypes) if scene.plants else 0
         self._v = [np.ascontiguousarray(p.vertices, np.float32) for p in protos]
         self._f = [np.ascontiguousarray(p.faces, np.uint32) for p in protos]
         self.vaddr = np.array([a.ctypes.data for a in self._v], np.int64)
@@ -159,12 +167,25 @@ class SceneGeometry:
         self._near_ids: NDArray[np.int32] | None = None
         self.use(np.zeros(0, np.int32), np.zeros((0, 12), np.float32))
 
-    def use(self, plant_ids: NDArray[np.int32], xfm: NDArray[np.float32]) -> None:
-        """Make these plants (ids, row-major 3×4 transforms) the instance slots."""
+    def use(
+        self,
+        plant_ids: NDArray[np.int32],
+        xfm: NDArray[np.float32],
+        obstacles: NDArray[np.int32] | None = None,
+    ) -> None:
+        """Make these plants (ids, row-major 3×4 transforms) and ``obstacles`` (indices) the
+        instance slots."""
         pm = self.scene.plants
+        proto = pm.proto[plant_ids] if pm is not None and len(plant_ids) else np.zeros(0)
+        if obstacles is not None and len(obstacles):
+            ob = np.asarray(obstacles, np.int32)
+            plant_ids = np.concatenate([np.asarray(plant_ids, np.int32), ob])
+            xfm = np.concatenate(
+                [np.asarray(xfm, np.float32).reshape(-1, 12), np.tile(_IDENTITY_ROW, (len(ob), 1))]
+            )
+            proto = np.concatenate([proto, self._n_plant_protos + ob])
         self.slot_plant = np.ascontiguousarray(plant_ids, np.int32)
         self.xfm = np.ascontiguousarray(xfm, np.float32)
-        proto = pm.proto[plant_ids] if pm is not None and len(plant_ids) else np.zeros(0)
         self.slot_proto = np.ascontiguousarray(proto, np.int32)
         if not len(self.slot_plant):  # the kernels read one slot's worth of pointers
             self.slot_proto = np.zeros(1, np.int32)
@@ -172,7 +193,7 @@ class SceneGeometry:
         x0, y0, spacing = self._grid
         ny, nx = self.heights.shape
         self.geom = native.Geometry(
-            n_slots=len(plant_ids),
+            n_slots=len(self.slot_plant),
             n_protos=len(self.protos),
             slot_proto=self.slot_proto,
             xfm=self.xfm,
@@ -193,10 +214,11 @@ class SceneGeometry:
         )
 
     def near(self, xy: FloatArray) -> None:
-        """Slots for the plants of every tile a view spanning world points ``xy`` can reach."""
+        """Slots for the plants and obstacles of every tile a view spanning world points ``xy``
+        can reach."""
         ids, xfm = self.scene.instances_near(xy)
         if ids is not self._near_ids:
-            self.use(ids, xfm)
+            self.use(ids, xfm, self.scene.near_obstacles)
             self._near_ids = ids
 
     # ------------------------------------------------------------------ kernels

@@ -2,13 +2,14 @@
 
 pybullet's own camera costs 6-42 ms a frame (design.md, "Measured facts to design around"); this
 casts one ray per pixel against the terrain's bilinear height surface and against the plants as
-vertical capped cylinders (``PlantField``). Where the compiled kernels are built
-(render/native.py) one call per frame intersects both exactly in double precision
-(csrc/proxycast.c: the bilinear surface cell by cell as a quadratic in t, the cylinders through
-a grid of cells); elsewhere both go through Embree in one query (``MeshScene``): the terrain's
-triangles bracket each crossing and Newton puts it on the bilinear surface, the cylinders are
-Embree's capped cones of equal radii. The tests hold the same geometry in plain numpy
-(``tests/agrinav_gym/oracles.py``) as the reference both fast paths are checked against.
+vertical capped cylinders (``PlantField``; obstacles as stand-ins of the same cylinders). Where
+the compiled kernels are built (render/native.py) one call per frame intersects both exactly in
+double precision (csrc/proxycast.c: the bilinear surface cell by cell as a quadratic in t, the
+cylinders through a grid of cells); elsewhere both go through Embree in one query
+(``MeshScene``): the terrain's triangles bracket each crossing and Newton puts it on the
+bilinear surface, the cylinders are Embree's capped cones of equal radii. The tests hold the
+same geometry in plain numpy (``tests/agrinav_gym/oracles.py``) as the reference both fast
+paths are checked against.
 
 Depth is z-depth along the optical axis, as the D455 reports it. Noise follows the stereo
 error law σ_z = z²·s / (f·B) with the native sensor's focal length; pixels outside
@@ -28,13 +29,26 @@ from scenario_gen.arrays import FloatArray
 from ..config import CameraConfig
 from ..interface import CameraModel
 from ..render import native, pixel_noise
-from ..render.classes import CROP, OTHER, SOIL, WEED
+from ..render.classes import CROP, OBSTACLE, OTHER, SOIL, WEED
 from ..render.embree import Scene
 from ..render.mesh_scene import MeshScene
 from ..render.proxy_geometry import ProxyGeometry
 from ..render.proxy_plants import PlantField
 from ..render.shading import SOIL_RGB, Lighting
 from .camera import DepthFrame, FieldView, corner_pixels
+
+#: the proxy's flat colours by class (OTHER: sky; SOIL is shaded; ROBOT is never drawn here;
+#: OBSTACLE: a stone's grey-brown, the commonest obstacle)
+PROXY_RGB = np.array(
+    [
+        [0.62, 0.76, 0.94],
+        [0.0, 0.0, 0.0],
+        [0.22, 0.55, 0.16],
+        [0.62, 0.62, 0.2],
+        [0.0, 0.0, 0.0],
+        [0.47, 0.43, 0.38],
+    ]
+)
 
 
 class DepthCamera(Lighting):
@@ -169,8 +183,11 @@ class DepthCamera(Lighting):
         scene.view(np.vstack([o[None, :2], (o + rays[e] * t_lim[e, None])[:, :2]]))
         h = scene.cast(o, rays, 0.0, t_lim)
         on = (h.inst == gid) & (gid >= 0)
-        weed = plants.is_weed[np.where(on, h.prim, 0)] if len(plants.radius) else on
-        lab = np.where(on, np.where(weed, WEED, CROP), h.label).astype(np.uint8)
+        k = np.where(on, h.prim, 0)
+        weed = plants.is_weed[k] if len(plants.radius) else on
+        obstacle = plants.is_obstacle[k] if len(plants.radius) else on
+        cls = np.where(obstacle, OBSTACLE, np.where(weed, WEED, CROP))
+        lab = np.where(on, cls, h.label).astype(np.uint8)
         return h.t, lab
 
     def ground(
@@ -193,13 +210,12 @@ class DepthCamera(Lighting):
         lab: NDArray[np.uint8],
         terrain: Terrain,
     ) -> NDArray[np.uint8]:
-        colours = np.array([[0.62, 0.76, 0.94], [0, 0, 0], [0.22, 0.55, 0.16], [0.62, 0.62, 0.2]])
-        out = colours[lab]
+        out = PROXY_RGB[lab]
         soil = lab == SOIL
         if soil.any():
             hit = o + rays[soil] * t[soil, None]
             n = terrain.normal_at(hit[:, 0], hit[:, 1])
             out[soil] = self.soil_rgb * (0.35 + 0.65 * np.clip(n @ self.light, 0, 1))[:, None]
-        plant = (lab == CROP) | (lab == WEED)
+        plant = (lab == CROP) | (lab == WEED) | (lab == OBSTACLE)
         out[plant] *= (0.8 + 0.2 * np.clip(-rays[plant, 2], 0, 1))[:, None]
         return (np.clip(out, 0, 1) * 255).astype(np.uint8)

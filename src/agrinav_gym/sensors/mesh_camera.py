@@ -1,11 +1,13 @@
 """The D455 on the plant meshes: depth, RGB, semantic and instance images by Embree ray casting.
 
 One ray per pixel from the depth origin (the left imager) against the terrain tiles and the
-instanced plant meshes of a ``MeshScene`` gives z-depth, the semantic class (soil / crop / weed
-/ robot, 0 where nothing is within range) and the plant's index (the row of plants.csv). The
-stereo model of ``d455`` then invalidates what the pair cannot match: the right imager's
-occlusion shadow (candidate pixels from the epipolar test, each confirmed by an exact ray from
-the right imager), points outside the right imager's view, and the range limits; noise is
+instanced plant meshes and the obstacles of a ``MeshScene`` gives z-depth, the semantic class
+(soil / crop / weed / robot / obstacle, 0 where nothing is within range) and the instance: the
+plant's index (the row of plants.csv) on crop and weed pixels, the obstacle's (the row of
+obstacles.csv) on obstacle pixels. The stereo model of ``d455`` then invalidates what the pair
+cannot match: the right imager's occlusion shadow (candidate pixels from the epipolar test,
+each confirmed by an exact ray from the right imager), points outside the right imager's view,
+and the range limits; noise is
 σ_z = z²·s/(f·B) with this mode's focal length, each pixel's draw computed from one key a
 frame takes from the episode's ``rng`` (``pixel_noise``).
 RGB is cast again from the colour camera's pose (59 mm along the baseline) and shaded.
@@ -28,7 +30,7 @@ from scenario_gen.arrays import FloatArray
 from ..config import CameraConfig
 from ..interface import CameraModel
 from ..render import native, pixel_noise, raster_view, shading
-from ..render.classes import OTHER, ROBOT, SOIL
+from ..render.classes import OBSTACLE, OTHER, ROBOT, SOIL
 from ..render.embree import Caster, Scene, device
 from ..render.mesh_scene import MeshScene, SceneHits, bilinear
 from ..render.plant_meshes import Prototype, hit_uv, rotation_rpy, sample_texture
@@ -360,11 +362,15 @@ class MeshCamera(Lighting):
                     alb[sel] = _texel(
                         table.protos[j], prim[sel], hits.u[plant][sel], hits.v[plant][sel]
                     )
-            pl = scene.plants
-            assert pl is not None
-            ids = hits.plant[plant]
-            r = rotation_rpy(pl.roll[ids], pl.pitch[ids], pl.yaw[ids])
-            n = np.einsum("nij,nj->ni", r, table.normal[flat])
+            # a plant's normals turn with its pose; an obstacle's mesh is already in place
+            n = table.normal[flat].copy()
+            on_plant = hits.label[plant] != OBSTACLE
+            if on_plant.any():
+                pl = scene.plants
+                assert pl is not None
+                ids = hits.plant[plant][on_plant]
+                r = rotation_rpy(pl.roll[ids], pl.pitch[ids], pl.yaw[ids])
+                n[on_plant] = np.einsum("nij,nj->ni", r, n[on_plant])
             lit = shading.lambert(alb, n, d[plant], self.light)
             out[plant] = shading.haze(lit, t[plant], far)
         bot = hits.label == ROBOT
@@ -378,8 +384,7 @@ class MeshCamera(Lighting):
 
     def _face_table(self, scene: MeshScene) -> FaceTable:
         if self._faces is None or self._faces[0] is not scene:
-            assert scene.plants is not None
-            self._faces = (scene, FaceTable.of(scene.plants.prototypes))
+            self._faces = (scene, FaceTable.of(scene.prototypes))
         return self._faces[1]
 
 

@@ -1,5 +1,5 @@
 """The dataset card: README.md and a mosaic of frames with their labels drawn (rows, stems,
-the lane offset).
+obstacles, the lane offset).
 
 The card opens with the YAML front matter the Hugging Face Hub reads (licence, task
 categories, size, and one ``data_files`` entry per split, so ``datasets.load_dataset`` with the
@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from scenario_gen.atomic import atomic_write
+from scenario_gen.obstacles import OBSTACLE_KINDS
 
 from ..report import mean_pm
 from .loader import PerceptionDataset
@@ -78,6 +79,11 @@ def mosaic(ds: PerceptionDataset, path: Path, n: int = 6) -> None:
             if p["base_2d_rgb"] is not None and p["visible_pixels"] > 0:
                 colour = "magenta" if p["weed"] else "cyan"
                 ax.plot(*p["base_2d_rgb"], "+", color=colour, ms=5)
+        for o in lab.get("obstacles", []):  # schema 3
+            box = o["bbox_2d_rgb"]
+            if box is not None:
+                u0, v0, u1, v1 = box
+                ax.plot([u0, u1, u1, u0, u0], [v0, v0, v1, v1, v0], "-", color="red", lw=0.8)
         lane = lab["lane"]
         off = lane["lateral_offset"]
         ax.set_title(
@@ -91,7 +97,8 @@ def mosaic(ds: PerceptionDataset, path: Path, n: int = 6) -> None:
         ax2.contour(s["instance"] >= 0, levels=[0.5], colors="white", linewidths=0.4)
         ax2.axis("off")
     fig.suptitle(
-        "RGB with crop rows (yellow) and stems (cyan; weeds magenta) · depth with plant outlines"
+        "RGB with crop rows (yellow), stems (cyan; weeds magenta) and obstacles (red boxes) · "
+        "depth with plant and obstacle outlines"
     )
     fig.tight_layout()
     fig.savefig(path, format="png")
@@ -106,8 +113,14 @@ def write_card(out: Path) -> None:
     plants: list[int] = []
     visible: list[int] = []
     species: dict[str, int] = {}
+    # obstacles by kind: labelled (in view) and visible (pixels in the instance image)
+    obstacles = {k: [0, 0] for k in OBSTACLE_KINDS}
     for i in range(len(ds)):
         j = ds.labels(i)
+        for o in j.get("obstacles", []):
+            seen = obstacles.setdefault(o["kind"], [0, 0])
+            seen[0] += 1
+            seen[1] += o["visible_pixels"] > 0
         if j["lane"]["lateral_offset"] is not None:
             lateral.append(j["lane"]["lateral_offset"])
             heading.append(j["lane"]["heading_offset"])
@@ -137,6 +150,9 @@ def write_card(out: Path) -> None:
         f"| heading offset to the rows, rad | {mean_pm(heading)} |",
         f"| plants labelled per frame | {mean_pm(plants)} |",
         f"| plants visible per frame | {mean_pm(visible)} |",
+        "| obstacles labelled (visible) in all frames | "
+        + ", ".join(f"{k}: {n} ({v})" for k, (n, v) in obstacles.items())
+        + " |",
         "",
         "Spec:",
         "",

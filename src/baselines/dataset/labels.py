@@ -1,5 +1,5 @@
-"""Labels of one frame from the ground truth: crop rows, the lane, stems and weeds, projected
-through the camera's public calibration (``CameraModel``) at the robot's true pose.
+"""Labels of one frame from the ground truth: crop rows, the lane, stems and weeds, obstacles,
+projected through the camera's public calibration (``CameraModel``) at the robot's true pose.
 
 Camera body frame: x forward, y left, z up; pixel (u, v) = (cx − fx·y/x, cy − fy·z/x) and the
 z-depth is x (interface.CameraModel). World → camera body: the base pose (true ENU position of
@@ -15,6 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from agrinav_gym.interface import CameraModel
+from agrinav_gym.render.classes import CROP, OBSTACLE, WEED
 from scenario_gen import Scenario
 from scenario_gen.arrays import FloatArray
 
@@ -105,6 +106,23 @@ def row_lines(
     return out
 
 
+def _pixel_counts(
+    instance: NDArray[np.int32] | None,
+    semantic: NDArray[np.uint8] | None,
+    classes: tuple[int, ...],
+    n: int,
+) -> NDArray[np.int64]:
+    """Pixels of each instance id 0..n-1 among the pixels of ``classes`` (an instance id is a
+    row of plants.csv on crop and weed pixels, of obstacles.csv on obstacle pixels; without a
+    ``semantic`` image every id counts)."""
+    if instance is None:
+        return np.zeros(n, np.int64)
+    sel = instance >= 0
+    if semantic is not None:
+        sel &= np.isin(semantic, classes)
+    return np.bincount(instance[sel].ravel(), minlength=n)[:n]
+
+
 def plants(
     scn: Scenario,
     pos: FloatArray,
@@ -112,19 +130,17 @@ def plants(
     cams: dict[str, CameraModel],
     instance: NDArray[np.int32] | None,
     reach: float,
+    semantic: NDArray[np.uint8] | None = None,
 ) -> list[dict[str, Any]]:
     """Stems (crops) and weeds near the camera: base and top keypoints in 3-D (depth camera
     frame) and 2-D, instance id (= row of plants.csv), species, stage, height, and how many
-    pixels of the instance image show the plant."""
+    pixels of the instance image show the plant (its crop and weed pixels where ``semantic``
+    is given: an obstacle's pixels carry an obstacle's id)."""
     p = scn.plants
     near = np.flatnonzero(np.hypot(p.x - pos[0], p.y - pos[1]) < reach)
     if len(near) == 0:
         return []
-    counts = (
-        np.bincount(instance[instance >= 0].ravel(), minlength=len(p))
-        if instance is not None
-        else np.zeros(len(p), np.int64)
-    )
+    counts = _pixel_counts(instance, semantic, (CROP, WEED), len(p))
     base = np.column_stack([p.x[near], p.y[near], p.z[near]])
     top = base + np.column_stack([np.zeros((len(near), 2)), p.height[near]])
     out = []
@@ -165,6 +181,104 @@ def plants(
             ub, ut, okb, okt = two[name]
             rec[f"base_2d_{name}"] = ub[j] if okb[j] else None
             rec[f"top_2d_{name}"] = ut[j] if okt[j] else None
+        out.append(rec)
+    return out
+
+
+#: the 8 corners of a unit box about its centre (x fastest), as ``box_3d``'s corners list them
+_UNIT_BOX = np.array([[sx, sy, sz] for sz in (-1, 1) for sy in (-1, 1) for sx in (-1, 1)], float)
+#: m: mesh points nearer to the camera plane than this are clipped off before projecting
+_NEAR = 1e-3
+
+
+def bbox_2d(q: FloatArray, faces: NDArray[np.int64], cam: CameraModel) -> list[float] | None:
+    """[u0, v0, u1, v1]: the pixel rectangle a closed mesh (vertices ``q`` in the camera body
+    frame) projects to, clipped to the image (pixel centres at integers, edges at ±0.5), None
+    where none of it is in front of the camera or the rectangle misses the image. Parts behind
+    the camera are cut off at its plane (the edges crossing it give the extra points)."""
+    front = q[:, 0] > _NEAR
+    if not front.any():
+        return None
+    pts = [q[front]]
+    if not front.all():  # where the mesh's edges cross the clipping plane
+        a = q[faces.ravel()]
+        b = q[np.roll(faces, -1, axis=1).ravel()]
+        cross = (a[:, 0] > _NEAR) != (b[:, 0] > _NEAR)
+        a, b = a[cross], b[cross]
+        s = (_NEAR - a[:, 0]) / (b[:, 0] - a[:, 0])
+        pts.append(a + s[:, None] * (b - a))
+    p = np.concatenate(pts)
+    u = cam.cx - cam.fx * p[:, 1] / p[:, 0]
+    v = cam.cy - cam.fy * p[:, 2] / p[:, 0]
+    u0, u1 = max(float(u.min()), -0.5), min(float(u.max()), cam.width - 0.5)
+    v0, v1 = max(float(v.min()), -0.5), min(float(v.max()), cam.height - 0.5)
+    if u0 >= u1 or v0 >= v1:
+        return None
+    return [round(u0, 2), round(v0, 2), round(u1, 2), round(v1, 2)]
+
+
+def obstacles(
+    scn: Scenario,
+    pos: FloatArray,
+    rot: FloatArray,
+    cams: dict[str, CameraModel],
+    semantic: NDArray[np.uint8] | None,
+    instance: NDArray[np.int32] | None,
+    reach: float,
+) -> list[dict[str, Any]]:
+    """The obstacles (stones, litter, fallen stalks) near the camera that are in view — their
+    mesh projects into a camera's image within its range — or show in the instance image:
+    id (= row of obstacles.csv), kind, the 3-D box in the depth camera's body frame
+    (``centre``; ``size`` = length, width, height; ``yaw``: the box's heading about the
+    vertical relative to the camera's, both taken in the horizontal plane — the box stands
+    upright to gravity, not to the pitched camera; and its 8 ``corners``, exact whatever the
+    ground's slope and the camera's pitch), the 2-D bounding box of its mesh in each camera
+    (``bbox_2d_<camera>``: [u0, v0, u1, v1] pixels, None outside the image) and
+    ``visible_pixels``: its obstacle pixels in the depth camera's semantic and instance
+    images."""
+    obs = scn.obstacles
+    if len(obs) == 0:
+        return []
+    half = 0.5 * np.hypot(obs.length, obs.width)
+    near = np.flatnonzero(np.hypot(obs.x - pos[0], obs.y - pos[1]) < reach + half)
+    if len(near) == 0:
+        return []
+    counts = _pixel_counts(instance, semantic, (OBSTACLE,), len(obs))
+    depth_cam = cams["depth"]
+    ax = rot @ depth_cam.rotation[:, 0]  # the camera's optical axis in ENU
+    heading = math.atan2(float(ax[1]), float(ax[0]))
+    out = []
+    for i in near.tolist():
+        v, f = obs.mesh(i)
+        boxes: dict[str, list[float] | None] = {}
+        in_view = False
+        for name, cam in cams.items():
+            q = to_camera(v, pos, rot, cam)
+            box = bbox_2d(q, f, cam)
+            boxes[name] = box
+            ahead = q[:, 0]
+            in_range = ahead.max() >= cam.min_range and ahead.min() <= cam.max_range
+            in_view |= box is not None and bool(in_range)
+        if not in_view and counts[i] == 0:
+            continue
+        r = obs.rotation(i)
+        size = np.array([obs.length[i], obs.width[i], obs.height[i]])
+        centre = np.array([obs.x[i], obs.y[i], obs.z[i]]) + r @ np.array([0, 0, 0.5 * size[2]])
+        corners = centre + (_UNIT_BOX * (0.5 * size)) @ r.T
+        yaw = math.atan2(float(r[1, 0]), float(r[0, 0])) - heading
+        rec: dict[str, Any] = {
+            "id": i,
+            "kind": str(obs.kind[i]),
+            "box_3d": {
+                "centre": _r(to_camera(centre[None, :], pos, rot, depth_cam)[0]),
+                "size": _r(size),
+                "yaw": round((yaw + math.pi) % (2 * math.pi) - math.pi, 5),
+                "corners": _r(to_camera(corners, pos, rot, depth_cam)),
+            },
+            "visible_pixels": int(counts[i]),
+        }
+        for name in cams:
+            rec[f"bbox_2d_{name}"] = boxes[name]
         out.append(rec)
     return out
 

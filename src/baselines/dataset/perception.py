@@ -27,7 +27,7 @@ from agrinav_gym.interface import OBS_DEPTH, OBS_GPS, OBS_IMU, OBS_ODOM, OBSERVA
 from scenario_gen.atomic import atomic_write
 from scenario_gen.errors import InputError
 
-from .labels import camera_dict, lane_offset, plants, row_lines
+from .labels import camera_dict, lane_offset, obstacles, plants, row_lines
 from .spec import SCHEMA_VERSION, PerceptionSpec
 
 #: Scenario seeds of dataset fields, one range per split: disjoint from each other and from the
@@ -166,6 +166,7 @@ def _frame(
     yaw = float(st.rpy[2])
     lat, lon, alt = scn.geo.enu_to_geodetic(pos[0], pos[1], pos[2])
     instance = np.asarray(info["instance"], np.int32)
+    semantic = np.asarray(info["segmentation"], np.uint8)
     labels = {
         "schema": SCHEMA_VERSION,
         "key": key,
@@ -195,7 +196,8 @@ def _frame(
         "lane": lane_offset(scn, pos[:2], yaw),
         "route_cte": round(float(info["cte"]), 4),  # the env's own cross-track error, m
         "rows": row_lines(scn, pos, rot, cams, spec.label_range),
-        "plants": plants(scn, pos, rot, cams, instance, spec.label_range),
+        "plants": plants(scn, pos, rot, cams, instance, spec.label_range, semantic),
+        "obstacles": obstacles(scn, pos, rot, cams, semantic, instance, spec.label_range),
     }
     # the env hands out copies (observations.Depth), so a frame may be encoded while it steps on
     depth = np.asarray(obs[OBS_DEPTH], np.float32).reshape(spec.height, spec.width)
@@ -203,7 +205,7 @@ def _frame(
         key,
         np.asarray(info["rgb"], np.uint8),
         depth,
-        np.asarray(info["segmentation"], np.uint8),
+        semantic,
         instance,
         labels,
     )
@@ -263,7 +265,8 @@ def _encoded(frames: Iterator[Frame], overlap: bool) -> Iterator[list[tuple[str,
 
 def write_tar(frames: Iterator[Frame], fileobj: BinaryIO, overlap: bool = False) -> int:
     """WebDataset layout: ``<key>.rgb.png``, ``.depth.npy`` (float32 m, 0 invalid),
-    ``.semantic.png``, ``.instance.npy`` (int32 plant id, -1 none), ``.json``. With
+    ``.semantic.png``, ``.instance.npy`` (int32: the row of plants.csv on crop and weed
+    pixels, of obstacles.csv on obstacle pixels, -1 elsewhere), ``.json``. With
     ``overlap`` a frame is encoded (PNG mostly, which releases the GIL) in a second thread while
     the next one renders: for a core the workers leave idle. The members are written in frame
     order either way, so the bytes are the same."""

@@ -18,7 +18,9 @@ from scenario_gen.errors import InputError
 from scenario_gen.schema import from_mapping, load_yaml, param, to_mapping
 
 #: Bumped when a frame's files or label fields change meaning (docs/datasets.md).
-SCHEMA_VERSION = 2  # 2: splits (train/validation/test fields by scenario seed range)
+#: 2: splits (train/validation/test fields by scenario seed range); 3: obstacles (semantic
+#: class 5, their instance ids, the labels' ``obstacles``)
+SCHEMA_VERSION = 3
 
 #: The default domain randomization: scenario and env keys, over ranges the generator accepts.
 DEFAULT_RANDOMIZE: dict[str, Any] = {
