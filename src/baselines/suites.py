@@ -119,6 +119,17 @@ OOD_AXES: tuple[tuple[str, tuple[str, ...], dict[str, Any], dict[str, Any]], ...
         {"obstacles": {"stone_density": 0.3, "stalk_lodging": 0.05}},
         {},
     ),
+    # The farmer's answer to staggered row ends: a turn sized to the footprint, in a headland
+    # wide enough for it (the keyhole needs ≈ 4 m past the crop at R 0.9 m).
+    (
+        "curved rows R 15-30 m, keyhole turns",
+        (),
+        {
+            "layout": {"row_geometry": "curved", "curve_radius": [15.0, 30.0], "headland": 5.0},
+            "route": {"turn": "keyhole"},
+        },
+        {},
+    ),
 )
 
 
