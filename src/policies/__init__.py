@@ -59,17 +59,19 @@ TUNABLE = ("rpp", "stanley")
 
 
 def param_file(path: str | Path, name: str) -> dict[str, Any]:
-    """A parameter file: a YAML mapping of numbers (or null); the policy rejects unknown
-    names itself."""
+    """A parameter file: a YAML mapping of numbers, true/false (switches such as RPP's
+    ``allow_reversing``) or null; the policy rejects unknown names itself."""
     import math
 
     from scenario_gen.schema import load_yaml
 
     data = load_yaml(path, f"policy {name}")
     for k, v in data.items():
-        ok = v is None or (isinstance(v, (int, float)) and not isinstance(v, bool))
+        ok = v is None or isinstance(v, (int, float))
         if not ok or (isinstance(v, float) and not math.isfinite(v)):
-            raise InputError(f"policy {name}: {k}", v, "allowed: a finite number or null")
+            raise InputError(
+                f"policy {name}: {k}", v, "allowed: a finite number, true/false or null"
+            )
     return data
 
 

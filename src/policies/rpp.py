@@ -16,7 +16,14 @@ from .geometry import local_plan, regulated_speed
 
 
 class RegulatedPurePursuit(Policy):
-    """Nav2 defaults, with lookahead scaled by speed (0.3-0.9 m at 1.5 s of travel)."""
+    """Nav2 defaults, with lookahead scaled by speed (0.3-0.9 m at 1.5 s of travel).
+
+    ``allow_reversing`` (Nav2's parameter of that name, off by default as there) drives routes
+    with cusps, such as the three-point headland turn: the lookahead stops at the first cusp
+    ahead (the first point where consecutive route segments point apart, Nav2's
+    ``findVelocitySignChange``), the carrot may lie behind the robot, and the speed takes the
+    sign of the carrot's x; the robot slows to the cusp as to a goal, and never rotates in
+    place (Nav2 refuses ``use_rotate_to_heading`` with reversing)."""
 
     name = "rpp"
     requires = (OBS_ROUTE,)
@@ -35,6 +42,7 @@ class RegulatedPurePursuit(Policy):
         rotate_to_heading_angular_vel: float = 1.5,
         approach_dist: float = 0.6,
         min_approach_vel: float = 0.05,
+        allow_reversing: bool = False,
         **params: Any,
     ) -> None:
         super().__init__(observation_space, action_space, robot, **params)
@@ -43,6 +51,7 @@ class RegulatedPurePursuit(Policy):
         self.r_min = min_radius
         self.rot_angle, self.rot_vel = rotate_to_heading_min_angle, rotate_to_heading_angular_vel
         self.approach, self.v_approach_min = approach_dist, min_approach_vel
+        self.reversing = bool(allow_reversing)
         self.v = 0.0
 
     def reset(self) -> None:
@@ -51,7 +60,7 @@ class RegulatedPurePursuit(Policy):
     def describe(self) -> str:
         return (
             f"rpp (Nav2 RPP-like: {self.v_des:g} m/s, lookahead {self.l_min:g}-{self.l_max:g} m "
-            f"over {self.t_look:g} s)"
+            f"over {self.t_look:g} s{', reversing at cusps' if self.reversing else ''})"
         )
 
     def act(self, obs: Obs) -> NDArray[np.float32]:
@@ -59,6 +68,8 @@ class RegulatedPurePursuit(Policy):
             self.v = decode_odom(obs[OBS_ODOM]).v
         plan, _ = local_plan(obs[OBS_ROUTE])
         look = float(np.clip(abs(self.v) * self.t_look, self.l_min, self.l_max))
+        if self.reversing:
+            return self._reversing_act(plan, look)
         d = np.hypot(plan[:, 0], plan[:, 1])
         ahead = np.flatnonzero((d >= look) & (plan[:, 0] > -0.2))
         carrot = plan[ahead[0]] if len(ahead) else plan[-1]
@@ -73,3 +84,31 @@ class RegulatedPurePursuit(Policy):
         )
         w = float(np.clip(v * curvature, -self.robot.w_max, self.robot.w_max))
         return self._twist(v, w)
+
+    def _reversing_act(self, plan: NDArray[np.float64], look: float) -> NDArray[np.float32]:
+        cusp = first_cusp(plan)
+        if cusp is not None:
+            plan = plan[: cusp + 1]
+            look = min(look, float(np.hypot(*plan[-1])))
+        d = np.hypot(plan[:, 0], plan[:, 1])
+        ahead = np.flatnonzero(d >= look)
+        carrot = plan[ahead[0]] if len(ahead) else plan[-1]
+        sign = 1.0 if carrot[0] >= 0.0 else -1.0
+        l2 = float(carrot @ carrot)
+        curvature = 2.0 * float(carrot[1]) / max(l2, 1e-6)
+        remaining = float(np.hypot(*plan[-1]))  # to the cusp or the route's end: stop there
+        v = sign * regulated_speed(
+            self.v_des, curvature, self.r_min, remaining, self.approach, self.v_approach_min
+        )
+        w = float(np.clip(v * curvature, -self.robot.w_max, self.robot.w_max))
+        return self._twist(v, w)
+
+
+def first_cusp(plan: NDArray[np.float64]) -> int | None:
+    """Index of the first point where the path turns back on itself (the segments before and
+    after it point apart), or None."""
+    seg = np.diff(plan, axis=0)
+    if len(seg) < 2:
+        return None
+    back = np.flatnonzero(np.einsum("ij,ij->i", seg[:-1], seg[1:]) < 0.0)
+    return int(back[0]) + 1 if len(back) else None

@@ -76,6 +76,44 @@ def test_classical_controllers_follow_straight_and_curved_paths(
         env.close()
 
 
+def test_rpp_with_reversing_drives_a_three_point_turn() -> None:
+    """Nav2's allow_reversing: the lookahead stops at the cusp, the carrot behind the robot
+    reverses it; without it RPP cannot drive the turn's reversing leg."""
+    from policies.rpp import first_cusp
+
+    over = {
+        **FLAT_1M,
+        "field": {"width": 5.0, "length": 16.0},
+        "layout": {"row_spacing": 1.0, "headland": 4.0},
+        "route": {"turn": "three_point"},
+    }
+    env = gym.make(
+        "AgriNav/FieldRoute-v3",
+        scenario_overrides=over,
+        observations=["gps", "imu", "odom", "route"],
+    )
+    try:
+        speeds: list[float] = []
+        pol = make_policy("rpp", env, allow_reversing=True)
+
+        def act(obs):  # type: ignore[no-untyped-def]
+            a = pol.act(obs)
+            speeds.append(float(a[0]))
+            return a
+
+        pol.reset()
+        info = drive(env, act, seed=0).info
+        assert info["is_success"], info.get("termination")
+        assert info["metrics"]["crops_hit"] == 0 and info["metrics"]["max"] < 0.3
+        assert min(speeds) < -0.1  # it reversed
+        blocked = drive(env, make_policy("rpp", env), seed=0).info
+        assert not blocked["is_success"] and blocked["metrics"]["completion"] < 60
+    finally:
+        env.close()
+    assert first_cusp(np.array([[0.0, 0], [1, 0], [2, 0], [1.5, 0.1]])) == 2
+    assert first_cusp(np.array([[0.0, 0], [1, 0], [2, 0.5]])) is None
+
+
 def test_depth_follower_finds_the_lane() -> None:
     """The follower's single-frame lane estimate on eight fields of 1 m maize rows at stage 2,
     against the true lane centre 1 m ahead (where the camera sees the rows; its view starts
