@@ -52,8 +52,9 @@ class Watch:
         self.arcs: tuple[float, float, float] | None = None
         self.hits_at_exit: int | None = None
         self.hits_in: int | None = None
+        self.frames = 0  # run_episode's hook protocol: a video's frame count, none here
 
-    def __call__(self, env: Any) -> None:
+    def __call__(self, env: Any) -> float:
         u = env.unwrapped
         if self.arcs is None:  # the first call comes right after reset
             self.arcs = turn_arcs(env)
@@ -62,6 +63,7 @@ class Watch:
             self.hits_at_exit = hits
         if self.hits_in is None and u.arc >= self.arcs[2]:
             self.hits_in = hits
+        return 0.0  # seconds spent drawing (run_episode keeps them out of the episode's time)
 
 
 def run(
