@@ -42,7 +42,8 @@ from scenario_gen.generate import (
 )
 from scenario_gen.layout import Layout, layout
 from scenario_gen.models import inspect_model
-from scenario_gen.obstacles import OBSTACLE_KINDS, Obstacles
+from scenario_gen.obstacles import OBSTACLE_KINDS, STALK, Obstacles
+from scenario_gen.preview import OBSTACLE_RGB
 from scenario_gen.routes import Route, zigzag
 from scenario_gen.rowcurve import row_curve
 from scenario_gen.sources import Site, open_site, terrain_grid
@@ -103,6 +104,23 @@ class SiteCache:
             self._checked.popitem(last=False)
 
 
+def _hex(rgb: tuple[int, int, int]) -> str:
+    return "#" + "".join(f"{min(max(int(c), 0), 255):02x}" for c in rgb)
+
+
+#: How the map draws each obstacle kind: fill (the previews' ``OBSTACLE_RGB``), outline and
+#: outline width in pixels. A fallen stalk is thinner than a pixel, so its outline, a lighter
+#: straw two pixels wide, is what shows; the rest get a thin contrasting edge.
+OBSTACLE_STYLE: dict[str, tuple[str, str, int]] = {
+    k: (
+        _hex(OBSTACLE_RGB[k]),
+        _hex(tuple(min(c + 32, 255) for c in OBSTACLE_RGB[k])) if k == STALK else "#1a1a1a",  # type: ignore[arg-type]
+        2 if k == STALK else 1,
+    )
+    for k in OBSTACLE_KINDS
+}
+
+
 @dataclass(frozen=True)
 class Preview:
     """What the map draws, in lat/lon degrees, with the true counts."""
@@ -133,6 +151,7 @@ class Preview:
             # every obstacle, never decimated: a stone dropped from the picture is one the
             # robot still meets (the bounds allow 20,000 of each kind)
             "obstacles": {k: r(v) for k, v in self.obstacles.items()},
+            "obstacle_style": OBSTACLE_STYLE,
             "route": [[tag, r(pts)] for tag, pts in self.route],
             "field": [r(ring) for ring in self.field],
             "n_plants": self.n_plants,

@@ -13,6 +13,7 @@ from baselines.studio.preview import SiteCache, layout_preview, plan_layout, pla
 from baselines.studio.session import Session
 from scenario_gen import generate
 from scenario_gen.errors import InputError
+from scenario_gen.preview import OBSTACLE_RGB
 
 
 def _pentagon_with_hole(lat: float, lon: float) -> Polygon:
@@ -136,6 +137,9 @@ def test_preview_obstacles_are_where_generate_puts_them(turn: str) -> None:
         flat = pv.payload()["obstacles"][kind]
         assert len(flat) == 8 * int(sel.sum())
         np.testing.assert_allclose(np.reshape(flat, (-1, 4, 2)), drawn, atol=5.1e-8, rtol=0)
+        # and how to draw it: the previews' colour, named once (scenario_gen.preview)
+        fill = pv.payload()["obstacle_style"][kind][0]
+        assert tuple(int(fill[i : i + 2], 16) for i in (1, 3, 5)) == OBSTACLE_RGB[kind]
 
 
 def test_preview_without_obstacles_draws_none_and_samples_nothing_more() -> None:

@@ -17,20 +17,12 @@ window.studio = (function () {
     shown: 0, // previews drawn
   };
 
-  // Fill, outline and outline width of each obstacle kind: scenario_gen.preview.OBSTACLE_RGB's
-  // colours; a fallen stalk is thinner than a pixel, so its straw outline is what shows.
-  const OBSTACLE_STYLE = {
-    stone: ["#847e76", "#1a1a1a", 1],
-    litter: ["#2878dc", "#ffffff", 1],
-    stalk: ["#c8ac60", "#e8cf78", 2],
-  };
-
   // One canvas for every plant: thousands of dots in one pass, no object per plant. Built on
   // first use: NiceGUI loads Leaflet (window.L) only when the map component mounts.
   const dotLayer = (pane) => new (L.Layer.extend({
     initialize(pane) {
       this._pane = pane;
-      this._data = { plants: [], weeds: [], dot_m: 0.2, obstacles: {} };
+      this._data = { plants: [], weeds: [], dot_m: 0.2, obstacles: {}, obstacle_style: {} };
     },
     onAdd(map) {
       this._canvas = L.DomUtil.create("canvas", "leaflet-zoom-hide studio-dots");
@@ -79,7 +71,8 @@ window.studio = (function () {
       // square on its centre (a 10 cm stone is a fraction of a pixel at the zoom a field fills).
       const MIN = 4;
       for (const [kind, flat] of Object.entries(this._data.obstacles || {})) {
-        const [fill, edge, width] = OBSTACLE_STYLE[kind] || ["#888888", "#000000", 1];
+        // fill, outline, width per kind: the server's studio.preview.OBSTACLE_STYLE
+        const [fill, edge, width] = (this._data.obstacle_style || {})[kind] || ["#888888", "#000000", 1];
         ctx.fillStyle = fill;
         ctx.strokeStyle = edge;
         ctx.lineWidth = width;
@@ -153,7 +146,13 @@ window.studio = (function () {
   // change.
   S.show = function (d) {
     if (S.lastChange !== null) S.arrivals.push(performance.now() - S.lastChange);
-    S.plants.setData({ plants: d.plants, weeds: d.weeds, dot_m: d.dot_m, obstacles: d.obstacles });
+    S.plants.setData({
+      plants: d.plants,
+      weeds: d.weeds,
+      dot_m: d.dot_m,
+      obstacles: d.obstacles,
+      obstacle_style: d.obstacle_style,
+    });
     S.route.clearLayers();
     for (const [tag, flat] of d.route) {
       const pts = [];
