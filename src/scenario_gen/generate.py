@@ -286,7 +286,7 @@ def generate(spec: ScenarioSpec, seed: int) -> Scenario:
             site.geo,
             terrain,
             spec.route.spacing,
-            lay.rows.angle,
+            lay.rows,
             lay.planting_area,
             "route.waypoints",
         )

@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 import shapely
+from numpy.typing import NDArray
 
 from .arrays import FloatArray
 from .bounds import MAX_ROUTE_WAYPOINTS
@@ -80,12 +81,17 @@ def waypoint_route(
     geo: GeoFrame,
     terrain: Terrain,
     spacing: float,
-    row_angle: float | None = None,
+    rows: Any = None,
     field: Any = None,
     what: str = "--waypoints",
 ) -> Route:
     """The straight-leg plan through ``wps`` (read by ``read_gps_waypoints``) in ENU, on the
-    terrain, every ``spacing`` metres; a waypoint off the terrain is refused by number."""
+    terrain, every ``spacing`` metres; a waypoint off the terrain is refused by number.
+
+    A point is ``furrow`` where it lies in ``field`` (the planting area) on a leg running along
+    the rows there: within ``FURROW_ALIGN_DEG`` of the row direction at that point
+    (``rows.direction_at``: one angle for straight rows, the local tangent of curved or contour
+    rows)."""
     # Nav2's GPS waypoints carry no altitude: take the datum's, not 0 (a point hundreds of
     # metres below the tangent plane lies millimetres off sideways at tens of metres).
     x, y, _ = geo.geodetic_to_enu(wps[:, 0], wps[:, 1], geo.alt)
@@ -109,13 +115,14 @@ def waypoint_route(
         raise InputError(
             what, f"{length.sum():.0f} m of route", f"allowed: at most {MAX_ROUTE_WAYPOINTS} points"
         )
-    pts, along = [xy[:1]], [_along(xy[0], xy[1], row_angle)]
+    pts, heading = [xy[:1]], [math.atan2(legs[0, 1], legs[0, 0])]
     for k in range(len(legs)):
         n = max(math.ceil(length[k] / spacing), 1)
         t = np.arange(1, n + 1) / n
         pts.append(xy[k] + t[:, None] * legs[k])
-        along += [_along(xy[k], xy[k + 1], row_angle)] * n
+        heading += [math.atan2(legs[k, 1], legs[k, 0])] * n
     p = np.vstack(pts)
+    along = _along(np.asarray(heading), rows, p)
     z = terrain.height_at(p[:, 0], p[:, 1])
     inside = (
         shapely.contains_xy(field, p[:, 0], p[:, 1])
@@ -126,12 +133,12 @@ def waypoint_route(
     return Route(np.column_stack([p, z]), seg, np.full(len(p), -1, np.int64))
 
 
-def _along(a: FloatArray, b: FloatArray, row_angle: float | None) -> bool:
-    """Whether the leg a → b runs along the rows (either direction)."""
-    if row_angle is None:
-        return False
-    d = math.atan2(b[1] - a[1], b[0] - a[0]) - row_angle
-    off = abs((d + 0.5 * math.pi) % math.pi - 0.5 * math.pi)
+def _along(heading: FloatArray, rows: Any, p: FloatArray) -> NDArray[np.bool_]:
+    """Whether each point's leg (``heading``) runs along the rows at that point, either way."""
+    if rows is None:
+        return np.zeros(len(p), bool)
+    d = heading - np.asarray(rows.direction_at(p[:, 0], p[:, 1]))
+    off = np.abs((d + 0.5 * math.pi) % math.pi - 0.5 * math.pi)
     return off <= math.radians(FURROW_ALIGN_DEG)
 
 

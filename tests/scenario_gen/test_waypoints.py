@@ -123,3 +123,20 @@ def test_the_cli_reads_waypoints_and_scenario_json_regenerates_them(
     scn = load(tmp_path / "scn")
     assert scn.spec.route.waypoints == str(path.resolve())
     assert len(scn.route) == len(generate(scn.spec, scn.seed).route)
+
+
+def test_on_curved_rows_a_leg_along_the_local_rows_is_furrow(tmp_path: Path) -> None:
+    """Short legs following a curved lane run along the rows wherever they are, even where
+    the rows have turned away from their direction at the field's centre."""
+    curved = {"layout": {"row_geometry": "curved", "curve_radius": [15.0, 15.0]}}
+    scn = generate(small(**curved), seed=0)
+    lane = scn.route.xy[scn.route.segment == "furrow"]
+    lane = lane[: np.flatnonzero(np.hypot(*np.diff(lane, axis=0).T) > 0.5)[0] + 1]  # lane 1
+    pts = lane[:: max(1, len(lane) // 12)]  # legs of ≈ 1 m: chords within 2° of the arc
+    turned = np.degrees(np.ptp(np.unwrap(scn.rows.direction_at(pts[:, 0], pts[:, 1]))))
+    assert turned > 25  # more than twice the 10° a leg may differ from the rows
+    lat, lon, _ = scn.geo.enu_to_geodetic(pts[:, 0], pts[:, 1], 0.0)
+    wps = [{"latitude": float(a), "longitude": float(b)} for a, b in zip(lat, lon, strict=True)]
+    path = _write(tmp_path / "curved.yaml", wps)
+    r = generate(small(**curved, route={"waypoints": str(path)}), seed=0).route
+    assert (r.segment == "furrow").mean() > 0.9
