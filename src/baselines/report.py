@@ -31,8 +31,10 @@ BOOTSTRAP = 2000  # resamples of the per-episode values for a 95 % percentile in
 
 
 def policy_labels(specs: Sequence[str]) -> list[str]:
-    """Row labels: the policy name, ``dwb:CONFIG`` (nav2, furrow or the YAML file's stem) for
-    DWB, or ``ppo:FOLDER`` when several PPO checkpoints compete."""
+    """Row labels: the policy name, ``dwb:CONFIG`` (nav2, furrow, tuned or the YAML file's
+    stem) for DWB, ``NAME:tuned`` for the shipped tuned parameters, or ``NAME:FILE`` /
+    ``ppo:FOLDER`` when several of one controller compete."""
+    from policies import TUNED_ARG
     from policies.dwb import config_label
 
     parsed = [PolicySpec.parse(spec) for spec in specs]
@@ -41,6 +43,8 @@ def policy_labels(specs: Sequence[str]) -> list[str]:
     for name, path in parsed:
         if name == "dwb":
             labels.append(f"dwb:{config_label(path or None)}")
+        elif path == TUNED_ARG:
+            labels.append(f"{name}:{TUNED_ARG}")
         elif names.count(name) > 1 and path:
             labels.append(f"{name}:{Path(path.rstrip('/')).name or path}")
         else:

@@ -2,8 +2,10 @@
 
 ``make_policy(spec, env)`` builds one from an env's spaces and its public configuration (speed
 limits, camera calibration); ``spec`` is ``dwb`` (= ``dwb:furrow``), ``dwb:nav2``,
-``dwb:PATH.yaml``, ``rpp``, ``stanley`` (Stanley with integral action), ``depth``, ``ppo:PATH``
-or ``blind`` (a constant command: the reference that shows what the field steers by itself).
+``dwb:tuned``, ``dwb:PATH.yaml``, ``rpp``, ``stanley`` (Stanley with integral action) — each
+also ``:tuned`` (the shipped result of the tuning budget) or ``:PATH.yaml`` —, ``depth``,
+``ppo:PATH`` or ``blind`` (a constant command: the reference that shows what the field steers
+by itself).
 Policies see observations only.
 """
 
@@ -19,6 +21,7 @@ from .base import Policy
 from .blind import Blind
 from .depth_follower import DepthFurrowFollower
 from .dwb import DWB
+from .dwb.params import SHIPPED as DWB_SHIPPED
 from .ppo import PPOPolicy
 from .rpp import RegulatedPurePursuit
 from .spec import SEPARATOR, SHIPPED_ARG, PolicySpec
@@ -56,6 +59,14 @@ def shipped_model(env_id: str) -> Path:
 
 #: Controllers that take a parameter file (``rpp:best.yaml``, as ``agrinav tune`` writes).
 TUNABLE = ("rpp", "stanley")
+#: ``NAME:tuned``: the parameters the tuning budget chose, shipped (``policies/config/
+#: NAME_tuned.yaml``; DWB's is ``dwb_tuned.yaml``, a whole ``dwb:`` config)
+TUNED_ARG = "tuned"
+
+
+def tuned_file(name: str) -> Path:
+    """The shipped parameter file of ``NAME:tuned``."""
+    return Path(str(resources.files("policies.config").joinpath(f"{name}_{TUNED_ARG}.yaml")))
 
 
 def param_file(path: str | Path, name: str) -> dict[str, Any]:
@@ -95,12 +106,16 @@ def check_policy_spec(spec: Any) -> tuple[str, str]:
                 "allowed: a checkpoint folder holding checkpoint.json, or ppo:shipped",
             )
     elif name == "dwb":
-        if path and path not in ("nav2", "furrow") and not path.endswith((".yaml", ".yml")):
-            raise InputError("policy", spec, "allowed: dwb, dwb:nav2, dwb:furrow, dwb:PATH.yaml")
+        if path and path not in DWB_SHIPPED and not path.endswith((".yaml", ".yml")):
+            shipped = ", ".join(f"dwb:{n}" for n in DWB_SHIPPED)
+            raise InputError("policy", spec, f"allowed: dwb, {shipped}, dwb:PATH.yaml")
     elif name in TUNABLE:
-        if path and not (path.endswith((".yaml", ".yml")) and Path(path).is_file()):
+        ok = path == TUNED_ARG or (path.endswith((".yaml", ".yml")) and Path(path).is_file())
+        if path and not ok:
             raise InputError(
-                "policy", spec, f"allowed: {name} or {name}:PATH.yaml (a parameter file)"
+                "policy",
+                spec,
+                f"allowed: {name}, {name}:{TUNED_ARG} or {name}:PATH.yaml (a parameter file)",
             )
     elif path:
         raise InputError("policy", spec, f"{name} takes no ':' argument")
@@ -125,5 +140,6 @@ def make_policy(spec: str, env: Any, **params: Any) -> Policy:
         # dwb = dwb:furrow (the furrow-tuned changes); dwb:nav2 = Nav2 Humble's defaults
         kwargs.setdefault("params", path or "furrow")
     elif name in TUNABLE and path:
-        kwargs = {**param_file(path, name), **kwargs}
+        file = tuned_file(name) if path == TUNED_ARG else path
+        kwargs = {**param_file(file, name), **kwargs}
     return POLICIES[name](u.observation_space, u.action_space, u.interface, **kwargs)

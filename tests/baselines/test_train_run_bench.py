@@ -320,6 +320,10 @@ def test_bench_labels_tell_ppo_checkpoints_apart() -> None:
         "dwb:my",
     ]
     assert policy_labels(["ppo:shipped", "ppo:runs/depth_ppo/"]) == ["ppo:shipped", "ppo:depth_ppo"]
+    # the shipped tuned parameters say so, even alone: a default and a tuned row never share
+    # a label
+    assert policy_labels(["stanley:tuned", "dwb:tuned"]) == ["stanley:tuned", "dwb:tuned"]
+    assert policy_labels(["rpp", "rpp:tuned"]) == ["rpp", "rpp:tuned"]
     with pytest.raises(ScenarioError, match="--policies"):
         policy_labels(["dwb", "dwb:furrow"])
 

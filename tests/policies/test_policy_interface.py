@@ -162,3 +162,35 @@ def test_stanleys_integral_removes_the_steady_offset_of_a_side_slope() -> None:
     without, with_integral = _mean_offset(None), _mean_offset(6.0)
     assert abs(without) > 0.005  # the slope leaves a steady offset without integral action
     assert abs(with_integral) < 0.5 * abs(without), (without, with_integral)
+
+
+@pytest.mark.parametrize("name", ["rpp", "stanley", "dwb"])
+def test_tuned_parameters_are_shipped_and_loaded(name: str) -> None:
+    """``NAME:tuned`` is the tuning budget's result shipped with the package: the file the
+    search wrote, loaded as the controller's parameters (DWB's on top of Nav2's defaults)."""
+    import yaml
+
+    from baselines.tune import SEARCH
+    from policies import tuned_file
+    from policies.dwb.params import DWBParams
+
+    chosen = yaml.safe_load(tuned_file(name).read_text())
+    env = gym.make("AgriNav/FieldRoute-v3", observations=list(OBSERVATION_KEYS))
+    try:
+        pol = make_policy(f"{name}:tuned", env)
+        assert "tuned" in pol.describe() or name != "dwb"
+    finally:
+        env.close()
+    if name == "dwb":
+        got, furrow = DWBParams.load("tuned"), DWBParams.load("furrow")
+        fp = chosen["FollowPath"]
+        for key, (lo, hi) in SEARCH["dwb"].items():  # each searched value, within its range
+            critic = key.split(".")[1]
+            value = fp[critic]["scale"] if isinstance(fp[critic], dict) else fp[critic]
+            assert lo <= value <= hi, key
+        assert got.FollowPath.max_vel_x == pytest.approx(fp["max_vel_x"])
+        assert got.local_costmap == furrow.local_costmap  # the search changed no costmap value
+    else:
+        for key, value in chosen.items():
+            lo, hi = SEARCH[name][key]
+            assert lo <= value <= hi, key

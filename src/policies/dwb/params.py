@@ -42,7 +42,9 @@ NAV2_CRITICS = (
     "PathDist",
     "GoalDist",
 )
-SHIPPED = ("nav2", "furrow")
+#: the configs shipped in policies/config (``dwb:NAME``): Nav2 Humble's defaults, the furrow
+#: changes, and the furrow changes plus what the tuning search chose (``dwb_tuned.yaml``)
+SHIPPED = ("nav2", "furrow", "tuned")
 AGGREGATION = ("last", "sum", "product")
 
 
@@ -271,8 +273,8 @@ class DWBParams:
 
     @classmethod
     def load(cls, spec: str | Path | dict[str, Any] | None = None) -> DWBParams:
-        """``nav2``, ``furrow`` (the default), a YAML file of changes to ``dwb_nav2.yaml``, or
-        such changes as a mapping (what ``agrinav tune`` tries)."""
+        """``nav2``, ``furrow`` (the default), ``tuned``, a YAML file of changes to
+        ``dwb_nav2.yaml``, or such changes as a mapping (what ``agrinav tune`` tries)."""
         reference = _shipped("nav2")
         if isinstance(spec, dict):
             changes = spec
@@ -280,6 +282,8 @@ class DWBParams:
             changes = _shipped("furrow")
         elif str(spec) == "nav2":
             changes = {}
+        elif str(spec) in SHIPPED:
+            changes = _shipped(str(spec))
         else:
             changes = load_yaml(spec, "dwb params")
         params: DWBParams = from_mapping(cls, merge(reference, changes), "dwb.")

@@ -34,7 +34,7 @@ from ..base import Obs, Policy
 from ..geometry import DepthProjector, local_plan
 from .costmap import Grid, VoxelLayer, footprint_radii, inflate, pad_footprint, rectangle_footprint
 from .critics import Cycle
-from .params import DWBParams
+from .params import SHIPPED, DWBParams
 from .planner import Evaluation, LocalPlanner, transform_global_plan
 from .trajectories import Kinematics
 
@@ -83,7 +83,7 @@ def config_label(params: str | Path | dict[str, Any] | None) -> str:
     if isinstance(params, dict):
         return "trial"
     text = str(params)
-    return text if text in ("nav2", "furrow") else Path(text).stem
+    return text if text in SHIPPED else Path(text).stem
 
 
 class DWB(Policy):
