@@ -487,13 +487,18 @@ def _floats(path: Path, c: dict[str, np.ndarray], key: str) -> np.ndarray:
         out = col.astype(np.float64)
     except ValueError:
         out = np.array([_float_or_nan(v) for v in col], dtype=np.float64)
-    bad = ~np.isfinite(out)
+    _refuse_first(path, ~np.isfinite(out), key, col, "allowed: a finite number")
+    return out
+
+
+def _refuse_first(
+    path: Path, bad: np.ndarray, column: str, values: np.ndarray, allowed: str
+) -> None:
+    """Refuse the file at its first ``bad`` line, naming the line, the column, the line's
+    value there and what is allowed."""
     if bad.any():
         i = int(np.argmax(bad))
-        raise InputError(
-            f"{path.name}: line {i + 2}, column {key}", str(col[i]), "allowed: a finite number"
-        )
-    return out
+        raise InputError(f"{path.name}: line {i + 2}, column {column}", str(values[i]), allowed)
 
 
 def _float_or_nan(v: str) -> float:
@@ -510,13 +515,7 @@ def _plants(path: Path, rows: RowFrame, version: int) -> Plants:
     f = {k: _floats(path, c, k) for k in ("x", "y", "z", "roll", "pitch", "yaw", "height", "stage")}
     species = c["species"].astype(str)
     unknown = ~np.isin(species, list(CATALOG))
-    if unknown.any():
-        i = int(np.argmax(unknown))
-        raise InputError(
-            f"{path.name}: line {i + 2}, column species",
-            str(species[i]),
-            f"allowed: one of {', '.join(CATALOG)}",
-        )
+    _refuse_first(path, unknown, "species", species, f"allowed: one of {', '.join(CATALOG)}")
     stages = np.array([CATALOG[s].stages for s in species], dtype=np.float64)
     bad = (
         (f["height"] <= 0)
@@ -536,13 +535,8 @@ def _plants(path: Path, rows: RowFrame, version: int) -> Plants:
     if "row" in head:
         row = _floats(path, c, "row")
         bad = (row != np.round(row)) | (row < -1) | (row >= len(rows.offsets)) | ((row < 0) != weed)
-        if bad.any():
-            i = int(np.argmax(bad))
-            raise InputError(
-                f"{path.name}: line {i + 2}, column row",
-                str(c["row"][i]),
-                f"allowed: 0..{len(rows.offsets) - 1} for a crop, -1 for a weed",
-            )
+        allowed = f"allowed: 0..{len(rows.offsets) - 1} for a crop, -1 for a weed"
+        _refuse_first(path, bad, "row", c["row"], allowed)
         row_idx = row.astype(np.int64)
     else:  # format 1: jitter within half a row spacing makes the nearest row exact
         _, s = rows.to_rows(f["x"], f["y"])
@@ -575,40 +569,15 @@ def _obstacles(path: Path) -> Obstacles:
     f = {k: _floats(path, c, k) for k in keys}
     kind = c["kind"].astype(str)
     unknown = ~np.isin(kind, OBSTACLE_KINDS)
-    if unknown.any():
-        i = int(np.argmax(unknown))
-        raise InputError(
-            f"{path.name}: line {i + 2}, column kind",
-            str(kind[i]),
-            f"allowed: one of {', '.join(OBSTACLE_KINDS)}",
-        )
+    _refuse_first(path, unknown, "kind", kind, f"allowed: one of {', '.join(OBSTACLE_KINDS)}")
     for k in ("length", "width", "height"):
         bad = (f[k] <= 0) | (f[k] > MAX_OBSTACLE_SIZE_M)
-        if bad.any():
-            i = int(np.argmax(bad))
-            raise InputError(
-                f"{path.name}: line {i + 2}, column {k}",
-                str(c[k][i]),
-                f"allowed: a size in (0, {MAX_OBSTACLE_SIZE_M:g}] m",
-            )
+        _refuse_first(path, bad, k, c[k], f"allowed: a size in (0, {MAX_OBSTACLE_SIZE_M:g}] m")
     for k in ("roll", "pitch", "yaw"):
-        bad = np.abs(f[k]) > 2 * math.pi
-        if bad.any():
-            i = int(np.argmax(bad))
-            raise InputError(
-                f"{path.name}: line {i + 2}, column {k}",
-                str(c[k][i]),
-                "allowed: radians within ±2π",
-            )
+        _refuse_first(path, np.abs(f[k]) > 2 * math.pi, k, c[k], "allowed: radians within ±2π")
     shape = f["shape"]
     bad = (shape != np.round(shape)) | (shape < 0) | (shape >= 2**31)
-    if bad.any():
-        i = int(np.argmax(bad))
-        raise InputError(
-            f"{path.name}: line {i + 2}, column shape",
-            str(c["shape"][i]),
-            "allowed: an integer in [0, 2**31)",
-        )
+    _refuse_first(path, bad, "shape", c["shape"], "allowed: an integer in [0, 2**31)")
     return Obstacles(
         kind=kind.astype("<U6"),
         x=f["x"],
@@ -643,31 +612,15 @@ def _route(path: Path, rows: RowFrame, version: int) -> Route:
     xyz = np.column_stack([_floats(path, c, k) for k in ("x", "y", "z")])
     segment = c["segment"].astype(str)
     bad = ~np.isin(segment, SEGMENTS)
-    if bad.any():
-        i = int(np.argmax(bad))
-        raise InputError(
-            f"{path.name}: line {i + 2}, column segment",
-            str(segment[i]),
-            f"allowed: one of {', '.join(SEGMENTS)}",
-        )
+    _refuse_first(path, bad, "segment", segment, f"allowed: one of {', '.join(SEGMENTS)}")
     turn, direction = np.full(n, "", "<U11"), np.ones(n, np.int8)
     if version >= 3:
         turn = c["turn"].astype(str)
         bad = ~np.isin(turn, TURN_TAGS)
-        if bad.any():
-            i = int(np.argmax(bad))
-            raise InputError(
-                f"{path.name}: line {i + 2}, column turn",
-                str(turn[i]),
-                f"allowed: empty or one of {', '.join(TURN_TAGS[1:])}",
-            )
+        allowed = f"allowed: empty or one of {', '.join(TURN_TAGS[1:])}"
+        _refuse_first(path, bad, "turn", turn, allowed)
         d = c["direction"].astype(str)
-        bad = ~np.isin(d, ("1", "-1"))
-        if bad.any():
-            i = int(np.argmax(bad))
-            raise InputError(
-                f"{path.name}: line {i + 2}, column direction", str(d[i]), "allowed: 1 or -1"
-            )
+        _refuse_first(path, ~np.isin(d, ("1", "-1")), "direction", d, "allowed: 1 or -1")
         direction = d.astype(np.int8)
     lanes = 0.5 * (rows.offsets[:-1] + rows.offsets[1:])
     _, s = rows.to_rows(xyz[:, 0], xyz[:, 1])
