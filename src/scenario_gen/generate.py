@@ -351,6 +351,8 @@ def field_obstacles(
 ) -> Obstacles:
     """The field's obstacles around its standing crop, the fallen stalks and the route's
     start (``obstacles.place_obstacles``); shared by ``generate`` and the studio's preview."""
+    if spec.stone_density == 0 and spec.litter_density == 0 and not len(lodging.fallen_xy):
+        return Obstacles.empty()  # nothing to place: no tree of the crop to build
     p = lodging.plants
     crop = ~p.is_weed
     return place_obstacles(

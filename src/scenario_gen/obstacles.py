@@ -331,7 +331,7 @@ def place_obstacles(
     n_li = int(rng.poisson(o.litter_density * area)) if o.litter_density > 0 else 0
     wind = rng.uniform(-math.pi, math.pi)
     parts: list[dict[str, np.ndarray]] = []
-    tree = cKDTree(crops_xy) if len(crops_xy) else None
+    tree = cKDTree(crops_xy) if len(crops_xy) and (n_st or n_li) else None  # stones, litter
     stem_max = float(stems.max()) if len(stems) else 0.0
 
     def clear(x: FloatArray, y: FloatArray, reach: FloatArray) -> NDArray[np.bool_]:
