@@ -30,7 +30,7 @@ from ..model import Scenario
 from .meshes import save_png
 from .obstacles import write_gazebo_obstacles
 from .options import ExportOptions
-from .plantmodels import Assignment, assign, fmt, model_config, write_models
+from .plantmodels import Assignment, assign, fmt, model_config, static_model_sdf, write_models
 from .terrainmesh import heightmap, save_png16, soil_texture, write_terrain_dae
 from .tiles import make_tiles, write_tiles
 
@@ -150,19 +150,11 @@ def terrain_model(scn: Scenario, models: Path) -> None:
     )
     uri = f"model://{TERRAIN}/meshes/terrain.dae"
     geom = f"<geometry><mesh><uri>{uri}</uri></mesh></geometry>"
-    (folder / "model.sdf").write_text(
-        f"""<?xml version="1.0"?>
-<sdf version="1.7">
-  <model name="{TERRAIN}">
-    <static>true</static>
-    <link name="link">
-      <collision name="collision">{geom}</collision>
-      <visual name="visual">{geom}</visual>
-    </link>
-  </model>
-</sdf>
-"""
-    )
+    parts = [
+        f'<collision name="collision">{geom}</collision>',
+        f'<visual name="visual">{geom}</visual>',
+    ]
+    (folder / "model.sdf").write_text(static_model_sdf(TERRAIN, parts))
     t = scn.terrain
     desc = f"terrain {t.shape[1]}x{t.shape[0]} nodes at {t.spacing:.4f} m, ENU at the datum"
     (folder / "model.config").write_text(model_config(TERRAIN, desc))
@@ -187,19 +179,11 @@ def heightmap_model(scn: Scenario, models: Path) -> None:
         f"{hm}<texture><diffuse>{tex}/soil.png</diffuse><normal>{tex}/flat_normal.png</normal>"
         f"<size>{side:.3f}</size>"
     )
-    (folder / "model.sdf").write_text(
-        f"""<?xml version="1.0"?>
-<sdf version="1.7">
-  <model name="{TERRAIN_HM}">
-    <static>true</static>
-    <link name="link">
-      <collision name="collision"><geometry>{hm}</heightmap></geometry></collision>
-      <visual name="visual"><geometry>{visual}</texture></heightmap></geometry></visual>
-    </link>
-  </model>
-</sdf>
-"""
-    )
+    parts = [
+        f'<collision name="collision"><geometry>{hm}</heightmap></geometry></collision>',
+        f'<visual name="visual"><geometry>{visual}</texture></heightmap></geometry></visual>',
+    ]
+    (folder / "model.sdf").write_text(static_model_sdf(TERRAIN_HM, parts))
     desc = f"16-bit heightmap {img.shape[1]}x{img.shape[0]}, {side:.2f} m square, Gazebo Sim"
     (folder / "model.config").write_text(model_config(TERRAIN_HM, desc))
 

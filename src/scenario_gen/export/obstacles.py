@@ -32,7 +32,7 @@ from numpy.typing import NDArray
 from ..obstacles import OBSTACLE_KINDS, Obstacles
 from ..preview import OBSTACLE_RGB
 from .meshes import write_stl
-from .plantmodels import fmt, model_config
+from .plantmodels import fmt, model_config, static_model_sdf
 from .tiles import Tile, grid_tiles
 
 #: merged obstacle tiles' folder and model names: ``<prefix>_rRRR_cCCC``
@@ -129,17 +129,7 @@ def write_gazebo_obstacles(
     counts = ", ".join(f"{n} {k}" for k, n in obs.counts().items())
     # model.sdf: all of them as one static model (a link each, in the ENU frame), for inserting
     # the field's obstacles into another world; this export's worlds place each on its own
-    joined = "\n    ".join(links)
-    (folder / "model.sdf").write_text(
-        f"""<?xml version="1.0"?>
-<sdf version="1.7">
-  <model name="{OBSTACLES_MODEL}">
-    <static>true</static>
-    {joined}
-  </model>
-</sdf>
-"""
-    )
+    (folder / "model.sdf").write_text(static_model_sdf(OBSTACLES_MODEL, links, link=None))
     desc = (
         f"{len(obs)} obstacles ({counts}): one binary STL each in its own frame; "
         "the worlds place each as a static model; agrinav export"
@@ -179,19 +169,7 @@ def _write_tiles(models_dir: Path, obs: Obstacles, tiles: list[Tile]) -> GazeboO
             f'<collision name="collision"><geometry><mesh><uri>model://{tile.name}/meshes/'
             "collision.stl</uri></mesh></geometry></collision>"
         )
-        joined = "\n      ".join(parts)
-        (folder / "model.sdf").write_text(
-            f"""<?xml version="1.0"?>
-<sdf version="1.7">
-  <model name="{tile.name}">
-    <static>true</static>
-    <link name="link">
-      {joined}
-    </link>
-  </model>
-</sdf>
-"""
-        )
+        (folder / "model.sdf").write_text(static_model_sdf(tile.name, parts))
         sel = obs.kind[tile.plants]
         counts = ", ".join(f"{int((sel == k).sum())} {k}" for k in OBSTACLE_KINDS)
         desc = f"{len(tile.plants)} obstacles merged (static: {counts}); agrinav export"

@@ -221,6 +221,24 @@ def fmt(*values: float, digits: int = 6) -> str:
     return " ".join(f"{v + 0.0:.{digits}f}" for v in values)
 
 
+def static_model_sdf(name: str, parts: list[str], link: str | None = "link") -> str:
+    """A static model's model.sdf: ``parts`` (XML elements) in one link named ``link``, or,
+    with ``link`` None, straight in the model (the parts are links)."""
+    if link is None:
+        inner = "\n    ".join(parts)
+    else:
+        body = "\n      ".join(parts)
+        inner = f'<link name="{link}">\n      {body}\n    </link>'
+    return f"""<?xml version="1.0"?>
+<sdf version="1.7">
+  <model name="{name}">
+    <static>true</static>
+    {inner}
+  </model>
+</sdf>
+"""
+
+
 def model_config(name: str, description: str) -> str:
     return f"""<?xml version="1.0"?>
 <model>
@@ -281,17 +299,7 @@ def plant_sdf(pm: PlantModel, step: int) -> str:
         if pm.proxy_radius > 0
         else ""
     )
-    return f"""<?xml version="1.0"?>
-<sdf version="1.7">
-  <model name="{pm.variant(step)}">
-    <static>true</static>
-    <link name="link">
-      {visual_xml(pm, h)}
-      {col}
-    </link>
-  </model>
-</sdf>
-"""
+    return static_model_sdf(pm.variant(step), [visual_xml(pm, h), col])
 
 
 def write_models(

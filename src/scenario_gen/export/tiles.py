@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 from ..arrays import FloatArray, IntArray
 from ..model import Scenario
 from .meshes import face_colours, write_stl
-from .plantmodels import Assignment, fmt, model_config, visual_xml
+from .plantmodels import Assignment, fmt, model_config, static_model_sdf, visual_xml
 
 #: Stem proxies of a tile are one collision mesh of prisms: one SDF <collision> per plant costs
 #: libsdformat ≥240 kB of DOM each (a 99k-plant world did not load within 24 GB).
@@ -207,19 +207,7 @@ def write_tiles(
                 f'<collision name="stems"><geometry><mesh><uri>model://{tile.name}/meshes/'
                 "stems.stl</uri></mesh></geometry></collision>"
             )
-        body = "\n      ".join(visuals + cols)
-        (folder / "model.sdf").write_text(
-            f"""<?xml version="1.0"?>
-<sdf version="1.7">
-  <model name="{tile.name}">
-    <static>true</static>
-    <link name="link">
-      {body}
-    </link>
-  </model>
-</sdf>
-"""
-        )
+        (folder / "model.sdf").write_text(static_model_sdf(tile.name, visuals + cols))
         desc = f"{len(sel)} plants merged (static), {total} triangles; agrinav export"
         (folder / "model.config").write_text(model_config(tile.name, desc))
         yield tile, total
