@@ -21,6 +21,7 @@ from scipy.spatial import cKDTree
 
 from scenario_gen import Scenario
 from scenario_gen.crops import scaled_by_height
+from scenario_gen.obstacles import Obstacles
 
 from ..robot import RobotGeometry
 
@@ -127,6 +128,26 @@ def rects_overlap(
     return abs(dx * vx + dy * vy) <= hw + hx * avx + hy * avy
 
 
+#: an obstacle's footprint as the overlap test reads it: centre, unit length axis, half length,
+#: half width
+Box = tuple[float, float, float, float, float, float]
+
+
+def footprint_boxes(o: Obstacles) -> list[Box]:
+    """Each obstacle's ``Box`` (plain floats: a few candidates are faster in Python)."""
+    return list(
+        zip(
+            np.asarray(o.x, float).tolist(),
+            np.asarray(o.y, float).tolist(),
+            np.cos(o.yaw).tolist(),
+            np.sin(o.yaw).tolist(),
+            (0.5 * np.asarray(o.length, float)).tolist(),
+            (0.5 * np.asarray(o.width, float)).tolist(),
+            strict=True,
+        )
+    )
+
+
 @dataclass(frozen=True, eq=False)
 class ObstacleContact:
     """Which obstacles (stones, litter, fallen stalks) the robot's footprint touches.
@@ -139,9 +160,7 @@ class ObstacleContact:
     centres finds the candidates, asked again only after the robot has moved ``NEAR_MARGIN``."""
 
     tree: cKDTree | None  # None without obstacles: every query is answered at once
-    #: per obstacle (plain lists: a few candidates are faster in Python): centre, unit length
-    #: axis, half length, half width
-    box: list[tuple[float, float, float, float, float, float]]
+    box: list[Box]  # per obstacle
     half_diagonal: list[float]
     max_half_diagonal: float
     rects: tuple[tuple[float, float, float, float], ...]  # (cx, cy, half_x, half_y) in base_link
@@ -155,19 +174,8 @@ class ObstacleContact:
         reach = max(math.hypot(abs(cx) + hx, abs(cy) + hy) for cx, cy, hx, hy in rects)
         if len(o) == 0:
             return cls(None, [], [], 0.0, rects, reach)
-        hl, hw = 0.5 * np.asarray(o.length, float), 0.5 * np.asarray(o.width, float)
-        box = list(
-            zip(
-                np.asarray(o.x, float).tolist(),
-                np.asarray(o.y, float).tolist(),
-                np.cos(o.yaw).tolist(),
-                np.sin(o.yaw).tolist(),
-                hl.tolist(),
-                hw.tolist(),
-                strict=True,
-            )
-        )
-        diag = np.hypot(hl, hw)
+        box = footprint_boxes(o)
+        diag = 0.5 * np.hypot(np.asarray(o.length, float), np.asarray(o.width, float))
         tree = cKDTree(np.column_stack([o.x, o.y]))
         return cls(tree, box, diag.tolist(), float(diag.max()), rects, reach)
 

@@ -45,7 +45,7 @@ from scipy.spatial import cKDTree
 
 from scenario_gen.obstacles import Obstacles
 
-from .contact import rects_overlap
+from .contact import footprint_boxes, rects_overlap
 
 #: collision groups and masks (the table above)
 CHASSIS_GROUP = 1  # btBroadphaseProxy::DefaultFilter: pybullet's group for a dynamic body
@@ -86,17 +86,7 @@ class ObstacleBodies:
         self._max_half = max(self._half, default=0.0)
         self._xy = np.column_stack([o.x, o.y])
         self._tree = cKDTree(self._xy) if len(o) else None
-        self._box = list(
-            zip(
-                np.asarray(o.x, float).tolist(),
-                np.asarray(o.y, float).tolist(),
-                np.cos(o.yaw).tolist(),
-                np.sin(o.yaw).tolist(),
-                hl.tolist(),
-                hw.tolist(),
-                strict=True,
-            )
-        )
+        self._box = footprint_boxes(o)
         self._top = (np.asarray(o.z, float) + np.asarray(o.height, float)).tolist()
         self.reach = reach
         self.shapes = shapes
