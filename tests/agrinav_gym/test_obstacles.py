@@ -511,10 +511,6 @@ def test_a_world_full_of_shapes_rebuilds_itself(monkeypatch: pytest.MonkeyPatch)
     the simulation at the next reset (same terrain) and starts its shapes afresh."""
     import agrinav_gym.sim.world as world_mod
 
-    resets = []
-    real = p.resetSimulation
-    monkeypatch.setattr(p, "resetSimulation", lambda **kw: (resets.append(1), real(**kw))[1])
-    monkeypatch.setattr(world_mod, "SHAPE_LIMIT", 3)
     row = _obstacles(
         *(
             dict(kind="stone", ahead=a, length=0.1, width=0.08, height=0.04, shape=seed)
@@ -523,6 +519,12 @@ def test_a_world_full_of_shapes_rebuilds_itself(monkeypatch: pytest.MonkeyPatch)
         # the same stone again: its shape is shared, not made twice
         dict(kind="stone", ahead=1.3, left=-0.235, length=0.1, width=0.08, height=0.04, shape=0),
     )
+    # counted from here: placing the row may build an env of its own (``_start``, cached), whose
+    # resets are not this world's
+    resets = []
+    real = p.resetSimulation
+    monkeypatch.setattr(p, "resetSimulation", lambda **kw: (resets.append(1), real(**kw))[1])
+    monkeypatch.setattr(world_mod, "SHAPE_LIMIT", 3)
     env = make(scenario=_with(row), scenario_overrides=None, config=CONFIG)
     try:
         env.reset(seed=0, options=LANE)
