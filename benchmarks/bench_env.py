@@ -13,9 +13,10 @@
    densities, each in a fresh process;
 5. load time of a 100,000-plant field (target ≤ 10 s): generate + build + reset;
 6. reset with a new randomized scenario (target ≤ 1 s);
-7. vector-env scaling: the state-only env in 1 and 2 subprocess workers
-   (``gymnasium.make_vec(..., vectorization_mode="async")``, an ``AsyncVectorEnv``), env steps/s
-   and the efficiency of 2 (target: 2 workers ≥ 1.7× one), interleaved.
+7. vector-env scaling: the state-only env in 1 and 2 subprocess workers, env steps/s and the
+   efficiency of 2 (target: 2 workers ≥ 1.7× one), interleaved, two ways: Gymnasium's
+   ``AsyncVectorEnv`` (``gymnasium.make_vec(..., vectorization_mode="async")``, one env per
+   process) and ``agrinav_gym.make_vec`` (4 envs per worker process).
 
 Medians of several runs; run with ``make bench`` or ``python benchmarks/bench_env.py``
 (``--sections 3,7`` for some). Timings of steps only: resets are not timed (a racecar episode
@@ -32,12 +33,13 @@ import statistics
 import subprocess
 import sys
 import time
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
 import pybullet as p
 
-import agrinav_gym  # noqa: F401  (registers the envs)
+import agrinav_gym  # registers the envs
 from common import drive, s_curve
 from pybullet_gym_shim import quiet, racecar_envs, sim_seconds
 
@@ -168,15 +170,21 @@ def report_interleaved(m: dict[str, float], repeat: int) -> None:
     )
 
 
-def _vector_env(workers: int) -> gym.vector.VectorEnv:
+PER_WORKER = 4  # envs per worker process in the batched setup (agrinav train's n_envs)
+
+
+def _vector_env(kind: str, workers: int) -> gym.vector.VectorEnv:
+    """``async``: Gymnasium's AsyncVectorEnv, one env per process; ``batched``:
+    ``agrinav_gym.make_vec``, PER_WORKER envs per process."""
+    kw: dict[str, Any] = {"scenario": "paper-p1", "observations": STATE_OBS, "config": TASK}
+    if kind == "batched":
+        return agrinav_gym.make_vec(ENV_ID, PER_WORKER * workers, workers=workers, **kw)
     return gym.make_vec(
         ENV_ID,
         num_envs=workers,
         vectorization_mode="async",
         vector_kwargs={"context": "spawn"},
-        scenario="paper-p1",
-        observations=STATE_OBS,
-        config=TASK,
+        **kw,
     )
 
 
@@ -187,31 +195,37 @@ def _cpu_seconds(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
-def vector_scaling(repeat: int, steps: int = 300) -> dict[int, tuple[float, list[float], float]]:
-    """Section 7: per worker count (1, 2), the median env steps/s of interleaved runs, each
-    worker's median busy share of the wall time, and the main process's."""
-    envs = {n: _vector_env(n) for n in (1, 2)}
-    runs: dict[int, list[tuple[float, list[float], float]]] = {1: [], 2: []}
+Scaling = dict[tuple[str, int], tuple[float, list[float], float]]
+
+
+def vector_scaling(repeat: int, steps: int = 300) -> Scaling:
+    """Section 7: per setup (async / batched) and worker count (1, 2), the median env steps/s
+    of interleaved runs, each worker's median busy share of the wall time, and the main
+    process's."""
+    envs = {(kind, n): _vector_env(kind, n) for kind in ("async", "batched") for n in (1, 2)}
+    runs: dict[tuple[str, int], list[tuple[float, list[float], float]]] = {k: [] for k in envs}
     try:
-        for n, venv in envs.items():
-            venv.reset(seed=list(range(n)))
+        for venv in envs.values():
+            venv.reset(seed=list(range(venv.num_envs)))
             _vector_drive(venv, 20)
         for _ in range(repeat):
-            for n, venv in envs.items():
+            for key, venv in envs.items():
                 pids = [proc.pid for proc in venv.unwrapped.processes]
                 before = [_cpu_seconds(pid) for pid in pids]
                 main0 = time.process_time()
-                wall = _vector_drive(venv, steps)
+                # the same number of env steps in every setup
+                wall = _vector_drive(venv, steps * key[1] // venv.num_envs)
                 busy = [(_cpu_seconds(pid) - b) / wall for pid, b in zip(pids, before, strict=True)]
-                runs[n].append((n * steps / wall, busy, (time.process_time() - main0) / wall))
+                rate = venv.num_envs * (steps * key[1] // venv.num_envs) / wall
+                runs[key].append((rate, busy, (time.process_time() - main0) / wall))
     finally:
         for venv in envs.values():
             venv.close()
     out = {}
-    for n, rs in runs.items():
+    for key, rs in runs.items():
         rate = statistics.median(r[0] for r in rs)
-        busy = [statistics.median(r[1][i] for r in rs) for i in range(n)]
-        out[n] = (rate, busy, statistics.median(r[2] for r in rs))
+        busy = [statistics.median(r[1][i] for r in rs) for i in range(key[1])]
+        out[key] = (rate, busy, statistics.median(r[2] for r in rs))
     return out
 
 
@@ -354,17 +368,22 @@ def main() -> None:
         print(f"6. randomized reset        : {randomized_reset(args.repeat):7.3f} s (target ≤ 1 s)")
     if 7 in run:
         v = vector_scaling(args.repeat)
-        (one, busy1, main1), (two, busy2, main2) = v[1], v[2]
-        print(
-            f"7. AsyncVectorEnv (spawn)  : 1 worker {one:.0f} env steps/s, 2 workers {two:.0f}: "
-            f"{two / one:.2f}x, efficiency {two / (2 * one):.0%} (target ≥ 1.7x on "
-            f"{os.cpu_count()} cores)"
-        )
-        print(
-            f"   busy share of the wall time: 1 worker {busy1[0]:.0%} (main {main1:.0%}); "
-            f"2 workers {' + '.join(f'{b:.0%}' for b in busy2)} (main {main2:.0%}); load "
-            f"average {os.getloadavg()[0]:.1f}"
-        )
+        names = {
+            "async": "AsyncVectorEnv (spawn), 1 env per worker",
+            "batched": f"agrinav_gym.make_vec, {PER_WORKER} envs per worker",
+        }
+        print("7. vector envs (target: 2 workers ≥ 1.7x one)")
+        for kind, name in names.items():
+            (one, busy1, main1), (two, busy2, main2) = v[kind, 1], v[kind, 2]
+            print(
+                f"   {name}: 1 worker {one:.0f} env steps/s, 2 workers {two:.0f}: "
+                f"{two / one:.2f}x, efficiency {two / (2 * one):.0%}"
+            )
+            print(
+                f"     busy share of the wall time: 1 worker {busy1[0]:.0%} (main {main1:.0%}); "
+                f"2 workers {' + '.join(f'{b:.0%}' for b in busy2)} (main {main2:.0%})"
+            )
+        print(f"   {os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}")
 
 
 if __name__ == "__main__":

@@ -21,6 +21,8 @@ from .registration import (
     register_scenario_bank,
 )
 
+from .vector import make_vec
+
 register_envs()
 
 __all__ = [
@@ -32,6 +34,7 @@ __all__ = [
     "InputError",
     "RobotInterface",
     "check_env_id",
+    "make_vec",
     "register_envs",
     "register_scenario",
     "register_scenario_bank",

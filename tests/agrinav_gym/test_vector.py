@@ -1,0 +1,119 @@
+"""``agrinav_gym.make_vec``: envs batched into worker processes give exactly what one
+``SyncVectorEnv`` of the same envs gives, and bad arguments are refused in one line."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import agrinav_gym
+from agrinav_gym.vector import _join_info
+
+from ..fields import TINY
+
+ENV = "AgriNav/FurrowFollow-v3"
+# A short step limit so that envs end (and autoreset) inside the drive, at different steps
+# because each env starts on its own seed.
+KW: dict[str, Any] = {"scenario_overrides": TINY, "max_episode_steps": 25}
+
+
+def _drive(venv: Any, steps: int) -> list[tuple[Any, ...]]:
+    out = [venv.reset(seed=7)]
+    rng = np.random.default_rng(0)
+    for _ in range(steps):
+        a = rng.uniform(-1, 1, (venv.num_envs, 2)).astype(np.float32)
+        out.append(venv.step(a))
+    return out
+
+
+def _same(a: Any, b: Any, where: str) -> None:
+    if isinstance(a, dict):
+        assert list(a) == list(b), where
+        for k in a:
+            _same(a[k], b[k], f"{where}.{k}")
+    elif isinstance(a, tuple):
+        assert len(a) == len(b), where
+        for i, (x, y) in enumerate(zip(a, b, strict=True)):
+            _same(x, y, f"{where}[{i}]")
+    else:
+        x, y = np.asarray(a), np.asarray(b)
+        assert x.dtype == y.dtype and x.shape == y.shape, where
+        if x.dtype == object:  # final_obs: None or an env's observation
+            for i, (p, q) in enumerate(zip(x, y, strict=True)):
+                assert (p is None) == (q is None), where
+                if p is not None:
+                    _same(p, q, f"{where}[{i}]")
+        else:
+            np.testing.assert_array_equal(x, y, err_msg=where)
+
+
+@pytest.mark.parametrize("autoreset_mode", ["NextStep", "SameStep"])
+def test_batched_workers_match_one_sync_vector_env(autoreset_mode: str) -> None:
+    mode = gym.vector.AutoresetMode(autoreset_mode)
+    sync = gym.make_vec(
+        ENV, num_envs=3, vectorization_mode="sync", vector_kwargs={"autoreset_mode": mode}, **KW
+    )
+    batched = agrinav_gym.make_vec(ENV, 3, workers=2, autoreset_mode=autoreset_mode, **KW)
+    try:
+        assert batched.sizes == (2, 1)
+        assert batched.single_observation_space == sync.single_observation_space
+        assert batched.observation_space == sync.observation_space
+        assert batched.action_space == sync.action_space
+        assert batched.metadata["autoreset_mode"] == mode
+        a, b = _drive(sync, 60), _drive(batched, 60)
+        ended = sum(int(np.sum(r[2] | r[3])) for r in a[1:])
+        assert ended >= 3  # the drive crossed episode ends, so autoreset was compared too
+        for i, (x, y) in enumerate(zip(a, b, strict=True)):
+            _same(x, y, f"step {i}")
+        assert batched.get_attr("spec")[0].id == ENV
+    finally:
+        sync.close()
+        batched.close()
+    assert all(not p.is_alive() for p in batched.processes)
+
+
+def test_info_join_blanks_keys_some_workers_lack() -> None:
+    left = {"cte": np.array([0.1, 0.2]), "_cte": np.array([True, True])}
+    right = {
+        "cte": np.array([0.3]),
+        "_cte": np.array([True]),
+        "termination": np.array(["goal"], dtype=object),
+        "_termination": np.array([True]),
+        "metrics": {"rmse": np.array([0.05]), "_rmse": np.array([True])},
+        "_metrics": np.array([True]),
+    }
+    out = _join_info([left, right], [2, 1])
+    np.testing.assert_array_equal(out["cte"], [0.1, 0.2, 0.3])
+    assert list(out["termination"]) == [None, None, "goal"]
+    np.testing.assert_array_equal(out["_termination"], [False, False, True])
+    np.testing.assert_array_equal(out["metrics"]["rmse"], [0.0, 0.0, 0.05])
+    np.testing.assert_array_equal(out["metrics"]["_rmse"], [False, False, True])
+    np.testing.assert_array_equal(out["_metrics"], [False, False, True])
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "field"),
+    [
+        ({"num_envs": 0}, "num_envs"),
+        ({"num_envs": 2, "workers": 3}, "workers"),
+        ({"num_envs": 2, "workers": 0}, "workers"),
+        ({"num_envs": 2, "autoreset_mode": "Sometimes"}, "autoreset_mode"),
+        ({"num_envs": 2, "context": "teleport"}, "context"),
+    ],
+)
+def test_bad_arguments_are_refused_before_any_process_starts(
+    kwargs: dict[str, Any], field: str
+) -> None:
+    with pytest.raises(agrinav_gym.InputError, match=field):
+        agrinav_gym.make_vec(ENV, **kwargs)
+
+
+def test_a_worker_that_cannot_build_its_env_names_itself_and_leaves_no_process() -> None:
+    import multiprocessing as mp
+
+    with pytest.raises(RuntimeError, match="worker 0: .*observations"):
+        agrinav_gym.make_vec(ENV, 2, workers=2, observations=["sonar"], **KW)
+    assert not [p for p in mp.active_children() if p.name.startswith("AgriNavBatched")]
