@@ -55,6 +55,24 @@ class TrainRun:
     checkpoint_every: int | None = None
     resume: Path | None = None
     warm_start: bool = True  # the env's envs.yml warm_start, if it has one
+    env_kwargs: Path | None = None  # a YAML mapping merged over envs.yml's env_kwargs
+
+
+def merge_env_kwargs(base: dict[str, Any], path: Path) -> dict[str, Any]:
+    """``base`` with the YAML mapping in ``path`` merged over it: nested mappings key by key
+    (a ``randomize`` file adds ranges and replaces those it names), anything else replaced."""
+    from scenario_gen.schema import load_yaml
+
+    extra = load_yaml(path, "--env-kwargs")
+
+    def merge(a: dict[str, Any], b: dict[str, Any]) -> dict[str, Any]:
+        out = dict(a)
+        for k, v in b.items():
+            both = isinstance(v, dict) and isinstance(out.get(k), dict)
+            out[k] = merge(out[k], v) if both else v
+        return out
+
+    return merge(base, extra)
 
 
 def _scenario_kwargs(env_kwargs: dict[str, Any], scenario: str | None) -> dict[str, Any]:
@@ -113,7 +131,10 @@ def prepare(run: TrainRun) -> tuple[hpmod.PPOHyperparams, hpmod.EnvSetup, dict[s
             raise InputError(
                 "--timesteps", hp.n_timesteps, f"allowed: more than the {done} steps already done"
             )
-    kwargs = _scenario_kwargs(dict(setup.env_kwargs), run.scenario)
+    base = dict(setup.env_kwargs)
+    if run.env_kwargs is not None:
+        base = merge_env_kwargs(base, run.env_kwargs)
+    kwargs = _scenario_kwargs(base, run.scenario)
     import gymnasium as gym
 
     import agrinav_gym

@@ -48,6 +48,12 @@ def add(sub: Any) -> None:
     )
     tr.add_argument("--resume", help="continue from a checkpoint folder of an earlier run")
     tr.add_argument(
+        "--env-kwargs",
+        metavar="FILE",
+        help="a YAML mapping merged over the env's envs.yml env_kwargs (nested mappings key by "
+        "key), e.g. more randomize ranges; recorded in the run's config.yml",
+    )
+    tr.add_argument(
         "--no-warm-start",
         action="store_true",
         help="skip the env's behaviour-cloning warm start (envs.yml warm_start)",
@@ -82,6 +88,7 @@ def run(args: argparse.Namespace) -> int:
             checkpoint_every=args.checkpoint_every,
             resume=Path(args.resume) if args.resume else None,
             warm_start=not args.no_warm_start,
+            env_kwargs=Path(args.env_kwargs) if args.env_kwargs else None,
         ),
         argv=args.argv,
     )
