@@ -125,7 +125,9 @@ class Form:
         if isinstance(w, ValidationElement):
             w.without_auto_validation()  # the session validates; NiceGUI would clear its error
         w.classes("w-full")
-        w.props.update({"hint": hint, "dense": True, "data-key": key})
+        # hide-bottom-space: the hint's area grows with its text (Quasar reserves one line for
+        # it otherwise, and a hint that wraps runs over the next field's label)
+        w.props.update({"hint": hint, "dense": True, "hide-bottom-space": True, "data-key": key})
         w.tooltip(hint)
         self.widgets[key] = w
         self.hints[key] = hint

@@ -196,6 +196,29 @@ def draw_polygon(page: Any, fractions: list[tuple[float, float]]) -> None:
         page.wait_for_timeout(120)
 
 
+#: pairs of consecutive visible form fields in one column where the first's hint runs over the
+#: second (label, next label, pixels)
+OVERLAPS_JS = """() => {
+  const out = [];
+  const fields = [...document.querySelectorAll('.q-field')].filter(f => f.offsetParent !== null);
+  for (let i = 0; i + 1 < fields.length; i++) {
+    const hint = fields[i].querySelector('.q-field__bottom');
+    if (!hint) continue;
+    const a = hint.getBoundingClientRect(), b = fields[i + 1].getBoundingClientRect();
+    if (Math.abs(a.left - b.left) > 40 || b.top <= a.top) continue;
+    if (a.bottom > b.top + 1) {
+      const label = (f) => f.innerText.split('\\n')[0];
+      out.push([label(fields[i]), label(fields[i + 1]), Math.round(a.bottom - b.top)]);
+    }
+  }
+  return out;
+}"""
+
+
+def overlapping_hints(page: Any) -> list[Any]:
+    return list(page.evaluate(OVERLAPS_JS))
+
+
 def open_section(page: Any, section: str) -> None:
     """Expand a collapsed section of the form (its header is the first item)."""
     page.locator(f'[data-section="{section}"] .q-item').first.click()

@@ -24,6 +24,7 @@ from .browser import (
     field_text,
     open_section,
     outside_localhost,
+    overlapping_hints,
     plants,
     require_browser,
     set_number,
@@ -94,6 +95,8 @@ def test_studio_end_to_end(tmp_path: Path) -> None:
         assert len(lat) >= 3
         print(f"redraw latency ms: {[round(x) for x in lat]}, median {statistics.median(lat):.0f}")
         open_section(page, "route")
+        # long hints (row_geometry's, turn's) wrap and push the next field down
+        assert overlapping_hints(page) == []
         set_number(page, "route.lanes", "1")
         page.wait_for_timeout(300)
 
