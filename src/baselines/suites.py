@@ -169,6 +169,46 @@ def _ood() -> list[Case]:
     return cases
 
 
+#: The simulator values nobody measured for this robot, each at both ends of its plausible
+#: range (sources in docs/physics.md and docs/localisation.md): a case's config section and
+#: values. Appended, never inserted: a case's evaluation seeds follow from its index.
+SENSITIVITY: tuple[tuple[str, str, dict[str, Any]], ...] = (
+    ("default soil", "soil", {}),
+    ("soil friction 0.4", "soil", {"friction": 0.4}),
+    ("soil friction 0.8", "soil", {"friction": 0.8}),
+    ("soil shear modulus 0.01 m", "soil", {"shear_modulus": 0.01}),
+    ("soil shear modulus 0.05 m", "soil", {"shear_modulus": 0.05}),
+    ("canopy 2.5 m, foliage 0.4 dB/m", "foliage", {"foliage_db_per_m": 0.4}),
+    ("canopy 2.5 m, foliage 2 dB/m", "foliage", {"foliage_db_per_m": 2.0}),
+)
+
+
+def _sensitivity() -> list[Case]:
+    """The ranking with each assumed simulator value at the ends of its range: soil values on
+    the `unseen` fields (flat and ridged: where the soil decides how much a ridge steers),
+    foliage loss under 2.5 m maize over the antenna (where the GNSS fix depends on it)."""
+    (base,) = _unseen()
+    cases = []
+    for group, kind, values in SENSITIVITY:
+        if kind == "soil":
+            config = {**base.config, "soil": values}
+            cases.append(
+                Case(
+                    group,
+                    base.env_id,
+                    base.scenario,
+                    base.overrides,
+                    config,
+                    randomize=base.randomize,
+                )
+            )
+        else:
+            config = {**RTK_EKF, "gnss": {**RTK_EKF["gnss"], "fix": values}}
+            over = {**PAPER_FIELD, "crop": {"stage": 5}}
+            cases.append(Case(group, "AgriNav/FieldRoute-v3", "paper-p1", over, config))
+    return cases
+
+
 def _long() -> list[Case]:
     """Eight lanes of 30 m (≈ 260 m of route) with interventions, as field trials report
     row following: mean distance between interventions, sparse (P1) and real maize spacing."""
@@ -265,6 +305,8 @@ def suite(name: str) -> list[Case]:
         return _ood()
     if name == "long":
         return _long()
+    if name == "sensitivity":
+        return _sensitivity()
     if name in ("growth", "growth-proxy"):
         # Dense maize (0.18 m in the row) on the paper's 1 m rows: in 0.75 m rows a 0.62 m
         # Summit-XL touches stalks at 2 cm of error, and crop contact, not perception, would end
@@ -313,4 +355,5 @@ SUITES = (
     "growth-proxy",
     "density",
     "terrain",
+    "sensitivity",
 )
