@@ -340,7 +340,8 @@ def episode_task(job: EpisodeJob) -> tuple[str, dict[str, Any], bytes]:
     # each case its own sensor-noise draws: groups that differ only in what a policy cannot
     # see are still independent samples
     run = run_with_interventions if case.interventions else run_episode
-    ep = run(env, pols[job.policy], EVAL_SEED + CASE_SEEDS * job.case + job.seed, job.label)
+    paired = job.case if case.seeds_of is None else case.seeds_of
+    ep = run(env, pols[job.policy], EVAL_SEED + CASE_SEEDS * paired + job.seed, job.label)
     record = _record(ep, job.suite, case.group, env)
     buf = io.BytesIO()
     title = f"{job.label} · {job.suite} · {case.group} · seed {ep.seed}"

@@ -30,6 +30,10 @@ class Case:
     # One long run per episode in which every stall, corridor exit or stalk contact is an
     # intervention after which the run resumes from the route (episodes.run_with_interventions)
     interventions: bool = False
+    # The index of the case (in its suite) whose evaluation seeds this one reuses: the same
+    # fields and sensor noise, so the two differ only in what the case changes (paired
+    # comparisons). None: the case's own seeds.
+    seeds_of: int | None = None
 
     def env_kwargs(self) -> dict[str, Any]:
         kw: dict[str, Any] = {
@@ -189,7 +193,9 @@ def _sensitivity() -> list[Case]:
     foliage loss under 2.5 m maize over the antenna (where the GNSS fix depends on it)."""
     (base,) = _unseen()
     cases = []
-    for group, kind, values in SENSITIVITY:
+    first: dict[str, int] = {}  # every case of a kind drives the first one's fields and seeds
+    for i, (group, kind, values) in enumerate(SENSITIVITY):
+        paired = first.setdefault(kind, i)
         if kind == "soil":
             config = {**base.config, "soil": values}
             cases.append(
@@ -200,12 +206,15 @@ def _sensitivity() -> list[Case]:
                     base.overrides,
                     config,
                     randomize=base.randomize,
+                    seeds_of=paired,
                 )
             )
         else:
             config = {**RTK_EKF, "gnss": {**RTK_EKF["gnss"], "fix": values}}
             over = {**PAPER_FIELD, "crop": {"stage": 5}}
-            cases.append(Case(group, "AgriNav/FieldRoute-v3", "paper-p1", over, config))
+            cases.append(
+                Case(group, "AgriNav/FieldRoute-v3", "paper-p1", over, config, seeds_of=paired)
+            )
     return cases
 
 

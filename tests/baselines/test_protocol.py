@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import itertools
+import json
+from pathlib import Path
+from typing import Any
 
 import gymnasium as gym
 import pytest
@@ -159,3 +162,28 @@ def test_the_paper_suite_drives_the_seed_robots_four_waypoints() -> None:
         assert {"furrow", "headland"} == set(route.segment)
     finally:
         env.close()
+
+
+def test_sensitivity_cases_drive_the_same_fields_and_seeds_as_their_reference(
+    tmp_path: Path,
+) -> None:
+    """Paired: a soil (or foliage) case differs from its kind's first case only in the value
+    it sets, so the difference between their rows is that value's effect."""
+    from baselines.cli import main
+
+    cases = suite("sensitivity")
+    soil = [c for c in cases if "soil" in c.config]
+    assert len(soil) >= 3 and {c.seeds_of for c in soil} == {cases.index(soil[0])}
+    out = tmp_path / "sens"
+    picked = f"{soil[0].group};{soil[1].group}"
+    code = main(
+        ["bench", "--suite", "sensitivity", "--cases", picked, "--policies", "blind",
+         "--seeds", "2", "--out", str(out)]
+    )  # fmt: skip
+    assert code == 0
+    records = json.loads((out / "results.json").read_text())
+    by_case: dict[str, list[Any]] = {}
+    for r in records:
+        by_case.setdefault(r["scenario"], []).append((r["seed"], r["geometry"]))
+    first, second = by_case[soil[0].group], by_case[soil[1].group]
+    assert first == second and len({g["scenario_seed"] for _, g in first}) == 2
