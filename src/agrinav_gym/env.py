@@ -412,7 +412,25 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         if g.fix.faults:  # opt-in: every row the faults touched says so
             f = g.fix
             fix += f" + faults (jumps {f.jump_rate_hz:g}/s, wrong fixes {f.false_fix_prob:g})"
+        if name == "robot_localization":
+            name += self._rl_settings()
         return f"{name}, GNSS {g.mode} best, {fix}, {g.latency_s:g} s latency"
+
+    def _rl_settings(self) -> str:
+        """What a robot_localization row sets beyond the node's defaults (empty: none)."""
+        rl = self.cfg.localisation.robot_localization
+        out = ["gps lever arm"] if rl.gps_lever_arm else []
+        if rl.smooth_lagged_data:
+            out.append(f"smooth_lagged_data {rl.history_length_s:g} s")
+        gates = (
+            ("odom", rl.odom_rejection_threshold),
+            ("imu", rl.imu_rejection_threshold),
+            ("gps", rl.gps_rejection_threshold),
+        )
+        out += [f"{k} gate {v:g}σ" for k, v in gates if v is not None]
+        if rl.fuse_imu_yaw_rate:
+            out.append("imu yaw rate")
+        return f" ({', '.join(out)})" if out else " (defaults)"
 
     def _localisation_info(self) -> dict[str, Any]:
         """Which estimator, the receiver's fix mode and the estimate's true error (for

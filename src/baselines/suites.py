@@ -258,10 +258,34 @@ def _localisation() -> list[Case]:
         ),
         ("canopy 2.5 m", 5, RTK_EKF),
     )
-    return [
+    cases = [
         Case(g, "AgriNav/FieldRoute-v3", "paper-p1", {**PAPER_FIELD, "crop": {"stage": s}}, c)
         for g, s, c in rows
     ]
+    # Appended: the same runs with the estimator a Nav2 user runs, paired with the oracle's
+    # rows (same fields and noise): its defaults, and as a careful user sets it up
+    # (base_link -> gps transform, smooth_lagged_data with 1 s of history, GPS gate at 5σ).
+    tuned = {
+        "gps_lever_arm": True,
+        "smooth_lagged_data": True,
+        "history_length_s": 1.0,
+        "gps_rejection_threshold": 5.0,
+    }
+    for label, rl in (("robot_localization", {}), ("robot_localization tuned", tuned)):
+        for ref in (1, 3):  # RTK fixed; canopy 2.5 m
+            base = cases[ref]
+            loc = {"kind": "robot_localization", "robot_localization": rl}
+            cases.append(
+                Case(
+                    f"{base.group}, {label}",
+                    base.env_id,
+                    base.scenario,
+                    base.overrides,
+                    {**base.config, "localisation": loc},
+                    seeds_of=ref,
+                )
+            )
+    return cases
 
 
 def suite(name: str) -> list[Case]:

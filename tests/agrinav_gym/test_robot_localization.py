@@ -210,3 +210,22 @@ def test_env_runs_the_estimator(kind: str) -> None:
         assert env.unwrapped.conditions()["localisation"].startswith(kind)
     finally:
         env.close()
+
+
+def test_a_row_names_what_robot_localization_sets_beyond_its_defaults() -> None:
+    tuned = {
+        "gps_lever_arm": True,
+        "smooth_lagged_data": True,
+        "history_length_s": 1.0,
+        "gps_rejection_threshold": 5.0,
+    }
+    for rl, says in (({}, "robot_localization (defaults)"), (tuned, "gps gate 5σ")):
+        env = make(
+            config={"localisation": {"kind": "robot_localization", "robot_localization": rl}}
+        )
+        try:
+            label = env.unwrapped.conditions()["localisation"]
+        finally:
+            env.close()
+        assert says in label
+    assert "gps lever arm, smooth_lagged_data 1 s" in label
