@@ -298,6 +298,14 @@ class Bank:
         return scn
 
 
+#: Draws of randomized scenario keys the generator may refuse in a row before a reset fails.
+MAX_REDRAWS = 20
+
+
+class RefusedDrawWarning(UserWarning):
+    """Some randomized draws make a field the generator refuses (they are drawn again)."""
+
+
 class FixedFieldWarning(UserWarning):
     """Every reset of an env drives the same field: nothing about the field is drawn per reset
     (``ScenarioSource.fixed_field``). A notice, once per env; silence it with
@@ -348,6 +356,7 @@ class ScenarioSource:
                 "scenario keys need a preset scenario to regenerate",
             )
         self.base = base
+        self.redraws = 0  # randomized draws the generator refused (and were drawn again)
         if self.bank is not None:
             self.first = self.bank.sample(np.random.default_rng(seed))
         elif isinstance(scenario, Scenario):
@@ -378,7 +387,30 @@ class ScenarioSource:
         over, env = self.randomization.sample(rng)
         if over and option is None:
             assert self.base is not None
-            scn = sg.generate(self.base.replace(over), int(rng.integers(*self.seed_range)))
+            for attempt in range(MAX_REDRAWS + 1):
+                try:
+                    scn = sg.generate(self.base.replace(over), int(rng.integers(*self.seed_range)))
+                    break
+                except InputError as exc:
+                    # a combination the generator refuses for this terrain (contour rows on a
+                    # window too flat for them): draw again from the same stream
+                    if attempt == MAX_REDRAWS:
+                        raise InputError(
+                            "randomize",
+                            exc.value,
+                            f"{MAX_REDRAWS + 1} draws in a row were refused, the last: "
+                            f"{exc.field}: {exc.allowed}",
+                        ) from None
+                    self.redraws += 1
+                    if self.redraws == 1:
+                        warnings.warn(
+                            f"a drawn field was refused ({exc.field}: {exc.allowed}); drawn "
+                            "again: the randomize ranges hold combinations the generator "
+                            "refuses on some terrain, so those are never driven",
+                            RefusedDrawWarning,
+                            stacklevel=2,
+                        )
+                    over, env = self.randomization.sample(rng)
         return scn, env
 
     def describe(self) -> dict[str, Any]:

@@ -253,3 +253,44 @@ def test_a_scenario_object_is_checked_as_load_checks_a_folder(edit, field: str) 
     with pytest.raises(ScenarioError) as e:
         gym.make("AgriNav/FurrowFollow-v3", scenario=dataclasses.replace(scn, plants=plants))
     assert e.value.field == field
+
+
+#: contour rows on small fields whose slope window is drawn: some draws are too flat for
+#: contour rows, or leave no lane between their rows, and the generator refuses them
+CONTOUR = {
+    "field": {"width": 8.0, "length": 12.0},
+    "layout": {"row_geometry": "contour"},
+    "terrain": {"site": "steepest"},
+    "route": {"lanes": 1},
+}
+
+
+def test_a_refused_draw_is_drawn_again_from_the_same_stream() -> None:
+    from agrinav_gym.scenarios import RefusedDrawWarning, ScenarioSource
+
+    def draws() -> tuple[list[float], int]:
+        src = ScenarioSource(
+            "paper-p1", CONTOUR, 0, (0, 10**6), randomize={"terrain.max_slope_deg": [0.3, 6.0]}
+        )
+        rng = np.random.default_rng(0)
+        slopes = [src.sample(rng, src.first)[0].spec.terrain.max_slope_deg for _ in range(4)]
+        return slopes, src.redraws
+
+    with pytest.warns(RefusedDrawWarning, match="drawn again"):
+        slopes, redraws = draws()
+    assert redraws > 0  # without redrawing, this reset would have raised
+    with pytest.warns(RefusedDrawWarning):
+        assert draws() == (slopes, redraws)  # the same stream, the same fields
+
+
+def test_ranges_the_generator_always_refuses_fail_naming_the_last_reason() -> None:
+    from agrinav_gym.scenarios import MAX_REDRAWS, RefusedDrawWarning, ScenarioSource
+
+    # the base field (6° window) is fine; no drawn window (≤ 0.2°) suits contour rows
+    over = {**CONTOUR, "terrain": {"site": "steepest", "max_slope_deg": 6.0}}
+    src = ScenarioSource("paper-p1", over, randomize={"terrain.max_slope_deg": [0.1, 0.2]})
+    with pytest.warns(RefusedDrawWarning), pytest.raises(ScenarioError) as e:
+        src.sample(np.random.default_rng(0), src.first)
+    msg = str(e.value)
+    assert msg.startswith("randomize:") and f"{MAX_REDRAWS + 1} draws in a row" in msg
+    assert "were refused, the last: terrain." in msg or "the last: layout." in msg
