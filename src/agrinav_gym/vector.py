@@ -21,6 +21,7 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
+from gymnasium.envs.registration import EnvSpec
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
@@ -87,7 +88,9 @@ class BatchedVectorEnv(VectorEnv):
             proc = ctx.Process(
                 target=_worker,
                 name=f"AgriNavBatchedWorker-{i}",
-                args=(child, parent, env_id, kwargs, n, autoreset_mode.value),
+                # the spec itself (pickled): a spawned worker needs no registry, so ids made
+                # with register_scenario in this process work there too
+                args=(child, parent, gym.spec(env_id), kwargs, n, autoreset_mode.value),
                 daemon=True,
             )
             proc.start()
@@ -333,17 +336,15 @@ def _blank(template: np.ndarray, n: int) -> np.ndarray:
 def _worker(
     remote: Connection,
     parent: Connection,
-    env_id: str,
+    spec: EnvSpec,
     kwargs: dict[str, Any],
     n: int,
     autoreset_mode: str,
 ) -> None:
     parent.close()
-    import agrinav_gym  # noqa: F401  (a spawned process registers the ids itself)
-
     try:
         venv: Any = gym.make_vec(
-            env_id,
+            spec,
             num_envs=n,
             vectorization_mode="sync",
             vector_kwargs={"autoreset_mode": AutoresetMode(autoreset_mode)},

@@ -117,3 +117,17 @@ def test_a_worker_that_cannot_build_its_env_names_itself_and_leaves_no_process()
     with pytest.raises(RuntimeError, match="worker 0: .*observations"):
         agrinav_gym.make_vec(ENV, 2, workers=2, observations=["sonar"], **KW)
     assert not [p for p in mp.active_children() if p.name.startswith("AgriNavBatched")]
+
+
+def test_an_id_registered_in_this_process_runs_in_the_workers(tmp_path: Any) -> None:
+    import scenario_gen as sg
+
+    sg.save(sg.generate(sg.preset("default", **TINY), 0), tmp_path / "tiny", preview=False)
+    env_id = agrinav_gym.register_scenario("VectorTiny", tmp_path / "tiny")
+    venv = agrinav_gym.make_vec(env_id, 2, workers=2)
+    try:
+        obs, _ = venv.reset(seed=0)
+        assert venv.get_attr("spec")[1].id == env_id
+        assert all(len(v) == 2 for v in obs.values())
+    finally:
+        venv.close()
