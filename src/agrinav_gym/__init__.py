@@ -20,7 +20,6 @@ from .registration import (
     register_scenario,
     register_scenario_bank,
 )
-
 from .vector import make_vec
 
 register_envs()
