@@ -417,7 +417,7 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         return f"{name}, GNSS {g.mode} best, {fix}, {g.latency_s:g} s latency"
 
     def _rl_settings(self) -> str:
-        """What a robot_localization row sets beyond the node's defaults (empty: none)."""
+        """What a robot_localization row sets beyond the node's defaults, in brackets."""
         rl = self.cfg.localisation.robot_localization
         out = ["gps lever arm"] if rl.gps_lever_arm else []
         if rl.smooth_lagged_data:

@@ -337,8 +337,9 @@ def episode_task(job: EpisodeJob) -> tuple[str, dict[str, Any], bytes]:
     env, pols = cached["env"], cached["policies"]
     if job.policy not in pols:
         pols[job.policy] = _policy(job.spec, env, job.trust)
-    # each case its own sensor-noise draws: groups that differ only in what a policy cannot
-    # see are still independent samples
+    # each case its own sensor-noise draws, so groups that differ only in what a policy cannot
+    # see are still independent samples — unless a case reuses another's seeds to be compared
+    # with it pair by pair (Case.seeds_of)
     run = run_with_interventions if case.interventions else run_episode
     paired = job.case if case.seeds_of is None else case.seeds_of
     ep = run(env, pols[job.policy], EVAL_SEED + CASE_SEEDS * paired + job.seed, job.label)

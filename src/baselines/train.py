@@ -60,7 +60,9 @@ class TrainRun:
 
 def merge_env_kwargs(base: dict[str, Any], path: Path) -> dict[str, Any]:
     """``base`` with the YAML mapping in ``path`` merged over it: nested mappings key by key
-    (a ``randomize`` file adds ranges and replaces those it names), anything else replaced."""
+    (a ``randomize`` file adds ranges and replaces those it names), anything else replaced.
+    Dotted keys stay keys — randomize's are names, not paths — so ``schema.merge`` (which
+    splits them) is not the merge here."""
     from scenario_gen.schema import load_yaml
 
     extra = load_yaml(path, "--env-kwargs")
