@@ -298,7 +298,8 @@ def pack(info: dict[str, Any], last: Layout | None) -> tuple[Packed, Layout]:
     """A vector info (dicts and arrays, as ``SyncVectorEnv`` builds it) packed; the layout is
     left out of the packet when it equals ``last``."""
     leaves: list[tuple[Path, int, int]] = []
-    groups: dict[tuple[str, tuple[int, ...]], list[np.ndarray]] = {}
+    group_of: dict[tuple[str, tuple[int, ...]], int] = {}  # (dtype, shape) -> buffer index
+    groups: list[list[np.ndarray]] = []
     objects: list[Any] = []
 
     def walk(d: dict[str, Any], path: Path) -> None:
@@ -310,9 +311,11 @@ def pack(info: dict[str, Any], last: Layout | None) -> tuple[Packed, Layout]:
                 else:
                     leaves.append((here, -2, 0))
             elif isinstance(v, np.ndarray) and v.dtype != object:
-                members = groups.setdefault((v.dtype.str, v.shape[1:]), [])
-                leaves.append((here, list(groups).index((v.dtype.str, v.shape[1:])), len(members)))
-                members.append(v)
+                b = group_of.setdefault((v.dtype.str, v.shape[1:]), len(group_of))
+                if b == len(groups):
+                    groups.append([])
+                leaves.append((here, b, len(groups[b])))
+                groups[b].append(v)
             else:
                 leaves.append((here, -1, len(objects)))
                 objects.append(v)
@@ -323,7 +326,7 @@ def pack(info: dict[str, Any], last: Layout | None) -> tuple[Packed, Layout]:
     if same:
         assert last is not None
         layout = last
-    buffers = [np.stack(m) for m in groups.values()]
+    buffers = [np.stack(m) for m in groups]
     return Packed(None if same else layout, buffers, objects), layout
 
 
