@@ -134,6 +134,12 @@ OOD_AXES: tuple[tuple[str, tuple[str, ...], dict[str, Any], dict[str, Any]], ...
         },
         {},
     ),
+    (
+        "contour rows, slope 4-8 deg, keyhole turns",
+        ("terrain.max_slope_deg",),
+        {"layout": {"row_geometry": "contour", "headland": 5.0}, "route": {"turn": "keyhole"}},
+        {"randomize": {"terrain.max_slope_deg": [4.0, 8.0]}},
+    ),
 )
 
 

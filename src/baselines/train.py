@@ -54,6 +54,9 @@ class TrainRun:
     scenario: str | None = None
     checkpoint_every: int | None = None
     resume: Path | None = None
+    # a new run that starts from this checkpoint's weights and observation normalisation
+    # (fine-tuning: its own step count, a fresh optimizer, no warm start)
+    init_from: Path | None = None
     warm_start: bool = True  # the env's envs.yml warm_start, if it has one
     env_kwargs: Path | None = None  # a YAML mapping merged over envs.yml's env_kwargs
 
@@ -116,6 +119,10 @@ def prepare(run: TrainRun) -> tuple[hpmod.PPOHyperparams, hpmod.EnvSetup, dict[s
     if run.out.exists() and (not run.out.is_dir() or any(run.out.iterdir())):
         raise InputError("--out", str(run.out), "allowed: a new or empty directory")
     resolve_device(run.device)  # an unavailable device is refused before anything is made
+    if run.init_from is not None and run.resume is not None:
+        raise InputError(
+            "--init-from", str(run.init_from), "allowed: --resume or --init-from, not both"
+        )
     if run.resume is not None:
         meta = checkpoint.read_meta(run.resume)
         if meta.get("env_id") != run.env_id or meta.get("optimizer") is None:
@@ -133,6 +140,9 @@ def prepare(run: TrainRun) -> tuple[hpmod.PPOHyperparams, hpmod.EnvSetup, dict[s
             raise InputError(
                 "--timesteps", hp.n_timesteps, f"allowed: more than the {done} steps already done"
             )
+    init = None
+    if run.init_from is not None:
+        init = checkpoint.load(run.init_from)
     base = dict(setup.env_kwargs)
     if run.env_kwargs is not None:
         base = merge_env_kwargs(base, run.env_kwargs)
@@ -146,8 +156,27 @@ def prepare(run: TrainRun) -> tuple[hpmod.PPOHyperparams, hpmod.EnvSetup, dict[s
         **kwargs,
         scenario_seeds=list(setup.train_seeds),
     )
-    probe.close()  # every env kwarg is valid before the run starts
+    try:  # every env kwarg is valid before the run starts
+        if init is not None:
+            _check_spaces(init, probe, run.init_from)
+    finally:
+        probe.close()
     return hp, setup, kwargs
+
+
+def _check_spaces(init: Any, env: Any, folder: Path | None) -> None:
+    """A checkpoint to start from must see and act as the env does."""
+    for what, theirs, ours in (
+        ("observation space", init.policy.observation_space, env.observation_space),
+        ("action space", init.policy.action_space, env.action_space),
+    ):
+        if checkpoint.space_to_json(theirs) != checkpoint.space_to_json(ours):
+            raise InputError(
+                "--init-from",
+                str(folder),
+                f"its {what} is not the env's; allowed: a checkpoint of an env with the same "
+                "observations and actions",
+            )
 
 
 #: What ``--device`` takes.
@@ -268,6 +297,9 @@ def _train(
     model.set_logger(configure(str(out / "logs"), formats))
     if run.resume is not None:
         restore(model, norm, run.resume)
+    elif run.init_from is not None:
+        restore(model, norm, run.init_from, "--init-from", optimizer=False)
+        model.num_timesteps = model._num_timesteps_at_start = 0
     # Training-time evaluation (the curve, the best checkpoint, any stop/continue decision)
     # sees validation fields only: the test seeds are agrinav bench's.
     eval_kwargs = {**kwargs, "scenario_seeds": list(setup.val_seeds)}
@@ -285,7 +317,7 @@ def _train(
         log_evaluation(m.logger, res, int(m.num_timesteps))
         return res
 
-    ws = setup.warm(run.env_id) if run.warm_start else None
+    ws = setup.warm(run.env_id) if run.warm_start and run.init_from is None else None
     if ws is not None and run.resume is None:
         from .imitation import clone, demonstrate
 
@@ -302,6 +334,8 @@ def _train(
         }
         (out / "warm_start.json").write_text(json.dumps(report, indent=1))
         evaluation(model)  # the clone itself, at 0 PPO steps
+    elif run.init_from is not None:
+        evaluation(model)  # the starting checkpoint on this run's validation fields
 
     callback = _callback(hp.n_timesteps, run, evaluation, lambda m: saver.periodic(m, norm))
     try:
@@ -436,9 +470,12 @@ class _Saver:
             "val_seeds": list(self.setup.val_seeds),
             "eval_seeds": list(self.setup.eval_seeds),
             "resumed_from": str(self.run.resume) if self.run.resume else None,
+            "initialised_from": str(self.run.init_from) if self.run.init_from else None,
             # behaviour cloning before PPO (warm_start.json: its fit); a resumed run inherits it
             "warm_start": (
-                self.setup.warm_start if self.run.warm_start and not self.run.resume else None
+                self.setup.warm_start
+                if self.run.warm_start and not self.run.resume and not self.run.init_from
+                else None
             ),
             "minutes": history[-1]["minutes"] if history else None,
             **self.device,

@@ -113,6 +113,26 @@ def _intersect(a: FloatArray, b: FloatArray) -> list[tuple[float, float]]:
     return out
 
 
+def crop_end(rows: RowFrame, flanking: tuple[int, ...], t: float, d: int) -> float:
+    """Where the crop beside a lane ends, along the rows in the direction ``d``: the farthest
+    end of the planted stretches of the ``flanking`` rows that reach the lane's end ``t``.
+
+    A lane ends where either of its rows does; where row ends are staggered (curved and contour
+    rows, a field edge at an angle to the rows) the other row goes on past it, and a turn laid
+    from the lane's end would cross that row's last plants."""
+    end = t
+    for r in flanking:
+        seg = rows.segments(r)
+        reach = seg[(seg[:, 0] <= t + _END_TOL) & (seg[:, 1] >= t - _END_TOL)]
+        if len(reach):
+            end = d * max(d * end, float(np.max(d * reach[:, 1 if d > 0 else 0])))
+    return end
+
+
+#: How close to a lane's end (m along the rows) a row's stretch must come to flank it there.
+_END_TOL = 1e-9
+
+
 def lane_segments(rows: RowFrame, field: BaseGeometry | None = None) -> tuple[IntArray, FloatArray]:
     """Every planted stretch of every lane: (centreline index, (t0, t1) along the rows).
 
@@ -270,9 +290,10 @@ def zigzag(
 ) -> Route:
     """Drive ``spec.lanes`` adjacent lanes in alternating directions with turns between.
 
-    ``crops`` (n, 2) are the crop plants the turns other than the semicircle must clear: such
-    a turn starts ``spec.turn_offset`` past the crop, or farther until the footprint swept along
-    it keeps ``spec.turn_clearance`` from every plant, and must stay inside ``field``."""
+    Every turn starts past the crop beside both lanes (``crop_end``). ``crops`` (n, 2) are the
+    crop plants the turns other than the semicircle must clear: such a turn starts
+    ``spec.turn_offset`` past the crop, or farther until the footprint swept along it keeps
+    ``spec.turn_clearance`` from every plant, and must stay inside ``field``."""
     lane_of, spans = lane_segments(rows, field)
     drivable = np.unique(lane_of)
     n_lanes = len(drivable)
@@ -315,11 +336,12 @@ def zigzag(
         s_next = 0.5 * (offsets[nxt] + offsets[nxt + 1])
         nxt_own = spans[lane_of == nxt]
         nxt_entry = float(nxt_own[-1, 1] if d > 0 else nxt_own[0, 0])
+        far = crop_end(rows, (lane, lane + 1), exit_, d)
+        far = d * max(d * far, d * crop_end(rows, (nxt, nxt + 1), nxt_entry, d))
         if spec.turn == "semicircle" and rows.curve is None:
-            turn = d * max(d * exit_, d * nxt_entry) + d * spec.turn_offset
+            turn = far + d * spec.turn_offset
             shape: tuple = ("arc", turn, s, s_next, d)
         else:
-            far = d * max(d * exit_, d * nxt_entry)
             turn, shape = fitted.turn(far, s, s_next, d)
         pieces.append((("line", (exit_, s), (turn, s)), HEADLAND, -1, ""))
         pieces.append((shape, HEADLAND, -1, spec.turn))

@@ -117,6 +117,40 @@ def test_training_saves_safe_checkpoints_logs_and_resumes(
     assert proc.returncode == 2 and "--resume" in proc.stderr and not bad.exists()
 
 
+def test_a_run_starts_from_another_checkpoint_and_refuses_one_that_does_not_fit(
+    tmp_path: Path, tiny_scenario: Path
+) -> None:
+    from policies import checkpoint, shipped_model
+
+    start = shipped_model("AgriNav/FurrowFollow-v3")
+    common = ["--env", "AgriNav/FurrowFollow-v3", "--seed", "1", "--scenario", str(tiny_scenario)]
+    common += ["--n-envs", "1", "--eval-episodes", "1", "--eval-every", "64"]
+    hp = ["--hyperparams", "n_steps=64", "batch_size=32"]
+    out = tmp_path / "tuned"
+    proc = _train([*common, "--timesteps", "64", "--out", str(out), *hp, "--init-from", str(start)])
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    evals = json.loads((out / "evaluations.json").read_text())
+    assert evals[0]["timesteps"] == 0  # the starting checkpoint, measured before any update
+    assert json.loads((out / "checkpoint.json").read_text())["num_timesteps"] == 64
+    config = yaml.safe_load((out / "config.yml").read_text())
+    assert config["initialised_from"] == str(start) and config["warm_start"] is None
+    before, after = checkpoint.load(start), checkpoint.load(out)
+    assert before.meta["normalization"] is not None
+    w0 = before.policy.state_dict()
+    w1 = after.policy.state_dict()
+    # 64 steps of fine-tuning moved the weights from the checkpoint's, not from a fresh draw
+    k = next(k for k in w0 if k.endswith("weight"))
+    delta = (w1[k] - w0[k]).abs().max().item()
+    assert 0 < delta < 0.05 * w0[k].abs().max().item()
+
+    # a checkpoint of an env that observes something else, or both ways in at once: refused
+    other = shipped_model("AgriNav/FieldRoute-v3")
+    for extra in (["--init-from", str(other)], ["--init-from", str(start), "--resume", str(out)]):
+        bad = tmp_path / "never"
+        proc = _train([*common, "--timesteps", "64", "--out", str(bad), *extra])
+        assert proc.returncode == 2 and "--init-from" in proc.stderr and not bad.exists()
+
+
 @pytest.mark.parametrize(
     "args,needle",
     [

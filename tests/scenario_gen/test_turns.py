@@ -84,7 +84,11 @@ def _swept(pts: np.ndarray, yaw: np.ndarray, length: float, width: float):
 CASES = [
     ("hillside", {}),
     ("narrow-rows", {"layout": {"headland": 5.0}}),
-    ("hillside", {"layout": {"row_geometry": "curved", "curve_radius": [15.0, 15.0]}}),
+    # curved rows end staggered and a turn starts past the longest of them: a wider headland
+    (
+        "hillside",
+        {"layout": {"row_geometry": "curved", "curve_radius": [15.0, 15.0], "headland": 5.0}},
+    ),
 ]
 
 
@@ -148,3 +152,32 @@ def test_turns_start_where_the_footprint_clears_the_crop() -> None:
     d = np.hypot(scn.plants.x[crop] - r.xy[start, 0], scn.plants.y[crop] - r.xy[start, 1])
     # at least half the footprint's length plus the clearance from the nearest plant
     assert d.min() >= 0.5 * spec.route.footprint[0] + spec.route.turn_clearance - 1e-9
+
+
+@pytest.mark.parametrize("kind", ["semicircle", "keyhole"])
+def test_turns_start_past_every_plant_of_the_rows_beside_both_lanes(kind) -> None:
+    # curved rows end staggered: a lane ends where the first of its two rows does and the other
+    # row goes on; the turn must be laid past the last plant of either, not past the lane's end
+    spec = preset(
+        "hillside",
+        layout={"row_geometry": "curved", "curve_radius": [15.0, 15.0], "headland": 5.0},
+        route={"turn": kind, "lanes": 3, "turn_offset": 0.3},
+    )
+    scn = generate(spec, seed=5)
+    r, rows = scn.route, scn.rows
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], (r.turn != "").astype(int), [0]])))
+    crop = ~scn.plants.is_weed
+    tp, sp = rows.to_rows(scn.plants.x[crop], scn.plants.y[crop])
+    stagger = []
+    for a, b in zip(edges[::2], edges[1::2], strict=True):
+        (t0, _t1), (s0, s1) = rows.to_rows(r.xy[[a, b - 1], 0], r.xy[[a, b - 1], 1])
+        (tb,), _ = rows.to_rows(r.xy[[a - 20], 0], r.xy[[a - 20], 1])
+        d = np.sign(t0 - tb)
+        lo, hi = min(s0, s1) - 0.5 * rows.spacing, max(s0, s1) + 0.5 * rows.spacing
+        beside = (sp > lo - 0.1) & (sp < hi + 0.1)  # the three rows, within lateral jitter
+        # turn_offset (0.3 m) past the last of them, less along-row jitter: still past all
+        assert (d * (tp[beside] - t0)).max() < 0
+        near = beside & (np.abs(tp - t0) < 5.0)
+        rows_here = [near & (np.abs(sp - o) < 0.1) for o in rows.offsets]
+        stagger.append(np.ptp([np.max(d * tp[m]) for m in rows_here if m.any()]))
+    assert max(stagger) > 0.3  # the case in question: the rows end at different places

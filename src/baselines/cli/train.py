@@ -48,6 +48,13 @@ def add(sub: Any) -> None:
     )
     tr.add_argument("--resume", help="continue from a checkpoint folder of an earlier run")
     tr.add_argument(
+        "--init-from",
+        metavar="CHECKPOINT",
+        help="fine-tune: a new run that starts from this checkpoint folder's weights and "
+        "observation normalisation (same observations and actions; fresh optimizer, its own step "
+        "count, no warm start)",
+    )
+    tr.add_argument(
         "--env-kwargs",
         metavar="FILE",
         help="a YAML mapping merged over the env's envs.yml env_kwargs (nested mappings key by "
@@ -87,6 +94,7 @@ def run(args: argparse.Namespace) -> int:
             scenario=args.scenario,
             checkpoint_every=args.checkpoint_every,
             resume=Path(args.resume) if args.resume else None,
+            init_from=Path(args.init_from) if args.init_from else None,
             warm_start=not args.no_warm_start,
             env_kwargs=Path(args.env_kwargs) if args.env_kwargs else None,
         ),
