@@ -15,7 +15,7 @@ from __future__ import annotations
 import multiprocessing as mp
 import os
 import traceback
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from multiprocessing.connection import Connection
 from typing import Any
 
@@ -39,10 +39,12 @@ def make_vec(
     *,
     context: str = "spawn",
     autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
+    wrappers: Sequence[Callable[[gym.Env], gym.Wrapper]] = (),
     **kwargs: Any,
 ) -> BatchedVectorEnv:
     """``num_envs`` copies of ``gym.make(env_id, **kwargs)`` spread over ``workers`` processes
-    (default: one per core, at most one per env), contiguous shares as equal as they go."""
+    (default: one per core, at most one per env), contiguous shares as equal as they go;
+    ``wrappers`` (picklable: classes or module-level functions) wrap each env, in order."""
     env_id = check_env_id(env_id)
     if isinstance(num_envs, bool) or not isinstance(num_envs, int) or num_envs < 1:
         raise InputError("num_envs", num_envs, "allowed: an integer ≥ 1")
@@ -57,7 +59,11 @@ def make_vec(
     except ValueError:
         allowed = ", ".join(m.value for m in AutoresetMode)
         raise InputError("autoreset_mode", autoreset_mode, f"allowed: {allowed}") from None
-    return BatchedVectorEnv(env_id, num_envs, workers, kwargs, context, mode)
+    wrappers = tuple(wrappers)
+    for i, w in enumerate(wrappers):
+        if not callable(w):
+            raise InputError(f"wrappers[{i}]", w, "allowed: a callable taking and returning an env")
+    return BatchedVectorEnv(env_id, num_envs, workers, kwargs, context, mode, wrappers)
 
 
 class BatchedVectorEnv(VectorEnv):
@@ -71,6 +77,7 @@ class BatchedVectorEnv(VectorEnv):
         kwargs: dict[str, Any],
         context: str,
         autoreset_mode: AutoresetMode,
+        wrappers: tuple[Callable[[gym.Env], gym.Wrapper], ...] = (),
     ) -> None:
         sizes = [len(a) for a in np.array_split(np.arange(num_envs), workers)]
         self.num_envs = num_envs
@@ -90,7 +97,7 @@ class BatchedVectorEnv(VectorEnv):
                 name=f"AgriNavBatchedWorker-{i}",
                 # the spec itself (pickled): a spawned worker needs no registry, so ids made
                 # with register_scenario in this process work there too
-                args=(child, parent, gym.spec(env_id), kwargs, n, autoreset_mode.value),
+                args=(child, parent, gym.spec(env_id), kwargs, n, autoreset_mode.value, wrappers),
                 daemon=True,
             )
             proc.start()
@@ -177,6 +184,23 @@ class BatchedVectorEnv(VectorEnv):
 
     def get_attr(self, name: str) -> tuple[Any, ...]:
         return self._each("get_attr", name)
+
+    def wrapped(self, wrapper: type) -> tuple[bool, ...]:
+        """Whether each env is wrapped in ``wrapper`` (at any depth)."""
+        return self._each("wrapped", wrapper)
+
+    def set_attr(self, name: str, values: list[Any] | tuple[Any, ...] | Any) -> None:
+        """As ``SyncVectorEnv.set_attr``: one value for every env, or a value per env."""
+        if isinstance(values, list | tuple):
+            if len(values) != self.num_envs:
+                raise InputError("values", values, f"allowed: one value or {self.num_envs}")
+            for i, remote in enumerate(self._remotes):
+                a, b = self._bounds[i], self._bounds[i + 1]
+                remote.send(("set_attr", (name, list(values[a:b]))))
+        else:
+            for remote in self._remotes:
+                remote.send(("set_attr", (name, values)))
+        self._gather()
 
     def close_extras(self, **kwargs: Any) -> None:
         for remote in self._remotes:
@@ -330,6 +354,14 @@ def pack(info: dict[str, Any], last: Layout | None) -> tuple[Packed, Layout]:
     return Packed(None if same else layout, buffers, objects), layout
 
 
+def _wrapped(env: Any, wrapper: type) -> bool:
+    while isinstance(env, gym.Wrapper):
+        if isinstance(env, wrapper):
+            return True
+        env = env.env
+    return isinstance(env, wrapper)
+
+
 def _blank(template: np.ndarray, n: int) -> np.ndarray:
     if template.dtype == object:
         return np.full(n, None, dtype=object)
@@ -343,6 +375,7 @@ def _worker(
     kwargs: dict[str, Any],
     n: int,
     autoreset_mode: str,
+    wrappers: tuple[Callable[[gym.Env], gym.Wrapper], ...] = (),
 ) -> None:
     parent.close()
     try:
@@ -351,6 +384,7 @@ def _worker(
             num_envs=n,
             vectorization_mode="sync",
             vector_kwargs={"autoreset_mode": AutoresetMode(autoreset_mode)},
+            wrappers=list(wrappers) or None,
             **kwargs,
         )
         first = venv.envs[0]
@@ -391,6 +425,11 @@ def _worker(
                 out = venv.call(name, *args, **kw)
             elif cmd == "get_attr":
                 out = venv.get_attr(data)
+            elif cmd == "wrapped":
+                out = tuple(_wrapped(env, data) for env in venv.envs)
+            elif cmd == "set_attr":
+                venv.set_attr(*data)
+                out = ()
             elif cmd == "close":
                 venv.close()
                 remote.send((True, None))
