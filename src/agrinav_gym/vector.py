@@ -185,10 +185,6 @@ class BatchedVectorEnv(VectorEnv):
     def get_attr(self, name: str) -> tuple[Any, ...]:
         return self._each("get_attr", name)
 
-    def wrapped(self, wrapper: type) -> tuple[bool, ...]:
-        """Whether each env is wrapped in ``wrapper`` (at any depth)."""
-        return self._each("wrapped", wrapper)
-
     def set_attr(self, name: str, values: list[Any] | tuple[Any, ...] | Any) -> None:
         """As ``SyncVectorEnv.set_attr``: one value for every env, or a value per env."""
         if isinstance(values, list | tuple):
@@ -354,14 +350,6 @@ def pack(info: dict[str, Any], last: Layout | None) -> tuple[Packed, Layout]:
     return Packed(None if same else layout, buffers, objects), layout
 
 
-def _wrapped(env: Any, wrapper: type) -> bool:
-    while isinstance(env, gym.Wrapper):
-        if isinstance(env, wrapper):
-            return True
-        env = env.env
-    return isinstance(env, wrapper)
-
-
 def _blank(template: np.ndarray, n: int) -> np.ndarray:
     if template.dtype == object:
         return np.full(n, None, dtype=object)
@@ -425,8 +413,6 @@ def _worker(
                 out = venv.call(name, *args, **kw)
             elif cmd == "get_attr":
                 out = venv.get_attr(data)
-            elif cmd == "wrapped":
-                out = tuple(_wrapped(env, data) for env in venv.envs)
             elif cmd == "set_attr":
                 venv.set_attr(*data)
                 out = ()

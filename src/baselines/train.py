@@ -57,8 +57,6 @@ class TrainRun:
     # a new run that starts from this checkpoint's weights and observation normalisation
     # (fine-tuning: its own step count, a fresh optimizer, no warm start)
     init_from: Path | None = None
-    # processes the n_envs training envs run in (make_vec); None: one per core, ≤ n_envs
-    workers: int | None = None
     warm_start: bool = True  # the env's envs.yml warm_start, if it has one
     env_kwargs: Path | None = None  # a YAML mapping merged over envs.yml's env_kwargs
 
@@ -121,8 +119,6 @@ def prepare(run: TrainRun) -> tuple[hpmod.PPOHyperparams, hpmod.EnvSetup, dict[s
     if run.out.exists() and (not run.out.is_dir() or any(run.out.iterdir())):
         raise InputError("--out", str(run.out), "allowed: a new or empty directory")
     resolve_device(run.device)  # an unavailable device is refused before anything is made
-    if run.workers is not None and not 1 <= run.workers <= hp.n_envs:
-        raise InputError("--workers", run.workers, f"allowed: 1 to n_envs ({hp.n_envs})")
     if run.init_from is not None and run.resume is not None:
         raise InputError(
             "--init-from", str(run.init_from), "allowed: --resume or --init-from, not both"
@@ -282,25 +278,17 @@ def _train(
     from stable_baselines3 import PPO
     from stable_baselines3.common.env_util import make_vec_env
     from stable_baselines3.common.logger import configure
-    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
-
-    from .sb3_vec import BatchedSB3VecEnv
+    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
 
     out = run.out
     device = resolve_device(run.device)
-    train_kwargs = {**kwargs, "scenario_seeds": list(setup.train_seeds)}
-    venv: Any
-    if hp.n_envs > 1:  # the envs batched into worker processes (the same rollouts as one each)
-        venv = BatchedSB3VecEnv(run.env_id, hp.n_envs, train_workers(run, hp), train_kwargs)
-        venv.seed(run.seed)
-    else:
-        venv = make_vec_env(
-            f"agrinav_gym:{run.env_id}",
-            n_envs=1,
-            seed=run.seed,
-            vec_env_cls=DummyVecEnv,
-            env_kwargs=train_kwargs,
-        )
+    venv: Any = make_vec_env(
+        f"agrinav_gym:{run.env_id}",
+        n_envs=hp.n_envs,
+        seed=run.seed,
+        vec_env_cls=SubprocVecEnv if hp.n_envs > 1 else DummyVecEnv,
+        env_kwargs={**kwargs, "scenario_seeds": list(setup.train_seeds)},
+    )
     norm = None
     if hp.normalize_obs:
         venv = norm = VecNormalize(venv, norm_obs=True, norm_reward=False, clip_obs=10.0)
@@ -364,13 +352,6 @@ def _train(
     saver.final(model, norm, history, argv)
     learning_curve(history, out / "learning_curve.png", run.env_id)
     return out
-
-
-def train_workers(run: TrainRun, hp: hpmod.PPOHyperparams) -> int:
-    """Worker processes for the training envs: ``run.workers``, else one per core."""
-    if run.workers is not None:
-        return run.workers
-    return max(1, min(hp.n_envs, os.cpu_count() or 1))
 
 
 def _has_tensorboard() -> bool:
@@ -490,7 +471,6 @@ class _Saver:
             "eval_seeds": list(self.setup.eval_seeds),
             "resumed_from": str(self.run.resume) if self.run.resume else None,
             "initialised_from": str(self.run.init_from) if self.run.init_from else None,
-            "workers": train_workers(self.run, self.hp) if self.hp.n_envs > 1 else 0,
             # behaviour cloning before PPO (warm_start.json: its fit); a resumed run inherits it
             "warm_start": (
                 self.setup.warm_start

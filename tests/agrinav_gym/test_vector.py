@@ -102,6 +102,7 @@ def test_info_join_blanks_keys_some_workers_lack() -> None:
         ({"num_envs": 2, "workers": 0}, "workers"),
         ({"num_envs": 2, "autoreset_mode": "Sometimes"}, "autoreset_mode"),
         ({"num_envs": 2, "context": "teleport"}, "context"),
+        ({"num_envs": 2, "wrappers": ["RecordEpisodeStatistics"]}, "wrappers"),
     ],
 )
 def test_bad_arguments_are_refused_before_any_process_starts(
@@ -129,5 +130,30 @@ def test_an_id_registered_in_this_process_runs_in_the_workers(tmp_path: Any) -> 
         obs, _ = venv.reset(seed=0)
         assert venv.get_attr("spec")[1].id == env_id
         assert all(len(v) == 2 for v in obs.values())
+    finally:
+        venv.close()
+
+
+def test_wrappers_wrap_every_env_and_set_attr_reaches_each() -> None:
+    from gymnasium.wrappers import RecordEpisodeStatistics
+
+    venv = agrinav_gym.make_vec(
+        ENV, 3, workers=2, autoreset_mode="SameStep", wrappers=(RecordEpisodeStatistics,), **KW
+    )
+    try:
+        venv.reset(seed=1)
+        lengths = np.zeros(3, np.int64)
+        for _ in range(30):  # past the 25-step limit: every env ends once
+            *_, info = venv.step(np.zeros((3, 2), np.float32))
+            if "final_info" in info:
+                done = info["final_info"]["_episode"]
+                lengths[done] = info["final_info"]["episode"]["l"][done]
+        np.testing.assert_array_equal(lengths, 25)  # the wrapper's episode statistics
+        venv.set_attr("marker", [1, 2, 3])
+        assert venv.get_attr("marker") == (1, 2, 3)
+        venv.set_attr("marker", 7)
+        assert venv.get_attr("marker") == (7, 7, 7)
+        with pytest.raises(agrinav_gym.InputError, match="values"):
+            venv.set_attr("marker", [1, 2])
     finally:
         venv.close()

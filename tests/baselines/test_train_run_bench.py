@@ -124,9 +124,8 @@ def test_a_run_starts_from_another_checkpoint_and_refuses_one_that_does_not_fit(
 
     start = shipped_model("AgriNav/FurrowFollow-v3")
     common = ["--env", "AgriNav/FurrowFollow-v3", "--seed", "1", "--scenario", str(tiny_scenario)]
-    # two envs in two worker processes: the batched vector env SB3 trains through
-    common += ["--n-envs", "2", "--workers", "2", "--eval-episodes", "1", "--eval-every", "64"]
-    hp = ["--hyperparams", "n_steps=32", "batch_size=32"]
+    common += ["--n-envs", "1", "--eval-episodes", "1", "--eval-every", "64"]
+    hp = ["--hyperparams", "n_steps=64", "batch_size=32"]
     out = tmp_path / "tuned"
     proc = _train([*common, "--timesteps", "64", "--out", str(out), *hp, "--init-from", str(start)])
     assert proc.returncode == 0, proc.stderr[-2000:]
@@ -135,7 +134,6 @@ def test_a_run_starts_from_another_checkpoint_and_refuses_one_that_does_not_fit(
     assert json.loads((out / "checkpoint.json").read_text())["num_timesteps"] == 64
     config = yaml.safe_load((out / "config.yml").read_text())
     assert config["initialised_from"] == str(start) and config["warm_start"] is None
-    assert config["workers"] == 2
     before, after = checkpoint.load(start), checkpoint.load(out)
     assert before.meta["normalization"] is not None
     w0 = before.policy.state_dict()
@@ -145,17 +143,12 @@ def test_a_run_starts_from_another_checkpoint_and_refuses_one_that_does_not_fit(
     delta = (w1[k] - w0[k]).abs().max().item()
     assert 0 < delta < 0.05 * w0[k].abs().max().item()
 
-    # a checkpoint of an env that observes something else, both ways in at once, more worker
-    # processes than envs: refused before the run's folder exists
+    # a checkpoint of an env that observes something else, or both ways in at once: refused
     other = shipped_model("AgriNav/FieldRoute-v3")
-    for extra, name in (
-        (["--init-from", str(other)], "--init-from"),
-        (["--init-from", str(start), "--resume", str(out)], "--init-from"),
-        (["--workers", "3"], "--workers"),
-    ):
+    for extra in (["--init-from", str(other)], ["--init-from", str(start), "--resume", str(out)]):
         bad = tmp_path / "never"
         proc = _train([*common, "--timesteps", "64", "--out", str(bad), *extra])
-        assert proc.returncode == 2 and name in proc.stderr and not bad.exists(), proc.stderr
+        assert proc.returncode == 2 and "--init-from" in proc.stderr and not bad.exists()
 
 
 @pytest.mark.parametrize(

@@ -48,12 +48,6 @@ def add(sub: Any) -> None:
     )
     tr.add_argument("--resume", help="continue from a checkpoint folder of an earlier run")
     tr.add_argument(
-        "--workers",
-        type=int_at_least(1),
-        help="processes the --n-envs training envs run in, several to a process "
-        "(default: one per core, at most n_envs; the rollouts do not depend on it)",
-    )
-    tr.add_argument(
         "--init-from",
         metavar="CHECKPOINT",
         help="fine-tune: a new run that starts from this checkpoint folder's weights and "
@@ -101,7 +95,6 @@ def run(args: argparse.Namespace) -> int:
             checkpoint_every=args.checkpoint_every,
             resume=Path(args.resume) if args.resume else None,
             init_from=Path(args.init_from) if args.init_from else None,
-            workers=args.workers,
             warm_start=not args.no_warm_start,
             env_kwargs=Path(args.env_kwargs) if args.env_kwargs else None,
         ),
