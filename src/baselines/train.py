@@ -143,6 +143,16 @@ def prepare(run: TrainRun) -> tuple[hpmod.PPOHyperparams, hpmod.EnvSetup, dict[s
     init = None
     if run.init_from is not None:
         init = checkpoint.load(run.init_from)
+        theirs = init.meta.get("normalization") is not None
+        if theirs != hp.normalize_obs:  # the weights expect inputs scaled as in training
+            on = {True: "on", False: "off"}
+            raise InputError(
+                "--init-from",
+                str(run.init_from),
+                f"has observation normalisation {on[theirs]} where {run.env_id}'s "
+                f"hyperparameters have it {on[hp.normalize_obs]}; allowed: a checkpoint "
+                f"trained with it {on[hp.normalize_obs]}",
+            )
     base = dict(setup.env_kwargs)
     if run.env_kwargs is not None:
         base = merge_env_kwargs(base, run.env_kwargs)
