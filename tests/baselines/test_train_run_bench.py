@@ -145,7 +145,13 @@ def test_a_run_starts_from_another_checkpoint_and_refuses_one_that_does_not_fit(
 
     # a checkpoint of an env that observes something else, or both ways in at once: refused
     other = shipped_model("AgriNav/FieldRoute-v3")
-    for extra in (["--init-from", str(other)], ["--init-from", str(start), "--resume", str(out)]):
+    # ... or one trained on normalised observations for a run that does not normalise them
+    unnormalised = ["--init-from", str(start), "--hyperparams", "normalize=false"]
+    for extra in (
+        ["--init-from", str(other)],
+        ["--init-from", str(start), "--resume", str(out)],
+        unnormalised,
+    ):
         bad = tmp_path / "never"
         proc = _train([*common, "--timesteps", "64", "--out", str(bad), *extra])
         assert proc.returncode == 2 and "--init-from" in proc.stderr and not bad.exists()
