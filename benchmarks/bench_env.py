@@ -14,9 +14,10 @@
 5. load time of a 100,000-plant field (target ≤ 10 s): generate + build + reset;
 6. reset with a new randomized scenario (target ≤ 1 s);
 7. vector-env scaling: the state-only env in 1 and 2 subprocess workers, env steps/s and the
-   efficiency of 2 (target: 2 workers ≥ 1.7× one), interleaved, two ways: Gymnasium's
+   efficiency of 2 (target: 2 workers ≥ 1.7× one), interleaved, three ways: Gymnasium's
    ``AsyncVectorEnv`` (``gymnasium.make_vec(..., vectorization_mode="async")``, one env per
-   process) and ``agrinav_gym.make_vec`` (4 envs per worker process).
+   process) and ``agrinav_gym.make_vec`` (4 envs per worker process), with and without
+   ``pin_workers``.
 
 Medians of several runs; run with ``make bench`` or ``python benchmarks/bench_env.py``
 (``--sections 3,7`` for some). Timings of steps only: resets are not timed (a racecar episode
@@ -177,8 +178,10 @@ def _vector_env(kind: str, workers: int) -> gym.vector.VectorEnv:
     """``async``: Gymnasium's AsyncVectorEnv, one env per process; ``batched``:
     ``agrinav_gym.make_vec``, PER_WORKER envs per process."""
     kw: dict[str, Any] = {"scenario": "paper-p1", "observations": STATE_OBS, "config": TASK}
-    if kind == "batched":
-        return agrinav_gym.make_vec(ENV_ID, PER_WORKER * workers, workers=workers, **kw)
+    if kind in ("batched", "pinned"):
+        return agrinav_gym.make_vec(
+            ENV_ID, PER_WORKER * workers, workers=workers, pin_workers=kind == "pinned", **kw
+        )
     return gym.make_vec(
         ENV_ID,
         num_envs=workers,
@@ -202,7 +205,8 @@ def vector_scaling(repeat: int, steps: int = 300) -> Scaling:
     """Section 7: per setup (async / batched) and worker count (1, 2), the median env steps/s
     of interleaved runs, each worker's median busy share of the wall time, and the main
     process's."""
-    envs = {(kind, n): _vector_env(kind, n) for kind in ("async", "batched") for n in (1, 2)}
+    kinds = ("async", "batched", "pinned")
+    envs = {(kind, n): _vector_env(kind, n) for kind in kinds for n in (1, 2)}
     runs: dict[tuple[str, int], list[tuple[float, list[float], float]]] = {k: [] for k in envs}
     try:
         for venv in envs.values():
@@ -371,6 +375,7 @@ def main() -> None:
         names = {
             "async": "AsyncVectorEnv (spawn), 1 env per worker",
             "batched": f"agrinav_gym.make_vec, {PER_WORKER} envs per worker",
+            "pinned": f"agrinav_gym.make_vec, {PER_WORKER} envs per worker, pin_workers",
         }
         print("7. vector envs (target: 2 workers ≥ 1.7x one)")
         for kind, name in names.items():

@@ -103,6 +103,7 @@ def test_info_join_blanks_keys_some_workers_lack() -> None:
         ({"num_envs": 2, "autoreset_mode": "Sometimes"}, "autoreset_mode"),
         ({"num_envs": 2, "context": "teleport"}, "context"),
         ({"num_envs": 2, "wrappers": ["RecordEpisodeStatistics"]}, "wrappers"),
+        ({"num_envs": 2, "pin_workers": "yes"}, "pin_workers"),
     ],
 )
 def test_bad_arguments_are_refused_before_any_process_starts(
@@ -155,5 +156,21 @@ def test_wrappers_wrap_every_env_and_set_attr_reaches_each() -> None:
         assert venv.get_attr("marker") == (7, 7, 7)
         with pytest.raises(agrinav_gym.InputError, match="values"):
             venv.set_attr("marker", [1, 2])
+    finally:
+        venv.close()
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "sched_setaffinity"), reason="Linux only")
+def test_pinned_workers_each_keep_to_one_core_in_turn() -> None:
+    import os
+
+    cores = sorted(os.sched_getaffinity(0))
+    venv = agrinav_gym.make_vec(ENV, 3, workers=3, pin_workers=True, **KW)
+    try:
+        got = [os.sched_getaffinity(p.pid) for p in venv.unwrapped.processes]
+        assert got == [{cores[i % len(cores)]} for i in range(3)]
+        assert os.sched_getaffinity(0) == set(cores)  # this process is left as it was
+        obs, _ = venv.reset(seed=0)
+        assert all(len(v) == 3 for v in obs.values())
     finally:
         venv.close()
