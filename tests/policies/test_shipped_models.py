@@ -1,5 +1,6 @@
 """The shipped PPO checkpoints load and beat a random policy by a wide margin."""
 
+from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
@@ -11,6 +12,7 @@ from policies import SHIPPED, make_policy, shipped_model
 
 from ..fields import drive
 
+GEOMETRY = "field_route_geometry_ppo"
 FIELD = {
     "field": {"width": 6.0, "length": 16.0},
     "layout": {"headland": 2.5},
@@ -22,20 +24,29 @@ def _returns(env: gym.Env, act: Any, seeds: range) -> list[float]:
     return [drive(env, act, seed=10**9 + s).total_reward for s in seeds]
 
 
-@pytest.mark.parametrize("env_id", sorted(SHIPPED))
-def test_shipped_checkpoint_beats_random(env_id: str) -> None:
-    folder = shipped_model(env_id)
+#: every checkpoint in the package: the ``ppo:shipped`` one of each env, and the route policy
+#: fine-tuned on curved and contour rows (used by path)
+CHECKPOINTS = [(e, str(shipped_model(e))) for e in sorted(SHIPPED)] + [
+    ("AgriNav/FieldRoute-v3", str(shipped_model("AgriNav/FieldRoute-v3").parent / GEOMETRY))
+]
+
+
+@pytest.mark.parametrize(("env_id", "path"), CHECKPOINTS)
+def test_shipped_checkpoint_beats_random(env_id: str, path: str) -> None:
+    folder = Path(path)
     for name in (
         "checkpoint.json",
         "policy.npz",
         "command.txt",
         "config.yml",
         "learning_curve.png",
+        "README.md",
     ):
         assert (folder / name).is_file(), name
     env = gym.make(env_id, scenario_overrides=FIELD)
     try:
-        pi = make_policy("ppo:shipped", env)
+        shipped = folder == shipped_model(env_id)
+        pi = make_policy("ppo:shipped" if shipped else f"ppo:{folder}", env)
         rng = np.random.default_rng(0)
         ppo = _returns(env, pi.act, range(2))
         rand = _returns(env, lambda _o: rng.uniform(-1, 1, 2).astype(np.float32), range(2))
