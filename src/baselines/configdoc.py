@@ -86,7 +86,8 @@ def reference() -> str:
     out += _table(
         "PPO warm start",
         "`warm_start:` of an env in `envs.yml`: behaviour cloning of a controller before PPO "
-        "(`agrinav train --no-warm-start` skips it).",
+        "(`agrinav train --no-warm-start` skips it, and so does a run that starts from a "
+        "checkpoint with `--init-from`).",
         WarmStart,
     )
     return "\n".join(out)
