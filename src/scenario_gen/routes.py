@@ -113,6 +113,10 @@ def _intersect(a: FloatArray, b: FloatArray) -> list[tuple[float, float]]:
     return out
 
 
+#: How close to a lane's end (m along the rows) a row's stretch must come to flank it there.
+_END_TOL = 1e-9
+
+
 def crop_end(rows: RowFrame, flanking: tuple[int, ...], t: float, d: int) -> float:
     """Where the crop beside a lane ends, along the rows in the direction ``d``: the farthest
     end of the planted stretches of the ``flanking`` rows that reach the lane's end ``t``.
@@ -127,10 +131,6 @@ def crop_end(rows: RowFrame, flanking: tuple[int, ...], t: float, d: int) -> flo
         if len(reach):
             end = d * max(d * end, float(np.max(d * reach[:, 1 if d > 0 else 0])))
     return end
-
-
-#: How close to a lane's end (m along the rows) a row's stretch must come to flank it there.
-_END_TOL = 1e-9
 
 
 def lane_segments(rows: RowFrame, field: BaseGeometry | None = None) -> tuple[IntArray, FloatArray]:
