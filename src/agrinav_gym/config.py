@@ -282,6 +282,24 @@ class RobotLocalizationConfig:
     imu_yaw_rate_sigma_deg_s: float = _f(
         0.05, "yaw-rate std in the IMU driver's angular velocity covariance, °/s", 0.0, 100.0
     )
+    fuse_imu_acceleration: bool = _f(
+        False,
+        "also fuse the accelerometer's horizontal specific force with gravity removed through "
+        "the IMU's roll and pitch (imu0_config ax, ay; imu0_remove_gravitational_acceleration)",
+    )
+    imu_accel_sigma: float = _f(
+        0.05,
+        "std in the IMU driver's linear_acceleration_covariance, m/s² (0.2° of attitude error "
+        "left after removing gravity: the Nav2 export's value)",
+        1e-4,
+        10.0,
+    )
+    imu_accel_rejection_threshold: float | None = _f(
+        None,
+        "imu0_linear_acceleration_rejection_threshold, Mahalanobis distance (null: never)",
+        0.0,
+        1e6,
+    )
     gps_lever_arm: bool = _f(
         False,
         "a base_link -> gps transform exists, so navsat_transform removes the antenna offset "

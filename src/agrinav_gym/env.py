@@ -430,6 +430,8 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         out += [f"{k} gate {v:g}σ" for k, v in gates if v is not None]
         if rl.fuse_imu_yaw_rate:
             out.append("imu yaw rate")
+        if rl.fuse_imu_acceleration:
+            out.append("imu acceleration")
         return f" ({', '.join(out)})" if out else " (defaults)"
 
     def _localisation_info(self) -> dict[str, Any]:

@@ -30,9 +30,9 @@ def rl(**kw: object) -> LocalisationConfig:
     )
 
 
-@pytest.mark.parametrize("yaw_rate", [False, True])
-def test_converges_under_rtk_fixed(yaw_rate: bool) -> None:
-    loc = rl(gps_lever_arm=True, fuse_imu_yaw_rate=yaw_rate)
+@pytest.mark.parametrize(("yaw_rate", "accel"), [(False, False), (True, False), (True, True)])
+def test_converges_under_rtk_fixed(yaw_rate: bool, accel: bool) -> None:
+    loc = rl(gps_lever_arm=True, fuse_imu_yaw_rate=yaw_rate, fuse_imu_acceleration=accel)
     rms = []
     for seed in range(4):
         d = drive("robot_localization", GNSS_RTK_FIXED, seed, loc=loc)
@@ -94,6 +94,47 @@ def test_mahalanobis_rejection_drops_an_injected_jump(threshold: float | None) -
     for k in range(20):
         est.update(still(np.zeros(2), new=k % 2 == 0), DT)
     assert math.hypot(*est.pose[:2]) < (0.05 if threshold is None else 1e-3)
+
+
+def _imu(accel_body: np.ndarray, roll: float, pitch: float, odom_v: float = 0.0) -> Readings:
+    """A step whose IMU reads the body acceleration ``accel_body`` plus gravity's reaction
+    at attitude (roll, pitch), and whose odometry reads ``odom_v``."""
+    cr, sr, cp, sp = math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch)
+    up = np.array([-sp, sr * cp, cr * cp])  # the world's up axis in the body frame
+    r = still(np.zeros(2), new=False)
+    return replace(
+        r,
+        accel=accel_body + 9.81 * up,
+        rpy=np.array([roll, pitch, 0.0]),
+        odom=np.array([odom_v, 0.0]),
+    )
+
+
+def test_fused_acceleration_is_the_specific_force_less_gravity() -> None:
+    tilt = {"roll": math.radians(-3.0), "pitch": math.radians(6.0)}
+
+    def at_rest(**kw: object) -> RobotLocalizationEkf:
+        est = RobotLocalizationEkf(rl(fuse_imu_acceleration=True, **kw), CHI, DT)
+        est.reset(0.0, 0.0, 0.0, np.random.default_rng(0))
+        for _ in range(100):  # standing 6° nose-up and 3° to the side: gravity alone
+            est.update(_imu(np.zeros(3), **tilt), DT)
+        return est
+
+    est = at_rest()
+    assert abs(est.s[6]) < 1e-3 and abs(est.s[7]) < 1e-3  # nothing left once it is removed
+    v = 0.0
+    for _ in range(60):  # speeding up at 0.5 m/s² on the same slope, odometry following
+        v += 0.5 * DT
+        est.update(_imu(np.array([0.5, 0.0, 0.0]), odom_v=v, **tilt), DT)
+    assert est.s[6] == pytest.approx(0.5, abs=0.05) and abs(est.s[7]) < 0.02
+    # a 3 g knock: fused by default, dropped (and counted as the IMU's) behind a 5σ gate
+    for gate in (None, 5.0):
+        est = at_rest(imu_accel_rejection_threshold=gate)
+        est.update(_imu(np.array([30.0, 0.0, 0.0]), **tilt), DT)
+        if gate is None:
+            assert est.s[6] > 1.0 and est.rejected["imu"] == 0
+        else:
+            assert abs(est.s[6]) < 1e-3 and est.rejected["imu"] == 1
 
 
 def test_a_late_fix_is_fused_as_if_current_by_default() -> None:
@@ -218,6 +259,7 @@ def test_a_row_names_what_robot_localization_sets_beyond_its_defaults() -> None:
         "smooth_lagged_data": True,
         "history_length_s": 1.0,
         "gps_rejection_threshold": 5.0,
+        "fuse_imu_acceleration": True,
     }
     for rl, says in (({}, "robot_localization (defaults)"), (tuned, "gps gate 5σ")):
         env = make(
@@ -228,4 +270,4 @@ def test_a_row_names_what_robot_localization_sets_beyond_its_defaults() -> None:
         finally:
             env.close()
         assert says in label
-    assert "gps lever arm, smooth_lagged_data 1 s" in label
+    assert "gps lever arm, smooth_lagged_data 1 s" in label and "imu acceleration" in label

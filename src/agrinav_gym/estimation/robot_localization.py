@@ -11,10 +11,12 @@ robot_localization's defaults or the drivers' documented values (``RobotLocaliza
 * **Readings**, as Nav2's GPS tutorial configures them: ``odom0`` the wheel odometry's twist
   (vx, vy = 0, vyaw: the controller's yaw rate through its wheel-separation multiplier χ) with
   the controller's twist covariance; ``imu0`` the IMU's yaw with its driver's orientation
-  covariance (and, optionally, its yaw rate); ``odom1`` navsat_transform's GPS odometry (x, y)
-  with the fix's reported covariance. Each is one measurement, ``Ekf::correct``: a Mahalanobis
-  test against its ``*_rejection_threshold`` (the whole reading is dropped when
-  ``νᵀS⁻¹ν ≥ threshold²``), then the Joseph-form update; variances below 1e-9 are floored.
+  covariance (and, optionally, its yaw rate and its horizontal acceleration with gravity
+  removed through the IMU's roll and pitch, as the Nav2 export configures it); ``odom1``
+  navsat_transform's GPS odometry (x, y) with the fix's reported covariance. Each is one
+  measurement, ``Ekf::correct``: a Mahalanobis test against its ``*_rejection_threshold`` (the
+  whole reading is dropped when ``νᵀS⁻¹ν ≥ threshold²``), then the Joseph-form update;
+  variances below 1e-9 are floored.
 * **navsat_transform**: the datum is the first fix, tied to the filter's pose at that moment,
   so the map frame is the world shifted (its rotation, the filter's yaw less the heading
   navsat reads, is zero when both come from the same IMU). A fix is the antenna's position:
@@ -44,12 +46,14 @@ import numpy as np
 
 from ..config import LocalisationConfig
 from ..interface import GNSS_NONE
+from ..sensors.imu import G
 from .readings import FloatArray, Readings
 
 N = 8
 X, Y, PSI, VX, VY, W, AX, AY = range(N)
 MIN_VARIANCE = 1e-9  # Ekf::correct: a smaller measurement variance is raised to this
-_ODOM, _IMU, _IMU_RATE, _GPS = range(4)  # processing order of readings with equal stamps
+_ODOM, _IMU, _IMU_RATE, _IMU_ACCEL, _GPS = range(5)  # order of readings with equal stamps
+_SOURCE = ("odom", "imu", "imu", "imu", "gps")  # what each reading counts as when rejected
 
 
 def _wrap(a: float) -> float:
@@ -92,6 +96,7 @@ class RobotLocalizationEkf:
         self.odom_var = np.asarray(rl.odom_twist_variance, np.float64)
         self.yaw_var = math.radians(rl.imu_yaw_sigma_deg) ** 2
         self.rate_var = math.radians(rl.imu_yaw_rate_sigma_deg_s) ** 2
+        self.accel_var = np.full(2, rl.imu_accel_sigma**2)
         self.s = np.zeros(N)
         self.P = np.eye(N) * rl.initial_covariance
         self.t_last = 0.0
@@ -154,6 +159,10 @@ class RobotLocalizationEkf:
         self.P[VX, VX], self.P[VY, VY], self.P[W, W] = np.maximum(twist.var, MIN_VARIANCE)
         self.s[PSI] = _wrap(float(r.rpy[2]))
         self.P[PSI, PSI] = max(self.yaw_var, MIN_VARIANCE)
+        if self.rl.fuse_imu_acceleration:
+            acc = self._imu_accel(r, 0.0)
+            self.s[AX], self.s[AY] = acc.z
+            self.P[AX, AX], self.P[AY, AY] = np.maximum(acc.var, MIN_VARIANCE)
         if r.gnss_new and r.gnss_mode != GNSS_NONE:
             fix = self._gps(r, 0.0)
             self.s[X], self.s[Y] = fix.z
@@ -169,6 +178,8 @@ class RobotLocalizationEkf:
             rate = np.array([float(r.gyro[2])])
             thr = self.rl.imu_rejection_threshold
             out.append(Measurement(now, _IMU_RATE, (W,), rate, np.array([self.rate_var]), thr))
+        if self.rl.fuse_imu_acceleration:
+            out.append(self._imu_accel(r, now))
         if r.gnss_new and r.gnss_mode != GNSS_NONE:
             # stamped at its epoch: a whole number of control steps ago (on the same clock)
             fix = self._gps(r, (self.k - round(r.gnss_age / self.dt)) * self.dt)
@@ -192,6 +203,19 @@ class RobotLocalizationEkf:
         z = np.array([float(r.rpy[2])])
         return Measurement(
             t, _IMU, (PSI,), z, np.array([self.yaw_var]), self.rl.imu_rejection_threshold
+        )
+
+    def _imu_accel(self, r: Readings, t: float) -> Measurement:
+        """imu0's linear acceleration with ``remove_gravitational_acceleration``: the specific
+        force less gravity as the IMU's own roll and pitch place it in the body frame
+        (RosFilter::prepareAcceleration); x and y only in ``two_d_mode``."""
+        roll, pitch = float(r.rpy[0]), float(r.rpy[1])
+        g = G * math.cos(pitch)
+        z = np.array(
+            [float(r.accel[0]) + G * math.sin(pitch), float(r.accel[1]) - g * math.sin(roll)]
+        )
+        return Measurement(
+            t, _IMU_ACCEL, (AX, AY), z, self.accel_var.copy(), self.rl.imu_accel_rejection_threshold
         )
 
     def _gps(self, r: Readings, t: float) -> Measurement:
@@ -254,7 +278,7 @@ class RobotLocalizationEkf:
             if j == PSI:
                 nu[i] = _wrap(float(nu[i]))
         if m.threshold is not None and float(nu @ S_inv @ nu) >= m.threshold**2:
-            self.rejected[("odom", "imu", "imu", "gps")[m.order]] += 1
+            self.rejected[_SOURCE[m.order]] += 1
             return False
         self.s = self.s + K @ nu
         self.s[PSI] = _wrap(float(self.s[PSI]))
