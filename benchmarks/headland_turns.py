@@ -9,7 +9,8 @@ the route, arc length, before the episode ended or it succeeded), the *headland 
 of the first lane), a *stall* (the progress check fired), and how the episode ended.
 
 Run: ``python benchmarks/headland_turns.py [--turns omega keyhole] [--episodes 20]
-[--set route.turn_offset=2.0 ...]``.
+[--set route.turn_offset=2.0 ...] [--per-episode]`` (``--per-episode``: a line per reset seed,
+with how it ended, how far it got and which plants it touched).
 """
 
 from __future__ import annotations
@@ -67,7 +68,13 @@ class Watch:
 
 
 def run(
-    turn: str, episodes: int, preset: str, policy: str, first_seed: int, over: dict[str, Any]
+    turn: str,
+    episodes: int,
+    preset: str,
+    policy: str,
+    first_seed: int,
+    over: dict[str, Any],
+    per_episode: bool = False,
 ) -> dict[str, Any]:
     env = gym.make(
         "AgriNav/FieldRoute-v3",
@@ -95,6 +102,15 @@ def run(
         )
         hits.append(ep.metrics.get("crops_hit", 0))
         headland.append(ep.metrics.get("headland_rmse", np.nan))
+        if per_episode:
+            touched = sorted(env.unwrapped.crops_hit_ids)
+            print(
+                f"  seed {seed}: {ep.termination} at {ep.metrics.get('completion', 0.0):.1f} % "
+                f"of the route, turn {'completed' if done else 'not completed'}, plants "
+                f"touched {touched} ({watch.hits_at_exit} before the turn, "
+                f"{watch.hits_in} by 1 m into the next lane)",
+                flush=True,
+            )
     env.close()
     return {
         "turn": turn,
@@ -123,10 +139,13 @@ def main() -> None:
         metavar="KEY=VALUE",
         help="a scenario override, e.g. route.turn_offset=2.0 (repeatable)",
     )
+    ap.add_argument("--per-episode", action="store_true", help="a line per reset seed")
     args = ap.parse_args()
     over = {k: yaml.safe_load(v) for k, v in (kv.split("=", 1) for kv in args.set)}
     for turn in args.turns:
-        r = run(turn, args.episodes, args.preset, args.policy, args.first_seed, over)
+        r = run(
+            turn, args.episodes, args.preset, args.policy, args.first_seed, over, args.per_episode
+        )
         print(
             f"{args.policy} on {args.preset} {over or ''}, turn {r['turn']}: completed the "
             f"turn in {r['completed']}/{r['episodes']}, cleared the headland in "
