@@ -202,8 +202,8 @@ Scaling = dict[tuple[str, int], tuple[float, list[float], float]]
 
 
 def vector_scaling(repeat: int, steps: int = 300) -> Scaling:
-    """Section 7: per setup (async / batched) and worker count (1, 2), the median env steps/s
-    of interleaved runs, each worker's median busy share of the wall time, and the main
+    """Section 7: per setup (async / batched / pinned) and worker count (1, 2), the median env
+    steps/s of interleaved runs, each worker's median busy share of the wall time, and the main
     process's."""
     kinds = ("async", "batched", "pinned")
     envs = {(kind, n): _vector_env(kind, n) for kind in kinds for n in (1, 2)}

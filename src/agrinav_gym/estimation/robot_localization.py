@@ -46,12 +46,13 @@ import numpy as np
 
 from ..config import LocalisationConfig
 from ..interface import GNSS_NONE
-from ..sensors.imu import G
 from .readings import FloatArray, Readings
 
 N = 8
 X, Y, PSI, VX, VY, W, AX, AY = range(N)
 MIN_VARIANCE = 1e-9  # Ekf::correct: a smaller measurement variance is raised to this
+#: the node's own ``gravitational_acceleration`` default (it knows nothing of the simulator's)
+GRAVITY = 9.80665
 _ODOM, _IMU, _IMU_RATE, _IMU_ACCEL, _GPS = range(5)  # order of readings with equal stamps
 _SOURCE = ("odom", "imu", "imu", "imu", "gps")  # what each reading counts as when rejected
 
@@ -210,9 +211,12 @@ class RobotLocalizationEkf:
         force less gravity as the IMU's own roll and pitch place it in the body frame
         (RosFilter::prepareAcceleration); x and y only in ``two_d_mode``."""
         roll, pitch = float(r.rpy[0]), float(r.rpy[1])
-        g = G * math.cos(pitch)
+        g = GRAVITY * math.cos(pitch)
         z = np.array(
-            [float(r.accel[0]) + G * math.sin(pitch), float(r.accel[1]) - g * math.sin(roll)]
+            [
+                float(r.accel[0]) + GRAVITY * math.sin(pitch),
+                float(r.accel[1]) - g * math.sin(roll),
+            ]
         )
         return Measurement(
             t, _IMU_ACCEL, (AX, AY), z, self.accel_var.copy(), self.rl.imu_accel_rejection_threshold
