@@ -16,8 +16,8 @@
 7. vector-env scaling: the state-only env in 1 and 2 subprocess workers, env steps/s and the
    efficiency of 2 (target: 2 workers ≥ 1.7× one), interleaved, three ways: Gymnasium's
    ``AsyncVectorEnv`` (``gymnasium.make_vec(..., vectorization_mode="async")``, one env per
-   process) and ``agrinav_gym.make_vec`` (4 envs per worker process), with and without
-   ``pin_workers``.
+   process) and ``agrinav_gym.make_vec`` (4 envs per worker process, ``--per-worker N``),
+   with and without ``pin_workers``.
 
 Medians of several runs; run with ``make bench`` or ``python benchmarks/bench_env.py``
 (``--sections 3,7`` for some). Timings of steps only: resets are not timed (a racecar episode
@@ -171,16 +171,18 @@ def report_interleaved(m: dict[str, float], repeat: int) -> None:
     )
 
 
-PER_WORKER = 4  # envs per worker process in the batched setup (agrinav train's n_envs)
+PER_WORKER = (
+    4  # envs per worker process in the batched setup (--per-worker; agrinav train's n_envs)
+)
 
 
-def _vector_env(kind: str, workers: int) -> gym.vector.VectorEnv:
-    """``async``: Gymnasium's AsyncVectorEnv, one env per process; ``batched``:
-    ``agrinav_gym.make_vec``, PER_WORKER envs per process."""
+def _vector_env(kind: str, workers: int, per_worker: int = PER_WORKER) -> gym.vector.VectorEnv:
+    """``async``: Gymnasium's AsyncVectorEnv, one env per process; ``batched`` (``pinned``):
+    ``agrinav_gym.make_vec``, ``per_worker`` envs per process (each worker on one core)."""
     kw: dict[str, Any] = {"scenario": "paper-p1", "observations": STATE_OBS, "config": TASK}
     if kind in ("batched", "pinned"):
         return agrinav_gym.make_vec(
-            ENV_ID, PER_WORKER * workers, workers=workers, pin_workers=kind == "pinned", **kw
+            ENV_ID, per_worker * workers, workers=workers, pin_workers=kind == "pinned", **kw
         )
     return gym.make_vec(
         ENV_ID,
@@ -201,12 +203,12 @@ def _cpu_seconds(pid: int) -> float:
 Scaling = dict[tuple[str, int], tuple[float, list[float], float]]
 
 
-def vector_scaling(repeat: int, steps: int = 300) -> Scaling:
+def vector_scaling(repeat: int, steps: int = 300, per_worker: int = PER_WORKER) -> Scaling:
     """Section 7: per setup (async / batched / pinned) and worker count (1, 2), the median env
     steps/s of interleaved runs, each worker's median busy share of the wall time, and the main
     process's."""
     kinds = ("async", "batched", "pinned")
-    envs = {(kind, n): _vector_env(kind, n) for kind in kinds for n in (1, 2)}
+    envs = {(kind, n): _vector_env(kind, n, per_worker) for kind in kinds for n in (1, 2)}
     runs: dict[tuple[str, int], list[tuple[float, list[float], float]]] = {k: [] for k in envs}
     try:
         for venv in envs.values():
@@ -338,6 +340,9 @@ def randomized_reset(repeat: int) -> float:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument(
+        "--per-worker", type=int, default=PER_WORKER, help="section 7: envs per make_vec worker"
+    )
     ap.add_argument("--sections", default="1,2,3,4,5,6,7", help="comma list of the sections to run")
     args = ap.parse_args()
     run = {int(x) for x in args.sections.split(",") if x.strip()}
@@ -371,11 +376,11 @@ def main() -> None:
     if 6 in run:
         print(f"6. randomized reset        : {randomized_reset(args.repeat):7.3f} s (target ≤ 1 s)")
     if 7 in run:
-        v = vector_scaling(args.repeat)
+        v = vector_scaling(args.repeat, per_worker=args.per_worker)
         names = {
             "async": "AsyncVectorEnv (spawn), 1 env per worker",
-            "batched": f"agrinav_gym.make_vec, {PER_WORKER} envs per worker",
-            "pinned": f"agrinav_gym.make_vec, {PER_WORKER} envs per worker, pin_workers",
+            "batched": f"agrinav_gym.make_vec, {args.per_worker} envs per worker",
+            "pinned": f"agrinav_gym.make_vec, {args.per_worker} envs per worker, pin_workers",
         }
         print("7. vector envs (target: 2 workers ≥ 1.7x one)")
         for kind, name in names.items():
