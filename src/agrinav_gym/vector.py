@@ -47,8 +47,8 @@ def make_vec(
     (default: one per core, at most one per env), contiguous shares as equal as they go;
     ``wrappers`` (picklable: classes or module-level functions) wrap each env, in order.
     ``pin_workers`` keeps worker i on the i-th core this process may run on (Linux): the
-    workers stop migrating between cores, which on 2 cores took 2 workers from 1.52× to 1.74×
-    one (docs/design.md); leave it off where other work shares the cores."""
+    workers stop migrating between cores (measured in docs/design.md, "What an env step
+    costs"); leave it off where other work shares the cores."""
     env_id = check_env_id(env_id)
     if isinstance(num_envs, bool) or not isinstance(num_envs, int) or num_envs < 1:
         raise InputError("num_envs", num_envs, "allowed: an integer ≥ 1")
