@@ -75,11 +75,7 @@ def nav2_robot(cfg: EnvConfig | None = None, dwb: str = "furrow") -> dict[str, A
         "localisation": {
             "init_position_sigma": loc.init_position_sigma,
             "init_yaw_sigma_deg": loc.init_yaw_sigma_deg,
-            "pose_noise": loc.pose_noise,
-            "yaw_noise": loc.yaw_noise,
-            "velocity_noise": loc.velocity_noise,
-            "accel_noise": loc.accel_noise,
-            "yaw_accel_noise": loc.yaw_accel_noise,
+            "process_noise": loc.robot_localization.process_noise,
             "odom_speed_rel": loc.odom_speed_rel,
             "odom_scale_sigma": loc.odom_scale_sigma,
             "odom_yaw_rel": loc.odom_yaw_rel,

@@ -213,6 +213,11 @@ STATE: tuple[str, ...] = ("x", "y", "z", "roll", "pitch", "yaw", "vx", "vy", "vz
 STATE += ("vpitch", "vyaw", "ax", "ay", "az")
 
 
+#: the states of LocalisationSetup.process_noise, in its order (robot_localization's two_d_mode
+#: leaves the others at the floor)
+PROCESS_NOISE_STATES = ("x", "y", "yaw", "vx", "vy", "vyaw", "ax", "ay")
+
+
 def fuse(*names: str) -> list[bool]:
     unknown = set(names) - set(STATE)
     if unknown:
@@ -235,16 +240,7 @@ def ekf_params(robot: Nav2Robot, world: str) -> dict[str, Any]:
     dwb = robot.dwb
     imu_states = ["yaw", "vyaw"] + (["ax", "ay"] if loc.use_accel else [])
     odom_states = ["vx", "vy"] + (["vyaw"] if dwb.get("yaw_rate_source") == "wheels" else [])
-    q = {
-        "x": loc.pose_noise,
-        "y": loc.pose_noise,
-        "yaw": loc.yaw_noise,
-        "vx": loc.velocity_noise,
-        "vy": loc.velocity_noise,
-        "vyaw": loc.yaw_accel_noise,
-        "ax": loc.accel_noise,
-        "ay": loc.accel_noise,
-    }
+    q = dict(zip(PROCESS_NOISE_STATES, loc.process_noise, strict=True))
     pos0 = loc.init_position_sigma**2 if world == MAP else 1e-6
     p0 = {"x": pos0, "y": pos0, "yaw": math.radians(loc.init_yaw_sigma_deg) ** 2}
     p0.update({s: 1e-4 for s in ("vx", "vy", "vyaw", "ax", "ay")})
@@ -297,9 +293,10 @@ def ekf_yaml(robot: Nav2Robot) -> str:
 # the IMU's yaw, yaw rate{accel}; the yaw rate comes from the
 # {source} (the benchmarked DWB's yaw_rate_source).
 # two_d_mode keeps {BASE} on the odometry plane: the depth cloud's heights are then heights
-# above the wheels, as the benchmark's costmap measures them. Process noise densities are the
-# sim's EKF's (robot_localization scales them by the time step, as it does); covariances of
-# the measurements come with the messages (scripts/sensor_covariances.py). State order:
+# above the wheels, as the benchmark's costmap measures them. The process noise is the one the
+# simulator's robot_localization filter runs with (per second; the node scales it by the time
+# step); covariances of the measurements come with the messages
+# (scripts/sensor_covariances.py). State order:
 # {", ".join(STATE)}.
 """
     return _dump(

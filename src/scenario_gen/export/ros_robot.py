@@ -97,15 +97,18 @@ class GnssSetup:
 
 @dataclass(frozen=True)
 class LocalisationSetup:
-    """The sim's EKF measurement and process model (agrinav_gym LocalisationConfig)."""
+    """The filter the simulator runs as ``robot_localization``: its process noise, and the
+    sensor noise models that set the measurement covariances (agrinav_gym LocalisationConfig)."""
 
     init_position_sigma: float = _f(0.5, "start position std without a fix, m", 0.0, 100)
     init_yaw_sigma_deg: float = _f(3.0, "start heading std, degrees", 0.0, 180)
-    pose_noise: float = _f(1e-4, "process noise density of x and y, m²/s", 0.0, 10)
-    yaw_noise: float = _f(1e-5, "process noise density of the heading, rad²/s", 0.0, 10)
-    velocity_noise: float = _f(0.01, "process noise density of vx and vy, m²/s³", 0.0, 100)
-    accel_noise: float = _f(0.4, "random-walk density of ax, ay, (m/s²)²/s", 0, 100)
-    yaw_accel_noise: float = _f(2.25, "random-walk density of the yaw rate, (rad/s)²/s", 0, 1e3)
+    process_noise: tuple[float, float, float, float, float, float, float, float] = _f(
+        (0.05, 0.05, 0.06, 0.025, 0.025, 0.02, 0.01, 0.01),
+        "process_noise_covariance diagonal for x, y, yaw, vx, vy, vyaw, ax, ay, per second: the "
+        "simulator's robot_localization filter's (default: the node's Humble default)",
+        0.0,
+        100.0,
+    )
     odom_speed_rel: float = _f(0.03, "odometry speed std relative to speed", 0.0, 1.0)
     odom_scale_sigma: float = _f(0.1, "odometry speed scale error std", 0.0, 1.0)
     odom_yaw_rel: float = _f(0.15, "odometry yaw-rate std relative to it", 0.0, 1.0)
