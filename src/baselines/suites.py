@@ -67,6 +67,13 @@ PAPER_FIELD = {"field": {"width": 12.5, "length": 30.0}, "route": {"lanes": 2}}
 PAPER_WAYPOINT_FIELD: dict[str, Any] = {"field": {"width": 12.5, "length": 39.0}}
 
 
+def heldout_dem() -> str:
+    """The DEM no training field comes from (``baselines/heldout_terrain``: 25 m, BC interior)."""
+    from importlib import resources
+
+    return str(resources.files("baselines").joinpath("heldout_terrain", "bc_interior_25m.tif"))
+
+
 def paper_waypoints() -> str:
     """The shipped waypoint file of the `paper` suite (Nav2's GPS waypoint format)."""
     from importlib import resources
@@ -139,6 +146,14 @@ OOD_AXES: tuple[tuple[str, tuple[str, ...], dict[str, Any], dict[str, Any]], ...
         ("terrain.max_slope_deg",),
         {"layout": {"row_geometry": "contour", "headland": 5.0}, "route": {"turn": "keyhole"}},
         {"randomize": {"terrain.max_slope_deg": [4.0, 8.0]}},
+    ),
+    # The terrain source held out: the same slope draw on a DEM of another region, grid,
+    # projection and sample type (baselines/heldout_terrain/README.md).
+    (
+        "second real DEM (BC interior, 25 m)",
+        (),
+        {"terrain": {"source": "dem", "path": heldout_dem()}},
+        {},
     ),
 )
 

@@ -125,8 +125,48 @@ def test_every_ood_case_lies_outside_the_training_ranges() -> None:
     obstacles = cases["stones 0.3/m², 5 % lodged"].overrides["obstacles"]
     assert outside("obstacles.stone_density", obstacles["stone_density"])
     assert outside("obstacles.stalk_lodging", obstacles["stalk_lodging"])
+    dem = cases["second real DEM (BC interior, 25 m)"].overrides["terrain"]
+    assert (dem["source"], spec.terrain.source) == ("dem", "embedded")
     for case in cases.values():  # every other axis drawn as in training, from the eval seeds
         assert case.env_kwargs()["scenario_seeds"] == list(EVAL_SCENARIO_SEEDS)
+
+
+def test_the_second_dem_plants_every_test_field_far_from_any_training_terrain() -> None:
+    """The held-out DEM is the file its licence note describes, and its fields lie thousands
+    of kilometres from the embedded DEM every training field is cut from."""
+    import hashlib
+    import re
+
+    import numpy as np
+    from pyproj import Geod
+
+    from baselines.suites import heldout_dem
+    from scenario_gen.dem import load_embedded
+
+    path = Path(heldout_dem())
+    note = (path.parent / "README.md").read_text()
+    digest = re.search(r"SHA-256\s+`([0-9a-f]{64})`", note)
+    assert digest and hashlib.sha256(path.read_bytes()).hexdigest() == digest.group(1)
+    assert "Apache License" in (path.parent / "LICENSE").read_text()
+
+    home = load_embedded()
+    rows, cols = home.shape
+    lon, lat = home.to_lonlat().transform(*home.pixel_to_crs(np.array([0.0, cols]), np.array([0.0, rows])))
+    (case,) = [c for c in suite("ood") if c.overrides.get("terrain", {}).get("source") == "dem"]
+    env = gym.make(case.env_id, **case.env_kwargs())
+    try:
+        for seed in (EVAL_SEED, EVAL_SEED + 1):
+            env.reset(seed=seed)
+            scn = env.unwrapped.scenario
+            assert scn.info["dem"] == path.name
+            assert 54.58 < scn.geo.lat < 54.72 and -122.22 < scn.geo.lon < -121.98
+            dist = Geod(ellps="WGS84").inv(
+                [scn.geo.lon] * 4, [scn.geo.lat] * 4, [lon[0], lon[1], lon[0], lon[1]],
+                [lat[0], lat[0], lat[1], lat[1]],
+            )[2]  # fmt: skip
+            assert min(dist) > 3.0e6  # metres
+    finally:
+        env.close()
 
 
 def test_a_chosen_case_keeps_its_seeds_and_an_unknown_one_is_named() -> None:
