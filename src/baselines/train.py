@@ -62,22 +62,11 @@ class TrainRun:
 
 
 def merge_env_kwargs(base: dict[str, Any], path: Path) -> dict[str, Any]:
-    """``base`` with the YAML mapping in ``path`` merged over it: nested mappings key by key
-    (a ``randomize`` file adds ranges and replaces those it names), anything else replaced.
-    Dotted keys stay keys — randomize's are names, not paths — so ``schema.merge`` (which
-    splits them) is not the merge here."""
+    """``base`` with the YAML mapping in ``path`` merged over it
+    (``hyperparams.merge_env_kwargs``)."""
     from scenario_gen.schema import load_yaml
 
-    extra = load_yaml(path, "--env-kwargs")
-
-    def merge(a: dict[str, Any], b: dict[str, Any]) -> dict[str, Any]:
-        out = dict(a)
-        for k, v in b.items():
-            both = isinstance(v, dict) and isinstance(out.get(k), dict)
-            out[k] = merge(out[k], v) if both else v
-        return out
-
-    return merge(base, extra)
+    return hpmod.merge_env_kwargs(base, load_yaml(path, "--env-kwargs"))
 
 
 def _scenario_kwargs(env_kwargs: dict[str, Any], scenario: str | None) -> dict[str, Any]:

@@ -19,6 +19,7 @@ them), ``trials.csv`` (every trial), ``search.png`` and ``command.txt``.
 from __future__ import annotations
 
 import csv
+import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -78,18 +79,19 @@ def score(records: list[dict[str, Any]]) -> float:
     return float(np.mean(parts))
 
 
-def training_env(policy: str = "rpp") -> Any:
+def training_env(policy: str = "rpp", extra: str = "") -> Any:
     """FieldRoute on the training split under the benchmark's conditions (built once a search:
-    every trial drives the same fields)."""
+    every trial drives the same fields); ``extra`` a JSON mapping merged over envs.yml's
+    env_kwargs as ``agrinav train --env-kwargs`` merges its file (more ranges, other turns)."""
     import gymnasium as gym
 
     import agrinav_gym  # noqa: F401  (registers the ids)
 
-    from .hyperparams import load
+    from .hyperparams import load, merge_env_kwargs
     from .suites import RTK_EKF
 
     _, setup = load(ENV_ID)
-    kw = dict(setup.env_kwargs)
+    kw = merge_env_kwargs(dict(setup.env_kwargs), json.loads(extra) if extra else {})
     config = {**kw.pop("config", {}), **RTK_EKF}
     kw["observations"] = observations(policy)
     return gym.make(ENV_ID, **kw, config=config, scenario_seeds=list(setup.train_seeds))
@@ -116,24 +118,27 @@ class TrialEpisode:
     policy: str
     params: tuple[tuple[str, float], ...]
     seed: int
+    env_kwargs: str = ""  # JSON merged over envs.yml's env_kwargs (``training_env``)
 
     @property
     def key(self) -> str:
         return f"t{self.trial:05d}-e{self.episode:04d}"
 
 
-#: a worker's training env and the policy it was built for (every trial drives the same fields)
-_TRAINING_ENV: list[tuple[str, Any]] = []
+#: a worker's training env and what it was built for, (policy, env_kwargs): every trial drives
+#: the same fields
+_TRAINING_ENV: list[tuple[tuple[str, str], Any]] = []
 
 
 def trial_episode(job: TrialEpisode) -> tuple[str, dict[str, Any]]:
     """(key, result) of one episode of a trial (in any process; the env is built once)."""
     from policies import make_policy
 
-    if _TRAINING_ENV and _TRAINING_ENV[0][0] != job.policy:
+    built_for = (job.policy, job.env_kwargs)
+    if _TRAINING_ENV and _TRAINING_ENV[0][0] != built_for:
         release_training_env()  # another controller observes other keys (DWB: depth)
     if not _TRAINING_ENV:
-        _TRAINING_ENV.append((job.policy, training_env(job.policy)))
+        _TRAINING_ENV.append((built_for, training_env(job.policy, job.env_kwargs)))
     env = _TRAINING_ENV[0][1]
     pi = make_policy(job.policy, env, **policy_kwargs(job.policy, dict(job.params)))
     return job.key, _episode(env, pi, job.policy, job.seed)
@@ -155,8 +160,11 @@ def tune(
     force: bool = False,
     workers: int = 1,
     ray: str | None = None,
+    env_kwargs: Path | None = None,
 ) -> dict[str, Any]:
     """Search ``policy``'s parameters; returns the best trial (see the module docstring).
+    ``env_kwargs``: a YAML mapping merged over envs.yml's env_kwargs, as ``agrinav train
+    --env-kwargs`` takes it (the training fields with more geometry in their ranges).
 
     A trial's episodes are tasks (``baselines.parallel``: ``workers`` processes or Ray tasks at
     ``ray``); trials follow one another, each asked of the sampler after the one before was
@@ -181,6 +189,12 @@ def tune(
         raise InputError("--policy", policy, f"allowed: one of {', '.join(SEARCH)}")
     check_spread(workers, ray)
     check_output_dir(out, force, "--out")
+    extra = ""
+    if env_kwargs is not None:
+        from scenario_gen.schema import load_yaml
+
+        extra = json.dumps(load_yaml(env_kwargs, "--env-kwargs"), sort_keys=True)
+        training_env(policy, extra).close()  # a bad file is refused before anything runs
     space = SEARCH[policy]
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     study = optuna.create_study(direction="minimize", sampler=optuna.samplers.TPESampler(seed=seed))
@@ -193,6 +207,7 @@ def tune(
         "trials": trials,
         "episodes": episodes,
         "seed": seed,
+        "env_kwargs": json.loads(extra) if extra else None,
         "version": _version(),
     }
     journal = Journal(out, identity)
@@ -209,7 +224,9 @@ def tune(
                             params["min_lookahead"],
                         )
                     jobs = [
-                        TrialEpisode(trial.number, k, policy, tuple(params.items()), seed + k)
+                        TrialEpisode(
+                            trial.number, k, policy, tuple(params.items()), seed + k, extra
+                        )
                         for k in range(episodes)
                     ]
                     for key, result in tasks.map(
@@ -245,7 +262,9 @@ def tune(
         header = (
             f"# {policy} parameters chosen by `agrinav tune` (trial {best['trial']} of "
             f"{trials}, score {best['score']}: mean path RMSE of finished routes, 1 m per "
-            f"unfinished one, +{CROP_PENALTY} m per stalk) on {episodes} training fields.\n"
+            f"unfinished one, +{CROP_PENALTY} m per stalk) on {episodes} training fields"
+            + (f" (env_kwargs merged from {Path(env_kwargs).name})" if env_kwargs else "")
+            + ".\n"
         )
         atomic_write_text(tmp / "best.yaml", header + yaml.safe_dump(chosen, sort_keys=True))
         atomic_write_text(tmp / "command.txt", (command or "agrinav tune ...") + "\n")

@@ -94,3 +94,36 @@ def test_dwb_gets_a_search_too_starting_from_its_furrow_config(tmp_path: Path) -
             env.step(pi.act(obs))
     finally:
         env.close()
+
+
+def test_env_kwargs_put_more_geometry_in_the_searched_training_fields(tmp_path: Path) -> None:
+    """``--env-kwargs`` merges a file over envs.yml's env_kwargs, as ``agrinav train`` does:
+    the trials drive the training split with those ranges, the header says which file, and a
+    bad file is refused before anything is written."""
+    import dataclasses
+    import json
+
+    from baselines.tune import TrialEpisode, release_training_env, training_env, trial_episode
+
+    extra = {"scenario_overrides": {"layout": {"row_geometry": "curved"}}}
+    env = training_env("stanley", json.dumps(extra))
+    try:
+        env.reset(seed=3)
+        assert env.unwrapped.scenario.rows.curve is not None
+    finally:
+        env.close()
+    job = TrialEpisode(0, 0, "stanley", tuple(default_params("stanley").items()), 3)
+    _, plain = trial_episode(job)
+    _, curved = trial_episode(dataclasses.replace(job, env_kwargs=json.dumps(extra)))
+    release_training_env()
+    assert plain != curved  # another field, not the env the worker had built before
+
+    file = tmp_path / "curved.yaml"
+    file.write_text(yaml.safe_dump(extra))
+    out = tmp_path / "t"
+    argv = ["tune", "--policy", "stanley", "--trials", "1", "--episodes", "1", "--out", str(out)]
+    assert main([*argv, "--env-kwargs", str(file)]) == 0
+    assert "env_kwargs merged from curved.yaml" in (out / "best.yaml").read_text()
+    file.write_text("randomize: {layout.row_geometry: {choices: [straight, spiral]}}\n")
+    assert main([*argv[:-1], str(tmp_path / "u"), "--env-kwargs", str(file)]) == 2
+    assert not (tmp_path / "u").exists()

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 from typing import Any
 
 from .args import episodes_type, int_at_least, seed_type
@@ -37,6 +38,12 @@ def add(sub: Any) -> None:
         metavar="ADDRESS",
         help="run each trial's episodes as Ray tasks (the ray extra): local, auto or host:port",
     )
+    tu.add_argument(
+        "--env-kwargs",
+        metavar="FILE",
+        help="a YAML mapping merged over the env's envs.yml env_kwargs, as agrinav train "
+        "--env-kwargs takes it (e.g. curved rows and other turns in the training ranges)",
+    )
     tu.set_defaults(func=run)
 
 
@@ -54,6 +61,7 @@ def run(args: argparse.Namespace) -> int:
         args.force,
         workers=args.workers,
         ray=args.ray,
+        env_kwargs=Path(args.env_kwargs) if args.env_kwargs else None,
     )
     print(f"best trial {best['trial']}: score {best['score']} -> {args.out}/best.yaml")
     return 0

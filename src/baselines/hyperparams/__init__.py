@@ -170,3 +170,15 @@ def to_zoo(hp: PPOHyperparams) -> dict[str, Any]:
 
 
 __all__ = ["EnvSetup", "PPOHyperparams", "load", "to_zoo"]
+
+
+def merge_env_kwargs(base: dict[str, Any], extra: dict[str, Any]) -> dict[str, Any]:
+    """``base`` (an envs.yml ``env_kwargs``) with ``extra`` over it: nested mappings key by key
+    (a ``randomize`` mapping adds ranges and replaces those it names), anything else replaced.
+    Dotted keys stay keys — randomize's are names, not paths — so ``schema.merge`` (which
+    splits them) is not the merge here."""
+    out = dict(base)
+    for k, v in extra.items():
+        both = isinstance(v, dict) and isinstance(out.get(k), dict)
+        out[k] = merge_env_kwargs(out[k], v) if both else v
+    return out
