@@ -181,7 +181,8 @@ class Dem:
                 "terrain.site",
                 mode,
                 f"no valid window of {extent_m:.0f} m in "
-                f"{self.source} (holes, edges or max_slope_deg exclude all)",
+                f"{self.source} (nodata holes, water, the raster's edges or max_slope_deg "
+                "exclude all)",
             )
         r, c = divmod(idx, cols)
         x, y = self.pixel_to_crs(np.array([c + 0.5]), np.array([r + 0.5]))
@@ -189,8 +190,17 @@ class Dem:
         return float(lat), float(lon)
 
 
+#: A flat area is water when at most this share of the pixels around it lie lower: a lake's
+#: shore rises everywhere but at its outlet, while a terrace of a DEM stored in whole metres
+#: has its whole downhill side lower (about half its rim) and a flat hilltop all of it.
+WATER_MAX_LOWER_RIM = 0.25
+_FOUR = ndimage.generate_binary_structure(2, 1)
+
+
 def water_mask(elev: FloatArray, min_pixels: int = 12) -> NDArray[np.bool_]:
-    """Pixels in connected areas of identical elevation of at least ``min_pixels`` pixels."""
+    """Pixels in connected areas of identical elevation of at least ``min_pixels`` pixels that
+    lie in a basin (``WATER_MAX_LOWER_RIM``): lakes, reservoirs and the sea, which DEMs
+    flatten, and not the flat steps of a gentle slope stored in whole metres."""
     same = np.zeros(elev.shape, bool)
     same[1:-1, 1:-1] = (
         (elev[1:-1, 1:-1] == elev[:-2, 1:-1])
@@ -202,9 +212,21 @@ def water_mask(elev: FloatArray, min_pixels: int = 12) -> NDArray[np.bool_]:
     if n == 0:
         return same
     sizes = np.bincount(labels.ravel())
-    big = sizes >= min_pixels
-    big[0] = False
-    return ndimage.binary_dilation(big[labels])
+    water = np.zeros(n + 1, bool)
+    rows, cols = elev.shape
+    for k, box in enumerate(ndimage.find_objects(labels), start=1):
+        if box is None or sizes[k] < min_pixels:
+            continue
+        r0, r1 = max(box[0].start - 2, 0), min(box[0].stop + 2, rows)
+        c0, c1 = max(box[1].start - 2, 0), min(box[1].stop + 2, cols)
+        e = elev[r0:r1, c0:c1]
+        core = labels[r0:r1, c0:c1] == k
+        level = e[core][0]
+        flats, _ = ndimage.label(e == level, _FOUR)
+        flat = np.isin(flats, np.unique(flats[core]))
+        rim = ndimage.binary_dilation(flat, _FOUR) & ~flat
+        water[k] = not rim.any() or float(np.mean(e[rim] < level)) <= WATER_MAX_LOWER_RIM
+    return ndimage.binary_dilation(water[labels])
 
 
 def _nearest_fill(a: FloatArray) -> FloatArray:

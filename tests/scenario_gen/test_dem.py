@@ -202,3 +202,67 @@ def test_a_raster_that_is_not_one_elevation_band_is_refused(
             ds.write(np.ones((20, 20), dtype), b)
     with pytest.raises(ScenarioError, match=needle):
         generate(small(terrain={"source": "dem", "path": str(path)}), seed=0)
+
+
+def _whole_metres(path: Path, slope_deg: float, lake: bool) -> Path:
+    """A 30 m UTM DEM of a plain rising ``slope_deg`` eastward, stored in whole metres as many
+    national DEMs are; ``lake``: a 10 x 10 pixel basin held at one level in the middle."""
+    n = 120
+    x = np.arange(n) * 30.0
+    z = 250.0 + np.tan(np.radians(slope_deg)) * np.broadcast_to(x, (n, n))
+    z = np.round(z)
+    if lake:
+        z[50:60, 50:60] = z[50:60, 50:60].min() - 3.0  # the water's surface, below its shore
+    with rasterio.open(
+        path, "w", driver="GTiff", height=n, width=n, count=1, dtype="int16",
+        crs="EPSG:32616", transform=from_origin(500_000.0, 4_000_000.0, 30.0, 30.0),
+    ) as ds:  # fmt: skip
+        ds.write(z.astype(np.int16), 1)
+    return path
+
+
+@pytest.mark.parametrize("slope_deg", [0.2, 0.5])
+def test_a_gentle_slope_in_whole_metres_is_farmland_and_a_basin_is_water(
+    tmp_path: Path, slope_deg: float
+) -> None:
+    """Rounded to whole metres a gentle slope is a staircase of flat terraces, each lower on
+    its downhill side; it used to be taken for water everywhere, and no field could be sited
+    on the flattest land there is. A flat basin in it stays water."""
+    from scenario_gen.dem import load_geotiff, water_mask
+
+    plain = load_geotiff(_whole_metres(tmp_path / "plain.tif", slope_deg, lake=False), 64)
+    # the lowest terrace runs off the raster's west edge, where its rim cannot be seen: kept
+    # out as a shore would be (at 0.2° a terrace is 1 m / (30 m · tan 0.2°) = 9.5 pixels wide)
+    assert not water_mask(plain.elevation)[:, 12:].any()
+    lake = load_geotiff(_whole_metres(tmp_path / "lake.tif", slope_deg, lake=True), 64)
+    water = water_mask(lake.elevation)
+    assert water[51:59, 51:59].all() and water[:, 12:].sum() <= 100  # the basin only
+    for site in ("flattest", "steepest"):
+        scn = generate(
+            small(terrain={"source": "dem", "path": str(tmp_path / "plain.tif"), "site": site}),
+            seed=0,
+        )
+        assert scn.info["dem"] == "plain.tif"
+
+
+def test_the_embedded_dems_water_is_all_its_flat_areas() -> None:
+    """Every flat area of the embedded DEM (a float raster) lies in a basin, so telling
+    terraces from water leaves its mask, and every field the benchmark sites on it, as they
+    were when every flat area of 12 pixels or more counted as water."""
+    from scipy import ndimage
+
+    from scenario_gen.dem import _nearest_fill, water_mask
+
+    e = _nearest_fill(load_embedded().elevation)
+    inner = e[1:-1, 1:-1]
+    same = np.zeros(e.shape, bool)
+    same[1:-1, 1:-1] = (
+        (inner == e[:-2, 1:-1]) & (inner == e[2:, 1:-1])
+        & (inner == e[1:-1, :-2]) & (inner == e[1:-1, 2:])
+    )  # fmt: skip
+    labels, n = ndimage.label(same)
+    big = np.bincount(labels.ravel()) >= 12
+    big[0] = False
+    every_flat = ndimage.binary_dilation(big[labels])
+    assert n >= 5 and every_flat.any()
+    np.testing.assert_array_equal(water_mask(e), every_flat)
