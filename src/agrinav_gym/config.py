@@ -416,6 +416,18 @@ class TaskConfig:
     progress_radius: float = _f(
         0.5, "distance the robot must move within progress_time, m (Nav2: 0.5)", 0.01, 10
     )
+    # Nav2's waypoint follower sends each GPS waypoint as its own NavigateToPose goal, so the
+    # plan the controller follows ends at the next waypoint until the goal checker passes it
+    # (nav2_waypoint_follower, nav2_controller SimpleGoalChecker: xy_goal_tolerance 0.25 m).
+    waypoint_goals: bool = _f(
+        False,
+        "a route planned through GPS waypoints (route.waypoints) is handed over a leg at a time "
+        "as Nav2's waypoint follower does: the route observation ends at the next waypoint "
+        "until the estimated pose is within goal_tolerance of it",
+    )
+    goal_tolerance: float = _f(
+        0.25, "waypoint_goals: a waypoint is reached this close, m (Nav2: 0.25)", 0.01, 5
+    )
 
 
 @dataclass(frozen=True)

@@ -32,7 +32,7 @@ from .config import EnvConfig
 from .estimation import Readings, make_estimator
 from .interface import OBS_DEPTH, OBS_GPS, OBS_IMU, OBS_ODOM, OBS_ROUTE
 from .metrics import EpisodeMetrics
-from .observations import OBSERVATION_MODELS, Snapshot
+from .observations import OBSERVATION_MODELS, RouteObservation, Snapshot
 from .render.mesh_scene import SceneCache
 from .render.proxy_plants import PlantField
 from .robot import robot_interface
@@ -111,6 +111,13 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         self.render_mode = render_mode
         self.observation_names = _check_observations(observations, self.default_observations)
         self.cfg = EnvConfig.from_dict(config)
+        if self.cfg.task.waypoint_goals and OBS_ROUTE not in self.observation_names:
+            raise InputError(
+                "config.task.waypoint_goals",
+                True,
+                "hands the route over in the route observation, which this env does not "
+                f"observe ({', '.join(self.observation_names)}); allowed: false here",
+            )
         self.source = ScenarioSource(
             scenario, scenario_overrides, scenario_seed, scenario_seeds, bank, randomize
         )
@@ -213,6 +220,10 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         parts = rewards.evaluate(self.cfg.reward, ctx)
         self._prev_action = a
         obs = self._observe(self._snapshot())
+        route_obs = self.obs_models.get(OBS_ROUTE)
+        if isinstance(route_obs, RouteObservation) and route_obs.goal_passed:
+            # a new goal: Nav2's controller server restarts its progress checker
+            self._anchor = (*self._xy(), self._steps * self.dt)
         info = self._info(ctx, parts)
         # Truncation is the TimeLimit wrapper's (max_episode_steps), which the env cannot see:
         # the running metrics ride on every step's info, so the last one is final.
@@ -249,15 +260,21 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         return frozenset(self._obstacles_hit)
 
     def conditions(self) -> dict[str, str]:
-        """What produced this episode's numbers: localisation, camera model, speed limit."""
+        """What produced this episode's numbers: localisation, camera model, speed limit (and
+        how the route is handed to the controller, when not whole)."""
         c = self.cfg.camera
         kind = "crop meshes (Embree)" if c.model == "mesh" else "analytic proxy"
         cam = f"{c.width}x{c.height} {kind}" if OBS_DEPTH in self.obs_models else "none"
-        return {
+        out = {
             "localisation": self._localisation_label(),
             "camera": cam,
             "speed_limit": f"{self.cfg.robot.v_max:g} m/s",
         }
+        if self.cfg.task.waypoint_goals:
+            out["navigator"] = (
+                f"waypoint follower (a goal per GPS waypoint, {self.cfg.task.goal_tolerance:g} m)"
+            )
+        return out
 
     @property
     def arc(self) -> float:

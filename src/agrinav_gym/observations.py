@@ -20,6 +20,7 @@ from gymnasium import spaces
 
 from scenario_gen import Scenario
 from scenario_gen.arrays import F32
+from scenario_gen.errors import InputError
 
 from .config import EnvConfig
 from .estimation import Readings
@@ -178,7 +179,11 @@ class OdomObservation(VectorObservation):
 @observation
 class RouteObservation(ObservationModel):
     """The next K route points, ``route_spacing`` apart along the route from the *estimated*
-    pose's projection, in the estimated robot frame (±100 m), each with a furrow flag."""
+    pose's projection, in the estimated robot frame (±100 m), each with a furrow flag.
+
+    With ``task.waypoint_goals`` the points stop at the next of the route's GPS waypoints (the
+    scenario's ``info["route_goals"]``) until the estimated pose comes within
+    ``task.goal_tolerance`` of it: the plan a Nav2 controller gets for one waypoint's goal."""
 
     key: ClassVar[str] = OBS_ROUTE
 
@@ -192,6 +197,10 @@ class RouteObservation(ObservationModel):
         ((self._lo, self._hi),) = inner_bounds((-100.0,), (100.0,))
         self.tracker: Tracker | None = None
         self._points: native.RoutePointsArgs | None = None
+        #: the waypoints still ahead, (arc, x, y), the next first (task.waypoint_goals)
+        self.goals: list[tuple[float, float, float]] = []
+        self.goal_passed = False  # the last encode passed a goal
+        self._offs = np.array(self.offsets, np.float64)  # offsets cut at the next goal
 
     def space(self) -> spaces.Box:
         return spaces.Box(self.low, self.high)
@@ -199,21 +208,59 @@ class RouteObservation(ObservationModel):
     def reset(self, snap: Snapshot) -> None:
         self.tracker = Tracker(snap.route)
         self.tracker.reset_at(snap.start_arc, snap.start[0], snap.start[1])
+        self.goals = self._goals(snap) if self.cfg.task.waypoint_goals else []
+        self._offs[:] = self.offsets
         self._points = None
         if native.available():  # the kernel route_points, else the Python below (its twin)
             self._out = np.empty(3 * len(self._offsets), np.float32)
             self._points = native.RoutePointsArgs(
-                route=snap.route.native, s=0.0, n=len(self._offsets),
-                offsets=np.ascontiguousarray(self.offsets, np.float64), x=0.0, y=0.0,
-                cos_yaw=1.0, sin_yaw=0.0, lo=-100.0, hi=100.0, out=self._out,
+                route=snap.route.native, s=0.0, n=len(self._offsets), offsets=self._offs,
+                x=0.0, y=0.0, cos_yaw=1.0, sin_yaw=0.0, lo=-100.0, hi=100.0, out=self._out,
             )  # fmt: skip
             self._call = native.kernel("route_points")
             self._ref = ctypes.byref(self._points)
+
+    def _goals(self, snap: Snapshot) -> list[tuple[float, float, float]]:
+        """The route's waypoints past the start, as (arc, x, y); the route's end is the last."""
+        idx = snap.scenario.info.get("route_goals")
+        route = snap.route
+        n = len(route.xy)
+        if not isinstance(idx, list) or n != len(snap.scenario.route.xy):
+            raise InputError(
+                "task.waypoint_goals",
+                True,
+                "needs the FieldRoute task on a route planned through GPS waypoints "
+                "(route.waypoints); allowed: false here",
+            )
+        if not all(isinstance(i, int) and 0 <= i < n for i in idx) or idx != sorted(idx):
+            raise InputError(
+                "scenario info.route_goals", idx, f"allowed: increasing indices below {n}"
+            )
+        tol = self.cfg.task.goal_tolerance
+        return [
+            (float(route.arc[i]), float(route.xy[i, 0]), float(route.xy[i, 1]))
+            for i in idx
+            if snap.start_arc + tol < route.arc[i] < route.length
+        ]
+
+    def _next_goal_arc(self, s: float, ex: float, ey: float) -> None:
+        """Pass the goals the estimate has reached, then cut the offsets at the next one."""
+        tol = self.cfg.task.goal_tolerance
+        self.goal_passed = False
+        while self.goals and math.hypot(ex - self.goals[0][1], ey - self.goals[0][2]) <= tol:
+            self.goals.pop(0)
+            self.goal_passed = True
+        if self.goals:
+            np.minimum(self.offsets, self.goals[0][0] - s, out=self._offs)
+        else:
+            self._offs[:] = self.offsets
 
     def encode(self, snap: Snapshot) -> F32:
         assert self.tracker is not None
         ex, ey, yaw = snap.estimate
         _, s, _ = self.tracker.update(ex, ey)
+        if self.cfg.task.waypoint_goals:
+            self._next_goal_arc(s, ex, ey)
         a = self._points
         if a is not None:
             a.s, a.x, a.y, a.cos_yaw, a.sin_yaw = s, ex, ey, math.cos(yaw), math.sin(yaw)
@@ -221,7 +268,7 @@ class RouteObservation(ObservationModel):
             if status:
                 raise native.failed("route_points", status)
             return self._out.copy()
-        pts, furrow = snap.route.lookup_points([s + o for o in self._offsets])
+        pts, furrow = snap.route.lookup_points([s + o for o in self._offs.tolist()])
         c, sn = math.cos(yaw), math.sin(yaw)
         rel = ((pts - (ex, ey)) @ np.array([[c, -sn], [sn, c]])).tolist()  # world -> robot
         values: list[float] = []

@@ -120,8 +120,16 @@ def _episode(
         u.route.furrow.copy(),
         crops[~p.is_weed],
         crops[hit] if len(hit) else np.empty((0, 2)),
-        {**u.conditions(), "controller": policy.describe()},
+        _conditions(u.conditions(), policy.describe()),
     )
+
+
+def _conditions(env: dict[str, str], controller: str) -> dict[str, str]:
+    """The env's conditions with the controller, after it the navigator that feeds it."""
+    out = dict(env)
+    nav = out.pop("navigator", None)
+    out["controller"] = f"{controller}; {nav}" if nav else controller
+    return out
 
 
 def trajectory_figure(ep: Episode, path: Path, title: str) -> None:

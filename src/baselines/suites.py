@@ -324,16 +324,18 @@ def suite(name: str) -> list[Case]:
     if name == "paper":
         # The source paper's experiment as it ran: four Nav2 GPS waypoints (33 m along a lane,
         # across the headland, 31 m back) read through the datum, the straight-leg plan between
-        # them, RTK GNSS through the EKF, Nav2's progress checker, early and intermediate corn
-        # on the P1 density (1 m rows).
+        # them handed over a waypoint at a time as Nav2's waypoint follower does (each a goal
+        # reached within 0.25 m), RTK GNSS through the EKF, Nav2's progress checker, early and
+        # intermediate corn on the P1 density (1 m rows).
         route = {"waypoints": paper_waypoints()}
+        goals = {**RTK_EKF, "task": {**NAV2_PROGRESS, "waypoint_goals": True}}
         return [
             Case(
                 f"corn-{label}",
                 "AgriNav/FieldRoute-v3",
                 "paper-p1",
                 {**PAPER_WAYPOINT_FIELD, "route": route, "crop": {"stage": stage}},
-                RTK_EKF,
+                goals,
             )
             for label, stage in (("early", 1), ("intermediate", 3))
         ]

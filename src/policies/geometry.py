@@ -52,15 +52,21 @@ def local_plan(
 
     The observation holds points route_spacing, 2·route_spacing, ... ahead of the robot's
     projection on the route; one point is extrapolated back so the plan also covers the robot's
-    own position.
+    own position. A plan that ends at a goal (``task.waypoint_goals``) repeats the goal; with
+    only the goal left the plan is the line from the robot to it.
     """
     pts, tags = decode_route(route_obs)
+    seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+    keep = np.concatenate([[True], seg > 1e-6])  # a goal's plan repeats its last point
+    pts, tags = pts[keep], tags[keep]
     if len(pts) >= 2:
         pts = np.vstack([2 * pts[0] - pts[1], pts])
         tags = np.concatenate([tags[:1], tags])
-    seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
-    keep = np.concatenate([[True], seg > 1e-6])  # the route's end repeats its last point
-    pts, tags = pts[keep], tags[keep]
+    elif len(pts) == 1 and np.hypot(*pts[0]) > 1e-6:
+        # within one point spacing of a goal: the straight line to it, as a planner's path
+        # from the robot to the goal would be
+        pts = np.vstack([np.zeros(2), pts])
+        tags = np.concatenate([tags, tags])
     if len(pts) < 2:
         return pts, tags
     arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])

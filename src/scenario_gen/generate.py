@@ -8,6 +8,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import shapely
@@ -280,8 +281,9 @@ def generate(spec: ScenarioSpec, seed: int) -> Scenario:
     plants = place_plants(lay, terrain, spec.crop, growth, rng["plants"], nominal)
     lodging = lodge(plants, lay, spec.obstacles.stalk_lodging, rng["obstacles"])
     plants, lay = lodging.plants, lodging.layout  # a fallen plant leaves its place empty
+    goals: dict[str, Any] = {}
     if spec.route.waypoints is not None:
-        route = waypoint_route(
+        route, goals["route_goals"] = waypoint_route(
             read_gps_waypoints(spec.route.waypoints, "route.waypoints"),
             site.geo,
             terrain,
@@ -298,6 +300,7 @@ def generate(spec: ScenarioSpec, seed: int) -> Scenario:
         "credit": site.credit,
         **site.info,
         "growth": growth,
+        **goals,
         "candidates": lay.candidates,
         "generate_seconds": time.perf_counter() - t_start,
     }

@@ -84,9 +84,11 @@ def waypoint_route(
     rows: Any = None,
     field: Any = None,
     what: str = "--waypoints",
-) -> Route:
+) -> tuple[Route, list[int]]:
     """The straight-leg plan through ``wps`` (read by ``read_gps_waypoints``) in ENU, on the
-    terrain, every ``spacing`` metres; a waypoint off the terrain is refused by number.
+    terrain, every ``spacing`` metres, and the indices of its points at the waypoints (the
+    goals Nav2's waypoint follower sends one by one); a waypoint off the terrain is refused by
+    number.
 
     A point is ``furrow`` where it lies in ``field`` (the planting area) on a leg running along
     the rows there: within ``FURROW_ALIGN_DEG`` of the row direction at that point
@@ -116,8 +118,10 @@ def waypoint_route(
             what, f"{length.sum():.0f} m of route", f"allowed: at most {MAX_ROUTE_WAYPOINTS} points"
         )
     pts, heading = [xy[:1]], [math.atan2(legs[0, 1], legs[0, 0])]
+    goals = [0]
     for k in range(len(legs)):
         n = max(math.ceil(length[k] / spacing), 1)
+        goals.append(goals[-1] + n)
         t = np.arange(1, n + 1) / n
         pts.append(xy[k] + t[:, None] * legs[k])
         heading += [math.atan2(legs[k, 1], legs[k, 0])] * n
@@ -130,7 +134,7 @@ def waypoint_route(
         else np.zeros(len(p), bool)
     )
     seg = np.where(np.asarray(along) & inside, FURROW, HEADLAND)
-    return Route(np.column_stack([p, z]), seg, np.full(len(p), -1, np.int64))
+    return Route(np.column_stack([p, z]), seg, np.full(len(p), -1, np.int64)), goals
 
 
 def _along(heading: FloatArray, rows: Any, p: FloatArray) -> NDArray[np.bool_]:

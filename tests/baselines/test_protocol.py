@@ -151,7 +151,8 @@ def test_the_second_dem_plants_every_test_field_far_from_any_training_terrain() 
 
     home = load_embedded()
     rows, cols = home.shape
-    lon, lat = home.to_lonlat().transform(*home.pixel_to_crs(np.array([0.0, cols]), np.array([0.0, rows])))
+    corners = home.pixel_to_crs(np.array([0.0, cols]), np.array([0.0, rows]))
+    lon, lat = home.to_lonlat().transform(*corners)
     (case,) = [c for c in suite("ood") if c.overrides.get("terrain", {}).get("source") == "dem"]
     env = gym.make(case.env_id, **case.env_kwargs())
     try:
@@ -189,6 +190,7 @@ def test_the_paper_suite_drives_the_seed_robots_four_waypoints() -> None:
     import numpy as np
 
     case = suite("paper")[0]
+    assert case.config["task"]["waypoint_goals"]  # Nav2's follower: a goal per waypoint
     env = gym.make(case.env_id, **case.env_kwargs())
     try:
         env.reset(seed=EVAL_SEED)

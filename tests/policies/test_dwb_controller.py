@@ -181,3 +181,40 @@ def test_dwb_drives_a_straight_lane_without_touching_crops(
         assert m["crops_hit"] == 0 and m["max"] < 0.15
     finally:
         env.close()
+
+
+def _route_obs(points: list[tuple[float, float]]) -> np.ndarray:
+    return np.array([[x, y, 0.0] for x, y in points], np.float32).ravel()
+
+
+def test_a_new_goal_lets_rotate_to_goal_go() -> None:
+    """At a waypoint the plan ends (the goal repeated): RotateToGoal latches and turns the
+    robot in place. The next leg is a new goal, and as Nav2's setPlan does, every critic is
+    reset, so the robot drives the new leg instead of rotating on at the old goal."""
+    from policies.dwb.critics import RotateToGoalCritic
+
+    env = gym.make("AgriNav/FurrowFollow-v3", observations=["gps", "imu", "odom", "route"])
+    try:
+        pi = make_policy("dwb:furrow", env)
+        obs, _ = env.reset(seed=0)
+        pi.reset()
+        rot = next(c for c in pi.planner.critics if isinstance(c, RotateToGoalCritic))
+        at_goal = dict(obs, route=_route_obs([(0.1, 0.0)] * 10))  # the goal 0.1 m ahead
+        pi.act(at_goal)
+        assert rot.in_window
+        pi.act(at_goal)
+        assert rot.in_window  # the same goal: latched
+        leg = dict(obs, route=_route_obs([(0.1, 0.4 * k) for k in range(1, 11)]))  # turn left
+        pi.act(leg)
+        assert not rot.in_window
+    finally:
+        env.close()
+
+
+def test_a_plan_of_one_point_is_the_line_to_it() -> None:
+    from policies.geometry import local_plan
+
+    plan, _ = local_plan(_route_obs([(0.3, 0.1)] * 10))
+    assert np.allclose(plan[0], 0.0) and np.allclose(plan[-1], (0.3, 0.1), atol=0.05)
+    plan, _ = local_plan(_route_obs([(0.4 * k, 0.0) for k in range(1, 11)]))
+    assert plan[0, 0] == pytest.approx(0.0, abs=1e-9) and plan[-1, 0] == pytest.approx(4.0)

@@ -42,10 +42,14 @@ def test_waypoints_round_trip_through_enu_within_a_millimetre(field, tmp_path: P
     scn = generate(small(route={"waypoints": str(path)}), seed=0)
     r = scn.route
     ll = route_to_gps(r, scn.geo)
-    # the plan passes through every waypoint: each is one of its points, to < 1 mm
-    for wp in wps:
+    # the plan passes through every waypoint: each is one of its points, to < 1 mm, the one
+    # info["route_goals"] names (the goals Nav2's waypoint follower sends one by one)
+    goals = scn.info["route_goals"]
+    assert len(goals) == len(wps) and goals[0] == 0 and goals[-1] == len(r.xy) - 1
+    for wp, i in zip(wps, goals, strict=True):
         x, y, _ = scn.geo.geodetic_to_enu(wp["latitude"], wp["longitude"], 0.0)
         assert np.hypot(r.xy[:, 0] - x, r.xy[:, 1] - y).min() < 1e-3
+        assert np.hypot(r.xy[i, 0] - x, r.xy[i, 1] - y) < 1e-3
     # and back to lat/lon: the first and last route points are the first and last waypoints
     for k, i in ((0, 0), (-1, -1)):
         x, y, _ = scn.geo.geodetic_to_enu(ll[i, 0], ll[i, 1], r.xyz[i, 2])

@@ -130,6 +130,9 @@ class DWB(Policy):
         self.update_every = max(1, round(1.0 / (cm.update_frequency * self.dt)))
         self.use_imu = self.p.yaw_rate_source == "imu" and OBS_IMU in observation_space.spaces
         self.last: Evaluation | None = None
+        # the end of the route observation slides ahead by at most a control period's travel;
+        # one that moves further than the goal window is a new goal
+        self.goal_jump = self.p.FollowPath.xy_goal_tolerance
         self.reset()
 
     def describe(self) -> str:
@@ -146,6 +149,7 @@ class DWB(Policy):
         self.master = np.zeros(self.size, np.uint8)
         self.trail = np.zeros((0, 3))
         self.failures = 0
+        self.goal: tuple[float, float, float] | None = None  # the last cycle's global goal
         self.planner.reset()
 
     # ------------------------------------------------------------------ odometry and costmap
@@ -235,6 +239,12 @@ class DWB(Policy):
                 attitude = (imu.roll, imu.pitch)
             self.update_costmap(depth, attitude)
         plan, goal = self._plan(obs[OBS_ROUTE])
+        last = self.goal
+        if last is not None and math.hypot(goal[0] - last[0], goal[1] - last[1]) > self.goal_jump:
+            # a new goal (the waypoint follower's next leg): setPlan resets every critic, so
+            # RotateToGoal lets go of the goal just reached
+            self.planner.reset()
+        self.goal = goal
         half = max(self.size) * self.grid.resolution / 2.0
         transformed, self.trail = transform_global_plan(plan, self.pose, half, self.p.FollowPath)
         return Cycle(
