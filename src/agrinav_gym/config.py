@@ -428,6 +428,14 @@ class TaskConfig:
     goal_tolerance: float = _f(
         0.25, "waypoint_goals: a waypoint is reached this close, m (Nav2: 0.25)", 0.01, 5
     )
+    # Humble's default behaviour tree (agrinav_gym/recoveries.py): number_of_retries 6.
+    recoveries: bool = _f(
+        False,
+        "a progress-check failure runs Nav2's recovery behaviours (clear the costmap and "
+        "retry; then clear both, spin, wait, back up in turn) instead of ending the episode, "
+        "which fails after recovery_retries of them for one goal; needs progress_time",
+    )
+    recovery_retries: int = _f(6, "recoveries: round-robin recoveries per goal (Nav2: 6)", 0, 100)
 
 
 @dataclass(frozen=True)
@@ -519,4 +527,11 @@ class EnvConfig:
         if self.camera.min_range >= self.camera.max_range:
             raise InputError(
                 "config.camera.min_range", self.camera.min_range, "allowed: below max_range"
+            )
+        if self.task.recoveries and self.task.progress_time is None:
+            raise InputError(
+                "config.task.recoveries",
+                True,
+                "recovers from what the progress checker finds; allowed: with "
+                "task.progress_time set (Nav2: 10 s)",
             )

@@ -33,6 +33,7 @@ from .estimation import Readings, make_estimator
 from .interface import OBS_DEPTH, OBS_GPS, OBS_IMU, OBS_ODOM, OBS_ROUTE
 from .metrics import EpisodeMetrics
 from .observations import OBSERVATION_MODELS, RouteObservation, Snapshot
+from .recoveries import ABORT, Recoveries
 from .render.mesh_scene import SceneCache
 from .render.proxy_plants import PlantField
 from .robot import robot_interface
@@ -135,6 +136,7 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         self.sensors = SensorSuite(self.cfg, self.world.geometry, self.dt)
         loc = self.cfg.localisation
         self.estimator = make_estimator(loc.kind, loc, self.world.skid_factor, self.dt)
+        self.recoveries = Recoveries(self.cfg.task.recovery_retries, self.dt)
         self.obs_models = {
             k: OBSERVATION_MODELS[k](self.cfg, self.interface) for k in self.observation_names
         }
@@ -188,6 +190,7 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         self._obstacles_hit: set[int] = set()  # each counted once an episode
         self.state = self.world.state()
         self._anchor = (*self._xy(), 0.0)  # progress checker: where and when it last moved
+        self.recoveries.reset()
         self.readings = self.sensors.reset(self.state, rng)
         self.estimator.reset(*self.start, rng)
         self.estimator.update(self.readings, self.dt)
@@ -203,6 +206,9 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
 
     def step(self, action: NDArray[np.float32]) -> tuple[Obs, float, bool, bool, dict[str, Any]]:
         a = self._check_action(action)
+        recovery = self._behaviour()
+        if recovery is not None:
+            a = recovery[1]
         self._command(a)
         self.world.follow(
             float(self.state.pos[0]), float(self.state.pos[1]), float(self.state.rpy[2])
@@ -214,6 +220,12 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         self.estimator.update(self.readings, self.dt)
         ctx = self._context(a)
         end = self.task.check(ctx)
+        event = recovery[0] if recovery is not None else None
+        if end == "progress" and self.cfg.task.recoveries:
+            event = self.recoveries.on_failure(self.estimator.pose)
+            if event != ABORT:
+                end = None  # the tree recovers and sends FollowPath again
+                self._anchor = (*self._xy(), self._steps * self.dt)
         if end is not None:
             ctx = dataclasses.replace(ctx, termination=end)
         self._ended = end is not None
@@ -224,7 +236,10 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         if isinstance(route_obs, RouteObservation) and route_obs.goal_passed:
             # a new goal: Nav2's controller server restarts its progress checker
             self._anchor = (*self._xy(), self._steps * self.dt)
+            self.recoveries.new_goal()
         info = self._info(ctx, parts)
+        if event is not None:
+            info["recovery"] = event
         # Truncation is the TimeLimit wrapper's (max_episode_steps), which the env cannot see:
         # the running metrics ride on every step's info, so the last one is final.
         return obs, float(sum(parts.values())), ctx.termination is not None, False, info
@@ -270,10 +285,14 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
             "camera": cam,
             "speed_limit": f"{self.cfg.robot.v_max:g} m/s",
         }
-        if self.cfg.task.waypoint_goals:
-            out["navigator"] = (
-                f"waypoint follower (a goal per GPS waypoint, {self.cfg.task.goal_tolerance:g} m)"
-            )
+        t = self.cfg.task
+        nav = []
+        if t.waypoint_goals:
+            nav.append(f"waypoint follower (a goal per GPS waypoint, {t.goal_tolerance:g} m)")
+        if t.recoveries:
+            nav.append(f"Nav2 recoveries ({t.recovery_retries} per goal)")
+        if nav:
+            out["navigator"] = ", ".join(nav)
         return out
 
     @property
@@ -306,6 +325,7 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         # estimate back there (every intervention then led to the next).
         self.readings = self.sensors.reset(self.state, self.np_random)
         self.estimator.reset(float(x), float(y), h, self.np_random)
+        self.recoveries.reset()
         self.estimator.update(self.readings, self.dt)
         self.tracker.reset_at(s, *self._xy())
         self._cte, self._s, self._k = self.tracker.update(*self._xy())
@@ -325,6 +345,20 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         return self.metrics.result(len(self._hit), [str(kinds[i]) for i in self._obstacles_hit])
 
     # ------------------------------------------------------------------ parts of a step
+    def _behaviour(self) -> tuple[str, tuple[float, float]] | None:
+        """The recovery behaviour driving the robot this step, and its action; None when the
+        policy drives. No progress check while one runs (nav2_behaviors, not the controller
+        server, has the robot), and a fresh one once FollowPath takes over again."""
+        running = self.recoveries.running
+        if running is None:
+            return None
+        self._anchor = (*self._xy(), self._steps * self.dt)
+        twist = self.recoveries.twist(self.estimator.pose)
+        if twist is None:
+            return None
+        r = self.cfg.robot
+        return running.kind, (twist[0] / r.v_max, twist[1] / r.w_max)
+
     def _command(self, a: tuple[float, float]) -> None:
         """Acceleration-limited body twist to the wheels."""
         r = self.cfg.robot

@@ -9,6 +9,8 @@ from typing import Any
 
 import numpy as np
 
+from agrinav_gym.recoveries import CLEARING
+
 
 @dataclass
 class Episode:
@@ -59,6 +61,8 @@ def run_with_interventions(env: Any, policy: Any, seed: int, policy_name: str) -
     while True:
         obs, _, term, trunc, info = env.step(policy.act(obs))
         steps += 1
+        if info.get("recovery") in CLEARING:
+            policy.clear_costmaps()
         kind = info.get("termination")
         if term and kind in INTERVENTIONS and len(stops) < MAX_INTERVENTIONS:
             autonomous += max(u.arc - since, 0.0)
@@ -88,6 +92,8 @@ def run_episode(
     while True:
         obs, _, term, trunc, info = env.step(policy.act(obs))
         steps += 1
+        if info.get("recovery") in CLEARING:
+            policy.clear_costmaps()
         if video is not None:
             rendered += video(env)
         if term or trunc:

@@ -325,10 +325,11 @@ def suite(name: str) -> list[Case]:
         # The source paper's experiment as it ran: four Nav2 GPS waypoints (33 m along a lane,
         # across the headland, 31 m back) read through the datum, the straight-leg plan between
         # them handed over a waypoint at a time as Nav2's waypoint follower does (each a goal
-        # reached within 0.25 m), RTK GNSS through the EKF, Nav2's progress checker, early and
-        # intermediate corn on the P1 density (1 m rows).
+        # reached within 0.25 m), RTK GNSS through the EKF, Nav2's progress checker and its
+        # default tree's recoveries, early and intermediate corn on the P1 density (1 m rows).
         route = {"waypoints": paper_waypoints()}
-        goals = {**RTK_EKF, "task": {**NAV2_PROGRESS, "waypoint_goals": True}}
+        nav2 = {**NAV2_PROGRESS, "waypoint_goals": True, "recoveries": True}
+        goals = {**RTK_EKF, "task": nav2}
         return [
             Case(
                 f"corn-{label}",

@@ -59,6 +59,10 @@ class Policy(ABC):
         """The controller and its configuration, as a benchmark row states it."""
         return self.name
 
+    def clear_costmaps(self) -> None:  # noqa: B027  (most policies keep no costmap)
+        """A navigator's recovery cleared the costmaps (``info["recovery"]``, Nav2's
+        ClearEntireCostmap): forget what they held."""
+
     @abstractmethod
     def act(self, obs: Obs) -> NDArray[np.float32]: ...
 

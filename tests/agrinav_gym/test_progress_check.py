@@ -47,3 +47,54 @@ def test_the_progress_settings_are_checked() -> None:
     with pytest.raises(agrinav_gym.InputError) as e:
         gym.make("AgriNav/FurrowFollow-v3", config={"task": {"progress_time": -1}})
     assert "task.progress_time" in str(e.value)
+
+
+def test_recoveries_run_nav2s_default_tree_on_a_scripted_stall() -> None:
+    """A policy that never moves: every 10 s the progress checker fires and the tree answers
+    in Humble's order — clear the local costmap and retry FollowPath, then the round robin
+    (clear both costmaps, spin 1.57 rad, wait 5 s, back up 0.30 m) — and after the sixth
+    round-robin recovery the goal fails. The behaviours move the robot though the policy
+    asks for nothing."""
+    from agrinav_gym.recoveries import ROUND_ROBIN
+
+    config = {
+        "task": {"progress_time": 10.0, "recoveries": True},
+        "localisation": {"kind": "ideal"},
+    }
+    env = gym.make("AgriNav/FurrowFollow-v3", config=config, max_episode_steps=10_000)
+    try:
+        env.reset(seed=3)
+        u = env.unwrapped
+        events: list[tuple[int, str]] = []
+        yaw0 = float(u.state.rpy[2])
+        spun = backed = 0.0
+        for n in range(1, 10_001):
+            before = (*u._xy(), float(u.state.rpy[2]))
+            _, _, term, trunc, info = env.step(STOP)
+            if "recovery" in info and (not events or events[-1][1] != info["recovery"]):
+                events.append((n, info["recovery"]))
+            if info.get("recovery") == "spin":
+                spun += abs((float(u.state.rpy[2]) - before[2] + np.pi) % (2 * np.pi) - np.pi)
+            if info.get("recovery") == "backup":
+                backed += float(np.hypot(u._xy()[0] - before[0], u._xy()[1] - before[1]))
+            if term or trunc:
+                break
+        kinds = [k for _, k in events]
+        expected = []
+        for k in range(6):
+            expected += ["clear_local_costmap", ROUND_ROBIN[k % 4]]
+        assert kinds == [*expected, "clear_local_costmap", "abort"]
+        assert info["termination"] == "progress"
+        # the first failure after 10 s standing still, the next after a fresh 10 s
+        assert [n for n, _ in events[:2]] == pytest.approx([200, 400], abs=1)
+        # two spins of 1.57 rad (round-robin steps 2 and 6; the turn runs on while it brakes)
+        assert spun == pytest.approx(2 * 1.57, abs=0.3) and backed == pytest.approx(0.30, abs=0.05)
+        assert abs(float(u.state.rpy[2]) - yaw0) > 1.0  # it was turned, not driven by the policy
+    finally:
+        env.close()
+
+
+def test_recoveries_need_the_progress_checker() -> None:
+    with pytest.raises(agrinav_gym.InputError) as e:
+        gym.make("AgriNav/FurrowFollow-v3", config={"task": {"recoveries": True}})
+    assert "task.recoveries" in str(e.value) and "progress_time" in str(e.value)

@@ -190,7 +190,8 @@ def test_the_paper_suite_drives_the_seed_robots_four_waypoints() -> None:
     import numpy as np
 
     case = suite("paper")[0]
-    assert case.config["task"]["waypoint_goals"]  # Nav2's follower: a goal per waypoint
+    # Nav2's waypoint follower (a goal per waypoint) and its default tree's recoveries
+    assert case.config["task"]["waypoint_goals"] and case.config["task"]["recoveries"]
     env = gym.make(case.env_id, **case.env_kwargs())
     try:
         env.reset(seed=EVAL_SEED)

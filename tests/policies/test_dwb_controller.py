@@ -218,3 +218,36 @@ def test_a_plan_of_one_point_is_the_line_to_it() -> None:
     assert np.allclose(plan[0], 0.0) and np.allclose(plan[-1], (0.3, 0.1), atol=0.05)
     plan, _ = local_plan(_route_obs([(0.4 * k, 0.0) for k in range(1, 11)]))
     assert plan[0, 0] == pytest.approx(0.0, abs=1e-9) and plan[-1, 0] == pytest.approx(4.0)
+
+
+def test_a_navigators_clearing_recovery_empties_dwbs_costmap() -> None:
+    """``info["recovery"]`` naming a costmap clearing reaches the policy (baselines' episode
+    loop calls ``clear_costmaps``): DWB's layers and master grid go back to free."""
+    from agrinav_gym.recoveries import CLEARING
+    from baselines.episodes import run_episode
+
+    class Clearing(gym.Wrapper):
+        def step(self, action):  # type: ignore[no-untyped-def]
+            obs, r, _, trunc, info = self.env.step(action)
+            return obs, r, True, trunc, {**info, "recovery": CLEARING[0]}
+
+    env = Clearing(
+        gym.make("AgriNav/FurrowFollow-v3", observations=["gps", "imu", "odom", "route"])
+    )
+    try:
+        pi = make_policy("dwb:nav2", env)
+        cleared = []
+        pi.clear_costmaps = lambda: cleared.append(True)  # type: ignore[method-assign]
+        run_episode(env, pi, 0, "dwb")
+        assert cleared == [True]
+    finally:
+        env.close()
+    plain = gym.make("AgriNav/FurrowFollow-v3", observations=["odom", "route"])
+    try:
+        pi = make_policy("dwb:nav2", plain)
+        pi.layer.cost[:] = LETHAL
+        pi.master[:] = LETHAL
+        pi.clear_costmaps()
+        assert not pi.layer.cost.any() and not pi.master.any()
+    finally:
+        plain.close()

@@ -135,6 +135,11 @@ class DWB(Policy):
         self.goal_jump = self.p.FollowPath.xy_goal_tolerance
         self.reset()
 
+    def clear_costmaps(self) -> None:
+        """ClearEntireCostmap: every layer and the master grid back to their defaults."""
+        self.layer.reset()
+        self.master[:] = 0
+
     def describe(self) -> str:
         return f"dwb ({self.config})"
 
@@ -263,9 +268,7 @@ class DWB(Policy):
             self.failures += 1
             self.trail = np.zeros((0, 3))
             if self.p.clear_costmap_on_failure:
-                # ClearEntirely: every layer and the master grid back to their defaults
-                self.layer.reset()
-                self.master[:] = 0
+                self.clear_costmaps()
         self.last = ev
         self.steps += 1
         return self._twist(v, w)
