@@ -67,6 +67,13 @@ PAPER_FIELD = {"field": {"width": 12.5, "length": 30.0}, "route": {"lanes": 2}}
 PAPER_WAYPOINT_FIELD: dict[str, Any] = {"field": {"width": 12.5, "length": 39.0}}
 
 
+#: The paper run's step limit: the navigator, not the clock, ends a stuck run. Per goal Nav2's
+#: tree gives up after 14 progress-check failures (10 s each) and six recoveries (≤ 10 s
+#: each): 200 s; three goals, plus the 70 m route at DWB's tuned 0.42 m/s (167 s), is 767 s,
+#: 15,340 control steps at 20 Hz.
+PAPER_MAX_STEPS = 15_400
+
+
 def heldout_dem() -> str:
     """The DEM no training field comes from (``baselines/heldout_terrain``: 25 m, BC interior)."""
     from importlib import resources
@@ -337,6 +344,7 @@ def suite(name: str) -> list[Case]:
                 "paper-p1",
                 {**PAPER_WAYPOINT_FIELD, "route": route, "crop": {"stage": stage}},
                 goals,
+                max_steps=PAPER_MAX_STEPS,
             )
             for label, stage in (("early", 1), ("intermediate", 3))
         ]
