@@ -141,6 +141,13 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
             k: OBSERVATION_MODELS[k](self.cfg, self.interface) for k in self.observation_names
         }
         self.observation_space = spaces.Dict({k: m.space() for k, m in self.obs_models.items()})  # type: ignore[assignment]
+        route_model = self.obs_models.get(OBS_ROUTE)
+        #: the route observation that hands the route over a goal at a time (waypoint_goals)
+        self._goal_model = (
+            route_model
+            if self.cfg.task.waypoint_goals and isinstance(route_model, RouteObservation)
+            else None
+        )
         self.action_space = spaces.Box(-1.0, 1.0, (2,), np.float32)
         self.route: RoutePath | None = None
         self._fields_of: Scenario | None = None
@@ -232,8 +239,7 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         parts = rewards.evaluate(self.cfg.reward, ctx)
         self._prev_action = a
         obs = self._observe(self._snapshot())
-        route_obs = self.obs_models.get(OBS_ROUTE)
-        if isinstance(route_obs, RouteObservation) and route_obs.goal_passed:
+        if self._goal_model is not None and self._goal_model.goal_passed:
             # a new goal: Nav2's controller server restarts its progress checker
             self._anchor = (*self._xy(), self._steps * self.dt)
             self.recoveries.new_goal()

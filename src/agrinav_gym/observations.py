@@ -200,6 +200,7 @@ class RouteObservation(ObservationModel):
         #: the waypoints still ahead, (arc, x, y), the next first (task.waypoint_goals)
         self.goals: list[tuple[float, float, float]] = []
         self.goal_passed = False  # the last encode passed a goal
+        self._goals_on = cfg.task.waypoint_goals
         self._offs = np.array(self.offsets, np.float64)  # offsets cut at the next goal
 
     def space(self) -> spaces.Box:
@@ -208,7 +209,7 @@ class RouteObservation(ObservationModel):
     def reset(self, snap: Snapshot) -> None:
         self.tracker = Tracker(snap.route)
         self.tracker.reset_at(snap.start_arc, snap.start[0], snap.start[1])
-        self.goals = self._goals(snap) if self.cfg.task.waypoint_goals else []
+        self.goals = self._goals(snap) if self._goals_on else []
         self._offs[:] = self.offsets
         self._points = None
         if native.available():  # the kernel route_points, else the Python below (its twin)
@@ -259,7 +260,7 @@ class RouteObservation(ObservationModel):
         assert self.tracker is not None
         ex, ey, yaw = snap.estimate
         _, s, _ = self.tracker.update(ex, ey)
-        if self.cfg.task.waypoint_goals:
+        if self._goals_on:
             self._next_goal_arc(s, ex, ey)
         a = self._points
         if a is not None:
