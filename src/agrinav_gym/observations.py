@@ -191,7 +191,6 @@ class RouteObservation(ObservationModel):
         super().__init__(cfg, robot)
         k = robot.route_points
         self.offsets = robot.route_spacing * np.arange(1, k + 1)
-        self._offsets = self.offsets.tolist()
         self.low = np.tile(np.array([-100.0, -100.0, 0.0], np.float32), k)
         self.high = np.tile(np.array([100.0, 100.0, 1.0], np.float32), k)
         ((self._lo, self._hi),) = inner_bounds((-100.0,), (100.0,))
@@ -213,9 +212,9 @@ class RouteObservation(ObservationModel):
         self._offs[:] = self.offsets
         self._points = None
         if native.available():  # the kernel route_points, else the Python below (its twin)
-            self._out = np.empty(3 * len(self._offsets), np.float32)
+            self._out = np.empty(3 * len(self.offsets), np.float32)
             self._points = native.RoutePointsArgs(
-                route=snap.route.native, s=0.0, n=len(self._offsets), offsets=self._offs,
+                route=snap.route.native, s=0.0, n=len(self.offsets), offsets=self._offs,
                 x=0.0, y=0.0, cos_yaw=1.0, sin_yaw=0.0, lo=-100.0, hi=100.0, out=self._out,
             )  # fmt: skip
             self._call = native.kernel("route_points")
@@ -228,7 +227,7 @@ class RouteObservation(ObservationModel):
         n = len(route.xy)
         if not isinstance(idx, list) or n != len(snap.scenario.route.xy):
             raise InputError(
-                "task.waypoint_goals",
+                "config.task.waypoint_goals",
                 True,
                 "needs the FieldRoute task on a route planned through GPS waypoints "
                 "(route.waypoints); allowed: false here",

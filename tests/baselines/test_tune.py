@@ -112,11 +112,16 @@ def test_env_kwargs_put_more_geometry_in_the_searched_training_fields(tmp_path: 
         assert env.unwrapped.scenario.rows.curve is not None
     finally:
         env.close()
+    from baselines.tune import _TRAINING_ENV
+
     job = TrialEpisode(0, 0, "stanley", tuple(default_params("stanley").items()), 3)
     _, plain = trial_episode(job)
+    assert _TRAINING_ENV[0][1].unwrapped.scenario.rows.curve is None
     _, curved = trial_episode(dataclasses.replace(job, env_kwargs=json.dumps(extra)))
+    # the worker built the env again for the other ranges, not kept the one it had
+    assert _TRAINING_ENV[0][1].unwrapped.scenario.rows.curve is not None
     release_training_env()
-    assert plain != curved  # another field, not the env the worker had built before
+    assert plain != curved
 
     file = tmp_path / "curved.yaml"
     file.write_text(yaml.safe_dump(extra))

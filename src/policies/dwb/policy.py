@@ -130,9 +130,6 @@ class DWB(Policy):
         self.update_every = max(1, round(1.0 / (cm.update_frequency * self.dt)))
         self.use_imu = self.p.yaw_rate_source == "imu" and OBS_IMU in observation_space.spaces
         self.last: Evaluation | None = None
-        # the end of the route observation slides ahead by at most a control period's travel;
-        # one that moves further than the goal window is a new goal
-        self.goal_jump = self.p.FollowPath.xy_goal_tolerance
         self.reset()
 
     def clear_costmaps(self) -> None:
@@ -245,9 +242,11 @@ class DWB(Policy):
             self.update_costmap(depth, attitude)
         plan, goal = self._plan(obs[OBS_ROUTE])
         last = self.goal
-        if last is not None and math.hypot(goal[0] - last[0], goal[1] - last[1]) > self.goal_jump:
-            # a new goal (the waypoint follower's next leg): setPlan resets every critic, so
-            # RotateToGoal lets go of the goal just reached
+        # The route observation's end slides on by a control period's travel; one that jumps
+        # further than the goal window is a new goal (the waypoint follower's next leg), and
+        # setPlan resets every critic, so RotateToGoal lets go of the goal just reached.
+        jump = self.p.FollowPath.xy_goal_tolerance
+        if last is not None and math.hypot(goal[0] - last[0], goal[1] - last[1]) > jump:
             self.planner.reset()
         self.goal = goal
         half = max(self.size) * self.grid.resolution / 2.0
