@@ -416,6 +416,16 @@ class TaskConfig:
     progress_radius: float = _f(
         0.5, "distance the robot must move within progress_time, m (Nav2: 0.5)", 0.01, 10
     )
+    # A robot that keeps Nav2's progress checker quiet moves progress_radius every progress_time
+    # (0.05 m/s): a limit of progress_time / progress_radius seconds per metre of route (20)
+    # never ends an episode such a robot would finish, whatever its speed.
+    seconds_per_metre: float | None = _f(
+        None,
+        "the episode is truncated after this many seconds per metre of its route "
+        "(null: the registered step limit only)",
+        0.1,
+        3600,
+    )
     # Nav2's waypoint follower sends each GPS waypoint as its own NavigateToPose goal, so the
     # plan the controller follows ends at the next waypoint until the goal checker passes it
     # (nav2_waypoint_follower, nav2_controller SimpleGoalChecker: xy_goal_tolerance 0.25 m).
@@ -436,6 +446,14 @@ class TaskConfig:
         "which fails after recovery_retries of them for one goal; needs progress_time",
     )
     recovery_retries: int = _f(6, "recoveries: round-robin recoveries per goal (Nav2: 6)", 0, 100)
+    # nav2_waypoint_follower's stop_on_failure: true in its code, false in Humble's
+    # nav2_params.yaml (the follower then reports the waypoint missed and goes on)
+    stop_on_failure: bool = _f(
+        True,
+        "waypoint_goals with recoveries: a waypoint the tree gives up on ends the episode "
+        "(true) or is counted in missed_waypoints and the next one sent (false); the route's "
+        "end always ends it",
+    )
 
 
 @dataclass(frozen=True)

@@ -33,7 +33,7 @@ from .estimation import Readings, make_estimator
 from .interface import OBS_DEPTH, OBS_GPS, OBS_IMU, OBS_ODOM, OBS_ROUTE
 from .metrics import EpisodeMetrics
 from .observations import OBSERVATION_MODELS, RouteObservation, Snapshot
-from .recoveries import ABORT, Recoveries
+from .recoveries import ABORT, SKIP, Recoveries
 from .render.mesh_scene import SceneCache
 from .render.proxy_plants import PlantField
 from .robot import robot_interface
@@ -119,6 +119,15 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
                 "hands the route over in the route observation, which this env does not "
                 f"observe ({', '.join(self.observation_names)}); allowed: false here",
             )
+        t = self.cfg.task
+        if not t.stop_on_failure and not (t.waypoint_goals and t.recoveries):
+            raise InputError(
+                "config.task.stop_on_failure",
+                False,
+                "the waypoint follower skips a waypoint only when the goals are handed over "
+                "one at a time with recoveries (task.waypoint_goals and task.recoveries true); "
+                "allowed: true here",
+            )
         self.source = ScenarioSource(
             scenario, scenario_overrides, scenario_seed, scenario_seeds, bank, randomize
         )
@@ -148,6 +157,7 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
             if self.cfg.task.waypoint_goals and isinstance(route_model, RouteObservation)
             else None
         )
+        self._skips_goals = not self.cfg.task.stop_on_failure
         self.action_space = spaces.Box(-1.0, 1.0, (2,), np.float32)
         self.route: RoutePath | None = None
         self._fields_of: Scenario | None = None
@@ -197,6 +207,9 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         self._obstacles_hit: set[int] = set()  # each counted once an episode
         self.state = self.world.state()
         self._anchor = (*self._xy(), 0.0)  # progress checker: where and when it last moved
+        self._missed = 0  # waypoints the follower gave up on (stop_on_failure false)
+        spm = self.cfg.task.seconds_per_metre
+        self._step_limit = None if spm is None else math.ceil(self.route.length * spm / self.dt)
         self.recoveries.reset()
         self.readings = self.sensors.reset(self.state, rng)
         self.estimator.reset(*self.start, rng)
@@ -230,6 +243,11 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         event = recovery[0] if recovery is not None else None
         if end == "progress" and self.cfg.task.recoveries:
             event = self.recoveries.on_failure(self.estimator.pose)
+            if event == ABORT and self._skips_goals and self._goal_model is not None:
+                if self._goal_model.skip_goal():
+                    event = SKIP
+                    self._missed += 1
+                    self.recoveries.new_goal()
             if event != ABORT:
                 end = None  # the tree recovers and sends FollowPath again
                 self._anchor = (*self._xy(), self._steps * self.dt)
@@ -246,9 +264,11 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         info = self._info(ctx, parts)
         if event is not None:
             info["recovery"] = event
-        # Truncation is the TimeLimit wrapper's (max_episode_steps), which the env cannot see:
-        # the running metrics ride on every step's info, so the last one is final.
-        return obs, float(sum(parts.values())), ctx.termination is not None, False, info
+        # Truncation is the TimeLimit wrapper's (max_episode_steps), which the env cannot see,
+        # or the route's own limit (task.seconds_per_metre): the running metrics ride on every
+        # step's info, so the last one is final.
+        truncated = self._step_limit is not None and self._steps >= self._step_limit
+        return obs, float(sum(parts.values())), ctx.termination is not None, truncated, info
 
     def render(self) -> NDArray[np.uint8] | None:
         self._check_open("render")
@@ -297,6 +317,10 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
             nav.append(f"waypoint follower (a goal per GPS waypoint, {t.goal_tolerance:g} m)")
         if t.recoveries:
             nav.append(f"Nav2 recoveries ({t.recovery_retries} per goal)")
+        if not t.stop_on_failure:
+            nav.append("a given-up waypoint skipped")
+        if t.seconds_per_metre is not None:
+            nav.append(f"time limit {t.seconds_per_metre:g} s per metre of route")
         if nav:
             out["navigator"] = ", ".join(nav)
         return out
@@ -348,7 +372,10 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
 
     def episode_metrics(self) -> dict[str, Any]:
         kinds = self.scenario.obstacles.kind
-        return self.metrics.result(len(self._hit), [str(kinds[i]) for i in self._obstacles_hit])
+        out = self.metrics.result(len(self._hit), [str(kinds[i]) for i in self._obstacles_hit])
+        if self._goal_model is not None:
+            out["missed_waypoints"] = self._missed
+        return out
 
     # ------------------------------------------------------------------ parts of a step
     def _behaviour(self) -> tuple[str, tuple[float, float]] | None:

@@ -255,6 +255,14 @@ class RouteObservation(ObservationModel):
         else:
             self._offs[:] = self.offsets
 
+    def skip_goal(self) -> bool:
+        """The follower gave the next waypoint up and sends the one after (stop_on_failure
+        false): False when the next goal is the route's end, which cannot be skipped."""
+        if not self.goals:
+            return False
+        self.goals.pop(0)
+        return True
+
     def encode(self, snap: Snapshot) -> F32:
         assert self.tracker is not None
         ex, ey, yaw = snap.estimate

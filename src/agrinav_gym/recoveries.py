@@ -21,6 +21,8 @@ ROUND_ROBIN = ("clear_costmaps", "spin", "wait", "backup")
 #: the FollowPath subtree's own recovery before each round-robin step
 CLEAR_LOCAL = "clear_local_costmap"
 ABORT = "abort"
+#: the waypoint follower's answer to an aborted goal with stop_on_failure false
+SKIP = "skip_waypoint"
 #: what clears a costmap (the policy's, when it has one)
 CLEARING = (CLEAR_LOCAL, "clear_costmaps")
 

@@ -43,6 +43,11 @@ def _record(ep: Episode, suite_name: str, scenario: str, env: Any = None) -> dic
         "seed": ep.seed,
         **{k: ep.metrics.get(k) for k in METRICS},
         "obstacles_hit_by_kind": ep.metrics.get("obstacles_hit_by_kind"),
+        **(
+            {"missed_waypoints": ep.metrics["missed_waypoints"]}
+            if "missed_waypoints" in ep.metrics
+            else {}
+        ),
         "poses": len(ep.poses),
         "steps": ep.steps,
         "termination": ep.termination,

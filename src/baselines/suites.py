@@ -99,6 +99,17 @@ RTK_EKF: dict[str, Any] = {
     "task": NAV2_PROGRESS,
 }
 
+#: The FieldRoute test suites' clock: the progress checker's own rate (20 s per metre of route;
+#: TaskConfig.seconds_per_metre), so the step limit never ends an episode a robot that keeps
+#: the checker quiet would finish (tuned DWB at 0.42 m/s took ≈ 200 s, the registered 4,000
+#: steps, on the longest routes). A route of ≥ 10 m gets ≥ 4,000 steps: every episode that
+#: ended before the registered limit is unchanged.
+ROUTE_CLOCK: dict[str, Any] = {
+    "seconds_per_metre": NAV2_PROGRESS["progress_time"] / NAV2_PROGRESS["progress_radius"]
+}
+#: the TimeLimit wrapper's backstop behind the route's clock (a 250 m route at 20 s/m)
+ROUTE_CLOCK_BACKSTOP = 100_000
+
 #: Each ``ood`` case holds one axis out of the FieldRoute training ranges (envs.yml): the
 #: randomized keys it fixes, its scenario overrides and its env config.
 OOD_AXES: tuple[tuple[str, tuple[str, ...], dict[str, Any], dict[str, Any]], ...] = (
@@ -173,13 +184,15 @@ def _unseen() -> list[Case]:
     kw = setup.env_kwargs
     over = dict(kw.get("scenario_overrides", {}))
     rand = {k: v for k, v in kw.get("randomize", {}).items() if "." in k}
+    config = {**RTK_EKF, "task": {**NAV2_PROGRESS, **ROUTE_CLOCK}}
     return [
         Case(
             "unseen fields",
             "AgriNav/FieldRoute-v3",
             str(kw.get("scenario", "paper-p1")),
             over,
-            RTK_EKF,
+            config,
+            ROUTE_CLOCK_BACKSTOP,
             randomize=rand,
         )
     ]
@@ -197,7 +210,17 @@ def _ood() -> list[Case]:
         over = {**base.overrides}
         for section, values in overrides.items():
             over[section] = {**over.get(section, {}), **values}
-        cases.append(Case(group, base.env_id, base.scenario, over, config, randomize=rand))
+        cases.append(
+            Case(
+                group,
+                base.env_id,
+                base.scenario,
+                over,
+                config,
+                base.max_steps,
+                randomize=rand,
+            )
+        )
     return cases
 
 
@@ -233,15 +256,24 @@ def _sensitivity() -> list[Case]:
                     base.scenario,
                     base.overrides,
                     config,
+                    base.max_steps,
                     randomize=base.randomize,
                     seeds_of=paired,
                 )
             )
         else:
-            config = {**RTK_EKF, "gnss": {**RTK_EKF["gnss"], "fix": values}}
+            config = {**base.config, "gnss": {**RTK_EKF["gnss"], "fix": values}}
             over = {**PAPER_FIELD, "crop": {"stage": 5}}
             cases.append(
-                Case(group, "AgriNav/FieldRoute-v3", "paper-p1", over, config, seeds_of=paired)
+                Case(
+                    group,
+                    "AgriNav/FieldRoute-v3",
+                    "paper-p1",
+                    over,
+                    config,
+                    base.max_steps,
+                    seeds_of=paired,
+                )
             )
     return cases
 
@@ -333,9 +365,16 @@ def suite(name: str) -> list[Case]:
         # across the headland, 31 m back) read through the datum, the straight-leg plan between
         # them handed over a waypoint at a time as Nav2's waypoint follower does (each a goal
         # reached within 0.25 m), RTK GNSS through the EKF, Nav2's progress checker and its
-        # default tree's recoveries, early and intermediate corn on the P1 density (1 m rows).
+        # default tree's recoveries, the follower going on past a waypoint the tree gives up
+        # (stop_on_failure: false, Humble's nav2_params.yaml), early and intermediate corn on
+        # the P1 density (1 m rows).
         route = {"waypoints": paper_waypoints()}
-        nav2 = {**NAV2_PROGRESS, "waypoint_goals": True, "recoveries": True}
+        nav2 = {
+            **NAV2_PROGRESS,
+            "waypoint_goals": True,
+            "recoveries": True,
+            "stop_on_failure": False,
+        }
         goals = {**RTK_EKF, "task": nav2}
         return [
             Case(

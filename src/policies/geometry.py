@@ -71,6 +71,12 @@ def local_plan(
         return pts, tags
     arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
     s = np.arange(0.0, arc[-1] + 1e-9, step)
+    # the plan ends at the route's end, as a planner's path ends at its goal: short of it by up
+    # to a step, a controller's goal window the size of the navigator's closes outside it
+    if arc[-1] - s[-1] > 1e-6:
+        s = np.append(s, arc[-1])
+    else:
+        s[-1] = arc[-1]
     dense = np.column_stack([np.interp(s, arc, pts[:, 0]), np.interp(s, arc, pts[:, 1])])
     dense_tags = tags[np.minimum(np.searchsorted(arc, s, side="right") - 1, len(tags) - 1)]
     return dense, dense_tags

@@ -102,3 +102,34 @@ def test_recoveries_need_the_progress_checker() -> None:
     with pytest.raises(agrinav_gym.InputError) as e:
         gym.make("AgriNav/FurrowFollow-v3", config={"task": {"recoveries": True}})
     assert "task.recoveries" in str(e.value) and "progress_time" in str(e.value)
+
+
+def test_the_route_clock_truncates_after_its_seconds_per_metre() -> None:
+    """``task.seconds_per_metre``: truncated (not terminated) at ⌈route length × s/m ÷ dt⌉
+    steps, with no termination named; the registered limit still applies past it."""
+    spm = 0.5
+    env = gym.make("AgriNav/FurrowFollow-v3", config={"task": {"seconds_per_metre": spm}})
+    try:
+        env.reset(seed=3)
+        u = env.unwrapped
+        expected = int(np.ceil(u.route.length * spm / u.dt))
+        assert expected < 1500  # the registered limit would end it later
+        n, term, trunc = 0, False, False
+        while not (term or trunc) and n <= expected:
+            _, _, term, trunc, info = env.step(STOP)
+            n += 1
+        assert (n, term, trunc) == (expected, False, True) and "termination" not in info
+        assert "time limit 0.5 s per metre of route" in u.conditions()["navigator"]
+    finally:
+        env.close()
+
+
+def test_the_fieldroute_suites_run_on_the_route_clock() -> None:
+    """unseen, ood and sensitivity: 20 s per metre (the progress checker's 10 s per 0.5 m),
+    with the TimeLimit wrapper's backstop behind it."""
+    from baselines import suites
+
+    for name in ("unseen", "ood", "sensitivity"):
+        for case in suites.suite(name):
+            assert case.config["task"]["seconds_per_metre"] == 20.0, (name, case.group)
+            assert case.max_steps == suites.ROUTE_CLOCK_BACKSTOP

@@ -104,3 +104,41 @@ def test_off_by_default_the_plan_runs_on_past_the_waypoints() -> None:
         assert env.unwrapped.obs_models["route"].goals == []
     finally:
         env.close()
+
+
+def test_stop_on_failure_false_skips_a_given_up_waypoint_and_counts_it() -> None:
+    """A robot that never moves, no round-robin recoveries: each goal is given up after two
+    progress-check failures (clear the local costmap and retry, then abort). With the
+    follower's ``stop_on_failure: false`` the two corners are skipped in turn — counted in
+    ``missed_waypoints``, each a new goal for the tree — and the route's end, which cannot be
+    skipped, ends the episode; with the default the first give-up ends it."""
+    from agrinav_gym.recoveries import ABORT, SKIP
+
+    task = {**GOALS["task"], "recoveries": True, "recovery_retries": 0}
+    for stop, skips in ((True, 0), (False, 2)):
+        env = _env({**GOALS, "task": {**task, "stop_on_failure": stop}})
+        try:
+            env.reset(seed=0)
+            u = env.unwrapped
+            events, steps = [], 0
+            while True:
+                _, _, term, trunc, info = env.step(np.zeros(2, np.float32))
+                steps += 1
+                if "recovery" in info:
+                    events.append((steps, info["recovery"]))
+                if term or trunc:
+                    break
+            assert info["termination"] == "progress" and not trunc
+            assert info["metrics"]["missed_waypoints"] == skips
+            kinds = [k for _, k in events]
+            assert kinds.count(SKIP) == skips and kinds[-1] == ABORT
+            assert len(u.obs_models["route"].goals) == 2 - skips
+            # each goal: two 10 s progress checks (200 steps at 20 Hz) from its start
+            assert steps == pytest.approx(400 * (skips + 1), abs=2)
+        finally:
+            env.close()
+
+
+def test_stop_on_failure_false_needs_the_follower_and_its_tree() -> None:
+    with pytest.raises(agrinav_gym.InputError, match="config.task.stop_on_failure"):
+        _env({**GOALS, "task": {**GOALS["task"], "stop_on_failure": False}})

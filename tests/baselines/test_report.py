@@ -117,3 +117,19 @@ def test_a_spread_is_shown_only_where_there_are_two_samples() -> None:
     two = table([_rec("p", 0.1, "success", 100.0), _rec("p", 0.2, "success", 100.0)], "t", "")
     row = next(line for line in two.splitlines() if line.startswith("| field | p |"))
     assert "0.150 [" in row
+
+
+def test_a_run_past_a_missed_waypoint_is_not_finished() -> None:
+    """With the follower's stop_on_failure false a run can reach the route's end past a
+    waypoint it gave up on: counted, shown, and not a finish."""
+    clean, skipped = _rec("p", 0.02, "success", 100.0), _rec("p", 0.5, "success", 99.0)
+    clean["missed_waypoints"], skipped["missed_waypoints"] = 0, 1
+    skipped["seed"] = 1
+    md = table([clean, skipped], "t", "")
+    head = next(line for line in md.splitlines() if line.startswith("| scenario |"))
+    row = next(line for line in md.splitlines() if line.startswith("| field | p |"))
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    cols = [c.strip() for c in head.strip("|").split("|")]
+    assert cells[2] == "1/2" and cells[3] == "0.020"  # the clean run's error alone
+    assert cells[cols.index("missed_waypoints")].startswith("0.500")
+    assert "missed_waypoints" not in table([_rec("p", 0.1, "success", 100.0)], "t", "")

@@ -46,6 +46,8 @@ def test_nav2_reference_is_humble_with_the_robot_s_values() -> None:
         "FollowPath.decel_lim_x",
         "FollowPath.acc_lim_theta",
         "FollowPath.decel_lim_theta",
+        "rotation_shim.rotate_to_heading_angular_vel",
+        "rotation_shim.max_angular_accel",
         "local_costmap.footprint",
     }
 
@@ -218,6 +220,24 @@ def test_a_plan_of_one_point_is_the_line_to_it() -> None:
     assert np.allclose(plan[0], 0.0) and np.allclose(plan[-1], (0.3, 0.1), atol=0.05)
     plan, _ = local_plan(_route_obs([(0.4 * k, 0.0) for k in range(1, 11)]))
     assert plan[0, 0] == pytest.approx(0.0, abs=1e-9) and plan[-1, 0] == pytest.approx(4.0)
+
+
+def test_a_plan_ends_at_its_goal_not_a_step_short() -> None:
+    """A goal 0.93 m ahead: the 0.05 m resampling stops at 0.90 m, and DWB's 0.25 m goal
+    window (the navigator's tolerance too) would close 0.28 m from the goal, where the
+    navigator does not count it reached — DWB then turned in place there until the tree gave
+    up. The plan's last point is the goal itself, and the spacing is kept elsewhere."""
+    from policies.geometry import local_plan
+
+    goal = (0.93, 0.02)
+    pts = [(0.3, 0.0), (0.6, 0.01), goal] + [goal] * 7
+    plan, _ = local_plan(_route_obs(pts))
+    assert np.array_equal(plan[-1], np.asarray(goal, np.float32).astype(np.float64))
+    steps = np.linalg.norm(np.diff(plan, axis=0), axis=1)
+    assert steps.max() <= 0.05 + 1e-9 and steps.min() > 1e-6
+    # a window of evenly spaced points keeps its last point where it was
+    plan, _ = local_plan(_route_obs([(0.4 * k, 0.0) for k in range(1, 11)]))
+    assert np.linalg.norm(np.diff(plan, axis=0), axis=1).min() > 0.049
 
 
 def test_a_navigators_clearing_recovery_empties_dwbs_costmap() -> None:

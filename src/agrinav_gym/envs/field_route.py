@@ -30,8 +30,9 @@ class FieldRouteEnv(AgriNavEnv):
 
     ## Episode End
     Success at the route's end; failure on leaving the corridor, tipping over or hitting more
-    than 10 crops; truncation by ``max_episode_steps`` (4000). Every ``info`` carries the
-    paper's running metrics (in-furrow and headland RMSE separately).
+    than 10 crops; truncation by ``max_episode_steps`` (4000) or, when set, after
+    ``config.task.seconds_per_metre`` × the route's length, whichever comes first. Every
+    ``info`` carries the paper's running metrics (in-furrow and headland RMSE separately).
 
     ## Arguments
     As ``AgriNav/FurrowFollow-v3``.

@@ -46,6 +46,8 @@ NAV2_CRITICS = (
 #: changes, and the furrow changes plus what the tuning search chose (``dwb_tuned.yaml``)
 SHIPPED = ("nav2", "furrow", "tuned")
 AGGREGATION = ("last", "sum", "product")
+#: a changes file's key naming the shipped config it changes (dwb_nav2.yaml when absent)
+BASE_KEY = "base"
 
 
 def _scale(default: float) -> Any:
@@ -249,11 +251,42 @@ class LocalCostmapParams:
 
 
 @dataclass(frozen=True)
+class RotationShimParams:
+    """nav2_rotation_shim_controller's RotationShimController in front of DWB (Humble's
+    defaults; the robot's limits where the config says null): on a new plan whose point
+    ``forward_sampling_distance`` along it lies more than ``angular_dist_threshold`` off the
+    robot's heading it turns in place toward it, then hands the plan to DWB."""
+
+    enabled: bool = param(False, "put the rotation shim in front of DWB")
+    angular_dist_threshold: float = param(
+        0.785, "turn in place while the sampled plan point is further off the heading, rad", 0, 3.15
+    )
+    forward_sampling_distance: float = param(
+        0.5, "the plan point this far from the plan's start sets the heading, m", 0.01, 10
+    )
+    rotate_to_heading_angular_vel: float | None = _robot(
+        "yaw rate of the in-place turn, rad/s", 0, 20
+    )
+    max_angular_accel: float | None = _robot("angular acceleration of the turn, rad/s²", 0, 100)
+    simulate_ahead_time: float = param(
+        1.0, "the turn's footprint is checked for collision this far ahead, s", 0, 10
+    )
+    plan_frequency: float = param(
+        5.0,
+        "new global plans per second (the exported behaviour tree's replanning rate, and a new "
+        "waypoint goal): each one re-arms the shim",
+        0.01,
+        1000,
+    )
+
+
+@dataclass(frozen=True)
 class DWBParams:
     """Everything the DWB controller reads (config/dwb_nav2.yaml is the reference)."""
 
     FollowPath: FollowPathParams = dc_field(default_factory=FollowPathParams)
     local_costmap: LocalCostmapParams = dc_field(default_factory=LocalCostmapParams)
+    rotation_shim: RotationShimParams = dc_field(default_factory=RotationShimParams)
     clear_costmap_on_failure: bool = param(
         True,
         "when no trajectory is legal: stop and clear the local costmap, as Nav2's default "
@@ -274,7 +307,8 @@ class DWBParams:
     @classmethod
     def load(cls, spec: str | Path | dict[str, Any] | None = None) -> DWBParams:
         """``nav2``, ``furrow`` (the default), ``tuned``, a YAML file of changes to
-        ``dwb_nav2.yaml``, or such changes as a mapping (what ``agrinav tune`` tries)."""
+        ``dwb_nav2.yaml`` (or to the shipped config its ``base`` names), or such changes as a
+        mapping (what ``agrinav tune`` tries)."""
         reference = _shipped("nav2")
         if isinstance(spec, dict):
             changes = spec
@@ -286,6 +320,7 @@ class DWBParams:
             changes = _shipped(str(spec))
         else:
             changes = load_yaml(spec, "dwb params")
+        changes = _over_base(changes)
         params: DWBParams = from_mapping(cls, merge(reference, changes), "dwb.")
         params.check()
         return params
@@ -310,6 +345,18 @@ class DWBParams:
                 src.min_obstacle_height,
                 "allowed: below max_obstacle_height",
             )
+
+
+def _over_base(changes: dict[str, Any]) -> dict[str, Any]:
+    """Changes that name a shipped config as ``base`` (``base: tuned``) apply over it, so a
+    file that adds one thing to ``dwb:tuned`` lists only that thing."""
+    if BASE_KEY not in changes:
+        return changes
+    rest = {k: v for k, v in changes.items() if k != BASE_KEY}
+    base = changes[BASE_KEY]
+    if not isinstance(base, str) or base not in SHIPPED:
+        raise InputError(f"dwb.{BASE_KEY}", base, f"allowed: {', '.join(SHIPPED)}")
+    return merge(_shipped(base) if base != "nav2" else {}, rest)
 
 
 def _shipped(name: str) -> dict[str, Any]:

@@ -36,6 +36,7 @@ from .costmap import Grid, VoxelLayer, footprint_radii, inflate, pad_footprint, 
 from .critics import Cycle
 from .params import SHIPPED, DWBParams
 from .planner import Evaluation, LocalPlanner, transform_global_plan
+from .shim import RotationShim
 from .trajectories import Kinematics
 
 MIN_X_VELOCITY_THRESHOLD = 0.001  # controller_server: odometry below this reads 0
@@ -70,6 +71,11 @@ def resolved_config(p: DWBParams, robot: RobotInterface) -> dict[str, Any]:
     out = to_mapping(p)
     kin = kinematics(p, robot)
     out["FollowPath"].update(dataclasses.asdict(kin))
+    shim = out["rotation_shim"]
+    if shim["rotate_to_heading_angular_vel"] is None:
+        shim["rotate_to_heading_angular_vel"] = robot.w_max
+    if shim["max_angular_accel"] is None:
+        shim["max_angular_accel"] = robot.alpha_max
     if out["local_costmap"]["footprint"] is None:
         out["local_costmap"]["footprint"] = rectangle_footprint(*robot.footprint).tolist()
     return out
@@ -129,6 +135,13 @@ class DWB(Policy):
         self.dt = robot.control_dt
         self.update_every = max(1, round(1.0 / (cm.update_frequency * self.dt)))
         self.use_imu = self.p.yaw_rate_source == "imu" and OBS_IMU in observation_space.spaces
+        self.shim = (
+            RotationShim(
+                self.p.rotation_shim, robot.w_max, robot.alpha_max, self.dt, self.footprint
+            )
+            if self.p.rotation_shim.enabled
+            else None
+        )
         self.last: Evaluation | None = None
         self.reset()
 
@@ -138,7 +151,8 @@ class DWB(Policy):
         self.master[:] = 0
 
     def describe(self) -> str:
-        return f"dwb ({self.config})"
+        shim = ", rotation shim" if self.shim is not None else ""
+        return f"dwb ({self.config}{shim})"
 
     def reset(self) -> None:
         cm = self.p.local_costmap
@@ -152,7 +166,10 @@ class DWB(Policy):
         self.trail = np.zeros((0, 3))
         self.failures = 0
         self.goal: tuple[float, float, float] | None = None  # the last cycle's global goal
+        self.new_goal = False
         self.planner.reset()
+        if self.shim is not None:
+            self.shim.reset()
 
     # ------------------------------------------------------------------ odometry and costmap
     def _odometry(self, obs: Obs) -> None:
@@ -203,11 +220,14 @@ class DWB(Policy):
         self.master = inflate(self.layer.cost, self.grid.resolution, self.inscribed, inf)
 
     # ------------------------------------------------------------------ the global plan
-    def _plan(self, route: NDArray[np.float32]) -> tuple[FloatArray, tuple[float, float, float]]:
+    def _plan(
+        self, route: NDArray[np.float32]
+    ) -> tuple[FloatArray, tuple[float, float, float], int]:
         """The global plan (odometry frame, with the part behind the robot that Nav2 keeps
         after pruning) and the global goal. The route observation shows 4 m ahead; when its
         end is in view (the observation repeats the last point) that is the goal, otherwise
-        its farthest point stands in for the goal's direction."""
+        its farthest point stands in for the goal's direction. The int is where the plan
+        from the route observation starts (after the kept part)."""
         dense, _ = local_plan(route)
         raw, _ = decode_route(route)
         if len(dense) < 2:
@@ -221,13 +241,15 @@ class DWB(Policy):
         rel = np.column_stack([dense, heading])
         plan = self.to_world(rel)
         plan[:, 2] = rel[:, 2] + self.pose[2]
+        start = 0
         if len(self.trail):
             d = np.hypot(self.trail[:, 0] - plan[0, 0], self.trail[:, 1] - plan[0, 1])
             j = int(np.argmin(d))
             if d[j] <= TRAIL_JOIN:
                 plan = np.vstack([self.trail[:j], plan])
+                start = j
         g = plan[-1]
-        return plan, (float(g[0]), float(g[1]), float(g[2]))
+        return plan, (float(g[0]), float(g[1]), float(g[2])), start
 
     # ------------------------------------------------------------------ the control cycle
     def cycle(self, obs: Obs) -> Cycle:
@@ -240,15 +262,21 @@ class DWB(Policy):
                 imu = decode_imu(obs[OBS_IMU])
                 attitude = (imu.roll, imu.pitch)
             self.update_costmap(depth, attitude)
-        plan, goal = self._plan(obs[OBS_ROUTE])
+        plan, goal, start = self._plan(obs[OBS_ROUTE])
         last = self.goal
         # The route observation's end slides on by a control period's travel; one that jumps
         # further than the goal window is a new goal (the waypoint follower's next leg), and
         # setPlan resets every critic, so RotateToGoal lets go of the goal just reached.
         jump = self.p.FollowPath.xy_goal_tolerance
-        if last is not None and math.hypot(goal[0] - last[0], goal[1] - last[1]) > jump:
+        self.new_goal = last is not None and math.hypot(goal[0] - last[0], goal[1] - last[1]) > jump
+        if self.new_goal:
             self.planner.reset()
         self.goal = goal
+        if self.shim is not None and (
+            self.new_goal or last is None or self.steps % self.shim.plan_every == 0
+        ):
+            # the planner's path starts at the robot: the part kept behind it is DWB's own
+            self.shim.set_plan(plan[start:])
         half = max(self.size) * self.grid.resolution / 2.0
         transformed, self.trail = transform_global_plan(plan, self.pose, half, self.p.FollowPath)
         return Cycle(
@@ -258,6 +286,11 @@ class DWB(Policy):
     def act(self, obs: Obs) -> NDArray[np.float32]:
         c = self.cycle(obs)
         self.cycle_inputs = c
+        if self.shim is not None:
+            w = self.shim.command(c.pose, c.velocity[1], c.grid, c.costmap)
+            if w is not None:
+                self.steps += 1
+                return self._twist(0.0, w)
         ev = self.planner.evaluate(c)
         v, w = self.planner.command(ev, c)
         if ev.best < 0:

@@ -374,6 +374,16 @@ FOLLOW_PATH_KEYS = (
     "shorten_transformed_plan",
     "critics",
 )
+DWB_PLUGIN = "dwb_core::DWBLocalPlanner"
+SHIM_PLUGIN = "nav2_rotation_shim_controller::RotationShimController"
+#: the rotation shim's Nav2 parameters (the policies' ``plan_frequency`` is the tree's replanning)
+SHIM_KEYS = (
+    "angular_dist_threshold",
+    "forward_sampling_distance",
+    "rotate_to_heading_angular_vel",
+    "max_angular_accel",
+    "simulate_ahead_time",
+)
 #: keys of the policies' DWB layout written only when they differ from the code default,
 #: because Humble releases before the one that added them do not declare them
 ONLY_IF_SET = {"limit_vel_cmd_in_traj": False}
@@ -387,7 +397,18 @@ def follow_path(dwb: dict[str, Any]) -> dict[str, Any]:
     unknown = sorted(set(fp) - known - sections)
     if unknown:
         raise InputError("nav2_robot.dwb.FollowPath", unknown, "no Nav2 key is known for these")
-    out: dict[str, Any] = {"plugin": "dwb_core::DWBLocalPlanner"}
+    out: dict[str, Any] = {"plugin": DWB_PLUGIN}
+    shim = dwb.get("rotation_shim") or {}
+    if shim.get("enabled"):
+        # the shim and its primary controller read their parameters from the same namespace
+        if float(shim.get("plan_frequency", REPLAN_HZ)) != REPLAN_HZ:
+            raise InputError(
+                "nav2_robot.dwb.rotation_shim.plan_frequency",
+                shim["plan_frequency"],
+                f"allowed: {REPLAN_HZ:g} (the exported behaviour tree replans at that rate)",
+            )
+        out = {"plugin": SHIM_PLUGIN, "primary_controller": DWB_PLUGIN}
+        out.update({k: float(shim[k]) for k in SHIM_KEYS})
     # Humble's nav2_params.yaml: no y velocities for a differential or skid-steer base
     out.update({"debug_trajectory_details": True, "transform_tolerance": 0.2})
     out.update(_copy(fp, FOLLOW_PATH_KEYS, "nav2_robot.dwb.FollowPath"))
