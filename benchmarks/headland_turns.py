@@ -9,8 +9,9 @@ the route, arc length, before the episode ended or it succeeded), the *headland 
 of the first lane), a *stall* (the progress check fired), and how the episode ended.
 
 Run: ``python benchmarks/headland_turns.py [--turns omega keyhole] [--episodes 20]
-[--set route.turn_offset=2.0 ...] [--per-episode]`` (``--per-episode``: a line per reset seed,
-with how it ended, how far it got and which plants it touched).
+[--set route.turn_offset=2.0 ...] [--config gnss.fix.model=constant ...] [--per-episode]``
+(``--per-episode``: a line per reset seed, with how it ended, how far it got and which plants
+it touched; ``--config``: env config values, dotted).
 """
 
 from __future__ import annotations
@@ -75,12 +76,13 @@ def run(
     first_seed: int,
     over: dict[str, Any],
     per_episode: bool = False,
+    config: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     env = gym.make(
         "AgriNav/FieldRoute-v3",
         scenario=preset,
         scenario_overrides={**over, "route.turn": turn},
-        config={"task": NAV2_PROGRESS},
+        config={"task": NAV2_PROGRESS, **(config or {})},
     )
     pol = make_policy(policy, env)
     ends: collections.Counter[str] = collections.Counter()
@@ -139,15 +141,31 @@ def main() -> None:
         metavar="KEY=VALUE",
         help="a scenario override, e.g. route.turn_offset=2.0 (repeatable)",
     )
+    ap.add_argument(
+        "--config",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="an env config value, e.g. gnss.fix.model=constant (repeatable)",
+    )
     ap.add_argument("--per-episode", action="store_true", help="a line per reset seed")
     args = ap.parse_args()
     over = {k: yaml.safe_load(v) for k, v in (kv.split("=", 1) for kv in args.set)}
+    config = {k: yaml.safe_load(v) for k, v in (kv.split("=", 1) for kv in args.config)}
     for turn in args.turns:
         r = run(
-            turn, args.episodes, args.preset, args.policy, args.first_seed, over, args.per_episode
+            turn,
+            args.episodes,
+            args.preset,
+            args.policy,
+            args.first_seed,
+            over,
+            args.per_episode,
+            config,
         )
         print(
-            f"{args.policy} on {args.preset} {over or ''}, turn {r['turn']}: completed the "
+            f"{args.policy} on {args.preset} {over or ''} {config or ''}, turn {r['turn']}: "
+            "completed the "
             f"turn in {r['completed']}/{r['episodes']}, cleared the headland in "
             f"{r['cleared']}/{r['episodes']}, stalls {r['stalls']}, terminations "
             f"{r['terminations']}, crops hit {r['crops_hit_mean']:.2f}/episode, headland RMSE "

@@ -112,7 +112,8 @@ class GnssFixConfig:
 
     model: str = _f(
         "canopy",
-        "canopy: the mode follows the sky the crop leaves; constant: always the best mode",
+        "canopy: the mode follows the sky the crop leaves; constant: the sky stays open (the "
+        "best mode, but for multipath slips, multipath_mtbf_s)",
         choices=("canopy", "constant"),
     )
     elevation_mask_deg: float = _f(10.0, "satellites below this elevation are not used", 0, 60)

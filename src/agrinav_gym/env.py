@@ -28,7 +28,7 @@ from scenario_gen.errors import InputError
 
 from . import rewards
 from .chase_view import ChaseView
-from .config import EnvConfig
+from .config import EnvConfig, GnssFixConfig
 from .estimation import Readings, make_estimator
 from .interface import OBS_DEPTH, OBS_GPS, OBS_IMU, OBS_ODOM, OBS_ROUTE
 from .metrics import EpisodeMetrics
@@ -492,7 +492,13 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         name = self.estimator.name
         if name == "ideal":
             return "ideal (ground truth pose)"
-        fix = "canopy/multipath fix modes" if g.fix.model == "canopy" else "constant mode"
+        fix = (
+            "canopy/multipath fix modes"
+            if g.fix.model == "canopy"
+            else "open-sky fix mode (multipath slips)"
+        )
+        if g.fix.multipath_mtbf_s != GnssFixConfig.multipath_mtbf_s:
+            fix += f", multipath MTBF {g.fix.multipath_mtbf_s:g} s"
         if g.fix.faults:  # opt-in: every row the faults touched says so
             f = g.fix
             fix += f" + faults (jumps {f.jump_rate_hz:g}/s, wrong fixes {f.false_fix_prob:g})"

@@ -217,6 +217,20 @@ def test_sensitivity_cases_drive_the_same_fields_and_seeds_as_their_reference(
     cases = suite("sensitivity")
     soil = [c for c in cases if "soil" in c.config]
     assert len(soil) >= 3 and {c.seeds_of for c in soil} == {cases.index(soil[0])}
+    # the multipath cases: the default row's fields and seeds, only the slip rate set
+    slips = [c for c in cases if "multipath_mtbf_s" in c.config.get("gnss", {}).get("fix", {})]
+    assert len(slips) == 2 and {c.seeds_of for c in slips} == {0}
+    for c in slips:
+        assert (c.overrides, c.randomize, c.env_id) == (
+            cases[0].overrides,
+            cases[0].randomize,
+            cases[0].env_id,
+        )
+        # the reference row sets the soil to its defaults ({}), this row leaves it at them
+        assert cases[0].config["soil"] == {}
+        assert {k: v for k, v in c.config.items() if k != "gnss"} == {
+            k: v for k, v in cases[0].config.items() if k not in ("gnss", "soil")
+        }
     out = tmp_path / "sens"
     picked = f"{soil[0].group};{soil[1].group}"
     code = main(

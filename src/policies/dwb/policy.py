@@ -166,7 +166,6 @@ class DWB(Policy):
         self.trail = np.zeros((0, 3))
         self.failures = 0
         self.goal: tuple[float, float, float] | None = None  # the last cycle's global goal
-        self.new_goal = False
         self.planner.reset()
         if self.shim is not None:
             self.shim.reset()
@@ -268,12 +267,12 @@ class DWB(Policy):
         # further than the goal window is a new goal (the waypoint follower's next leg), and
         # setPlan resets every critic, so RotateToGoal lets go of the goal just reached.
         jump = self.p.FollowPath.xy_goal_tolerance
-        self.new_goal = last is not None and math.hypot(goal[0] - last[0], goal[1] - last[1]) > jump
-        if self.new_goal:
+        new_goal = last is not None and math.hypot(goal[0] - last[0], goal[1] - last[1]) > jump
+        if new_goal:
             self.planner.reset()
         self.goal = goal
         if self.shim is not None and (
-            self.new_goal or last is None or self.steps % self.shim.plan_every == 0
+            new_goal or last is None or self.steps % self.shim.plan_every == 0
         ):
             # the planner's path starts at the robot: the part kept behind it is DWB's own
             self.shim.set_plan(plan[start:])
