@@ -146,7 +146,11 @@ class GnssFixConfig:
         10.0, "mean time from float to fixed (ambiguity resolution), s", 0.01, 600
     )
     multipath_mtbf_s: float = _f(
-        600.0, "mean time between multipath slips fixed -> float under open sky, s", 1, 1e6
+        600.0,
+        "mean time between multipath slips fixed -> float under open sky, s (assumed; the "
+        "sensitivity suite sweeps 120 s to none)",
+        1,
+        1e6,
     )
     azimuth_cells: int = _f(24, "sky model azimuth cells", 4, 360)
     elevation_cells: int = _f(6, "sky model elevation cells above the mask", 1, 90)
