@@ -97,7 +97,7 @@ def nav2_robot(cfg: EnvConfig | None = None, dwb: str = "furrow") -> dict[str, A
     return to_mapping(Nav2Robot.from_dict(data))
 
 
-def nav2_options(**data: Any) -> dict[str, Any]:
+def nav2_options(dwb: str = "furrow", **data: Any) -> dict[str, Any]:
     """The export options a Nav2 bundle needs beside ``data``: the packaged URDF and the
-    robot above (env defaults, ``dwb:furrow``)."""
-    return {**data, "robot_urdf": urdf_path(), "nav2_robot": nav2_robot()}
+    robot above (env defaults, the DWB configuration ``dwb``)."""
+    return {**data, "robot_urdf": urdf_path(), "nav2_robot": nav2_robot(dwb=dwb)}

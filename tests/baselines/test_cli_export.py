@@ -196,3 +196,26 @@ def test_a_crop_model_whose_texture_is_gone_is_one_line(
     err = _error(capsys, ["export", str(old), *to, "--out", str(out)])
     assert "crop.model" in err and "leaf.png" in err and "missing" in err
     assert not out.exists()
+
+
+def test_nav2_export_runs_the_dwb_config_asked_for(scenario: Path, tmp_path: Path, capsys) -> None:
+    """``--dwb``: the bundle's controller and its README follow the configuration (here the
+    tuned one with the rotation shim in front); any other target refuses the flag."""
+    import yaml
+
+    shim = Path(__file__).parents[2] / "benchmarks" / "dwb_tuned_shim.yaml"
+    out = tmp_path / "nav2"
+    argv = ["export", str(scenario), "--to", "nav2", "--out", str(out), "--dwb", str(shim)]
+    assert main(argv) == 0
+    assert "dwb:dwb_tuned_shim" in capsys.readouterr().out
+    params = yaml.safe_load((out / "config" / "nav2_params.yaml").read_text())
+    fp = params["controller_server"]["ros__parameters"]["FollowPath"]
+    assert fp["plugin"] == "nav2_rotation_shim_controller::RotationShimController"
+    assert fp["primary_controller"] == "dwb_core::DWBLocalPlanner"
+    assert fp["max_vel_x"] == pytest.approx(0.4198)  # the tuned speed
+    readme = (out / "README.md").read_text()
+    assert "`dwb:dwb_tuned_shim`" in readme and "RotationShimController stands in front" in readme
+    assert "--dwb: got 'gis'" in _error(
+        capsys,
+        ["export", str(scenario), "--to", "gis", "--out", str(tmp_path / "g"), "--dwb", "tuned"],
+    )

@@ -58,6 +58,12 @@ def add(sub: Any) -> None:
     ex.add_argument(
         "--with-plants", action="store_true", help="mesh: also the merged plants and the obstacles"
     )
+    ex.add_argument(
+        "--dwb",
+        help="nav2: the DWB configuration the bundle's controller runs: furrow (default), nav2, "
+        "tuned, or a YAML file of changes (e.g. benchmarks/dwb_tuned_shim.yaml: the rotation "
+        "shim in front)",
+    )
     ex.set_defaults(func=run)
 
 
@@ -77,7 +83,9 @@ def run(args: argparse.Namespace) -> int:
     if args.to == "nav2":
         from ..nav2_robot import nav2_options
 
-        data = nav2_options(**data)
+        data = nav2_options(dwb=args.dwb or "furrow", **data)
+    elif args.dwb is not None:
+        raise InputError("--dwb", args.to, "allowed only with --to nav2")
     if args.to != "mesh" and (args.with_plants or args.formats != "glb"):
         raise InputError("--formats/--with-plants", args.to, "allowed only with --to mesh")
     world_only = {

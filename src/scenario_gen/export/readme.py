@@ -88,6 +88,23 @@ def nav2_readme(scn: Scenario, g: GazeboSummary, info: dict[str, Any]) -> str:
     w, h = info["depth_image"]
     base = info["base_height"]
     chi = d.skid_factor
+    fp, cm = robot.dwb["FollowPath"], robot.dwb["local_costmap"]
+    vl = cm["voxel_layer"]
+    src = vl["depth_camera"]
+    rs = robot.dwb.get("rotation_shim") or {}
+    shim = (
+        " Nav2's RotationShimController stands in front of it (`FollowPath` is the shim, DWB "
+        f"its `primary_controller`): on a new plan more than {rs['angular_dist_threshold']:g} "
+        f"rad off the heading it turns in place at {rs['rotate_to_heading_angular_vel']:g} "
+        "rad/s first."
+        if rs.get("enabled")
+        else ""
+    )
+    same = (
+        f", which is the same {fp['prune_distance']:g} m, so they drive alike"
+        if fp["prune_distance"] == fp["forward_prune_distance"]
+        else f" ({fp['prune_distance']:g} m here): use Humble 1.1.7 or later"
+    )
     rows = [
         ("robot/summit_xl.urdf", "agrinav_gym's Summit-XL, as the simulator reads it"),
         (
@@ -181,14 +198,16 @@ local costmap's business, as in the benchmark. A FollowPath failure (no legal tr
 clears the local costmap and retries, the benchmark's one recovery, up to
 {FOLLOW_RETRIES} times; there is no spin, back-up or wait.
 
-**DWB** under Nav2's names from AgriNav's configuration (docs/dwb.md): every value of
-`dwb_nav2.yaml` with the furrow changes (plan pruning 0.8 m, footprint padding −0.07 m, the
-stalk band of the voxel layer) and the robot's limits ({d.v_max} m/s, {d.w_max} rad/s,
-{d.a_max} m/s², {d.alpha_max} rad/s²) and footprint (0.724 × 0.616 m). Controller
-{d.control_hz} Hz; local costmap rolling 3 × 3 m at 5 cm, a voxel layer on the depth camera's
-cloud and inflation. `forward_prune_distance` is declared from Nav2 Humble 1.1.7 (June 2023);
-earlier releases cut the plan's far end at `prune_distance`, which is the same 0.8 m, so
-they drive alike. The cloud's heights are measured from `base_footprint` in the odometry
+**DWB** under Nav2's names from AgriNav's configuration `{robot.controller}` (docs/dwb.md):
+every value of `dwb_nav2.yaml` with that configuration's changes (plan pruning
+{fp["prune_distance"]:g} m behind and {fp["forward_prune_distance"]:g} m ahead, footprint
+padding {cm["footprint_padding"]:g} m, obstacles between {src["min_obstacle_height"]:g} and
+{vl["max_obstacle_height"]:g} m in the voxel layer, at most {fp["max_vel_x"]:g} m/s) and the
+robot's limits ({d.v_max} m/s, {d.w_max} rad/s, {d.a_max} m/s², {d.alpha_max} rad/s²) and
+footprint (0.724 × 0.616 m).{shim} Controller {d.control_hz} Hz; local costmap rolling 3 × 3 m
+at 5 cm, a voxel layer on the depth camera's cloud and inflation. `forward_prune_distance` is
+declared from Nav2 Humble 1.1.7 (June 2023); earlier releases cut the plan's far end at
+`prune_distance`{same}. The cloud's heights are measured from `base_footprint` in the odometry
 plane (robot_localization's `two_d_mode`), i.e. above the wheels' plane, as the benchmark's
 costmap measures them (its 0.175 m ground rejection).
 
