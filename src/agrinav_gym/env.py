@@ -157,7 +157,6 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
             if self.cfg.task.waypoint_goals and isinstance(route_model, RouteObservation)
             else None
         )
-        self._skips_goals = not self.cfg.task.stop_on_failure
         self.action_space = spaces.Box(-1.0, 1.0, (2,), np.float32)
         self.route: RoutePath | None = None
         self._fields_of: Scenario | None = None
@@ -243,7 +242,8 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         event = recovery[0] if recovery is not None else None
         if end == "progress" and self.cfg.task.recoveries:
             event = self.recoveries.on_failure(self.estimator.pose)
-            if event == ABORT and self._skips_goals and self._goal_model is not None:
+            skips = not self.cfg.task.stop_on_failure
+            if event == ABORT and skips and self._goal_model is not None:
                 if self._goal_model.skip_goal():
                     event = SKIP
                     self._missed += 1

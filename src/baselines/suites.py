@@ -252,26 +252,9 @@ def _sensitivity() -> list[Case]:
     cases = []
     first: dict[str, int] = {}  # every case of a kind drives the first one's fields and seeds
     for i, (group, kind, values) in enumerate(SENSITIVITY):
-        paired = first.setdefault(kind, i)
-        if kind in ("soil", "multipath"):
-            if kind == "soil":
-                config = {**base.config, "soil": values}
-            else:
-                config = {**base.config, "gnss": {**RTK_EKF["gnss"], "fix": values}}
-                paired = 0  # the default soil row: every value at its default
-            cases.append(
-                Case(
-                    group,
-                    base.env_id,
-                    base.scenario,
-                    base.overrides,
-                    config,
-                    base.max_steps,
-                    randomize=base.randomize,
-                    seeds_of=paired,
-                )
-            )
-        else:
+        # the multipath rows pair with the default soil row: every value at its default
+        paired = 0 if kind == "multipath" else first.setdefault(kind, i)
+        if kind == "foliage":
             config = {**base.config, "gnss": {**RTK_EKF["gnss"], "fix": values}}
             over = {**PAPER_FIELD, "crop": {"stage": 5}}
             cases.append(
@@ -285,6 +268,23 @@ def _sensitivity() -> list[Case]:
                     seeds_of=paired,
                 )
             )
+            continue
+        if kind == "soil":
+            config = {**base.config, "soil": values}
+        else:
+            config = {**base.config, "gnss": {**RTK_EKF["gnss"], "fix": values}}
+        cases.append(
+            Case(
+                group,
+                base.env_id,
+                base.scenario,
+                base.overrides,
+                config,
+                base.max_steps,
+                randomize=base.randomize,
+                seeds_of=paired,
+            )
+        )
     return cases
 
 
