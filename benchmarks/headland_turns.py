@@ -127,6 +127,11 @@ def run(
     }
 
 
+def _pairs(items: list[str]) -> dict[str, Any]:
+    """``KEY=VALUE`` arguments as a mapping, each value read as YAML."""
+    return {k: yaml.safe_load(v) for k, v in (kv.split("=", 1) for kv in items)}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--turns", nargs="+", default=["semicircle", "omega", "keyhole"])
@@ -150,8 +155,7 @@ def main() -> None:
     )
     ap.add_argument("--per-episode", action="store_true", help="a line per reset seed")
     args = ap.parse_args()
-    over = {k: yaml.safe_load(v) for k, v in (kv.split("=", 1) for kv in args.set)}
-    config = {k: yaml.safe_load(v) for k, v in (kv.split("=", 1) for kv in args.config)}
+    over, config = _pairs(args.set), _pairs(args.config)
     for turn in args.turns:
         r = run(
             turn,

@@ -44,13 +44,14 @@ MIN_THETA_VELOCITY_THRESHOLD = 0.001
 TRAIL_JOIN = 0.5  # m: a new plan further than this from the kept one starts afresh
 
 
+def pick(v: float | None, robot_value: float) -> float:
+    """A configured limit, or the robot's own where the config says null."""
+    return robot_value if v is None else v
+
+
 def kinematics(p: DWBParams, robot: RobotInterface) -> Kinematics:
     """FollowPath's kinematic parameters, the robot's limits where the config says null."""
     fp = p.FollowPath
-
-    def pick(v: float | None, robot_value: float) -> float:
-        return robot_value if v is None else v
-
     return Kinematics(
         min_vel_x=fp.min_vel_x,
         max_vel_x=pick(fp.max_vel_x, robot.v_max),
@@ -65,6 +66,15 @@ def kinematics(p: DWBParams, robot: RobotInterface) -> Kinematics:
     )
 
 
+def shim_rates(p: DWBParams, robot: RobotInterface) -> tuple[float, float]:
+    """The rotation shim's in-place yaw rate and angular acceleration, the robot's where null."""
+    rs = p.rotation_shim
+    return (
+        pick(rs.rotate_to_heading_angular_vel, robot.w_max),
+        pick(rs.max_angular_accel, robot.alpha_max),
+    )
+
+
 def resolved_config(p: DWBParams, robot: RobotInterface) -> dict[str, Any]:
     """The configuration as a mapping under Nav2's names with the robot's own values where it
     says null (its limits and footprint rectangle): what a Nav2 parameter file needs."""
@@ -72,10 +82,7 @@ def resolved_config(p: DWBParams, robot: RobotInterface) -> dict[str, Any]:
     kin = kinematics(p, robot)
     out["FollowPath"].update(dataclasses.asdict(kin))
     shim = out["rotation_shim"]
-    if shim["rotate_to_heading_angular_vel"] is None:
-        shim["rotate_to_heading_angular_vel"] = robot.w_max
-    if shim["max_angular_accel"] is None:
-        shim["max_angular_accel"] = robot.alpha_max
+    shim["rotate_to_heading_angular_vel"], shim["max_angular_accel"] = shim_rates(p, robot)
     if out["local_costmap"]["footprint"] is None:
         out["local_costmap"]["footprint"] = rectangle_footprint(*robot.footprint).tolist()
     return out
@@ -136,9 +143,7 @@ class DWB(Policy):
         self.update_every = max(1, round(1.0 / (cm.update_frequency * self.dt)))
         self.use_imu = self.p.yaw_rate_source == "imu" and OBS_IMU in observation_space.spaces
         self.shim = (
-            RotationShim(
-                self.p.rotation_shim, robot.w_max, robot.alpha_max, self.dt, self.footprint
-            )
+            RotationShim(self.p.rotation_shim, *shim_rates(self.p, robot), self.dt, self.footprint)
             if self.p.rotation_shim.enabled
             else None
         )

@@ -48,16 +48,15 @@ class RotationShim:
     def __init__(
         self,
         p: RotationShimParams,
-        w_max: float,
-        alpha_max: float,
+        speed: float,
+        accel: float,
         dt: float,
         footprint: FloatArray,
     ) -> None:
+        """``speed`` and ``accel``: the turn's yaw rate and angular acceleration, resolved
+        against the robot's limits (``policy.shim_rates``)."""
         self.p = p
-        self.speed = (
-            w_max if p.rotate_to_heading_angular_vel is None else p.rotate_to_heading_angular_vel
-        )
-        self.accel = alpha_max if p.max_angular_accel is None else p.max_angular_accel
+        self.speed, self.accel = speed, accel
         self.dt = dt
         self.plan_every = max(1, round(1.0 / (p.plan_frequency * dt)))
         self.footprint = footprint
