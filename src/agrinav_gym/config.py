@@ -57,6 +57,15 @@ class SoilConfig:
     contact_length: float = _f(
         0.1, "tyre–soil contact length l (shear relaxation length), m", 0.01, 0.5
     )
+    # The Summit-XL's tread is 0.15 m wide (its URDF's wheel cylinder); 0 keeps the point
+    # contact every registered env was measured with (docs/physics.md "Tread width").
+    contact_width: float = _f(
+        0.0,
+        "tyre–soil contact width across the tread, m (0: a point contact under the wheel "
+        "centre; the Summit-XL's tread: 0.15)",
+        0.0,
+        0.5,
+    )
     vertical_stiffness: float = _f(
         6.0e4, "tyre + soil vertical stiffness per wheel, N/m", 5.0e3, 3.0e5
     )

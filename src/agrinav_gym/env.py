@@ -302,7 +302,8 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
 
     def conditions(self) -> dict[str, str]:
         """What produced this episode's numbers: localisation, camera model, speed limit (and
-        how the route is handed to the controller, when not whole)."""
+        the tyres' tread contact and how the route is handed to the controller, when not the
+        defaults)."""
         c = self.cfg.camera
         kind = "crop meshes (Embree)" if c.model == "mesh" else "analytic proxy"
         cam = f"{c.width}x{c.height} {kind}" if OBS_DEPTH in self.obs_models else "none"
@@ -311,6 +312,8 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
             "camera": cam,
             "speed_limit": f"{self.cfg.robot.v_max:g} m/s",
         }
+        if self.cfg.soil.contact_width > 0:  # absent: the point contact of the registered envs
+            out["tyres"] = f"{self.cfg.soil.contact_width:g} m tread contact"
         t = self.cfg.task
         nav = []
         if t.waypoint_goals:

@@ -276,6 +276,8 @@ def run_table(records: list[dict[str, Any]]) -> str:
 
 
 CONDITIONS = ("localisation", "camera", "speed_limit", "controller")
+#: a record with no "tyres" condition: the registered envs' wheels (sim.tyres)
+POINT_CONTACT = "point contact"
 GEOMETRY = (
     "row_direction_deg",
     "row_length_m",
@@ -311,19 +313,29 @@ def held_out(records: list[dict[str, Any]]) -> list[str]:
 
 def conditions(records: list[dict[str, Any]], groups: list[str], pols: list[str]) -> list[str]:
     """What produced each row: no number without its localisation, camera, speed limit and
-    controller configuration."""
+    controller configuration (and the tyres' contact, where some row is not a point)."""
+    cols = list(CONDITIONS)
+    head = ["localisation", "camera", "speed limit", "controller"]
+    if any("tyres" in r for r in records):
+        cols.insert(3, "tyres")
+        head.insert(3, "tyres")
     lines = [
         "Conditions of each row:",
         "",
-        "| scenario | policy | localisation | camera | speed limit | controller |",
-        "|---|---|---|---|---|---|",
+        "| scenario | policy | " + " | ".join(head) + " |",
+        "|" + "---|" * (len(head) + 2),
     ]
     for g in groups:
         for p in pols:
             rows = [r for r in records if r["scenario"] == g and r["policy"] == p]
             if rows:
                 cells = [
-                    " / ".join(dict.fromkeys(str(r.get(c, "—")) for r in rows)) for c in CONDITIONS
+                    " / ".join(
+                        dict.fromkeys(
+                            str(r.get(c, POINT_CONTACT if c == "tyres" else "—")) for r in rows
+                        )
+                    )
+                    for c in cols
                 ]
                 lines.append(f"| {g} | {p} | " + " | ".join(cells) + " |")
     return lines

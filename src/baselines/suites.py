@@ -233,6 +233,10 @@ SENSITIVITY: tuple[tuple[str, str, dict[str, Any]], ...] = (
     ("soil friction 0.8", "soil", {"friction": 0.8}),
     ("soil shear modulus 0.01 m", "soil", {"shear_modulus": 0.01}),
     ("soil shear modulus 0.05 m", "soil", {"shear_modulus": 0.05}),
+    # the tyre's contact across its tread: a point in the registered envs, 0.15 m the
+    # Summit-XL's (its URDF's wheel), 0.25 m a wider field tyre
+    ("tread 0.15 m", "soil", {"contact_width": 0.15}),
+    ("tread 0.25 m", "soil", {"contact_width": 0.25}),
     ("canopy 2.5 m, foliage 0.4 dB/m", "foliage", {"foliage_db_per_m": 0.4}),
     ("canopy 2.5 m, foliage 2 dB/m", "foliage", {"foliage_db_per_m": 2.0}),
     # Open-sky multipath slips of RTK fixed (gnss.fix.multipath_mtbf_s, 600 s assumed): with a

@@ -57,10 +57,11 @@ def _wheel_states(
 
 
 @needs_kernels
+@pytest.mark.parametrize("width", [0.0, 0.15])  # a point contact, the Summit-XL's tread
 @pytest.mark.parametrize("seed", range(4))
-def test_tyre_kernel_gives_the_python_twins_bits(seed: int) -> None:
+def test_tyre_kernel_gives_the_python_twins_bits(seed: int, width: float) -> None:
     terrain = _bumpy(seed)
-    soil = SoilConfig()
+    soil = SoilConfig(contact_width=width)
     kernel = TyreModel(soil, 0.11, 12.0, 1 / 240, native=True)
     twin = TyreModel(soil, 0.11, 12.0, 1 / 240, native=False)
     for t in (kernel, twin):
@@ -121,7 +122,7 @@ def test_the_tyre_kernel_refuses_what_it_cannot_read() -> None:
     ground = native.TyreGround(
         heights=np.zeros((1, 5)), nx=5, ny=1, x0=0.0, y0=0.0, spacing=0.1, radius=0.11,
         dt=1 / 240, kz=6e4, cz=500.0, friction=0.6, shear_modulus=0.025, contact_length=0.1,
-        rolling_resistance=0.06, shear_damping=0.05,
+        rolling_resistance=0.06, shear_damping=0.05, contact_width=0.0, slices=0,
     )  # fmt: skip
     args = native.TyreForcesArgs(
         ground=ground, n=4, wheels=np.zeros((4, 14)), shear=np.zeros((4, 3)),
@@ -132,7 +133,10 @@ def test_the_tyre_kernel_refuses_what_it_cannot_read() -> None:
     ground.set(heights=np.zeros((2, 5)), ny=2, spacing=0.0)
     with pytest.raises(native.KernelError, match="status 4"):
         native.call(args)
-    ground.set(spacing=0.1)
+    ground.set(spacing=0.1, slices=65)  # more discs than the kernel allows
+    with pytest.raises(native.KernelError, match="status 4"):
+        native.call(args)
+    ground.set(slices=0)
     args.set(shear=None)
     with pytest.raises(native.KernelError, match="status 3"):
         native.call(args)

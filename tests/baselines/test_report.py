@@ -133,3 +133,29 @@ def test_a_run_past_a_missed_waypoint_is_not_finished() -> None:
     assert cells[2] == "1/2" and cells[3] == "0.020"  # the clean run's error alone
     assert cells[cols.index("missed_waypoints")].startswith("0.500")
     assert "missed_waypoints" not in table([_rec("p", 0.1, "success", 100.0)], "t", "")
+
+
+def test_the_tyres_column_appears_where_a_row_has_a_tread() -> None:
+    from baselines.report import conditions
+
+    base = {"policy": "blind", "localisation": "ideal", "camera": "none", "speed_limit": "1 m/s"}
+    point = {**base, "scenario": "a", "controller": "constant"}
+    tread = {**point, "scenario": "b", "tyres": "0.15 m tread contact"}
+    assert "tyres" not in "\n".join(conditions([point], ["a"], ["blind"]))
+    lines = conditions([point, tread], ["a", "b"], ["blind"])
+    assert lines[2].split(" | ")[5] == "tyres"
+    assert "| a | blind | ideal | none | 1 m/s | point contact | constant |" in lines
+    assert "| b | blind | ideal | none | 1 m/s | 0.15 m tread contact | constant |" in lines
+
+
+def test_an_env_on_treads_says_so_in_its_conditions() -> None:
+    import gymnasium as gym
+
+    import agrinav_gym  # noqa: F401
+
+    for width, expect in ((0.0, None), (0.15, "0.15 m tread contact")):
+        env = gym.make("AgriNav/FurrowFollow-v3", config={"soil": {"contact_width": width}})
+        try:
+            assert env.unwrapped.conditions().get("tyres") == expect
+        finally:
+            env.close()

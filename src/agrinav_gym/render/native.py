@@ -473,6 +473,8 @@ class TyreGround(Struct, c="tyre_ground_t"):
         ("contact_length", f64),
         ("rolling_resistance", f64),
         ("shear_damping", f64),
+        ("contact_width", f64),
+        ("slices", i32),
     ]
 
 

@@ -73,7 +73,8 @@ def sensitivity(depths: list[float], soils: dict[str, SoilConfig]) -> dict[str, 
 
 
 def soil_variants(base: SoilConfig | None = None) -> dict[str, SoilConfig]:
-    """The assumed soil values at both ends of their plausible ranges (SoilConfig's docs)."""
+    """The assumed soil values at both ends of their plausible ranges (SoilConfig's docs),
+    and the tyre's contact across its tread (the default is a point)."""
     b = base or SoilConfig()
     return {
         "default": b,
@@ -83,4 +84,7 @@ def soil_variants(base: SoilConfig | None = None) -> dict[str, SoilConfig]:
         "k_z 1.5·10⁵ N/m": replace(b, vertical_stiffness=1.5e5),
         "K 0.01 m": replace(b, shear_modulus=0.01),
         "K 0.05 m": replace(b, shear_modulus=0.05),
+        # the tread: the Summit-XL's 0.15 m (its URDF's wheel) and a wider field tyre
+        "tread 0.15 m": replace(b, contact_width=0.15),
+        "tread 0.25 m": replace(b, contact_width=0.25),
     }

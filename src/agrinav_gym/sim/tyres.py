@@ -46,10 +46,14 @@ SHEAR_CAP = 4.0
 #: a robot at rest
 RR_SPEED = 0.01
 WHEELS = 4
+#: the most discs a tread is cut into (a 0.5 m tread on a 3 cm grid)
+MAX_SLICES = 32
 WORLD = p.WORLD_FRAME
 #: the kernel's wheel states in (14 doubles a wheel) and forces out (7 a wheel)
 _PACK_IN = struct.Struct(f"{14 * WHEELS}d")
 _UNPACK_OUT = struct.Struct(f"{7 * WHEELS}d")
+#: one wheel's contact: normal force N, unit normal xyz, wheel centre -> contact point xyz
+_Contact = tuple[float, float, float, float, float, float, float]
 
 
 #: Stable corner damping, as fractions of ω·dt (ω = √(k_z / corner mass), dt the physics
@@ -75,6 +79,15 @@ def check_corner_stability(soil: SoilConfig, corner_mass: float, dt: float) -> N
             f"allowed with vertical_stiffness {soil.vertical_stiffness:g} N/m at this physics "
             f"rate: {lo:.2f}..{hi:.2f} (outside it the robot rocks itself over standing still)",
         )
+
+
+def tread_slices(width: float, spacing: float) -> int:
+    """Discs across a tread ``width`` wide on a height grid ``spacing`` apart (0: a point
+    contact): at most half a cell each, so the bilinear surface's creases across the tread are
+    resolved; at least 3, at most ``MAX_SLICES``."""
+    if width <= 0.0:
+        return 0
+    return min(MAX_SLICES, max(3, math.ceil(width / (0.5 * spacing))))
 
 
 class TyreModel:
@@ -109,6 +122,7 @@ class TyreModel:
         self._wheels = np.zeros((WHEELS, 14))
         self._in = self._wheels.data.cast("B")
         self._outv = self._out.data.cast("B")
+        self.slices = 0  # discs across the tread (0: a point contact)
         self._terrain: Terrain | None = None
         self._args: _native.TyreForcesArgs | None = None
 
@@ -117,6 +131,7 @@ class TyreModel:
         self._h = np.ascontiguousarray(terrain.heights, np.float64)
         self._x0, self._y0, self._sp = terrain.x0, terrain.y0, terrain.spacing
         self._ny, self._nx = terrain.heights.shape
+        self.slices = tread_slices(self.soil.contact_width, terrain.spacing)
         self.shear[:] = 0.0
         self.normal[:] = 0.0
         if self.native:
@@ -126,7 +141,8 @@ class TyreModel:
                 spacing=self._sp, radius=self.radius, dt=self.dt, kz=self.kz, cz=self.cz,
                 friction=s.friction, shear_modulus=s.shear_modulus,
                 contact_length=s.contact_length, rolling_resistance=s.rolling_resistance,
-                shear_damping=s.shear_damping,
+                shear_damping=s.shear_damping, contact_width=s.contact_width,
+                slices=self.slices,
             )  # fmt: skip
             self._args = _native.TyreForcesArgs(
                 ground=ground, n=WHEELS, wheels=self._wheels, shear=self.shear,
@@ -182,6 +198,79 @@ class TyreModel:
             raise _native.failed("tyre_forces", status)
         return _UNPACK_OUT.unpack_from(self._outv, 0)
 
+    def _point(self, c: Sequence[float], v: Sequence[float]) -> _Contact | None:
+        """Normal force, unit normal and centre-to-contact vector of a point contact: the
+        wheel as a sphere of its radius on the tangent plane under its centre."""
+        r = self.radius
+        h, hx, hy = self.surface(c[0], c[1])
+        inv = 1.0 / math.sqrt(hx * hx + hy * hy + 1.0)
+        nx, ny, nz = -hx * inv, -hy * inv, inv
+        dist = (c[2] - h) * nz  # wheel centre to the local tangent plane
+        n_force = self.kz * (r - dist) - self.cz * (v[0] * nx + v[1] * ny + v[2] * nz)
+        if dist >= r or n_force <= 0.0:
+            return None
+        return n_force, nx, ny, nz, -dist * nx, -dist * ny, -dist * nz
+
+    def _tread(
+        self, c: Sequence[float], q: Sequence[float], v: Sequence[float], w: Sequence[float]
+    ) -> _Contact | None:
+        """The same for a cylindrical tread ``contact_width`` wide: ``slices`` discs across it,
+        each a spring–damper of 1/slices of the stiffness and damping pressing along the
+        surface normal under it (a Winkler foundation across the tread), summed into one force
+        that acts on the line through their resultant: the normal force, its direction and the
+        point that gives the slices' moment about the wheel centre (up to a couple about the
+        force, which one force cannot carry), on the ground."""
+        r, n = self.radius, self.slices
+        ks, cs = self.kz / n, self.cz / n
+        qx, qy, qz, qw = q  # the axle: the wheel frame's y axis
+        ax, ay, az = 2 * (qx * qy - qw * qz), 1 - 2 * (qx * qx + qz * qz), 2 * (qy * qz + qw * qx)
+        fx = fy = fz = mx = my = mz = gx = gy = gz = total = 0.0
+        for k in range(n):
+            off = self.soil.contact_width * ((k + 0.5) / n - 0.5)
+            ox, oy, oz = off * ax, off * ay, off * az  # wheel centre -> the disc's centre
+            h, hx, hy = self.surface(c[0] + ox, c[1] + oy)
+            inv = 1.0 / math.sqrt(hx * hx + hy * hy + 1.0)
+            nx, ny, nz = -hx * inv, -hy * inv, inv
+            dist = (c[2] + oz - h) * nz  # the disc's centre to the tangent plane under it
+            na = nx * ax + ny * ay + nz * az
+            px, py, pz = nx - na * ax, ny - na * ay, nz - na * az  # the normal in the disc
+            pl = math.sqrt(px * px + py * py + pz * pz)
+            if pl < 1e-9:  # the disc lies flat on the ground: it has no lowest point
+                continue
+            depth = r * pl - dist  # the disc's lowest point below the plane
+            if depth <= 0.0:
+                continue
+            # centre -> the disc's lowest point, then up the normal onto the ground
+            lx = ox - r * px / pl + depth * nx
+            ly = oy - r * py / pl + depth * ny
+            lz = oz - r * pz / pl + depth * nz
+            vx = v[0] + w[1] * lz - w[2] * ly
+            vy = v[1] + w[2] * lx - w[0] * lz
+            vz = v[2] + w[0] * ly - w[1] * lx
+            f = ks * depth - cs * (vx * nx + vy * ny + vz * nz)
+            if f <= 0.0:
+                continue
+            ex, ey, ez = f * nx, f * ny, f * nz  # this disc's force
+            fx, fy, fz = fx + ex, fy + ey, fz + ez
+            mx, my, mz = (
+                mx + (ly * ez - lz * ey),
+                my + (lz * ex - lx * ez),
+                mz + (lx * ey - ly * ex),
+            )
+            gx, gy, gz, total = gx + f * lx, gy + f * ly, gz + f * lz, total + f
+        n_force = math.sqrt(fx * fx + fy * fy + fz * fz)
+        if n_force <= 0.0:
+            return None
+        nx, ny, nz = fx / n_force, fy / n_force, fz / n_force
+        # the resultant's line nearest the centre (F × M / |F|²), then along it to the slices'
+        # load-weighted depth
+        n2 = n_force * n_force
+        depth = (gx * nx + gy * ny + gz * nz) / total
+        rx = (fy * mz - fz * my) / n2 + depth * nx
+        ry = (fz * mx - fx * mz) / n2 + depth * ny
+        rz = (fx * my - fy * mx) / n2 + depth * nz
+        return n_force, nx, ny, nz, rx, ry, rz
+
     def _forces(self, links: Sequence[Any], spins: Sequence[Any]) -> tuple[float, ...]:
         """The Python twin of the kernel (and the model's reference)."""
         s = self.soil
@@ -189,18 +278,17 @@ class TyreModel:
         out: list[float] = []
         for i, link in enumerate(links):
             c, q, v, w = link[0], link[5], link[6], link[7]
-            h, hx, hy = self.surface(c[0], c[1])
-            inv = 1.0 / math.sqrt(hx * hx + hy * hy + 1.0)
-            nx, ny, nz = -hx * inv, -hy * inv, inv
-            dist = (c[2] - h) * nz  # wheel centre to the local tangent plane
-            n_force = self.kz * (r - dist) - self.cz * (v[0] * nx + v[1] * ny + v[2] * nz)
-            if dist >= r or n_force <= 0.0:  # airborne: the patch's shear is gone
+            if self.slices:
+                contact = self._tread(c, q, v, w)
+            else:
+                contact = self._point(c, v)
+            if contact is None:  # airborne: the patch's shear is gone
                 self.shear[i] = 0.0
                 self.normal[i] = 0.0
                 out += (0.0,) * 7
                 continue
+            n_force, nx, ny, nz, rx, ry, rz = contact
             self.normal[i] = n_force
-            rx, ry, rz = -dist * nx, -dist * ny, -dist * nz  # centre -> contact point
             # velocity of the tyre material at the contact point, tangential part = slip
             vx = v[0] + w[1] * rz - w[2] * ry
             vy = v[1] + w[2] * rx - w[0] * rz

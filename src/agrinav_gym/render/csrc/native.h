@@ -271,6 +271,8 @@ typedef struct {
     double contact_length;     /* l, m */
     double rolling_resistance; /* c_rr */
     double shear_damping;      /* tau_d, s */
+    double contact_width;      /* across the tread, m */
+    int32_t slices;            /* discs across the tread; 0: a point contact */
 } tyre_ground_t;
 
 /* tyres.c: one physics step of the tyre model (sim/tyres.py's twin, the same bits): per wheel

@@ -34,6 +34,90 @@ static void surface(const tyre_ground_t *g, double x, double y, double *z, doubl
     *hy = (z1 - z0) / sp;
 }
 
+/* A point contact: the wheel as a sphere of its radius on the tangent plane under its centre
+ * (TyreModel._point). Returns 0 when it does not press on the ground. */
+static int point(const tyre_ground_t *g, const double *c, const double *v, double *n_force,
+                 double *nx, double *ny, double *nz, double *rx, double *ry, double *rz) {
+    double r = g->radius, h, hx, hy;
+    surface(g, c[0], c[1], &h, &hx, &hy);
+    double inv = 1.0 / sqrt(hx * hx + hy * hy + 1.0);
+    double mx = -hx * inv, my = -hy * inv, mz = inv;
+    double dist = (c[2] - h) * mz; /* wheel centre to the local tangent plane */
+    double f = g->kz * (r - dist) - g->cz * (v[0] * mx + v[1] * my + v[2] * mz);
+    if (dist >= r || f <= 0.0) return 0;
+    *n_force = f;
+    *nx = mx;
+    *ny = my;
+    *nz = mz;
+    *rx = -dist * mx; /* centre -> contact point */
+    *ry = -dist * my;
+    *rz = -dist * mz;
+    return 1;
+}
+
+/* A cylindrical tread contact_width wide: slices discs across it, each a spring-damper of
+ * 1/slices of the stiffness and damping along the surface normal under it, summed into one
+ * force on the line through their resultant (TyreModel._tread). */
+static int tread(const tyre_ground_t *g, const double *c, const double *q, const double *v,
+                 const double *w, double *n_force, double *nx_out, double *ny_out,
+                 double *nz_out, double *rx, double *ry, double *rz) {
+    double r = g->radius;
+    int32_t n = g->slices;
+    double ks = g->kz / n, cs = g->cz / n;
+    double qx = q[0], qy = q[1], qz = q[2], qw = q[3];
+    double ax = 2 * (qx * qy - qw * qz), ay = 1 - 2 * (qx * qx + qz * qz),
+           az = 2 * (qy * qz + qw * qx);
+    double fx = 0.0, fy = 0.0, fz = 0.0, mx = 0.0, my = 0.0, mz = 0.0;
+    double gx = 0.0, gy = 0.0, gz = 0.0, total = 0.0;
+    for (int32_t k = 0; k < n; k++) {
+        double off = g->contact_width * ((k + 0.5) / n - 0.5);
+        double ox = off * ax, oy = off * ay, oz = off * az;
+        double h, hx, hy;
+        surface(g, c[0] + ox, c[1] + oy, &h, &hx, &hy);
+        double inv = 1.0 / sqrt(hx * hx + hy * hy + 1.0);
+        double nx = -hx * inv, ny = -hy * inv, nz = inv;
+        double dist = (c[2] + oz - h) * nz;
+        double na = nx * ax + ny * ay + nz * az;
+        double px = nx - na * ax, py = ny - na * ay, pz = nz - na * az;
+        double pl = sqrt(px * px + py * py + pz * pz);
+        if (pl < 1e-9) continue;
+        double depth = r * pl - dist;
+        if (depth <= 0.0) continue;
+        double lx = ox - r * px / pl + depth * nx;
+        double ly = oy - r * py / pl + depth * ny;
+        double lz = oz - r * pz / pl + depth * nz;
+        double vx = v[0] + w[1] * lz - w[2] * ly;
+        double vy = v[1] + w[2] * lx - w[0] * lz;
+        double vz = v[2] + w[0] * ly - w[1] * lx;
+        double f = ks * depth - cs * (vx * nx + vy * ny + vz * nz);
+        if (f <= 0.0) continue;
+        double ex = f * nx, ey = f * ny, ez = f * nz;
+        fx = fx + ex;
+        fy = fy + ey;
+        fz = fz + ez;
+        mx = mx + (ly * ez - lz * ey);
+        my = my + (lz * ex - lx * ez);
+        mz = mz + (lx * ey - ly * ex);
+        gx = gx + f * lx;
+        gy = gy + f * ly;
+        gz = gz + f * lz;
+        total = total + f;
+    }
+    double nf = sqrt(fx * fx + fy * fy + fz * fz);
+    if (nf <= 0.0) return 0;
+    double nx = fx / nf, ny = fy / nf, nz = fz / nf;
+    double n2 = nf * nf;
+    double depth = (gx * nx + gy * ny + gz * nz) / total;
+    *rx = (fy * mz - fz * my) / n2 + depth * nx;
+    *ry = (fz * mx - fx * mz) / n2 + depth * ny;
+    *rz = (fx * my - fy * mx) / n2 + depth * nz;
+    *n_force = nf;
+    *nx_out = nx;
+    *ny_out = ny;
+    *nz_out = nz;
+    return 1;
+}
+
 EXPORT int tyre_forces(const tyre_forces_args_t *a) {
     if (!a || !a->ground) return AGN_NULL_ARRAY;
     const tyre_ground_t *g = a->ground;
@@ -44,25 +128,23 @@ EXPORT int tyre_forces(const tyre_forces_args_t *a) {
     if (!(g->spacing > 0) || !(g->dt > 0) || !(g->shear_modulus > 0) ||
         !(g->contact_length > 0) || !(g->radius > 0))
         return AGN_BAD_VALUE;
+    if (g->slices < 0 || g->slices > 64 || (g->slices > 0 && !(g->contact_width >= 0)))
+        return AGN_BAD_VALUE;
     double dt = g->dt, r = g->radius, big_k = g->shear_modulus, length = g->contact_length;
     for (int32_t i = 0; i < a->n; i++) {
         const double *s = a->wheels + 14 * i;
         const double *c = s, *q = s + 3, *v = s + 7, *w = s + 10;
         double *shear = a->shear + 3 * i, *out = a->out + 7 * i;
-        double h, hx, hy;
-        surface(g, c[0], c[1], &h, &hx, &hy);
-        double inv = 1.0 / sqrt(hx * hx + hy * hy + 1.0);
-        double nx = -hx * inv, ny = -hy * inv, nz = inv;
-        double dist = (c[2] - h) * nz; /* wheel centre to the local tangent plane */
-        double n_force = g->kz * (r - dist) - g->cz * (v[0] * nx + v[1] * ny + v[2] * nz);
-        if (dist >= r || n_force <= 0.0) { /* airborne: the patch's shear is gone */
+        double n_force, nx, ny, nz, rx, ry, rz;
+        int touching = g->slices > 0 ? tread(g, c, q, v, w, &n_force, &nx, &ny, &nz, &rx, &ry, &rz)
+                                     : point(g, c, v, &n_force, &nx, &ny, &nz, &rx, &ry, &rz);
+        if (!touching) { /* airborne: the patch's shear is gone */
             shear[0] = shear[1] = shear[2] = 0.0;
             a->normal[i] = 0.0;
             for (int k = 0; k < 7; k++) out[k] = 0.0;
             continue;
         }
         a->normal[i] = n_force;
-        double rx = -dist * nx, ry = -dist * ny, rz = -dist * nz; /* centre -> contact point */
         /* velocity of the tyre material at the contact point, tangential part = slip */
         double vx = v[0] + w[1] * rz - w[2] * ry;
         double vy = v[1] + w[2] * rx - w[0] * rz;
