@@ -79,20 +79,25 @@ def score(records: list[dict[str, Any]]) -> float:
     return float(np.mean(parts))
 
 
-def training_env(policy: str = "rpp", extra: str = "") -> Any:
+def training_env(policy: str = "rpp", extra: str = "", route_clock: bool = False) -> Any:
     """FieldRoute on the training split under the benchmark's conditions (built once a search:
     every trial drives the same fields); ``extra`` a JSON mapping merged over envs.yml's
-    env_kwargs as ``agrinav train --env-kwargs`` merges its file (more ranges, other turns)."""
+    env_kwargs as ``agrinav train --env-kwargs`` merges its file (more ranges, other turns);
+    ``route_clock``: truncated as the test suites are (suites.ROUTE_CLOCK), not after the
+    registered step limit."""
     import gymnasium as gym
 
     import agrinav_gym  # noqa: F401  (registers the ids)
 
     from .hyperparams import load, merge_env_kwargs
-    from .suites import RTK_EKF
+    from .suites import ROUTE_CLOCK, ROUTE_CLOCK_BACKSTOP, RTK_EKF
 
     _, setup = load(ENV_ID)
     kw = merge_env_kwargs(dict(setup.env_kwargs), json.loads(extra) if extra else {})
     config = {**kw.pop("config", {}), **RTK_EKF}
+    if route_clock:
+        config["task"] = {**config["task"], **ROUTE_CLOCK}
+        kw["max_episode_steps"] = ROUTE_CLOCK_BACKSTOP
     kw["observations"] = observations(policy)
     return gym.make(ENV_ID, **kw, config=config, scenario_seeds=list(setup.train_seeds))
 
@@ -119,26 +124,27 @@ class TrialEpisode:
     params: tuple[tuple[str, float], ...]
     seed: int
     env_kwargs: str = ""  # JSON merged over envs.yml's env_kwargs (``training_env``)
+    route_clock: bool = False  # the test suites' clock (``training_env``)
 
     @property
     def key(self) -> str:
         return f"t{self.trial:05d}-e{self.episode:04d}"
 
 
-#: a worker's training env and what it was built for, (policy, env_kwargs): every trial drives
-#: the same fields
-_TRAINING_ENV: list[tuple[tuple[str, str], Any]] = []
+#: a worker's training env and what it was built for, (policy, env_kwargs, route_clock): every
+#: trial drives the same fields
+_TRAINING_ENV: list[tuple[tuple[str, str, bool], Any]] = []
 
 
 def trial_episode(job: TrialEpisode) -> tuple[str, dict[str, Any]]:
     """(key, result) of one episode of a trial (in any process; the env is built once)."""
     from policies import make_policy
 
-    built_for = (job.policy, job.env_kwargs)
+    built_for = (job.policy, job.env_kwargs, job.route_clock)
     if _TRAINING_ENV and _TRAINING_ENV[0][0] != built_for:
         release_training_env()  # another controller observes other keys (DWB: depth)
     if not _TRAINING_ENV:
-        _TRAINING_ENV.append((built_for, training_env(job.policy, job.env_kwargs)))
+        _TRAINING_ENV.append((built_for, training_env(*built_for)))
     env = _TRAINING_ENV[0][1]
     pi = make_policy(job.policy, env, **policy_kwargs(job.policy, dict(job.params)))
     return job.key, _episode(env, pi, job.policy, job.seed)
@@ -161,10 +167,14 @@ def tune(
     workers: int = 1,
     ray: str | None = None,
     env_kwargs: Path | None = None,
+    route_clock: bool = False,
 ) -> dict[str, Any]:
     """Search ``policy``'s parameters; returns the best trial (see the module docstring).
     ``env_kwargs``: a YAML mapping merged over envs.yml's env_kwargs, as ``agrinav train
     --env-kwargs`` takes it (the training fields with more geometry in their ranges).
+    ``route_clock``: the episodes run on the test suites' clock (20 s per metre of route)
+    instead of the registered 4,000 steps, so a slow controller is not cut short in training
+    where it would finish in the tests.
 
     A trial's episodes are tasks (``baselines.parallel``: ``workers`` processes or Ray tasks at
     ``ray``); trials follow one another, each asked of the sampler after the one before was
@@ -210,6 +220,8 @@ def tune(
         "env_kwargs": json.loads(extra) if extra else None,
         "version": _version(),
     }
+    if route_clock:  # absent otherwise: a journal from before the option still resumes
+        identity["route_clock"] = True
     journal = Journal(out, identity)
     with output_dir(out, force, "--out") as tmp:
         done = journal.open(force, "--out")
@@ -225,7 +237,13 @@ def tune(
                         )
                     jobs = [
                         TrialEpisode(
-                            trial.number, k, policy, tuple(params.items()), seed + k, extra
+                            trial.number,
+                            k,
+                            policy,
+                            tuple(params.items()),
+                            seed + k,
+                            extra,
+                            route_clock,
                         )
                         for k in range(episodes)
                     ]
@@ -264,6 +282,7 @@ def tune(
             f"{trials}, score {best['score']}: mean path RMSE of finished routes, 1 m per "
             f"unfinished one, +{CROP_PENALTY} m per stalk) on {episodes} training fields"
             + (f" (env_kwargs merged from {Path(env_kwargs).name})" if env_kwargs else "")
+            + (", on the test suites' route clock (20 s per metre)" if route_clock else "")
             + ".\n"
         )
         atomic_write_text(tmp / "best.yaml", header + yaml.safe_dump(chosen, sort_keys=True))

@@ -132,3 +132,24 @@ def test_env_kwargs_put_more_geometry_in_the_searched_training_fields(tmp_path: 
     file.write_text("randomize: {layout.row_geometry: {choices: [straight, spiral]}}\n")
     assert main([*argv[:-1], str(tmp_path / "u"), "--env-kwargs", str(file)]) == 2
     assert not (tmp_path / "u").exists()
+
+
+def test_the_route_clock_times_the_trials_as_the_test_suites_are(tmp_path: Path) -> None:
+    """``--route-clock``: a trial's episodes end after 20 s per metre of route (the test
+    suites' clock), not the registered 4,000 steps; the choice says so."""
+    from baselines.suites import ROUTE_CLOCK, ROUTE_CLOCK_BACKSTOP
+    from baselines.tune import training_env
+
+    for clock in (False, True):
+        env = training_env("stanley", route_clock=clock)
+        try:
+            task = env.unwrapped.cfg.task
+            assert task.seconds_per_metre == (ROUTE_CLOCK["seconds_per_metre"] if clock else None)
+            assert env.spec.max_episode_steps == (ROUTE_CLOCK_BACKSTOP if clock else 4000)
+            assert task.progress_time == 10.0  # the benchmark's progress checker either way
+        finally:
+            env.close()
+    out = tmp_path / "t"
+    argv = ["tune", "--policy", "stanley", "--trials", "1", "--episodes", "1", "--out", str(out)]
+    assert main([*argv, "--route-clock"]) == 0
+    assert "route clock" in (out / "best.yaml").read_text()

@@ -44,6 +44,12 @@ def add(sub: Any) -> None:
         help="a YAML mapping merged over the env's envs.yml env_kwargs, as agrinav train "
         "--env-kwargs takes it (e.g. curved rows and other turns in the training ranges)",
     )
+    tu.add_argument(
+        "--route-clock",
+        action="store_true",
+        help="end each episode on the test suites' clock (20 s per metre of route, Nav2's "
+        "progress-checker rate) instead of the registered 4,000 steps",
+    )
     tu.set_defaults(func=run)
 
 
@@ -62,6 +68,7 @@ def run(args: argparse.Namespace) -> int:
         workers=args.workers,
         ray=args.ray,
         env_kwargs=Path(args.env_kwargs) if args.env_kwargs else None,
+        route_clock=args.route_clock,
     )
     print(f"best trial {best['trial']}: score {best['score']} -> {args.out}/best.yaml")
     return 0
