@@ -315,10 +315,9 @@ def conditions(records: list[dict[str, Any]], groups: list[str], pols: list[str]
     """What produced each row: no number without its localisation, camera, speed limit and
     controller configuration (and the tyres' contact, where some row is not a point)."""
     cols = list(CONDITIONS)
-    head = ["localisation", "camera", "speed limit", "controller"]
     if any("tyres" in r for r in records):
         cols.insert(3, "tyres")
-        head.insert(3, "tyres")
+    head = [c.replace("_", " ") for c in cols]
     lines = [
         "Conditions of each row:",
         "",

@@ -8,7 +8,9 @@ chattered (normal force 0–300 N per wheel, contact normals tilted 15° on flat
 wheels do not collide with the ground at all; each physics step every wheel gets
 
 * a **normal force** from the tyre and soil's vertical compliance: a spring–damper on the
-  wheel's penetration of the terrain's bilinear surface (the surface the sensors see);
+  wheel's penetration of the terrain's bilinear surface (the surface the sensors see), at a
+  point under the wheel centre or, with ``soil.contact_width``, summed over discs across the
+  tread;
 * a **shear (traction) force** from the Janosi–Hanamoto law ``τ = τ_max (1 − e^(−j/K))``,
   ``τ_max = μ N``, where the shear displacement ``j`` of the contact patch is a state: it
   grows with the slip velocity and relaxes as the tread leaves the patch, over the contact
