@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import warnings
 from collections import Counter
@@ -217,9 +218,12 @@ def bench(
     workers: int = 1,
     ray: str | None = None,
     groups: Sequence[str] | None = None,
+    config: dict[str, Any] | None = None,
 ) -> list[dict[str, Any]]:
     """Every policy on every case of a suite (or on its cases named in ``groups``), the same
-    held-out seeds for all: a case keeps its seeds whichever others run with it.
+    held-out seeds for all: a case keeps its seeds whichever others run with it. ``config``
+    (dotted keys) is merged over every case's env config: the same fields and seeds with those
+    values moved; each record keeps it as ``config_set``.
 
     Each episode is a task (``baselines.parallel``: this process, ``workers`` processes or Ray
     tasks at ``ray``); an episode is a function of its case, policy and seed alone, so the
@@ -230,7 +234,8 @@ def bench(
         raise InputError("--seeds", seeds, f"allowed: an integer in [1, {CASE_SEEDS}]")
     if not policies:
         raise InputError("--policies", "", "allowed: a comma list such as dwb,rpp,ppo:shipped")
-    cases = suite(suite_name)
+    extra = json.dumps(config or {}, sort_keys=True) if config else ""
+    cases = suite_cases(suite_name, extra)
     chosen = _chosen_cases(cases, groups, suite_name)
     labels = policy_labels(policies)
     for spec in policies:
@@ -245,7 +250,7 @@ def bench(
         finally:
             env.close()
     jobs = [
-        EpisodeJob(suite_name, ci, pi, spec, name, k, trust_checkpoint)
+        EpisodeJob(suite_name, ci, pi, spec, name, k, trust_checkpoint, extra)
         for ci in chosen
         for pi, (spec, name) in enumerate(zip(policies, labels, strict=True))
         for k in range(seeds)
@@ -256,6 +261,7 @@ def bench(
         "policies": list(policies),
         "seeds": seeds,
         **({"cases": [cases[ci].group for ci in chosen]} if groups else {}),
+        **({"config": config} if config else {}),
         "trust_checkpoint": trust_checkpoint,
         "version": _version(),
     }
@@ -286,6 +292,18 @@ def bench(
         bar_chart(records, tmp / "benchmark.png", suite_name)
     journal.remove()
     return records
+
+
+def suite_cases(suite_name: str, config: str = "") -> list[Case]:
+    """A suite's cases with ``config`` (JSON of dotted env config keys) merged over each one's
+    env config."""
+    from scenario_gen.schema import merge
+
+    cases = suite(suite_name)
+    if not config:
+        return cases
+    over = json.loads(config)
+    return [dataclasses.replace(c, config=merge(c.config, over)) for c in cases]
 
 
 def _chosen_cases(cases: Sequence[Any], groups: Sequence[str] | None, suite_name: str) -> list[int]:
@@ -320,6 +338,7 @@ class EpisodeJob:
     label: str
     seed: int
     trust: bool
+    config: str = ""  # JSON of the dotted env config set on every case (``bench``'s config)
 
     @property
     def key(self) -> str:
@@ -335,10 +354,10 @@ def episode_task(job: EpisodeJob) -> tuple[str, dict[str, Any], bytes]:
     import io
 
     cached = _EPISODE_ENV
-    case = suite(job.suite)[job.case]
-    if cached.get("case") != (job.suite, job.case):
+    case = suite_cases(job.suite, job.config)[job.case]
+    if cached.get("case") != (job.suite, job.case, job.config):
         release_episode_envs()
-        cached.update(case=(job.suite, job.case), env=_make_env(case), policies={})
+        cached.update(case=(job.suite, job.case, job.config), env=_make_env(case), policies={})
     env, pols = cached["env"], cached["policies"]
     if job.policy not in pols:
         pols[job.policy] = _policy(job.spec, env, job.trust)
@@ -349,6 +368,8 @@ def episode_task(job: EpisodeJob) -> tuple[str, dict[str, Any], bytes]:
     paired = job.case if case.seeds_of is None else case.seeds_of
     ep = run(env, pols[job.policy], EVAL_SEED + CASE_SEEDS * paired + job.seed, job.label)
     record = _record(ep, job.suite, case.group, env)
+    if job.config:
+        record["config_set"] = json.loads(job.config)
     buf = io.BytesIO()
     title = f"{job.label} · {job.suite} · {case.group} · seed {ep.seed}"
     trajectory_figure(ep, buf, title)  # type: ignore[arg-type]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 import shlex
 import statistics
@@ -108,6 +109,17 @@ def finished(record: dict[str, Any]) -> bool:
     return record.get("termination") == "success" and not record.get("missed_waypoints")
 
 
+def _config_set(records: list[dict[str, Any]]) -> list[str]:
+    """The env config ``agrinav bench --config`` set over every case's own, said once."""
+    sets = {json.dumps(r.get("config_set", {}), sort_keys=True) for r in records}
+    if sets == {"{}"}:
+        return []
+    said = " / ".join(
+        ", ".join(f"`{k}={v}`" for k, v in json.loads(c).items()) or "none" for c in sorted(sets)
+    )
+    return ["", f"Env config set on every case over the suite's own (`--config`): {said}."]
+
+
 def table(records: list[dict[str, Any]], suite_name: str, command: str) -> str:
     groups = list(dict.fromkeys(r["scenario"] for r in records))
     pols = list(dict.fromkeys(r["policy"] for r in records))
@@ -134,6 +146,7 @@ def table(records: list[dict[str, Any]], suite_name: str, command: str) -> str:
             if len(metrics) > len(METRICS)
             else "."
         ),
+        *_config_set(records),
         "",
         "| " + " | ".join(head) + " |",
         "|" + "---|" * len(head),

@@ -54,15 +54,17 @@ def add_spec_arguments(parser: Any) -> None:
     parser.add_argument("--lod", type=int, help="level of detail (Web-Mercator zoom 0-22)")
 
 
-def parse_set(items: list[str], flag: str = "--set") -> dict[str, Any]:
-    """``key=value`` pairs (``--set``, ``--hyperparams``), values parsed as YAML."""
+def parse_set(
+    items: list[str], flag: str = "--set", example: str = "layout.row_spacing=0.76"
+) -> dict[str, Any]:
+    """``key=value`` pairs (``--set``, ``--hyperparams``, ``--config``), values parsed as YAML."""
     from scenario_gen.schema import parse_yaml
 
     out: dict[str, Any] = {}
     for item in items:
         key, sep, raw = item.partition("=")
         if not sep or not key.strip():
-            raise InputError(flag, item, "allowed: key=value, e.g. layout.row_spacing=0.76")
+            raise InputError(flag, item, f"allowed: key=value, e.g. {example}")
         try:
             out[key.strip()] = parse_yaml(raw, f"{flag} {key}") if raw.strip() else None
         except yaml.YAMLError:  # pragma: no cover  (parse_yaml reports YAML errors itself)

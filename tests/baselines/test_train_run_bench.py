@@ -575,3 +575,23 @@ def test_run_on_one_field_notes_it_in_one_line(
         if "every reset drives one field" in line
     ]
     assert len(notes) == 1 and notes[0].startswith("agrinav run: note: FurrowFollowEnv: "), notes
+
+
+def test_bench_config_moves_one_value_on_the_suites_fields(tmp_path: Path) -> None:
+    """``--config`` sets an env config value over every case's own: the same field and seed,
+    the value named in each record, its conditions and the table; a key the config does not
+    have is refused before anything is written."""
+    argv = ["bench", "--suite", "smoke", "--policies", "blind", "--seeds", "1", "--out"]
+    assert main([*argv, str(tmp_path / "a")]) == 0
+    set_ = ["--config", "soil.contact_width=0.15", "--config", "soil.friction=0.4"]
+    assert main([*argv, str(tmp_path / "b"), *set_]) == 0
+    (a,), (b,) = (json.loads((tmp_path / d / "results.json").read_text()) for d in "ab")
+    assert a["seed"] == b["seed"] and a["geometry"] == b["geometry"]
+    assert "config_set" not in a
+    assert b["config_set"] == {"soil.contact_width": 0.15, "soil.friction": 0.4}
+    assert b["tyres"] == "0.15 m tread contact" and "tyres" not in a
+    assert a["steps"] != b["steps"] or a["rmse"] != b["rmse"]  # the slippery soil drove it
+    md = (tmp_path / "b" / "benchmark.md").read_text()
+    assert "`soil.contact_width=0.15`, `soil.friction=0.4`" in md
+    code = main([*argv, str(tmp_path / "c"), "--config", "soil.bogus=1"])
+    assert code == 2 and not (tmp_path / "c").exists()

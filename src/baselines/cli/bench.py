@@ -51,6 +51,15 @@ def add(sub: Any) -> None:
     )
     be.add_argument("--seeds", type=episodes_type, default=3)
     be.add_argument("--out", required=True)
+    be.add_argument(
+        "--config",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="an env config value set on every case over the suite's own, dotted and "
+        "repeatable (e.g. soil.contact_width=0.15): the suite's fields and seeds with one "
+        "assumed value moved; the tables and records say so",
+    )
     _spread(be, "episodes")
     _common(be)
     be.set_defaults(func=bench)
@@ -105,6 +114,7 @@ def run(args: argparse.Namespace) -> int:
 def bench(args: argparse.Namespace) -> int:
     from baselines.bench import bench as run_bench
     from baselines.bench import command_line
+    from baselines.scenario_spec import parse_set
 
     pols = [p.strip() for p in args.policies.split(",") if p.strip()]
     run_bench(
@@ -118,6 +128,7 @@ def bench(args: argparse.Namespace) -> int:
         workers=args.workers,
         ray=args.ray,
         groups=[c.strip() for c in args.cases.split(";") if c.strip()] if args.cases else None,
+        config=parse_set(args.config, "--config", "soil.contact_width=0.15"),
     )
     print((Path(args.out) / "benchmark.md").read_text())
     return 0
