@@ -234,7 +234,7 @@ def bench(
         raise InputError("--seeds", seeds, f"allowed: an integer in [1, {CASE_SEEDS}]")
     if not policies:
         raise InputError("--policies", "", "allowed: a comma list such as dwb,rpp,ppo:shipped")
-    extra = json.dumps(config or {}, sort_keys=True) if config else ""
+    extra = json.dumps(config, sort_keys=True, default=str) if config else ""
     cases = suite_cases(suite_name, extra)
     chosen = _chosen_cases(cases, groups, suite_name)
     labels = policy_labels(policies)

@@ -222,13 +222,13 @@ class TyreModel:
         that acts on the line through their resultant: the normal force, its direction and the
         point that gives the slices' moment about the wheel centre (up to a couple about the
         force, which one force cannot carry), on the ground."""
-        r, n = self.radius, self.slices
+        r, n, width = self.radius, self.slices, self.soil.contact_width
         ks, cs = self.kz / n, self.cz / n
         qx, qy, qz, qw = q  # the axle: the wheel frame's y axis
         ax, ay, az = 2 * (qx * qy - qw * qz), 1 - 2 * (qx * qx + qz * qz), 2 * (qy * qz + qw * qx)
         fx = fy = fz = mx = my = mz = gx = gy = gz = total = 0.0
         for k in range(n):
-            off = self.soil.contact_width * ((k + 0.5) / n - 0.5)
+            off = width * ((k + 0.5) / n - 0.5)
             ox, oy, oz = off * ax, off * ay, off * az  # wheel centre -> the disc's centre
             h, hx, hy = self.surface(c[0] + ox, c[1] + oy)
             inv = 1.0 / math.sqrt(hx * hx + hy * hy + 1.0)
