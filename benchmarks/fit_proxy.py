@@ -9,7 +9,9 @@ difference. This script runs all fits, rewrites the table
 * per-pixel depth difference, fitted against the former hand-tuned constants (0.2, 0.2, 0.9);
 * maize leaf reach by height, measured on the meshes, with the fitted leaf band.
 
-Run: ``python benchmarks/fit_proxy.py`` (a few minutes on 2 cores).
+Run: ``python benchmarks/fit_proxy.py`` (a few minutes on 2 cores). ``--preset default
+--no-write`` fits on flat planting instead of the table's ridges and prints, per stage, the
+shipped parameters' objective on the same flat lanes beside the refit's.
 """
 
 from __future__ import annotations
@@ -23,7 +25,8 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from tqdm import tqdm
 
-from agrinav_gym.tools.proxy_fit import FitResult, fit_stage, write_table
+from agrinav_gym.render.proxy_params import ProxyParams, proxy_params
+from agrinav_gym.tools.proxy_fit import FIT_PRESET, FitResult, fit_stage, write_table
 from scenario_gen import CATALOG
 from scenario_gen.crops import crop_mesh
 
@@ -96,7 +99,16 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--species", nargs="*", default=list(SPECIES))
     ap.add_argument("--no-write", action="store_true", help="print only; leave the table")
+    ap.add_argument(
+        "--preset",
+        default=FIT_PRESET,
+        help=f"the lanes' terrain (the table's: {FIT_PRESET}); another needs --no-write and "
+        "prints the shipped parameters' objective beside the refit's",
+    )
     args = ap.parse_args()
+    if args.preset != FIT_PRESET and not args.no_write:
+        ap.error(f"--preset {args.preset}: the table is fitted on {FIT_PRESET}; add --no-write")
+    compare = args.preset != FIT_PRESET
     jobs = [
         (name, float(CATALOG[name].growth_of_stage(s)))
         for name in args.species
@@ -105,12 +117,19 @@ def main() -> None:
     results: dict[str, list[tuple[float, FitResult]]] = {n: [] for n in args.species}
     t0 = time.perf_counter()
     for name, growth in tqdm(jobs, desc="fitting proxy stages"):
-        r = fit_stage(name, growth)
+        shipped = ProxyParams(*map(float, proxy_params(name, growth))) if compare else None
+        r = fit_stage(name, growth, preset=args.preset, reference=shipped)
         results[name].append((growth, r))
         tqdm.write(
             f"{name:9s} growth {growth:.3f}: fill {r.params.fill:.2f} base {r.params.base:.2f} "
             f"reach {r.params.reach:.2f} | mean |dz| {r.depth[0]:.3f} m + lane width error "
             f"{r.lane[0]:.3f} m (hand-tuned constants: {r.start:.3f} m)"
+            + (
+                f" | shipped {shipped.fill:.2f} {shipped.base:.2f} {shipped.reach:.2f}: "
+                f"{r.reference:.3f} m"
+                if shipped is not None and r.reference is not None
+                else ""
+            )
         )
     print(f"fits took {time.perf_counter() - t0:.0f} s")
     if not args.no_write and set(args.species) == set(SPECIES):

@@ -189,3 +189,16 @@ def test_the_model_shape_follows_the_models_silhouette() -> None:
     box = inspect_model(CROP_MODELS / "textured_obj" / "plant.obj").shape
     assert box is not None and box.base == 0.0
     assert box.core == pytest.approx(0.1, rel=0.06) and box.reach_x == pytest.approx(box.core)
+
+
+def test_the_fit_lanes_follow_the_preset_asked() -> None:
+    """The table's lanes are ridged (the v1 envs'); a refit on flat planting draws flat ones."""
+    from agrinav_gym.tools.proxy_fit import FIT_PRESET, fit_scenes
+
+    growth = float(CATALOG["corn"].growth_of_stage(2))
+    ridged = fit_scenes("corn", growth)
+    flat = fit_scenes("corn", growth, preset="default")
+    assert FIT_PRESET == "ridged" and len(ridged) == len(flat) == 2
+    for r, f in zip(ridged, flat, strict=True):
+        assert r.scenario.spec.furrows.enabled and not f.scenario.spec.furrows.enabled
+        assert np.ptp(r.scenario.terrain.heights) > np.ptp(f.scenario.terrain.heights)

@@ -58,6 +58,9 @@ LANE_RANGE = (0.2, 3.0)  # m ahead of the camera
 LANE_CAP = 1.0  # m: a side with nothing nearer counts as this far
 LANE_MIN_POINTS = 0.01  # of the image's pixels: fewer on a side (stray leaf tips) close nothing
 ROW_SPACINGS = (0.75, 1.0)
+#: the terrain the shipped table was fitted on (the v1 envs' ridges); ``benchmarks/fit_proxy.py
+#: --preset default --no-write`` refits on flat planting and compares
+FIT_PRESET = "ridged"
 POSE_YAW_DEG = (-6.0, 6.0)
 POSE_LATERAL = (-0.1, 0.1)
 
@@ -69,8 +72,9 @@ class FitScene:
     poses: tuple[tuple[FloatArray, FloatArray], ...]  # (rot, pos) of base_link
 
 
-def fit_scenes(name: str, growth: float, seed: int = 0) -> list[FitScene]:
-    """Lanes of species ``name`` at ``growth`` and the camera poses the fit uses."""
+def fit_scenes(name: str, growth: float, seed: int = 0, preset: str = FIT_PRESET) -> list[FitScene]:
+    """Lanes of species ``name`` at ``growth`` on ``preset``'s terrain and the camera poses the
+    fit uses."""
     import scenario_gen as sg
 
     out = []
@@ -78,7 +82,7 @@ def fit_scenes(name: str, growth: float, seed: int = 0) -> list[FitScene]:
         crop = "corn" if name == WEED_SPECIES else name
         sp = CATALOG[crop]
         spec = sg.preset(
-            "ridged",  # the terrain the table was made on; flat fields are not refitted yet
+            preset,
             terrain={"margin": 4.0},
             field={"width": 4.5 * spacing, "length": 14.0},
             layout={"row_spacing": spacing, "headland": 2.0, "weed_density": 0.0},
@@ -151,19 +155,20 @@ class FitResult:
     depth: tuple[float, float]  # mean |Δz| per pixel over the poses, m, and its SD over poses
     lane: tuple[float, float]  # mean |Δ lane width|, m, and its SD over poses
     start: float  # the objective with the former hand-tuned constants (0.2, 0.2, 0.9)
+    reference: float | None = None  # the objective with ``fit_stage``'s reference parameters
 
 
 class Comparison:
     """Mesh-camera references of a set of lanes and poses, and the proxy's errors against them."""
 
-    def __init__(self, name: str, growth: float, seed: int = 0) -> None:
+    def __init__(self, name: str, growth: float, seed: int = 0, preset: str = FIT_PRESET) -> None:
 
         cfg = EnvConfig.from_dict({"camera": {"min_range": 0.0}})
         self.model = robot_interface(cfg, RobotGeometry.from_urdf()).camera
         self.far = cfg.camera.max_range
         self.proxy = DepthCamera(cfg.camera, self.model)
         mesh = MeshCamera(cfg.camera, self.model)
-        self.scenes = fit_scenes(name, growth, seed)
+        self.scenes = fit_scenes(name, growth, seed, preset)
         self.refs = []
         for fs in self.scenes:
             ms = MeshScene.from_scenario(fs.scenario)
@@ -183,10 +188,17 @@ class Comparison:
         return np.asarray(dz), np.asarray(dl)
 
 
-def fit_stage(name: str, growth: float, sweeps: int = 2) -> FitResult:
-    """Fit (fill, base, reach) for species ``name`` at ``growth`` (see the module docstring):
-    the best of a coarse grid, then coordinate descent over the fine grids."""
-    cmp = Comparison(name, growth)
+def fit_stage(
+    name: str,
+    growth: float,
+    sweeps: int = 2,
+    preset: str = FIT_PRESET,
+    reference: ProxyParams | None = None,
+) -> FitResult:
+    """Fit (fill, base, reach) for species ``name`` at ``growth`` (see the module docstring) on
+    ``preset``'s terrain: the best of a coarse grid, then coordinate descent over the fine
+    grids; ``reference``'s objective on the same lanes is kept beside it."""
+    cmp = Comparison(name, growth, preset=preset)
     cache: dict[ProxyParams, float] = {}
 
     def error(par: ProxyParams) -> float:
@@ -214,7 +226,11 @@ def fit_stage(name: str, growth: float, sweeps: int = 2) -> FitResult:
             break
     dz, dl = cmp.errors(best)
     return FitResult(
-        best, (float(dz.mean()), float(dz.std())), (float(dl.mean()), float(dl.std())), start
+        best,
+        (float(dz.mean()), float(dz.std())),
+        (float(dl.mean()), float(dl.std())),
+        start,
+        None if reference is None else error(reference),
     )
 
 
@@ -241,7 +257,7 @@ def table_document(results: dict[str, list[tuple[float, FitResult]]]) -> dict[st
         "catalog stage. Written by benchmarks/fit_proxy.py (agrinav_gym.tools.proxy_fit); "
         "read by agrinav_gym.render.proxy_params.",
         "fitted_on": {
-            "preset": "ridged",
+            "preset": FIT_PRESET,
             "row_spacing_m": list(ROW_SPACINGS),
             "poses_per_lane": 8,
             "image": [64, 48],
