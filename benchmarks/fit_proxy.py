@@ -106,9 +106,9 @@ def main() -> None:
         "prints the shipped parameters' objective beside the refit's",
     )
     args = ap.parse_args()
-    if args.preset != FIT_PRESET and not args.no_write:
-        ap.error(f"--preset {args.preset}: the table is fitted on {FIT_PRESET}; add --no-write")
     compare = args.preset != FIT_PRESET
+    if compare and not args.no_write:
+        ap.error(f"--preset {args.preset}: the table is fitted on {FIT_PRESET}; add --no-write")
     jobs = [
         (name, float(CATALOG[name].growth_of_stage(s)))
         for name in args.species
