@@ -23,12 +23,14 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
-import yaml
 
 import agrinav_gym  # noqa: F401  (registers the envs)
 from baselines.episodes import run_episode
+from baselines.scenario_spec import parse_set
 from baselines.suites import NAV2_PROGRESS
 from policies import make_policy
+from scenario_gen.errors import InputError
+from scenario_gen.schema import merge
 
 
 def turn_arcs(env: Any) -> tuple[float, float, float]:
@@ -82,7 +84,7 @@ def run(
         "AgriNav/FieldRoute-v3",
         scenario=preset,
         scenario_overrides={**over, "route.turn": turn},
-        config={"task": NAV2_PROGRESS, **(config or {})},
+        config=merge({"task": NAV2_PROGRESS}, config or {}),
     )
     pol = make_policy(policy, env)
     ends: collections.Counter[str] = collections.Counter()
@@ -127,11 +129,6 @@ def run(
     }
 
 
-def _pairs(items: list[str]) -> dict[str, Any]:
-    """``KEY=VALUE`` arguments as a mapping, each value read as YAML."""
-    return {k: yaml.safe_load(v) for k, v in (kv.split("=", 1) for kv in items)}
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--turns", nargs="+", default=["semicircle", "omega", "keyhole"])
@@ -155,7 +152,11 @@ def main() -> None:
     )
     ap.add_argument("--per-episode", action="store_true", help="a line per reset seed")
     args = ap.parse_args()
-    over, config = _pairs(args.set), _pairs(args.config)
+    try:
+        over = parse_set(args.set)
+        config = parse_set(args.config, "--config", "gnss.fix.model=constant")
+    except InputError as exc:
+        ap.error(str(exc))
     for turn in args.turns:
         r = run(
             turn,

@@ -214,7 +214,11 @@ class TyreModel:
         return n_force, nx, ny, nz, -dist * nx, -dist * ny, -dist * nz
 
     def _tread(
-        self, c: Sequence[float], q: Sequence[float], v: Sequence[float], w: Sequence[float]
+        self,
+        c: Sequence[float],
+        axle: tuple[float, float, float],
+        v: Sequence[float],
+        w: Sequence[float],
     ) -> _Contact | None:
         """The same for a cylindrical tread ``contact_width`` wide: ``slices`` discs across it,
         each a spring–damper of 1/slices of the stiffness and damping pressing along the
@@ -224,8 +228,7 @@ class TyreModel:
         force, which one force cannot carry), on the ground."""
         r, n, width = self.radius, self.slices, self.soil.contact_width
         ks, cs = self.kz / n, self.cz / n
-        qx, qy, qz, qw = q  # the axle: the wheel frame's y axis
-        ax, ay, az = 2 * (qx * qy - qw * qz), 1 - 2 * (qx * qx + qz * qz), 2 * (qy * qz + qw * qx)
+        ax, ay, az = axle
         fx = fy = fz = mx = my = mz = gx = gy = gz = total = 0.0
         for k in range(n):
             off = width * ((k + 0.5) / n - 0.5)
@@ -280,8 +283,14 @@ class TyreModel:
         out: list[float] = []
         for i, link in enumerate(links):
             c, q, v, w = link[0], link[5], link[6], link[7]
+            qx, qy, qz, qw = q  # the axle: the wheel frame's y axis
+            ax, ay, az = (
+                2 * (qx * qy - qw * qz),
+                1 - 2 * (qx * qx + qz * qz),
+                2 * (qy * qz + qw * qx),
+            )
             if self.slices:
-                contact = self._tread(c, q, v, w)
+                contact = self._tread(c, (ax, ay, az), v, w)
             else:
                 contact = self._point(c, v)
             if contact is None:  # airborne: the patch's shear is gone
@@ -324,13 +333,7 @@ class TyreModel:
                 f = tmax / ft
                 fx, fy, fz = fx * f, fy * f, fz * f
             self.shear[i] = (kx, ky, kz)
-            # rolling direction = axle × normal; the axle is the wheel frame's y axis
-            qx, qy, qz, qw = q
-            ax, ay, az = (
-                2 * (qx * qy - qw * qz),
-                1 - 2 * (qx * qx + qz * qz),
-                2 * (qy * qz + qw * qx),
-            )
+            # rolling direction = axle × normal
             ex, ey, ez = ay * nz - az * ny, az * nx - ax * nz, ax * ny - ay * nx
             en = math.sqrt(ex * ex + ey * ey + ez * ez)
             travel = (v[0] * ex + v[1] * ey + v[2] * ez) / en

@@ -58,15 +58,13 @@ static int point(const tyre_ground_t *g, const double *c, const double *v, doubl
 /* A cylindrical tread contact_width wide: slices discs across it, each a spring-damper of
  * 1/slices of the stiffness and damping along the surface normal under it, summed into one
  * force on the line through their resultant (TyreModel._tread). */
-static int tread(const tyre_ground_t *g, const double *c, const double *q, const double *v,
+static int tread(const tyre_ground_t *g, const double *c, const double *axle, const double *v,
                  const double *w, double *n_force, double *nx_out, double *ny_out,
                  double *nz_out, double *rx, double *ry, double *rz) {
     double r = g->radius;
     int32_t n = g->slices;
     double ks = g->kz / n, cs = g->cz / n;
-    double qx = q[0], qy = q[1], qz = q[2], qw = q[3];
-    double ax = 2 * (qx * qy - qw * qz), ay = 1 - 2 * (qx * qx + qz * qz),
-           az = 2 * (qy * qz + qw * qx);
+    double ax = axle[0], ay = axle[1], az = axle[2];
     double fx = 0.0, fy = 0.0, fz = 0.0, mx = 0.0, my = 0.0, mz = 0.0;
     double gx = 0.0, gy = 0.0, gz = 0.0, total = 0.0;
     for (int32_t k = 0; k < n; k++) {
@@ -135,9 +133,15 @@ EXPORT int tyre_forces(const tyre_forces_args_t *a) {
         const double *s = a->wheels + 14 * i;
         const double *c = s, *q = s + 3, *v = s + 7, *w = s + 10;
         double *shear = a->shear + 3 * i, *out = a->out + 7 * i;
+        /* the axle: the wheel frame's y axis */
+        double qx = q[0], qy = q[1], qz = q[2], qw = q[3];
+        double axle[3] = {2 * (qx * qy - qw * qz), 1 - 2 * (qx * qx + qz * qz),
+                          2 * (qy * qz + qw * qx)};
+        double ax = axle[0], ay = axle[1], az = axle[2];
         double n_force, nx, ny, nz, rx, ry, rz;
-        int touching = g->slices > 0 ? tread(g, c, q, v, w, &n_force, &nx, &ny, &nz, &rx, &ry, &rz)
-                                     : point(g, c, v, &n_force, &nx, &ny, &nz, &rx, &ry, &rz);
+        int touching = g->slices > 0
+                           ? tread(g, c, axle, v, w, &n_force, &nx, &ny, &nz, &rx, &ry, &rz)
+                           : point(g, c, v, &n_force, &nx, &ny, &nz, &rx, &ry, &rz);
         if (!touching) { /* airborne: the patch's shear is gone */
             shear[0] = shear[1] = shear[2] = 0.0;
             a->normal[i] = 0.0;
@@ -195,10 +199,7 @@ EXPORT int tyre_forces(const tyre_forces_args_t *a) {
         shear[0] = kx;
         shear[1] = ky;
         shear[2] = kz;
-        /* rolling direction = axle x normal; the axle is the wheel frame's y axis */
-        double qx = q[0], qy = q[1], qz = q[2], qw = q[3];
-        double ax = 2 * (qx * qy - qw * qz), ay = 1 - 2 * (qx * qx + qz * qz),
-               az = 2 * (qy * qz + qw * qx);
+        /* rolling direction = axle x normal */
         double ex = ay * nz - az * ny, ey = az * nx - ax * nz, ez = ax * ny - ay * nx;
         double en = sqrt(ex * ex + ey * ey + ez * ez);
         double travel = (v[0] * ex + v[1] * ey + v[2] * ez) / en;
