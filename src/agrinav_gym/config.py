@@ -66,6 +66,22 @@ class SoilConfig:
         0.0,
         0.5,
     )
+    # A ground that yields (docs/physics.md "Ridges that yield"): each disc of the tread bears
+    # at most the soil's bearing capacity on the slope under it; null keeps the rigid ground
+    # every registered env was measured with. Wong's measured soils: sim.terramechanics.
+    cohesion_kpa: float | None = _f(
+        None,
+        "Mohr–Coulomb cohesion c of the ground, kPa: each tread disc bears at most the soil's "
+        "bearing capacity on the slope under it (needs contact_width > 0; null: a rigid ground)",
+        0.0,
+        200.0,
+    )
+    friction_angle_deg: float = _f(
+        29.0, "Mohr–Coulomb internal friction angle φ of the ground, degrees", 1.0, 45.0
+    )
+    bulk_density: float = _f(
+        1.3, "bulk density of the tilled ground, t/m³ (cultivated topsoil ≈ 1.1–1.6)", 0.5, 2.5
+    )
     vertical_stiffness: float = _f(
         6.0e4, "tyre + soil vertical stiffness per wheel, N/m", 5.0e3, 3.0e5
     )

@@ -312,8 +312,14 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
             "camera": cam,
             "speed_limit": f"{self.cfg.robot.v_max:g} m/s",
         }
-        if self.cfg.soil.contact_width > 0:  # absent: the point contact of the registered envs
-            out["tyres"] = f"{self.cfg.soil.contact_width:g} m tread contact"
+        soil = self.cfg.soil
+        if soil.contact_width > 0:  # absent: the point contact of the registered envs
+            out["tyres"] = f"{soil.contact_width:g} m tread contact"
+            if soil.cohesion_kpa is not None:  # absent: a rigid ground
+                out["tyres"] += (
+                    f" on a yielding ground (c {soil.cohesion_kpa:g} kPa, "
+                    f"φ {soil.friction_angle_deg:g}°, {soil.bulk_density:g} t/m³)"
+                )
         t = self.cfg.task
         nav = []
         if t.waypoint_goals:

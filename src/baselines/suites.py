@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from agrinav_gym.interface import GNSS_RTK_FIXED, GNSS_RTK_FLOAT, OBSERVATION_KEYS
+from agrinav_gym.sim.terramechanics import WONG_SOILS
 from scenario_gen import ScenarioError
 
 EVAL_SEED = 1_000_000_000
@@ -227,6 +228,12 @@ def _ood() -> list[Case]:
 #: The simulator values nobody measured for this robot, each at both ends of its plausible
 #: range (sources in docs/physics.md and docs/localisation.md): a case's config section and
 #: values. Appended, never inserted: a case's evaluation seeds follow from its index.
+def _measured(name: str) -> dict[str, float]:
+    """The strength of one of Wong's measured soils as ``soil`` config values."""
+    s = WONG_SOILS[name]
+    return {"cohesion_kpa": s.cohesion_kpa, "friction_angle_deg": s.friction_angle_deg}
+
+
 SENSITIVITY: tuple[tuple[str, str, dict[str, Any]], ...] = (
     ("default soil", "soil", {}),
     ("soil friction 0.4", "soil", {"friction": 0.4}),
@@ -244,6 +251,12 @@ SENSITIVITY: tuple[tuple[str, str, dict[str, Any]], ...] = (
     # paired with "default soil" (every value at its default)
     ("multipath slips every 120 s", "multipath", {"multipath_mtbf_s": 120.0}),
     ("no multipath slips", "multipath", {"multipath_mtbf_s": 1e6}),
+    # Appended, as a row's place sets its seeds: ridges that yield (sim.terramechanics), the
+    # Summit-XL's tread on two of Wong's measured soils (a firmer and a looser one)
+    *(
+        (f"ground yields: {name}", "soil", {"contact_width": 0.15, **_measured(name)})
+        for name in ("sandy loam 15 % (LLL)", "dry sand (LLL)")
+    ),
 )
 
 

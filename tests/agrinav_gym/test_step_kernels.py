@@ -57,11 +57,14 @@ def _wheel_states(
 
 
 @needs_kernels
-@pytest.mark.parametrize("width", [0.0, 0.15])  # a point contact, the Summit-XL's tread
+# a point contact, the Summit-XL's tread, the tread on a ground that yields (and is cut)
+@pytest.mark.parametrize("width,cohesion", [(0.0, None), (0.15, None), (0.15, 2.07)])
 @pytest.mark.parametrize("seed", range(4))
-def test_tyre_kernel_gives_the_python_twins_bits(seed: int, width: float) -> None:
+def test_tyre_kernel_gives_the_python_twins_bits(
+    seed: int, width: float, cohesion: float | None
+) -> None:
     terrain = _bumpy(seed)
-    soil = SoilConfig(contact_width=width)
+    soil = SoilConfig(contact_width=width, cohesion_kpa=cohesion, friction_angle_deg=10.0)
     kernel = TyreModel(soil, 0.11, 12.0, 1 / 240, native=True)
     twin = TyreModel(soil, 0.11, 12.0, 1 / 240, native=False)
     for t in (kernel, twin):
@@ -77,6 +80,9 @@ def test_tyre_kernel_gives_the_python_twins_bits(seed: int, width: float) -> Non
         )
         contacts += sum(a[7 * i] for i in range(4))
     assert 100 < contacts < 1100  # both branches (airborne and in contact) were taken
+    assert np.array_equal(kernel.ground, twin.ground)
+    # the yielding ground was cut (the same cells, to the same bits); a rigid one never is
+    assert (kernel.ground < terrain.heights).any() == (cohesion is not None)
 
 
 @needs_kernels
@@ -122,7 +128,8 @@ def test_the_tyre_kernel_refuses_what_it_cannot_read() -> None:
     ground = native.TyreGround(
         heights=np.zeros((1, 5)), nx=5, ny=1, x0=0.0, y0=0.0, spacing=0.1, radius=0.11,
         dt=1 / 240, kz=6e4, cz=500.0, friction=0.6, shear_modulus=0.025, contact_length=0.1,
-        rolling_resistance=0.06, shear_damping=0.05, contact_width=0.0, slices=0,
+        rolling_resistance=0.06, shear_damping=0.05, contact_width=0.0, slices=0, bearing=0,
+        bear_cohesive=0.0, bear_weight=0.0, bear_k3=0.0,
     )  # fmt: skip
     args = native.TyreForcesArgs(
         ground=ground, n=4, wheels=np.zeros((4, 14)), shear=np.zeros((4, 3)),
@@ -136,7 +143,10 @@ def test_the_tyre_kernel_refuses_what_it_cannot_read() -> None:
     ground.set(spacing=0.1, slices=65)  # more discs than the kernel allows
     with pytest.raises(native.KernelError, match="status 4"):
         native.call(args)
-    ground.set(slices=0)
+    ground.set(slices=6, contact_width=0.15, bearing=1, bear_k3=-1.0)  # a negative capacity
+    with pytest.raises(native.KernelError, match="status 4"):
+        native.call(args)
+    ground.set(slices=0, bearing=0)
     args.set(shear=None)
     with pytest.raises(native.KernelError, match="status 3"):
         native.call(args)

@@ -207,6 +207,18 @@ def test_the_paper_suite_drives_the_seed_robots_four_waypoints() -> None:
         env.close()
 
 
+def test_published_sensitivity_rows_keep_their_places() -> None:
+    """A case's index sets its episodes' seeds: rows are appended, never inserted, so every
+    table already published (benchmark.md) reproduces."""
+    published = [
+        "default soil", "soil friction 0.4", "soil friction 0.8", "soil shear modulus 0.01 m",
+        "soil shear modulus 0.05 m", "tread 0.15 m", "tread 0.25 m",
+        "canopy 2.5 m, foliage 0.4 dB/m", "canopy 2.5 m, foliage 2 dB/m",
+        "multipath slips every 120 s", "no multipath slips",
+    ]  # fmt: skip
+    assert [c.group for c in suite("sensitivity")][: len(published)] == published
+
+
 def test_sensitivity_cases_drive_the_same_fields_and_seeds_as_their_reference(
     tmp_path: Path,
 ) -> None:

@@ -153,8 +153,16 @@ def test_an_env_on_treads_says_so_in_its_conditions() -> None:
 
     import agrinav_gym  # noqa: F401
 
-    for width, expect in ((0.0, None), (0.15, "0.15 m tread contact")):
-        env = gym.make("AgriNav/FurrowFollow-v3", config={"soil": {"contact_width": width}})
+    yielding = {"cohesion_kpa": 1.72, "friction_angle_deg": 29.0}
+    for soil, expect in (
+        ({"contact_width": 0.0}, None),
+        ({"contact_width": 0.15}, "0.15 m tread contact"),
+        (
+            {"contact_width": 0.15, **yielding},
+            "0.15 m tread contact on a yielding ground (c 1.72 kPa, φ 29°, 1.3 t/m³)",
+        ),
+    ):
+        env = gym.make("AgriNav/FurrowFollow-v3", config={"soil": soil})
         try:
             assert env.unwrapped.conditions().get("tyres") == expect
         finally:

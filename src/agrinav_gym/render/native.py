@@ -475,6 +475,10 @@ class TyreGround(Struct, c="tyre_ground_t"):
         ("shear_damping", f64),
         ("contact_width", f64),
         ("slices", i32),
+        ("bearing", i32),
+        ("bear_cohesive", f64),
+        ("bear_weight", f64),
+        ("bear_k3", f64),
     ]
 
 

@@ -5,8 +5,8 @@ of the furrow between them) is commanded a gentle turn at speed; the measure is 
 it achieves over the one it achieves on level ground under the same command. 1 means the
 ground does not steer; 0 means the furrow holds the robot like a rail (a constant command then
 follows the lane by itself, and a benchmark on such ground measures the terrain, not the
-controller). ``docs/physics.md`` has the curve over ridge height and its sensitivity to the
-soil values nobody measured for this robot.
+controller). ``docs/physics.md`` has the curve over ridge height, its sensitivity to the soil
+values nobody measured for this robot, and the curve on measured soils whose ridges yield.
 """
 
 from __future__ import annotations
@@ -19,6 +19,7 @@ import numpy as np
 from scenario_gen import Terrain
 
 from ..config import RobotConfig, SoilConfig
+from .terramechanics import WONG_SOILS, with_measured_soil
 from .world import World
 
 #: The gentle turn the ridge test commands: 0.2 rad/s at 1 m/s (a 5 m radius).
@@ -87,4 +88,30 @@ def soil_variants(base: SoilConfig | None = None) -> dict[str, SoilConfig]:
         # the tread: the Summit-XL's 0.15 m (its URDF's wheel) and a wider field tyre
         "tread 0.15 m": replace(b, contact_width=0.15),
         "tread 0.25 m": replace(b, contact_width=0.25),
+    }
+
+
+#: the Summit-XL's tread, on which a ground can yield (``soil.cohesion_kpa``)
+SUMMIT_TREAD = 0.15
+#: the soil the yield model's own assumed values are swept on (a mid-strength sandy loam)
+YIELD_REFERENCE = "sandy loam 15 % (LLL)"
+
+
+def measured_soils(base: SoilConfig | None = None) -> dict[str, SoilConfig]:
+    """Every soil of Wong's table under the Summit-XL's tread, its ridges yielding."""
+    b = replace(base or SoilConfig(), contact_width=SUMMIT_TREAD)
+    return {name: with_measured_soil(b, name) for name in WONG_SOILS}
+
+
+def yield_variants(base: SoilConfig | None = None) -> dict[str, SoilConfig]:
+    """The yield model's assumed values at both ends of their ranges, on ``YIELD_REFERENCE``:
+    the contact patch's length (also the shear model's relaxation length) and the tilled
+    ground's bulk density."""
+    ref = measured_soils(base)[YIELD_REFERENCE]
+    return {
+        YIELD_REFERENCE: ref,
+        "patch 0.05 m": replace(ref, contact_length=0.05),
+        "patch 0.2 m": replace(ref, contact_length=0.2),
+        "bulk density 1.1 t/m³": replace(ref, bulk_density=1.1),
+        "bulk density 1.6 t/m³": replace(ref, bulk_density=1.6),
     }

@@ -41,6 +41,7 @@ from scenario_gen import Terrain
 
 from ..config import SoilConfig
 from ..render import native as _native
+from .terramechanics import DiscBearing, disc_bearing
 
 #: plastic limit of the shear state, in units of K: beyond it τ is within 2 % of τ_max
 SHEAR_CAP = 4.0
@@ -80,6 +81,19 @@ def check_corner_stability(soil: SoilConfig, corner_mass: float, dt: float) -> N
             soil.damping_ratio,
             f"allowed with vertical_stiffness {soil.vertical_stiffness:g} N/m at this physics "
             f"rate: {lo:.2f}..{hi:.2f} (outside it the robot rocks itself over standing still)",
+        )
+
+
+def check_bearing(soil: SoilConfig) -> None:
+    """Refuse a yielding ground without a tread: the bearing limit is a pressure on a patch."""
+    from scenario_gen.errors import InputError
+
+    if soil.cohesion_kpa is not None and soil.contact_width <= 0.0:
+        raise InputError(
+            "config.soil.cohesion_kpa",
+            soil.cohesion_kpa,
+            "allowed only with a tread (soil.contact_width > 0, e.g. 0.15): the ground's "
+            "bearing limit is a pressure over the tread's contact patch; null for a rigid ground",
         )
 
 
@@ -125,15 +139,22 @@ class TyreModel:
         self._in = self._wheels.data.cast("B")
         self._outv = self._out.data.cast("B")
         self.slices = 0  # discs across the tread (0: a point contact)
+        self.bearing: DiscBearing | None = None  # each disc's force limit (None: rigid ground)
         self._terrain: Terrain | None = None
         self._args: _native.TyreForcesArgs | None = None
 
     def reset(self, terrain: Terrain) -> None:
         self._terrain = terrain
-        self._h = np.ascontiguousarray(terrain.heights, np.float64)
+        self.slices = tread_slices(self.soil.contact_width, terrain.spacing)
+        self.bearing = disc_bearing(self.soil, self.slices)
+        # a yielding ground is cut where the tread sinks: the model's own copy, whole again
+        # at every reset (the terrain the sensors and cameras see is never cut)
+        if self.bearing is not None:
+            self._h = np.array(terrain.heights, np.float64, order="C", copy=True)
+        else:
+            self._h = np.ascontiguousarray(terrain.heights, np.float64)
         self._x0, self._y0, self._sp = terrain.x0, terrain.y0, terrain.spacing
         self._ny, self._nx = terrain.heights.shape
-        self.slices = tread_slices(self.soil.contact_width, terrain.spacing)
         self.shear[:] = 0.0
         self.normal[:] = 0.0
         if self.native:
@@ -144,7 +165,10 @@ class TyreModel:
                 friction=s.friction, shear_modulus=s.shear_modulus,
                 contact_length=s.contact_length, rolling_resistance=s.rolling_resistance,
                 shear_damping=s.shear_damping, contact_width=s.contact_width,
-                slices=self.slices,
+                slices=self.slices, bearing=int(self.bearing is not None),
+                bear_cohesive=self.bearing.cohesive if self.bearing else 0.0,
+                bear_weight=self.bearing.weight if self.bearing else 0.0,
+                bear_k3=self.bearing.k3 if self.bearing else 0.0,
             )  # fmt: skip
             self._args = _native.TyreForcesArgs(
                 ground=ground, n=WHEELS, wheels=self._wheels, shear=self.shear,
@@ -166,6 +190,24 @@ class TyreModel:
         c, d = h.item(i + 1, j), h.item(i + 1, j + 1)
         z0, z1 = a + (b - a) * fu, c + (d - c) * fu
         return z0 + (z1 - z0) * fv, ((b - a) * (1.0 - fv) + (d - c) * fv) / sp, (z1 - z0) / sp
+
+    def _cut(self, x: float, y: float, z: float) -> None:
+        """Lower the corners of the grid cell under (x, y) to z where they are above it (the
+        cell ``surface`` reads there)."""
+        sp = self._sp
+        u = min(max((x - self._x0) / sp, 0.0), self._nx - 1.0)
+        v = min(max((y - self._y0) / sp, 0.0), self._ny - 1.0)
+        j = min(int(u), self._nx - 2)
+        i = min(int(v), self._ny - 2)
+        h = self._h
+        for a, b in ((i, j), (i, j + 1), (i + 1, j), (i + 1, j + 1)):
+            if h.item(a, b) > z:
+                h[a, b] = z
+
+    @property
+    def ground(self) -> np.ndarray:
+        """The height grid the tyres stand on (a yielding ground's, as cut so far)."""
+        return self._h
 
     def apply(self, client: int, robot: int, wheels: Sequence[int]) -> None:
         """Compute and apply this step's forces on the four wheel links (fl, fr, bl, br)."""
@@ -225,8 +267,9 @@ class TyreModel:
         surface normal under it (a Winkler foundation across the tread), summed into one force
         that acts on the line through their resultant: the normal force, its direction and the
         point that gives the slices' moment about the wheel centre (up to a couple about the
-        force, which one force cannot carry), on the ground."""
-        r, n, width = self.radius, self.slices, self.soil.contact_width
+        force, which one force cannot carry), on the ground. On a yielding ground a disc bears
+        at most the soil's bearing capacity on the slope under it (``sim.terramechanics``)."""
+        r, n, width, bear = self.radius, self.slices, self.soil.contact_width, self.bearing
         ks, cs = self.kz / n, self.cz / n
         ax, ay, az = axle
         fx = fy = fz = mx = my = mz = gx = gy = gz = total = 0.0
@@ -252,7 +295,19 @@ class TyreModel:
             vx = v[0] + w[1] * lz - w[2] * ly
             vy = v[1] + w[2] * lx - w[0] * lz
             vz = v[2] + w[0] * ly - w[1] * lx
-            f = ks * depth - cs * (vx * nx + vy * ny + vz * nz)
+            spring = ks * depth
+            if bear is not None:
+                cap = bear.limit(math.sqrt(hx * hx + hy * hy))
+                if spring > cap:
+                    # the soil flows: the ground under the disc is cut down to where it holds
+                    # the disc at its capacity (the elastic part of the sinkage, cap/k, stays)
+                    spring = cap
+                    self._cut(
+                        c[0] + lx - depth * nx,
+                        c[1] + ly - depth * ny,
+                        c[2] + lz - depth * nz + cap / ks,
+                    )
+            f = spring - cs * (vx * nx + vy * ny + vz * nz)
             if f <= 0.0:
                 continue
             ex, ey, ez = f * nx, f * ny, f * nz  # this disc's force

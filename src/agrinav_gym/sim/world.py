@@ -30,7 +30,7 @@ from .obstacle_bodies import (
     ObstacleBodies,
     ShapeKey,
 )
-from .tyres import TyreModel, check_corner_stability, in_place_turn_ratio
+from .tyres import TyreModel, check_bearing, check_corner_stability, in_place_turn_ratio
 
 WHEEL_JOINTS = (
     "front_left_wheel_joint",
@@ -90,6 +90,7 @@ class World:
         self.geometry = RobotGeometry.from_urdf()
         g = self.geometry
         check_corner_stability(self.soil, 0.25 * g.mass, 1.0 / robot.physics_hz)
+        check_bearing(self.soil)
         self.client = p.connect(p.GUI if gui else p.DIRECT)
         self.tyres = TyreModel(self.soil, g.wheel_radius, 0.25 * g.mass, 1.0 / robot.physics_hz)
         self.skid_factor = (

@@ -145,7 +145,9 @@ static const layout_t LAYOUT[] = {
     AT(tyre_ground_t, kz), AT(tyre_ground_t, cz), AT(tyre_ground_t, friction),
     AT(tyre_ground_t, shear_modulus), AT(tyre_ground_t, contact_length),
     AT(tyre_ground_t, rolling_resistance), AT(tyre_ground_t, shear_damping),
-    AT(tyre_ground_t, contact_width), AT(tyre_ground_t, slices),
+    AT(tyre_ground_t, contact_width), AT(tyre_ground_t, slices), AT(tyre_ground_t, bearing),
+    AT(tyre_ground_t, bear_cohesive), AT(tyre_ground_t, bear_weight),
+    AT(tyre_ground_t, bear_k3),
 
     SIZE(tyre_forces_args_t), AT(tyre_forces_args_t, ground), AT(tyre_forces_args_t, n),
     AT(tyre_forces_args_t, wheels), AT(tyre_forces_args_t, shear),

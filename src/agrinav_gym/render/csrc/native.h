@@ -260,7 +260,7 @@ EXPORT int embree_packets(const embree_packets_args_t *a);
 /* The ground a tyre stands on: the terrain's height grid (row i at y0 + i spacing, column j at
  * x0 + j spacing), read as its bilinear surface, and the soil (config.soil, docs/physics.md). */
 typedef struct {
-    const double *heights; /* (ny, nx) */
+    double *heights; /* (ny, nx); a yielding ground (bearing) is cut in place */
     int32_t nx, ny;
     double x0, y0, spacing;
     double radius;             /* wheel radius, m */
@@ -273,6 +273,10 @@ typedef struct {
     double shear_damping;      /* tau_d, s */
     double contact_width;      /* across the tread, m */
     int32_t slices;            /* discs across the tread; 0: a point contact */
+    int32_t bearing;           /* 1: each disc bears at most the soil's capacity (yields) */
+    double bear_cohesive;      /* sim.terramechanics.DiscBearing: c Nc sc A, N */
+    double bear_weight;        /* 1/2 gamma B Ngamma sgamma A, N */
+    double bear_k3;            /* 1 / (Nc tan phi) */
 } tyre_ground_t;
 
 /* tyres.c: one physics step of the tyre model (sim/tyres.py's twin, the same bits): per wheel

@@ -34,6 +34,22 @@ static void surface(const tyre_ground_t *g, double x, double y, double *z, doubl
     *hy = (z1 - z0) / sp;
 }
 
+/* A yielding ground's cut: the corners of the cell under (x, y) lowered to z where they are
+ * above it (TyreModel._cut) */
+static void cut(const tyre_ground_t *g, double x, double y, double z) {
+    double sp = g->spacing;
+    double u = py_min(py_max((x - g->x0) / sp, 0.0), g->nx - 1.0);
+    double v = py_min(py_max((y - g->y0) / sp, 0.0), g->ny - 1.0);
+    int32_t j = (int32_t)u, i = (int32_t)v;
+    if (j > g->nx - 2) j = g->nx - 2;
+    if (i > g->ny - 2) i = g->ny - 2;
+    double *row0 = g->heights + (size_t)i * g->nx, *row1 = row0 + g->nx;
+    if (row0[j] > z) row0[j] = z;
+    if (row0[j + 1] > z) row0[j + 1] = z;
+    if (row1[j] > z) row1[j] = z;
+    if (row1[j + 1] > z) row1[j + 1] = z;
+}
+
 /* A point contact: the wheel as a sphere of its radius on the tangent plane under its centre
  * (TyreModel._point). Returns 0 when it does not press on the ground. */
 static int point(const tyre_ground_t *g, const double *c, const double *v, double *n_force,
@@ -87,7 +103,22 @@ static int tread(const tyre_ground_t *g, const double *c, const double *axle, co
         double vx = v[0] + w[1] * lz - w[2] * ly;
         double vy = v[1] + w[2] * lx - w[0] * lz;
         double vz = v[2] + w[0] * ly - w[1] * lx;
-        double f = ks * depth - cs * (vx * nx + vy * ny + vz * nz);
+        double spring = ks * depth;
+        if (g->bearing) {
+            double t = sqrt(hx * hx + hy * hy);
+            double gq = t < 1.0 ? (1.0 - t) * (1.0 - t) : 0.0;
+            double cap = py_max(g->bear_cohesive * (gq - (1.0 - gq) * g->bear_k3) +
+                                    g->bear_weight * gq,
+                                0.0);
+            if (spring > cap) {
+                /* the soil flows: the ground under the disc is cut down to where it holds the
+                 * disc at its capacity (the elastic part of the sinkage, cap/k, stays) */
+                spring = cap;
+                cut(g, c[0] + lx - depth * nx, c[1] + ly - depth * ny,
+                    c[2] + lz - depth * nz + cap / ks);
+            }
+        }
+        double f = spring - cs * (vx * nx + vy * ny + vz * nz);
         if (f <= 0.0) continue;
         double ex = f * nx, ey = f * ny, ez = f * nz;
         fx = fx + ex;
@@ -127,6 +158,8 @@ EXPORT int tyre_forces(const tyre_forces_args_t *a) {
         !(g->contact_length > 0) || !(g->radius > 0))
         return AGN_BAD_VALUE;
     if (g->slices < 0 || g->slices > 64 || (g->slices > 0 && !(g->contact_width >= 0)))
+        return AGN_BAD_VALUE;
+    if (g->bearing && !(g->bear_cohesive >= 0 && g->bear_weight >= 0 && g->bear_k3 >= 0))
         return AGN_BAD_VALUE;
     double dt = g->dt, r = g->radius, big_k = g->shear_modulus, length = g->contact_length;
     for (int32_t i = 0; i < a->n; i++) {
