@@ -177,14 +177,19 @@ class TyreModel:
             self._call = _native.kernel("tyre_forces")
             self._ref = ctypes.byref(self._args)
 
-    def surface(self, x: float, y: float) -> tuple[float, float, float]:
-        """Height and slope (∂z/∂x, ∂z/∂y) of the bilinear terrain at (x, y)."""
+    def _cell(self, x: float, y: float) -> tuple[int, int, float, float]:
+        """The grid cell (row, column) under (x, y), clamped to the grid, and where in it."""
         sp = self._sp
         u = min(max((x - self._x0) / sp, 0.0), self._nx - 1.0)
         v = min(max((y - self._y0) / sp, 0.0), self._ny - 1.0)
         j = min(int(u), self._nx - 2)
         i = min(int(v), self._ny - 2)
-        fu, fv = u - j, v - i
+        return i, j, u - j, v - i
+
+    def surface(self, x: float, y: float) -> tuple[float, float, float]:
+        """Height and slope (∂z/∂x, ∂z/∂y) of the bilinear terrain at (x, y)."""
+        sp = self._sp
+        i, j, fu, fv = self._cell(x, y)
         h = self._h
         a, b = h.item(i, j), h.item(i, j + 1)
         c, d = h.item(i + 1, j), h.item(i + 1, j + 1)
@@ -194,11 +199,7 @@ class TyreModel:
     def _cut(self, x: float, y: float, z: float) -> None:
         """Lower the corners of the grid cell under (x, y) to z where they are above it (the
         cell ``surface`` reads there)."""
-        sp = self._sp
-        u = min(max((x - self._x0) / sp, 0.0), self._nx - 1.0)
-        v = min(max((y - self._y0) / sp, 0.0), self._ny - 1.0)
-        j = min(int(u), self._nx - 2)
-        i = min(int(v), self._ny - 2)
+        i, j, _, _ = self._cell(x, y)
         h = self._h
         for a, b in ((i, j), (i, j + 1), (i + 1, j), (i + 1, j + 1)):
             if h.item(a, b) > z:

@@ -16,16 +16,28 @@
 static inline double py_min(double a, double b) { return b < a ? b : a; }
 static inline double py_max(double a, double b) { return b > a ? b : a; }
 
-/* height and slope (dz/dx, dz/dy) of the bilinear terrain at (x, y): TyreModel.surface */
-static void surface(const tyre_ground_t *g, double x, double y, double *z, double *hx,
-                    double *hy) {
+/* the grid cell (row i, column j) under (x, y), clamped to the grid, and where in it:
+ * TyreModel._cell */
+static void cell(const tyre_ground_t *g, double x, double y, int32_t *i_out, int32_t *j_out,
+                 double *fu, double *fv) {
     double sp = g->spacing;
     double u = py_min(py_max((x - g->x0) / sp, 0.0), g->nx - 1.0);
     double v = py_min(py_max((y - g->y0) / sp, 0.0), g->ny - 1.0);
     int32_t j = (int32_t)u, i = (int32_t)v;
     if (j > g->nx - 2) j = g->nx - 2;
     if (i > g->ny - 2) i = g->ny - 2;
-    double fu = u - j, fv = v - i;
+    *i_out = i;
+    *j_out = j;
+    *fu = u - j;
+    *fv = v - i;
+}
+
+/* height and slope (dz/dx, dz/dy) of the bilinear terrain at (x, y): TyreModel.surface */
+static void surface(const tyre_ground_t *g, double x, double y, double *z, double *hx,
+                    double *hy) {
+    double sp = g->spacing, fu, fv;
+    int32_t i, j;
+    cell(g, x, y, &i, &j, &fu, &fv);
     const double *row0 = g->heights + (size_t)i * g->nx, *row1 = row0 + g->nx;
     double a = row0[j], b = row0[j + 1], c = row1[j], d = row1[j + 1];
     double z0 = a + (b - a) * fu, z1 = c + (d - c) * fu;
@@ -37,12 +49,9 @@ static void surface(const tyre_ground_t *g, double x, double y, double *z, doubl
 /* A yielding ground's cut: the corners of the cell under (x, y) lowered to z where they are
  * above it (TyreModel._cut) */
 static void cut(const tyre_ground_t *g, double x, double y, double z) {
-    double sp = g->spacing;
-    double u = py_min(py_max((x - g->x0) / sp, 0.0), g->nx - 1.0);
-    double v = py_min(py_max((y - g->y0) / sp, 0.0), g->ny - 1.0);
-    int32_t j = (int32_t)u, i = (int32_t)v;
-    if (j > g->nx - 2) j = g->nx - 2;
-    if (i > g->ny - 2) i = g->ny - 2;
+    double fu, fv;
+    int32_t i, j;
+    cell(g, x, y, &i, &j, &fu, &fv);
     double *row0 = g->heights + (size_t)i * g->nx, *row1 = row0 + g->nx;
     if (row0[j] > z) row0[j] = z;
     if (row0[j + 1] > z) row0[j + 1] = z;
