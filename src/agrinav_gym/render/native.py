@@ -459,6 +459,7 @@ class TyreGround(Struct, c="tyre_ground_t"):
 
     _fields_ = [
         ("heights", F64),
+        ("heights0", F64),
         ("nx", i32),
         ("ny", i32),
         ("x0", f64),

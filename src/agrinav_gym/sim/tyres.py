@@ -149,10 +149,11 @@ class TyreModel:
         self.bearing = disc_bearing(self.soil, self.slices)
         # a yielding ground is cut where the tread sinks: the model's own copy, whole again
         # at every reset (the terrain the sensors and cameras see is never cut)
+        self._h0 = np.ascontiguousarray(terrain.heights, np.float64)
         if self.bearing is not None:
-            self._h = np.array(terrain.heights, np.float64, order="C", copy=True)
+            self._h = self._h0.copy()
         else:
-            self._h = np.ascontiguousarray(terrain.heights, np.float64)
+            self._h = self._h0
         self._x0, self._y0, self._sp = terrain.x0, terrain.y0, terrain.spacing
         self._ny, self._nx = terrain.heights.shape
         self.shear[:] = 0.0
@@ -160,7 +161,7 @@ class TyreModel:
         if self.native:
             s = self.soil
             ground = _native.TyreGround(
-                heights=self._h, nx=self._nx, ny=self._ny, x0=self._x0, y0=self._y0,
+                heights=self._h, heights0=self._h0 if self.bearing else None, nx=self._nx, ny=self._ny, x0=self._x0, y0=self._y0,
                 spacing=self._sp, radius=self.radius, dt=self.dt, kz=self.kz, cz=self.cz,
                 friction=s.friction, shear_modulus=s.shear_modulus,
                 contact_length=s.contact_length, rolling_resistance=s.rolling_resistance,
@@ -186,11 +187,14 @@ class TyreModel:
         i = min(int(v), self._ny - 2)
         return i, j, u - j, v - i
 
-    def surface(self, x: float, y: float) -> tuple[float, float, float]:
-        """Height and slope (∂z/∂x, ∂z/∂y) of the bilinear terrain at (x, y)."""
+    def surface(
+        self, x: float, y: float, grid: np.ndarray | None = None
+    ) -> tuple[float, float, float]:
+        """Height and slope (∂z/∂x, ∂z/∂y) of the bilinear terrain at (x, y) (of ``grid``: by
+        default the ground the tyres stand on)."""
         sp = self._sp
         i, j, fu, fv = self._cell(x, y)
-        h = self._h
+        h = self._h if grid is None else grid
         a, b = h.item(i, j), h.item(i, j + 1)
         c, d = h.item(i + 1, j), h.item(i + 1, j + 1)
         z0, z1 = a + (b - a) * fu, c + (d - c) * fu
@@ -298,7 +302,11 @@ class TyreModel:
             vz = v[2] + w[0] * ly - w[1] * lx
             spring = ks * depth
             if bear is not None:
-                cap = bear.limit(math.sqrt(hx * hx + hy * hy))
+                # the slope the soil stands at: the field's, or a cut bench's where flatter (a
+                # rut's wall stands at the field's: cohesion holds a cut far deeper than a rut)
+                _, fx0, fy0 = self.surface(c[0] + ox, c[1] + oy, self._h0)
+                tan_b = min(math.sqrt(hx * hx + hy * hy), math.sqrt(fx0 * fx0 + fy0 * fy0))
+                cap = bear.limit(tan_b)
                 if spring > cap:
                     # the soil flows: the ground under the disc is cut down to where it holds
                     # the disc at its capacity (the elastic part of the sinkage, cap/k, stays)

@@ -139,7 +139,8 @@ static const layout_t LAYOUT[] = {
     AT(embree_packets_args_t, scene), AT(embree_packets_args_t, first),
     AT(embree_packets_args_t, count), AT(embree_packets_args_t, stride),
 
-    SIZE(tyre_ground_t), AT(tyre_ground_t, heights), AT(tyre_ground_t, nx),
+    SIZE(tyre_ground_t), AT(tyre_ground_t, heights), AT(tyre_ground_t, heights0),
+    AT(tyre_ground_t, nx),
     AT(tyre_ground_t, ny), AT(tyre_ground_t, x0), AT(tyre_ground_t, y0),
     AT(tyre_ground_t, spacing), AT(tyre_ground_t, radius), AT(tyre_ground_t, dt),
     AT(tyre_ground_t, kz), AT(tyre_ground_t, cz), AT(tyre_ground_t, friction),

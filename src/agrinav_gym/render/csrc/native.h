@@ -260,7 +260,8 @@ EXPORT int embree_packets(const embree_packets_args_t *a);
 /* The ground a tyre stands on: the terrain's height grid (row i at y0 + i spacing, column j at
  * x0 + j spacing), read as its bilinear surface, and the soil (config.soil, docs/physics.md). */
 typedef struct {
-    double *heights; /* (ny, nx); a yielding ground (bearing) is cut in place */
+    double *heights;        /* (ny, nx); a yielding ground (bearing) is cut in place */
+    const double *heights0; /* a yielding ground's heights before any cut (else NULL) */
     int32_t nx, ny;
     double x0, y0, spacing;
     double radius;             /* wheel radius, m */

@@ -32,18 +32,24 @@ static void cell(const tyre_ground_t *g, double x, double y, int32_t *i_out, int
     *fv = v - i;
 }
 
-/* height and slope (dz/dx, dz/dy) of the bilinear terrain at (x, y): TyreModel.surface */
-static void surface(const tyre_ground_t *g, double x, double y, double *z, double *hx,
-                    double *hy) {
+/* height and slope (dz/dx, dz/dy) of the bilinear surface of grid (the ground's heights, or
+ * the field's before any cut) at (x, y): TyreModel.surface */
+static void surface_of(const tyre_ground_t *g, const double *grid, double x, double y,
+                       double *z, double *hx, double *hy) {
     double sp = g->spacing, fu, fv;
     int32_t i, j;
     cell(g, x, y, &i, &j, &fu, &fv);
-    const double *row0 = g->heights + (size_t)i * g->nx, *row1 = row0 + g->nx;
+    const double *row0 = grid + (size_t)i * g->nx, *row1 = row0 + g->nx;
     double a = row0[j], b = row0[j + 1], c = row1[j], d = row1[j + 1];
     double z0 = a + (b - a) * fu, z1 = c + (d - c) * fu;
     *z = z0 + (z1 - z0) * fv;
     *hx = ((b - a) * (1.0 - fv) + (d - c) * fv) / sp;
     *hy = (z1 - z0) / sp;
+}
+
+static void surface(const tyre_ground_t *g, double x, double y, double *z, double *hx,
+                    double *hy) {
+    surface_of(g, g->heights, x, y, z, hx, hy);
 }
 
 /* A yielding ground's cut: the corners of the cell under (x, y) lowered to z where they are
@@ -114,7 +120,10 @@ static int tread(const tyre_ground_t *g, const double *c, const double *axle, co
         double vz = v[2] + w[0] * ly - w[1] * lx;
         double spring = ks * depth;
         if (g->bearing) {
-            double t = sqrt(hx * hx + hy * hy);
+            /* the slope the soil stands at: the field's, or a cut bench's where flatter */
+            double z0, fx0, fy0;
+            surface_of(g, g->heights0, c[0] + ox, c[1] + oy, &z0, &fx0, &fy0);
+            double t = py_min(sqrt(hx * hx + hy * hy), sqrt(fx0 * fx0 + fy0 * fy0));
             double gq = t < 1.0 ? (1.0 - t) * (1.0 - t) : 0.0;
             double cap = py_max(g->bear_cohesive * (gq - (1.0 - gq) * g->bear_k3) +
                                     g->bear_weight * gq,
@@ -170,6 +179,7 @@ EXPORT int tyre_forces(const tyre_forces_args_t *a) {
         return AGN_BAD_VALUE;
     if (g->bearing && !(g->bear_cohesive >= 0 && g->bear_weight >= 0 && g->bear_k3 >= 0))
         return AGN_BAD_VALUE;
+    if (g->bearing && !g->heights0) return AGN_NULL_ARRAY;
     double dt = g->dt, r = g->radius, big_k = g->shear_modulus, length = g->contact_length;
     for (int32_t i = 0; i < a->n; i++) {
         const double *s = a->wheels + 14 * i;
