@@ -126,10 +126,10 @@ def test_the_tyre_twin_is_used_without_the_kernels(monkeypatch: pytest.MonkeyPat
 @needs_kernels
 def test_the_tyre_kernel_refuses_what_it_cannot_read() -> None:
     ground = native.TyreGround(
-        heights=np.zeros((1, 5)), heights0=None, nx=5, ny=1, x0=0.0, y0=0.0, spacing=0.1, radius=0.11,
-        dt=1 / 240, kz=6e4, cz=500.0, friction=0.6, shear_modulus=0.025, contact_length=0.1,
-        rolling_resistance=0.06, shear_damping=0.05, contact_width=0.0, slices=0, bearing=0,
-        bear_cohesive=0.0, bear_weight=0.0, bear_k3=0.0,
+        heights=np.zeros((1, 5)), heights0=None, nx=5, ny=1, x0=0.0, y0=0.0, spacing=0.1,
+        radius=0.11, dt=1 / 240, kz=6e4, cz=500.0, friction=0.6, shear_modulus=0.025,
+        contact_length=0.1, rolling_resistance=0.06, shear_damping=0.05, contact_width=0.0,
+        slices=0, bearing=0, bear_cohesive=0.0, bear_weight=0.0, bear_k3=0.0,
     )  # fmt: skip
     args = native.TyreForcesArgs(
         ground=ground, n=4, wheels=np.zeros((4, 14)), shear=np.zeros((4, 3)),

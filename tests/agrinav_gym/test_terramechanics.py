@@ -153,6 +153,33 @@ def test_a_drive_on_yielding_ridges_cuts_ruts_no_deeper_than_the_ridges() -> Non
         w.close()
 
 
+def test_climbing_across_yielding_ridges_the_robot_does_not_dig_itself_in() -> None:
+    """Up a 6° hill, crossing 12 cm ridges at 40°: a cut bench bears as level ground and the
+    ruts' walls stand at the field's slope, so the robot climbs on (with walls that gave way
+    the wheels dug in: 1.6 m of the commanded 3 m) and the benches lie no deeper than the
+    furrows, one cell's rise of the hill and the discs' elastic sinkage at capacity."""
+    ridged = ridged_plane(0.12, size=14.0)
+    x = ridged.x0 + ridged.spacing * np.arange(ridged.shape[1])
+    slope = math.tan(math.radians(6.0))
+    terrain = Terrain(ridged.heights + slope * x[None, :], ridged.x0, ridged.y0, ridged.spacing)
+    soil = with_measured_soil(TREAD, "sandy loam 15 % (LLL)")
+    w = World(RobotConfig(), soil)
+    try:
+        w.load(terrain)
+        w.place_robot(-5.0, 0.5, 0.7, terrain)
+        for _ in range(100):
+            w.drive(0.6, 0.0)
+            w.step(12)
+        s = w.state()
+        assert math.hypot(s.pos[0] + 5.0, s.pos[1] - 0.5) > 2.0  # of 3 m commanded
+        n = w.tyres.slices
+        elastic = disc_bearing(soil, n).limit(0.0) / (soil.vertical_stiffness / n)  # type: ignore[union-attr]
+        bound = 0.12 + terrain.spacing * slope + elastic
+        assert 0.01 < (terrain.heights - w.tyres.ground).max() < bound
+    finally:
+        w.close()
+
+
 def test_bekker_sinkage_inverts_the_rigid_wheel_load() -> None:
     """n = 1: the front arc's integral is 2/3, so W = b k √(2r) z^1.5 · 2/3 by hand."""
     soil = replace(WONG_SOILS["dry sand (LLL)"], n=1.0)

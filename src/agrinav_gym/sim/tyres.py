@@ -161,8 +161,9 @@ class TyreModel:
         if self.native:
             s = self.soil
             ground = _native.TyreGround(
-                heights=self._h, heights0=self._h0 if self.bearing else None, nx=self._nx, ny=self._ny, x0=self._x0, y0=self._y0,
-                spacing=self._sp, radius=self.radius, dt=self.dt, kz=self.kz, cz=self.cz,
+                heights=self._h, heights0=self._h0 if self.bearing else None,
+                nx=self._nx, ny=self._ny, x0=self._x0, y0=self._y0, spacing=self._sp,
+                radius=self.radius, dt=self.dt, kz=self.kz, cz=self.cz,
                 friction=s.friction, shear_modulus=s.shear_modulus,
                 contact_length=s.contact_length, rolling_resistance=s.rolling_resistance,
                 shear_damping=s.shear_damping, contact_width=s.contact_width,
