@@ -137,47 +137,48 @@ def test_ridges_that_yield_guide_less() -> None:
     assert rigid < 0.3 and sand > rigid + 0.3, (rigid, sand)
 
 
-def test_a_drive_on_yielding_ridges_cuts_ruts_no_deeper_than_the_ridges() -> None:
-    terrain = ridged_plane(0.12, size=14.0)
-    w = World(RobotConfig(), with_measured_soil(TREAD, "sandy loam 15 % (LLL)"))
+SANDY_LOAM = with_measured_soil(TREAD, "sandy loam 15 % (LLL)")
+
+
+def _drive(terrain: Terrain, yaw: float, command: tuple[float, float], steps: int) -> tuple:
+    """Drive the robot on sandy loam from (−5, 0.5) at ``yaw``; its end state and the deepest
+    cut the tyres made."""
+    w = World(RobotConfig(), SANDY_LOAM)
     try:
         w.load(terrain)
-        w.place_robot(-5.0, 0.5, 0.0, terrain)
-        for _ in range(60):
-            w.drive(0.8, 0.2)
+        w.place_robot(-5.0, 0.5, yaw, terrain)
+        for _ in range(steps):
+            w.drive(*command)
             w.step(12)
-        cut = terrain.heights - w.tyres.ground
-        assert cut.max() > 0.01  # the flanks gave way under the wheels
-        assert cut.max() < 0.12 + 0.01  # down to the furrow, not through it
+        return w.state(), float((terrain.heights - w.tyres.ground).max())
     finally:
         w.close()
+
+
+def _rut_bound(hill_rise: float) -> float:
+    """How far below the field a cut can reach: the 12 cm ridges, the rise of the hill across
+    one grid cell, and a disc's elastic sinkage at level ground's capacity."""
+    n = tread_slices(SANDY_LOAM.contact_width, 0.05)
+    level = disc_bearing(SANDY_LOAM, n).limit(0.0)  # type: ignore[union-attr]
+    return 0.12 + hill_rise + level / (SANDY_LOAM.vertical_stiffness / n)
+
+
+def test_a_drive_on_yielding_ridges_cuts_ruts_no_deeper_than_the_ridges() -> None:
+    _, cut = _drive(ridged_plane(0.12, size=14.0), 0.0, (0.8, 0.2), 60)
+    assert 0.01 < cut < _rut_bound(0.0)  # the flanks gave way, down to the furrow
 
 
 def test_climbing_across_yielding_ridges_the_robot_does_not_dig_itself_in() -> None:
     """Up a 6° hill, crossing 12 cm ridges at 40°: a cut bench bears as level ground and the
     ruts' walls stand at the field's slope, so the robot climbs on (with walls that gave way
-    the wheels dug in: 1.6 m of the commanded 3 m) and the benches lie no deeper than the
-    furrows, one cell's rise of the hill and the discs' elastic sinkage at capacity."""
+    the wheels dug in: 1.6 m of the commanded 3 m) and its ruts stay within the bound."""
     ridged = ridged_plane(0.12, size=14.0)
     x = ridged.x0 + ridged.spacing * np.arange(ridged.shape[1])
     slope = math.tan(math.radians(6.0))
     terrain = Terrain(ridged.heights + slope * x[None, :], ridged.x0, ridged.y0, ridged.spacing)
-    soil = with_measured_soil(TREAD, "sandy loam 15 % (LLL)")
-    w = World(RobotConfig(), soil)
-    try:
-        w.load(terrain)
-        w.place_robot(-5.0, 0.5, 0.7, terrain)
-        for _ in range(100):
-            w.drive(0.6, 0.0)
-            w.step(12)
-        s = w.state()
-        assert math.hypot(s.pos[0] + 5.0, s.pos[1] - 0.5) > 2.0  # of 3 m commanded
-        n = w.tyres.slices
-        elastic = disc_bearing(soil, n).limit(0.0) / (soil.vertical_stiffness / n)  # type: ignore[union-attr]
-        bound = 0.12 + terrain.spacing * slope + elastic
-        assert 0.01 < (terrain.heights - w.tyres.ground).max() < bound
-    finally:
-        w.close()
+    s, cut = _drive(terrain, 0.7, (0.6, 0.0), 100)
+    assert math.hypot(s.pos[0] + 5.0, s.pos[1] - 0.5) > 2.0  # of 3 m commanded
+    assert 0.01 < cut < _rut_bound(terrain.spacing * slope)
 
 
 def test_bekker_sinkage_inverts_the_rigid_wheel_load() -> None:
