@@ -35,7 +35,12 @@ from agrinav_gym.sim.ridge_guidance import (
     turn_ratio,
     yield_variants,
 )
-from agrinav_gym.sim.terramechanics import WONG_SOILS, bearing_capacity, bekker_sinkage
+from agrinav_gym.sim.terramechanics import (
+    WONG_SOILS,
+    bearing_capacity,
+    bekker_sinkage,
+    measured_strength,
+)
 from baselines.episodes import run_episode
 from policies import make_policy
 
@@ -50,14 +55,8 @@ BLIND_SOILS = ("lean clay 22 % (WES)", "sandy loam 15 % (LLL)", "dry sand (LLL)"
 
 def blind_contacts() -> dict[str, dict]:
     out: dict[str, dict] = {"point contact": {}, "tread 0.15 m": {"contact_width": 0.15}}
-    soils = measured_soils()
     for name in BLIND_SOILS:
-        s = soils[name]
-        out[f"tread 0.15 m, {name}"] = {
-            "contact_width": s.contact_width,
-            "cohesion_kpa": s.cohesion_kpa,
-            "friction_angle_deg": s.friction_angle_deg,
-        }
+        out[f"tread 0.15 m, {name}"] = {"contact_width": 0.15, **measured_strength(name)}
     return out
 
 

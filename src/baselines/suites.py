@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from agrinav_gym.interface import GNSS_RTK_FIXED, GNSS_RTK_FLOAT, OBSERVATION_KEYS
-from agrinav_gym.sim.terramechanics import WONG_SOILS
+from agrinav_gym.sim.terramechanics import measured_strength
 from scenario_gen import ScenarioError
 
 EVAL_SEED = 1_000_000_000
@@ -228,12 +228,6 @@ def _ood() -> list[Case]:
 #: The simulator values nobody measured for this robot, each at both ends of its plausible
 #: range (sources in docs/physics.md and docs/localisation.md): a case's config section and
 #: values. Appended, never inserted: a case's evaluation seeds follow from its index.
-def _measured(name: str) -> dict[str, float]:
-    """The strength of one of Wong's measured soils as ``soil`` config values."""
-    s = WONG_SOILS[name]
-    return {"cohesion_kpa": s.cohesion_kpa, "friction_angle_deg": s.friction_angle_deg}
-
-
 SENSITIVITY: tuple[tuple[str, str, dict[str, Any]], ...] = (
     ("default soil", "soil", {}),
     ("soil friction 0.4", "soil", {"friction": 0.4}),
@@ -254,7 +248,7 @@ SENSITIVITY: tuple[tuple[str, str, dict[str, Any]], ...] = (
     # Appended, as a row's place sets its seeds: ridges that yield (sim.terramechanics), the
     # Summit-XL's tread on two of Wong's measured soils (a firmer and a looser one)
     *(
-        (f"ground yields: {name}", "soil", {"contact_width": 0.15, **_measured(name)})
+        (f"ground yields: {name}", "soil", {"contact_width": 0.15, **measured_strength(name)})
         for name in ("sandy loam 15 % (LLL)", "dry sand (LLL)")
     ),
 )

@@ -16,15 +16,17 @@ foundations", in Winterkorn & Fang, *Foundation Engineering Handbook*, ch. 3):
     g_q = g_γ = (1 − tan β)²,  g_c = g_q − (1 − g_q)/(N_c tan φ)
 
 A disc pressed harder than that sinks into the ridge instead of being pushed back by it: the
-soil flows (a rigid–plastic limit, no memory: the ridge is whole again for the next wheel).
-The cohesion and friction angle of real soils are in ``WONG_SOILS``; docs/physics.md, "Ridges
-that yield", has what they do to the ridges' guidance.
+soil flows, and the tyre model cuts its own copy of the height grid down under the disc (a
+rigid–plastic ground with memory: the next wheel meets the rut; ``sim.tyres``). The slope a
+capacity reads is the field's, or a cut bench's where flatter, so a rut's wall stands. The
+cohesion and friction angle of real soils are in ``WONG_SOILS``; docs/physics.md, "Ridges that
+yield", has what they do to the ridges' guidance.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from ..config import SoilConfig
 
@@ -115,12 +117,15 @@ def bearing_capacity(soil: SoilConfig, slope_deg: float = 0.0) -> float:
     return b.limit(math.tan(math.radians(slope_deg))) / area / 1000.0
 
 
-def with_measured_soil(base: SoilConfig, name: str) -> SoilConfig:
-    """``base`` on one of Wong's soils (its cohesion and friction angle)."""
-    from dataclasses import replace
-
+def measured_strength(name: str) -> dict[str, float]:
+    """One of Wong's soils as ``soil`` config values: its cohesion and friction angle."""
     s = WONG_SOILS[name]
-    return replace(base, cohesion_kpa=s.cohesion_kpa, friction_angle_deg=s.friction_angle_deg)
+    return {"cohesion_kpa": s.cohesion_kpa, "friction_angle_deg": s.friction_angle_deg}
+
+
+def with_measured_soil(base: SoilConfig, name: str) -> SoilConfig:
+    """``base`` on one of Wong's soils."""
+    return replace(base, **measured_strength(name))
 
 
 def bekker_sinkage(soil: MeasuredSoil, load: float, radius: float, width: float) -> float:
