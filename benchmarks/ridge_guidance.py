@@ -30,6 +30,7 @@ import agrinav_gym  # noqa: F401  (registers the envs)
 from agrinav_gym.config import SoilConfig
 from agrinav_gym.robot import RobotGeometry
 from agrinav_gym.sim.ridge_guidance import (
+    SUMMIT_TREAD,
     measured_soils,
     soil_variants,
     turn_ratio,
@@ -54,9 +55,10 @@ BLIND_SOILS = ("lean clay 22 % (WES)", "sandy loam 15 % (LLL)", "dry sand (LLL)"
 
 
 def blind_contacts() -> dict[str, dict]:
-    out: dict[str, dict] = {"point contact": {}, "tread 0.15 m": {"contact_width": 0.15}}
+    tread = {"contact_width": SUMMIT_TREAD}
+    out: dict[str, dict] = {"point contact": {}, f"tread {SUMMIT_TREAD:g} m": tread}
     for name in BLIND_SOILS:
-        out[f"tread 0.15 m, {name}"] = {"contact_width": 0.15, **measured_strength(name)}
+        out[f"tread {SUMMIT_TREAD:g} m, {name}"] = {**tread, **measured_strength(name)}
     return out
 
 
