@@ -33,7 +33,7 @@ from agrinav_gym.sim.ridge_guidance import (
     SUMMIT_TREAD,
     measured_soils,
     soil_variants,
-    turn_ratio,
+    turn_ratios,
     yield_variants,
 )
 from agrinav_gym.sim.terramechanics import (
@@ -103,7 +103,7 @@ def soil_table() -> None:
 
 
 def _ratios(title: str, soils: dict) -> dict[str, list[float]]:
-    ratios = {name: [turn_ratio(d, soil) for d in DEPTHS] for name, soil in tqdm(soils.items())}
+    ratios = {name: turn_ratios(DEPTHS, soil) for name, soil in tqdm(soils.items())}
     print(f"\n{title}")
     print(f"{'soil':30}" + "".join(f"{d:>7.3f}" for d in DEPTHS))
     for name, row in ratios.items():

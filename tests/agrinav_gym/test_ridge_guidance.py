@@ -7,7 +7,7 @@ import itertools
 
 import pytest
 
-from agrinav_gym.sim.ridge_guidance import ridged_plane, turn_ratio
+from agrinav_gym.sim.ridge_guidance import ridged_plane, turn_ratios
 
 
 def test_ridged_plane_puts_rows_on_crests_and_lanes_in_troughs() -> None:
@@ -17,7 +17,7 @@ def test_ridged_plane_puts_rows_on_crests_and_lanes_in_troughs() -> None:
 
 
 def test_turn_ratio_falls_monotonically_with_ridge_height() -> None:
-    ratios = [turn_ratio(d) for d in (0.0, 0.02, 0.05, 0.12)]
+    ratios = turn_ratios([0.0, 0.02, 0.05, 0.12])
     assert ratios[0] == 1.0  # the same ground twice: the same rate
     # Each step up in height takes away turn: a strictly falling curve, not noise around 1.
     assert all(b < a - 0.05 for a, b in itertools.pairwise(ratios)), ratios

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from agrinav_gym.config import RobotConfig, SoilConfig
-from agrinav_gym.sim.ridge_guidance import turn_ratio
+from agrinav_gym.sim.ridge_guidance import turn_ratios
 from agrinav_gym.sim.tyres import MAX_SLICES, TyreModel, tread_slices
 from agrinav_gym.sim.world import World
 from scenario_gen import Terrain
@@ -119,6 +119,6 @@ def test_a_robot_on_treads_stands_still_and_drives_straight() -> None:
 
 def test_ridges_guide_a_tread_less_as_they_grow_too() -> None:
     soil = replace(SoilConfig(), contact_width=0.15)
-    ratios = [turn_ratio(d, soil) for d in (0.0, 0.05, 0.12)]
+    ratios = turn_ratios([0.0, 0.05, 0.12], soil)
     assert ratios[0] == 1.0
     assert ratios[0] - 0.05 > ratios[1] > ratios[2] + 0.05, ratios

@@ -59,18 +59,25 @@ def achieved_yaw_rate(
         world.close()
 
 
-def turn_ratio(depth: float, soil: SoilConfig | None = None, row_spacing: float = 1.0) -> float:
-    """Yaw rate achieved in a furrow of ridges ``depth`` high over the rate on level ground."""
+def turn_ratios(
+    depths: list[float], soil: SoilConfig | None = None, row_spacing: float = 1.0
+) -> list[float]:
+    """Yaw rate achieved in a furrow of ridges of each of ``depths`` over the rate on level
+    ground (driven once for them all)."""
     soil = soil or SoilConfig()
     lane = 0.5 * row_spacing  # a furrow bottom: the lane centre
     level = achieved_yaw_rate(ridged_plane(0.0, row_spacing), soil, lane)
-    ridged = achieved_yaw_rate(ridged_plane(depth, row_spacing), soil, lane)
-    return ridged / level
+    return [achieved_yaw_rate(ridged_plane(d, row_spacing), soil, lane) / level for d in depths]
+
+
+def turn_ratio(depth: float, soil: SoilConfig | None = None, row_spacing: float = 1.0) -> float:
+    """``turn_ratios`` of one ridge height."""
+    return turn_ratios([depth], soil, row_spacing)[0]
 
 
 def sensitivity(depths: list[float], soils: dict[str, SoilConfig]) -> dict[str, list[float]]:
-    """``turn_ratio`` over ``depths`` for each named soil (the curve and its sensitivity)."""
-    return {name: [turn_ratio(d, soil) for d in depths] for name, soil in soils.items()}
+    """``turn_ratios`` over ``depths`` for each named soil (the curve and its sensitivity)."""
+    return {name: turn_ratios(depths, soil) for name, soil in soils.items()}
 
 
 def soil_variants(base: SoilConfig | None = None) -> dict[str, SoilConfig]:
