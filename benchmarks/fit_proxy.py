@@ -2,16 +2,17 @@
 
 For every species and catalog stage, ``agrinav_gym.tools.proxy_fit.fit_stage`` renders lanes with
 the mesh camera and searches (fill, base, reach) minimising the proxy's per-pixel depth
-difference. This script runs all fits, rewrites the table
-``src/agrinav_gym/render/proxy_fit.json`` and draws ``docs/img/proxy_fit.png``:
+difference. This script runs all fits on one planting's lanes, rewrites that planting's table
+(``src/agrinav_gym/render/proxy_fit.json`` for ridged lanes, ``proxy_fit_flat.json`` for flat
+ones) and draws ``docs/img/proxy_fit.png`` (``proxy_fit_flat.png``):
 
 * fitted parameters against growth, per species;
 * per-pixel depth difference, fitted against the former hand-tuned constants (0.2, 0.2, 0.9);
 * maize leaf reach by height, measured on the meshes, with the fitted leaf band.
 
-Run: ``python benchmarks/fit_proxy.py`` (a few minutes on 2 cores). ``--preset default
---no-write`` fits on flat planting instead of the table's ridges and prints, per stage, the
-shipped parameters' objective on the same flat lanes beside the refit's.
+Run: ``python benchmarks/fit_proxy.py --planting flat`` (about a minute on 2 cores; ``ridged``
+the default). Each stage's line prints, beside the fit, the other planting's table's objective
+on the same lanes (where that table is there).
 """
 
 from __future__ import annotations
@@ -25,8 +26,9 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from tqdm import tqdm
 
-from agrinav_gym.render.proxy_params import ProxyParams, proxy_params
-from agrinav_gym.tools.proxy_fit import FIT_PRESET, FitResult, fit_stage, write_table
+from agrinav_gym.config import PROXY_PLANTINGS
+from agrinav_gym.render.proxy_params import PLANTINGS, ProxyParams, fitted, proxy_params
+from agrinav_gym.tools.proxy_fit import FitResult, fit_stage, write_table
 from scenario_gen import CATALOG
 from scenario_gen.crops import crop_mesh
 
@@ -49,7 +51,7 @@ def reach_by_height(growth: float, bins: int = 20) -> tuple[np.ndarray, np.ndarr
     return (np.arange(bins) + 0.5) / bins, reach
 
 
-def figure(results: dict[str, list[tuple[float, FitResult]]], out: Path) -> None:
+def figure(results: dict[str, list[tuple[float, FitResult]]], out: Path, planting: str) -> None:
     fig = Figure(figsize=(13, 8.5))
     FigureCanvasAgg(fig)
     ax = fig.subplots(2, 2)
@@ -90,6 +92,7 @@ def figure(results: dict[str, list[tuple[float, FitResult]]], out: Path) -> None
     )
     b.legend(fontsize=7)
     b.grid(alpha=0.3)
+    fig.suptitle(f"proxy camera parameters fitted to the crop meshes on {planting} lanes")
     fig.tight_layout()
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=100)
@@ -100,15 +103,18 @@ def main() -> None:
     ap.add_argument("--species", nargs="*", default=list(SPECIES))
     ap.add_argument("--no-write", action="store_true", help="print only; leave the table")
     ap.add_argument(
-        "--preset",
-        default=FIT_PRESET,
-        help=f"the lanes' terrain (the table's: {FIT_PRESET}); another needs --no-write and "
-        "prints the shipped parameters' objective beside the refit's",
+        "--planting",
+        default="ridged",
+        choices=PROXY_PLANTINGS,
+        help="the lanes' planting, and the table written",
     )
     args = ap.parse_args()
-    compare = args.preset != FIT_PRESET
-    if compare and not args.no_write:
-        ap.error(f"--preset {args.preset}: the table is fitted on {FIT_PRESET}; add --no-write")
+    other = next(p for p in PROXY_PLANTINGS if p != args.planting)
+    try:
+        fitted(other)
+        compare = True
+    except FileNotFoundError:
+        compare = False
     jobs = [
         (name, float(CATALOG[name].growth_of_stage(s)))
         for name in args.species
@@ -117,15 +123,15 @@ def main() -> None:
     results: dict[str, list[tuple[float, FitResult]]] = {n: [] for n in args.species}
     t0 = time.perf_counter()
     for name, growth in tqdm(jobs, desc="fitting proxy stages"):
-        shipped = ProxyParams(*map(float, proxy_params(name, growth))) if compare else None
-        r = fit_stage(name, growth, preset=args.preset, reference=shipped)
+        shipped = ProxyParams(*map(float, proxy_params(name, growth, other))) if compare else None
+        r = fit_stage(name, growth, planting=args.planting, reference=shipped)
         results[name].append((growth, r))
         tqdm.write(
             f"{name:9s} growth {growth:.3f}: fill {r.params.fill:.2f} base {r.params.base:.2f} "
             f"reach {r.params.reach:.2f} | mean |dz| {r.depth[0]:.3f} m + lane width error "
             f"{r.lane[0]:.3f} m (hand-tuned constants: {r.start:.3f} m)"
             + (
-                f" | shipped {shipped.fill:.2f} {shipped.base:.2f} {shipped.reach:.2f}: "
+                f" | {other} table {shipped.fill:.2f} {shipped.base:.2f} {shipped.reach:.2f}: "
                 f"{r.reference:.3f} m"
                 if shipped is not None and r.reference is not None
                 else ""
@@ -133,9 +139,10 @@ def main() -> None:
         )
     print(f"fits took {time.perf_counter() - t0:.0f} s")
     if not args.no_write and set(args.species) == set(SPECIES):
-        table = write_table(results)
-        figure(results, ROOT / "docs/img/proxy_fit.png")
-        print(f"wrote {table} and docs/img/proxy_fit.png")
+        table = write_table(results, planting=args.planting)
+        img = "docs/img/" + PLANTINGS[args.planting].replace(".json", ".png")
+        figure(results, ROOT / img, args.planting)
+        print(f"wrote {table} and {img}")
 
 
 if __name__ == "__main__":

@@ -91,6 +91,10 @@ class SoilConfig:
     )
 
 
+#: the plantings the proxy camera's parameters are fitted on (``render.proxy_params``)
+PROXY_PLANTINGS = ("ridged", "flat")
+
+
 @dataclass(frozen=True)
 class CameraConfig:
     model: str = _f(
@@ -98,6 +102,13 @@ class CameraConfig:
         "'proxy': analytic cylinders fitted to the crop meshes (fast, RL); 'mesh': the crop "
         "meshes themselves, ray-cast with Embree (D455 stereo model, RGB, instance ids)",
         choices=("proxy", "mesh"),
+    )
+    proxy_fit: str = _f(
+        "ridged",
+        "proxy: the plant parameters fitted to the meshes on 'ridged' lanes (0.12 m ridges, the "
+        "camera in the furrow; every published proxy-camera result used them) or on 'flat' "
+        "planting (the default fields': docs/camera.md)",
+        choices=PROXY_PLANTINGS,
     )
     width: int = _f(64, "image width, pixels (848 for datasets)", 8, 1280)
     height: int = _f(48, "image height, pixels (480 for datasets)", 6, 800)

@@ -553,7 +553,7 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         self.world.load(scn.terrain, scn.rows.angle if scn.rows.curve is None else None)
         self.world.set_obstacles(scn.obstacles)  # a no-op while they are the same
         if self._fields_of is not scn:
-            self.plants = PlantField.from_scenario(scn)
+            self.plants = PlantField.from_scenario(scn, planting=self.cfg.camera.proxy_fit)
             self.field = FieldView(scn, self.plants, self._camera_scenes)
             self.contact = CropContact.from_scenario(scn, self.world.geometry)
             self.obstacle_contact = ObstacleContact.from_scenario(scn, self.world.geometry)

@@ -10,6 +10,7 @@ import pytest
 
 from agrinav_gym.render.proxy_params import (
     COLUMNS,
+    PLANTINGS,
     ProxyParams,
     fit_residuals,
     fitted,
@@ -23,9 +24,9 @@ from scenario_gen.errors import InputError
 HELD_OUT = 11  # lanes generated with another seed than the fit's
 
 
-def _check(name: str, growth: float) -> None:
-    dz_fit, dz_sd, dl_fit, dl_sd = fit_residuals(name, growth)
-    dz, dl = Comparison(name, growth, seed=HELD_OUT).errors(None)
+def _check(name: str, growth: float, planting: str) -> None:
+    dz_fit, dz_sd, dl_fit, dl_sd = fit_residuals(name, growth, planting)
+    dz, dl = Comparison(name, growth, seed=HELD_OUT, planting=planting).errors(None)
     n = len(dz)  # as many poses as the fit's
     # the held-out mean may exceed the fit's by at most three standard errors of the difference
     # of two means over n poses (the lane width has heavy tails: a leaf seen or not)
@@ -35,14 +36,26 @@ def _check(name: str, growth: float) -> None:
 
 
 @pytest.mark.parametrize(
-    ("name", "stage"),
-    [(n, s) for n in fitted() for s in range(1, CATALOG[n].stages + 1)],
+    ("planting", "name", "stage"),
+    [(p, n, s) for p in PLANTINGS for n in fitted(p) for s in range(1, CATALOG[n].stages + 1)],
 )
 def test_proxy_agrees_with_the_meshes_within_the_fit_on_held_out_lanes(
-    name: str, stage: int
+    planting: str, name: str, stage: int
 ) -> None:
-    """Per-pixel depth and the lane's visible width, every species and stage, unseen lanes."""
-    _check(name, float(CATALOG[name].growth_of_stage(stage)))
+    """Per-pixel depth and the lane's visible width, every table, species and stage, unseen
+    lanes of the table's planting."""
+    _check(name, float(CATALOG[name].growth_of_stage(stage)), planting)
+
+
+def test_on_flat_planting_the_flat_table_is_nearer_the_meshes() -> None:
+    """1.8 m maize, whose leaf band starts near the camera's height: on unseen flat lanes the
+    table fitted on flat lanes is nearer the meshes than the ridged lanes' table (it was fitted
+    for a camera 0.12 m lower against the plants)."""
+    growth = float(CATALOG["corn"].growth_of_stage(4))
+    cmp = Comparison("corn", growth, seed=HELD_OUT, planting="flat")
+    ridged = ProxyParams(*map(float, proxy_params("corn", growth, "ridged")))
+    flat = sum(e.mean() for e in cmp.errors(None))
+    assert flat < 0.8 * sum(e.mean() for e in cmp.errors(ridged))
 
 
 def test_the_fit_beats_the_former_hand_tuned_constants() -> None:
@@ -63,8 +76,14 @@ def test_fitted_parameters_interpolate_between_stages() -> None:
     assert all(t.shape[1] == 8 for t in fitted().values())
 
 
-def test_every_catalog_species_has_fitted_parameters() -> None:
-    assert set(fitted()) == set(CATALOG)
+@pytest.mark.parametrize("planting", PLANTINGS)
+def test_every_catalog_species_has_fitted_parameters(planting: str) -> None:
+    assert set(fitted(planting)) == set(CATALOG)
+
+
+def test_a_planting_without_a_table_is_named() -> None:
+    with pytest.raises(InputError, match="proxy fit planting: got 'bedded'; allowed: ridged, flat"):
+        proxy_params("corn", 0.5, "bedded")
 
 
 def test_the_written_table_is_what_the_runtime_reads() -> None:
@@ -72,9 +91,10 @@ def test_the_written_table_is_what_the_runtime_reads() -> None:
         (0.0, FitResult(ProxyParams(0.1, 1.0, 0.0), (0.01, 0.001), (0.0, 0.0), 0.2)),
         (1.0, FitResult(ProxyParams(0.3, 0.5, 1.2), (0.02, 0.002), (0.05, 0.01), 0.3)),
     ]
-    doc = table_document({"corn": rows})
+    doc = table_document({"corn": rows}, "flat")
     t = parse_table(doc)["corn"]
     assert t[1].tolist() == [1.0, 0.3, 0.5, 1.2, 0.02, 0.002, 0.05, 0.01]
+    assert doc["fitted_on"]["planting"] == "flat" and doc["fitted_on"]["preset"] == "default"
 
 
 @pytest.mark.parametrize(
@@ -192,13 +212,39 @@ def test_the_model_shape_follows_the_models_silhouette() -> None:
 
 
 def test_the_fit_lanes_follow_the_preset_asked() -> None:
-    """The table's lanes are ridged (the v1 envs'); a refit on flat planting draws flat ones."""
-    from agrinav_gym.tools.proxy_fit import FIT_PRESET, fit_scenes
+    """The ridged table's lanes are ridged (the v1 envs'); the flat table's are flat."""
+    from agrinav_gym.tools.proxy_fit import FIT_PRESETS, fit_scenes
 
     growth = float(CATALOG["corn"].growth_of_stage(2))
-    ridged = fit_scenes("corn", growth)
-    flat = fit_scenes("corn", growth, preset="default")
-    assert FIT_PRESET == "ridged" and len(ridged) == len(flat) == 2
+    ridged = fit_scenes("corn", growth, preset=FIT_PRESETS["ridged"])
+    flat = fit_scenes("corn", growth, preset=FIT_PRESETS["flat"])
+    assert len(ridged) == len(flat) == 2
     for r, f in zip(ridged, flat, strict=True):
         assert r.scenario.spec.furrows.enabled and not f.scenario.spec.furrows.enabled
         assert np.ptp(r.scenario.terrain.heights) > np.ptp(f.scenario.terrain.heights)
+
+
+def test_the_env_draws_the_proxies_from_the_table_its_config_names() -> None:
+    """``camera.proxy_fit`` picks the table: the same reset of a 1.2 m maize field observes
+    other depth with the flat table than with the ridged one (the default, unchanged), and its
+    plants are that table's."""
+    from agrinav_gym.render.proxy_plants import PlantField
+
+    from .helpers import TINY, make
+
+    over = {**TINY, "crop": {"stage": 3}}
+    depth = {}
+    for planting in (None, *PLANTINGS):
+        config = {} if planting is None else {"camera": {"proxy_fit": planting}}
+        env = make("AgriNav/FurrowFollowDepth-v3", config=config, scenario_overrides=over)
+        try:
+            obs, _ = env.reset(seed=3)
+            depth[planting] = obs["depth"]
+            u = env.unwrapped
+            assert u.plants is not None
+            direct = PlantField.from_scenario(u.scenario, planting=planting or "ridged")
+            np.testing.assert_array_equal(u.plants.radius, direct.radius)
+        finally:
+            env.close()
+    np.testing.assert_array_equal(depth[None], depth["ridged"])
+    assert np.abs(depth["flat"] - depth["ridged"]).mean() > 0.01

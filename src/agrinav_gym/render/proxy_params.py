@@ -1,10 +1,12 @@
-"""The proxy camera's plant parameters, read from the table the offline fit writes.
+"""The proxy camera's plant parameters, read from the tables the offline fit writes.
 
-``proxy_fit.json`` (beside this module) holds, per species and catalog stage, the core's
-``fill``, the leaf band's ``base`` and ``reach`` (see ``PlantField``) and the fit's residuals,
-which are the tolerances of the proxy-against-mesh test. ``agrinav_gym.tools.proxy_fit`` makes
-it (``python benchmarks/fit_proxy.py``); the runtime only reads it. Between stages the
-parameters are interpolated linearly in growth.
+Each table (beside this module) holds, per species and catalog stage, the core's ``fill``, the
+leaf band's ``base`` and ``reach`` (see ``PlantField``) and the fit's residuals, which are the
+tolerances of the proxy-against-mesh test. There is one table per planting the fit's lanes were
+made on (``PLANTINGS``): where the camera stands against the plants differs by the ridge height
+(in the furrow, the plants on the crests), so the parameters that best match the meshes differ
+too. ``agrinav_gym.tools.proxy_fit`` makes them (``python benchmarks/fit_proxy.py``); the
+runtime only reads them. Between stages the parameters are interpolated linearly in growth.
 """
 
 from __future__ import annotations
@@ -21,9 +23,13 @@ import numpy as np
 from scenario_gen.arrays import FloatArray
 from scenario_gen.errors import InputError
 
+from ..config import PROXY_PLANTINGS
+
 ParamsFn = Callable[[str, Any], tuple[Any, Any, Any]]
 
-TABLE_FILE = "proxy_fit.json"
+#: the fit's lanes → the table fitted on them: "ridged", the v1 envs' 0.12 m ridges (every
+#: published proxy-camera result used it); "flat", the default fields' flat planting
+PLANTINGS = dict(zip(PROXY_PLANTINGS, ("proxy_fit.json", "proxy_fit_flat.json"), strict=True))
 COLUMNS = (
     "growth",
     "fill",
@@ -46,18 +52,18 @@ class ProxyParams:
         return self.fill, self.base, self.reach
 
 
-def parse_table(doc: Any) -> dict[str, FloatArray]:
-    """The per-species tables of a ``proxy_fit.json`` document, checked: the columns are
-    ``COLUMNS`` and each species' rows rise in growth over [0, 1]."""
+def parse_table(doc: Any, source: str = PLANTINGS["ridged"]) -> dict[str, FloatArray]:
+    """The per-species tables of a proxy-fit document (``source``: its file, for errors),
+    checked: the columns are ``COLUMNS`` and each species' rows rise in growth over [0, 1]."""
     if not isinstance(doc, dict) or tuple(doc.get("columns", ())) != COLUMNS:
         got = doc.get("columns") if isinstance(doc, dict) else doc
-        raise InputError(f"{TABLE_FILE} columns", got, f"allowed: {list(COLUMNS)}")
+        raise InputError(f"{source} columns", got, f"allowed: {list(COLUMNS)}")
     species = doc.get("species")
     if not isinstance(species, dict) or not species:
-        raise InputError(f"{TABLE_FILE} species", species, "allowed: a mapping of species to rows")
+        raise InputError(f"{source} species", species, "allowed: a mapping of species to rows")
     out = {}
     for name, rows in species.items():
-        field = f"{TABLE_FILE} species.{name}"
+        field = f"{source} species.{name}"
         try:
             t = np.asarray(rows, np.float64)
         except (TypeError, ValueError):
@@ -73,14 +79,21 @@ def parse_table(doc: Any) -> dict[str, FloatArray]:
     return out
 
 
-@lru_cache(maxsize=1)
-def fitted() -> dict[str, FloatArray]:
-    text = resources.files(__package__).joinpath(TABLE_FILE).read_text()
-    return parse_table(json.loads(text))
+def check_planting(planting: Any) -> str:
+    if planting not in PLANTINGS:
+        raise InputError("proxy fit planting", planting, f"allowed: {', '.join(PLANTINGS)}")
+    return str(planting)
 
 
-def _table(name: str) -> FloatArray:
-    tables = fitted()
+@lru_cache(maxsize=len(PLANTINGS))
+def fitted(planting: str = "ridged") -> dict[str, FloatArray]:
+    """The table fitted on ``planting``'s lanes, per species."""
+    text = resources.files(__package__).joinpath(PLANTINGS[check_planting(planting)]).read_text()
+    return parse_table(json.loads(text), PLANTINGS[planting])
+
+
+def _table(name: str, planting: str) -> FloatArray:
+    tables = fitted(planting)
     if name not in tables:
         raise InputError(
             "species (proxy camera parameters)",
@@ -91,9 +104,12 @@ def _table(name: str) -> FloatArray:
     return tables[name]
 
 
-def proxy_params(name: str, growth: Any) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Fitted (fill, base, reach) of species ``name`` at ``growth`` (scalar or array)."""
-    table = _table(name)
+def proxy_params(
+    name: str, growth: Any, planting: str = "ridged"
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Fitted (fill, base, reach) of species ``name`` at ``growth`` (scalar or array), from the
+    table fitted on ``planting``."""
+    table = _table(name, planting)
     g = np.asarray(growth, np.float64)
     return (
         np.interp(g, table[:, 0], table[:, 1]),
@@ -102,9 +118,11 @@ def proxy_params(name: str, growth: Any) -> tuple[FloatArray, FloatArray, FloatA
     )
 
 
-def fit_residuals(name: str, growth: float) -> tuple[float, float, float, float]:
+def fit_residuals(
+    name: str, growth: float, planting: str = "ridged"
+) -> tuple[float, float, float, float]:
     """The fit's (mean |Δz| per pixel, its SD over poses, mean |Δ lane width|, its SD), m,
-    at ``growth`` (interpolated between stages)."""
-    table = _table(name)
+    at ``growth`` (interpolated between stages), in the table fitted on ``planting``."""
+    table = _table(name, planting)
     out = [float(np.interp(growth, table[:, 0], table[:, k])) for k in range(4, 8)]
     return out[0], out[1], out[2], out[3]

@@ -21,6 +21,7 @@ so no ray passes between them). They follow the plants' cylinders and are labell
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -35,7 +36,7 @@ from scenario_gen.crops import WEED_SPECIES
 from scenario_gen.models import model_shape
 from scenario_gen.obstacles import STALK, Obstacles
 
-from .proxy_params import ParamsFn, proxy_params
+from .proxy_params import ParamsFn, check_planting, proxy_params
 
 
 @dataclass(frozen=True, eq=False)
@@ -55,13 +56,18 @@ class PlantField:
     obstacle: NDArray[np.int64] | None = None
 
     @classmethod
-    def from_scenario(cls, scn: Scenario, params: ParamsFn | None = None) -> PlantField:
+    def from_scenario(
+        cls, scn: Scenario, params: ParamsFn | None = None, planting: str = "ridged"
+    ) -> PlantField:
         """The proxies of ``scn``'s plants; ``params(species, growth)`` gives (fill, base, reach)
-        (default: the fitted ``proxy_params``, or the user model's own shape)."""
+        (default: ``proxy_params`` from the table fitted on ``planting``, or the user model's
+        own shape)."""
+        check_planting(planting)
         user = (
             model_shape(scn.crop_model) if scn.crop_model is not None and params is None else None
         )
-        params = params or proxy_params
+        if params is None:
+            params = functools.partial(proxy_params, planting=planting)
         p = scn.plants
         names = np.unique(p.species)
         radius = np.empty(len(p))

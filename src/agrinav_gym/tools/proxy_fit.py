@@ -3,22 +3,23 @@
 The proxy (``PlantField``) draws a plant as a vertical capped cylinder of radius
 ``fill × canopy width`` from its base to its top and — for planar-leaved maize — a leaf band
 from ``base × height`` to the top whose radius is ``reach × half the canopy width ×
-from scenario_gen.arrays import FloatArray
 |sin(yaw − row angle)|`` (the leaf plane's extent across the row). The three numbers are fitted
-per species and catalog stage: on lanes of that crop as the v1 envs made them (the ``ridged``
-preset's terrain with its 0.12 m furrows, rows 0.75 and 1 m apart, 0.18 m in the row, random
-yaw, heights ±8 %) they minimise, over 16 lane-centre poses with heading (±6°) and lateral (±0.1
-m) offsets, the sum of two quantities, both in metres: the mean absolute per-pixel difference
-between the proxy's 64 × 48 depth image and the mesh camera's — geometry against geometry (no
-noise, no stereo invalidation, no near limit; nothing within range reads ``max_range``) — and
-the absolute difference of the lane's visible width at the camera's height (``lane_width``).
-Per-pixel agreement alone prefers a proxy without leaves (a thin leaf is missed by most pixels)
-and then misses the leaves closing the lane; the lane width alone ignores the rest of the image.
-The residuals are kept: they are the tolerances of the proxy-against-mesh test. ``fit_stage``
-does one fit (coordinate descent over grids); ``benchmarks/fit_proxy.py`` runs them all and
-``write_table`` stores the result in ``agrinav_gym/render/proxy_fit.json``, the table the
-runtime reads (``render.proxy_params``); the figure is docs/camera.md's. This module is an
-offline tool: nothing at run time imports it.
+per species and catalog stage, once per planting (``FIT_PRESETS``): on lanes of that crop —
+ridged as the v1 envs made them (the ``ridged`` preset's terrain with its 0.12 m furrows, the
+camera in the furrow) or flat as the default fields are (the ``default`` preset's) — rows 0.75
+and 1 m apart, 0.18 m in the row, random yaw, heights ±8 %, they minimise, over 16 lane-centre
+poses with heading (±6°) and lateral (±0.1 m) offsets, the sum of two quantities, both in
+metres: the mean absolute per-pixel difference between the proxy's 64 × 48 depth image and the
+mesh camera's — geometry against geometry (no noise, no stereo invalidation, no near limit;
+nothing within range reads ``max_range``) — and the absolute difference of the lane's visible
+width at the camera's height (``lane_width``). Per-pixel agreement alone prefers a proxy
+without leaves (a thin leaf is missed by most pixels) and then misses the leaves closing the
+lane; the lane width alone ignores the rest of the image. The residuals are kept: they are the
+tolerances of the proxy-against-mesh test. ``fit_stage`` does one fit (coordinate descent over
+grids); ``benchmarks/fit_proxy.py`` runs them all and ``write_table`` stores the result as the
+planting's table beside ``render/proxy_params.py`` (``proxy_params.PLANTINGS``), which the
+runtime reads; the figures are docs/camera.md's. This module is an offline tool: nothing at run
+time imports it.
 """
 
 from __future__ import annotations
@@ -39,7 +40,7 @@ from scenario_gen.crops import WEED_SPECIES
 
 from ..config import EnvConfig
 from ..render.mesh_scene import MeshScene
-from ..render.proxy_params import COLUMNS, TABLE_FILE, ProxyParams, parse_table
+from ..render.proxy_params import COLUMNS, PLANTINGS, ProxyParams, parse_table
 from ..render.proxy_plants import PlantField
 from ..robot import RobotGeometry, robot_interface
 from ..sensors.depth import DepthCamera
@@ -58,9 +59,8 @@ LANE_RANGE = (0.2, 3.0)  # m ahead of the camera
 LANE_CAP = 1.0  # m: a side with nothing nearer counts as this far
 LANE_MIN_POINTS = 0.01  # of the image's pixels: fewer on a side (stray leaf tips) close nothing
 ROW_SPACINGS = (0.75, 1.0)
-#: the terrain the shipped table was fitted on (the v1 envs' ridges); ``benchmarks/fit_proxy.py
-#: --preset default --no-write`` refits on flat planting and compares
-FIT_PRESET = "ridged"
+#: each table's planting → the scenario preset whose terrain its lanes are drawn on
+FIT_PRESETS = {"ridged": "ridged", "flat": "default"}
 POSE_YAW_DEG = (-6.0, 6.0)
 POSE_LATERAL = (-0.1, 0.1)
 
@@ -72,7 +72,9 @@ class FitScene:
     poses: tuple[tuple[FloatArray, FloatArray], ...]  # (rot, pos) of base_link
 
 
-def fit_scenes(name: str, growth: float, seed: int = 0, preset: str = FIT_PRESET) -> list[FitScene]:
+def fit_scenes(
+    name: str, growth: float, seed: int = 0, preset: str = FIT_PRESETS["ridged"]
+) -> list[FitScene]:
     """Lanes of species ``name`` at ``growth`` on ``preset``'s terrain and the camera poses the
     fit uses."""
     import scenario_gen as sg
@@ -161,14 +163,14 @@ class FitResult:
 class Comparison:
     """Mesh-camera references of a set of lanes and poses, and the proxy's errors against them."""
 
-    def __init__(self, name: str, growth: float, seed: int = 0, preset: str = FIT_PRESET) -> None:
-
+    def __init__(self, name: str, growth: float, seed: int = 0, planting: str = "ridged") -> None:
+        self.planting = planting
         cfg = EnvConfig.from_dict({"camera": {"min_range": 0.0}})
         self.model = robot_interface(cfg, RobotGeometry.from_urdf()).camera
         self.far = cfg.camera.max_range
         self.proxy = DepthCamera(cfg.camera, self.model)
         mesh = MeshCamera(cfg.camera, self.model)
-        self.scenes = fit_scenes(name, growth, seed, preset)
+        self.scenes = fit_scenes(name, growth, seed, FIT_PRESETS[planting])
         self.refs = []
         for fs in self.scenes:
             ms = MeshScene.from_scenario(fs.scenario)
@@ -176,11 +178,11 @@ class Comparison:
         self.ref_lanes = [[lane_width(d, self.model) for d in ref] for ref in self.refs]
 
     def errors(self, par: ProxyParams | None) -> tuple[FloatArray, FloatArray]:
-        """Per pose: mean |Δz| per pixel and |Δ lane width| (``None``: the fitted model)."""
+        """Per pose: mean |Δz| per pixel and |Δ lane width| (``None``: the planting's table)."""
         dz, dl = [], []
         for fs, ref, lanes in zip(self.scenes, self.refs, self.ref_lanes, strict=True):
             fn = None if par is None else (lambda _n, _g: par.tuple())
-            field = PlantField.from_scenario(fs.scenario, fn)
+            field = PlantField.from_scenario(fs.scenario, fn, planting=self.planting)
             for (r, p), zm, lm in zip(fs.poses, ref, lanes, strict=True):
                 zp = self.proxy.draw(r, p, fs.scenario.terrain, field, None).depth
                 dz.append(_depth_error(zp, zm, self.far))
@@ -192,13 +194,13 @@ def fit_stage(
     name: str,
     growth: float,
     sweeps: int = 2,
-    preset: str = FIT_PRESET,
+    planting: str = "ridged",
     reference: ProxyParams | None = None,
 ) -> FitResult:
     """Fit (fill, base, reach) for species ``name`` at ``growth`` (see the module docstring) on
-    ``preset``'s terrain: the best of a coarse grid, then coordinate descent over the fine
+    ``planting``'s lanes: the best of a coarse grid, then coordinate descent over the fine
     grids; ``reference``'s objective on the same lanes is kept beside it."""
-    cmp = Comparison(name, growth, preset=preset)
+    cmp = Comparison(name, growth, planting=planting)
     cache: dict[ProxyParams, float] = {}
 
     def error(par: ProxyParams) -> float:
@@ -234,8 +236,11 @@ def fit_stage(
     )
 
 
-def table_document(results: dict[str, list[tuple[float, FitResult]]]) -> dict[str, Any]:
-    """The ``proxy_fit.json`` document of per-species ``(growth, FitResult)`` lists."""
+def table_document(
+    results: dict[str, list[tuple[float, FitResult]]], planting: str = "ridged"
+) -> dict[str, Any]:
+    """The table document of per-species ``(growth, FitResult)`` lists fitted on
+    ``planting``'s lanes."""
     species = {
         name: [
             [
@@ -257,7 +262,8 @@ def table_document(results: dict[str, list[tuple[float, FitResult]]]) -> dict[st
         "catalog stage. Written by benchmarks/fit_proxy.py (agrinav_gym.tools.proxy_fit); "
         "read by agrinav_gym.render.proxy_params.",
         "fitted_on": {
-            "preset": FIT_PRESET,
+            "planting": planting,
+            "preset": FIT_PRESETS[planting],
             "row_spacing_m": list(ROW_SPACINGS),
             "poses_per_lane": 8,
             "image": [64, 48],
@@ -265,17 +271,20 @@ def table_document(results: dict[str, list[tuple[float, FitResult]]]) -> dict[st
         "columns": list(COLUMNS),
         "species": species,
     }
-    parse_table(doc)  # what the runtime would refuse is not written
+    parse_table(doc, PLANTINGS[planting])  # what the runtime would refuse is not written
     return doc
 
 
 def write_table(
-    results: dict[str, list[tuple[float, FitResult]]], path: Path | None = None
+    results: dict[str, list[tuple[float, FitResult]]],
+    path: Path | None = None,
+    planting: str = "ridged",
 ) -> Path:
-    """Store the fit as the runtime's table (default: beside ``render/proxy_params.py``)."""
-    here = Path(__file__).resolve().parent.parent / "render" / TABLE_FILE
+    """Store the fit as the runtime's table of ``planting`` (default: beside
+    ``render/proxy_params.py``)."""
+    here = Path(__file__).resolve().parent.parent / "render" / PLANTINGS[planting]
     out = path or here
     tmp = out.with_suffix(".tmp")
-    tmp.write_text(json.dumps(table_document(results), indent=1) + "\n")
+    tmp.write_text(json.dumps(table_document(results, planting), indent=1) + "\n")
     tmp.replace(out)
     return out
