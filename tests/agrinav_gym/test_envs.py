@@ -206,6 +206,9 @@ def test_registration_is_idempotent_and_namespaced() -> None:
             "## Version History",
         ):
             assert section in doc, (env_id, section)
+        # the history names the registered version, as Gymnasium's envs do
+        version = env_id.rpartition("-v")[2]
+        assert f"* v{version}:" in doc.partition("## Version History")[2], env_id
 
 
 def test_rgb_array_render() -> None:

@@ -38,6 +38,10 @@ class FieldRouteEnv(AgriNavEnv):
     As ``AgriNav/FurrowFollow-v3``.
 
     ## Version History
+    * v3: at reset the robot settles on its tyres, wheels held, before the first observation
+      (the IMU reads gravity from the first step); the tyre model, the EKF and the route
+      tracking in compiled kernels where the extension is built (tyres and route to the bit,
+      the EKF to rounding).
     * v2: fields planted flat by default (roughness, no ridges; ``ridged`` preset for
       ridge-tilled fields): in v1 the 0.12 m ridges under every field steered the robot.
     * v1: default fields drivable (1 m rows, stalk-vs-footprint contact), tyre–soil drive

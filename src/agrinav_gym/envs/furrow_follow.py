@@ -73,6 +73,10 @@ class FurrowFollowEnv(AgriNavEnv):
     ``reset(options={"scenario": ..., "lane": i})`` switches scenario or lane.
 
     ## Version History
+    * v3: at reset the robot settles on its tyres, wheels held, before the first observation
+      (the IMU reads gravity from the first step); the tyre model, the EKF and the route
+      tracking in compiled kernels where the extension is built (tyres and route to the bit,
+      the EKF to rounding).
     * v2: fields planted flat by default (roughness, no ridges; ``ridged`` preset for
       ridge-tilled fields): in v1 the 0.12 m ridges under every field steered the robot.
     * v1: default fields drivable (1 m rows, stalk-vs-footprint contact), tyre–soil drive
@@ -90,7 +94,10 @@ class FurrowFollowDepthEnv(FurrowFollowEnv):
     """
     ## Description
     ``FurrowFollow`` from the depth camera alone: the lane must be found in the D455-like depth
-    image; no GNSS and no route observation.
+    image; no GNSS and no route observation. The default camera draws plants as proxies fitted
+    to the crop meshes (``config.camera.proxy_fit`` names the table); for crops at or above the
+    camera's 0.66 m they do not give the meshes' outcome (docs/camera.md, "Two tables"), so
+    use ``camera.model="mesh"`` there.
 
     ## Action Space
     As ``AgriNav/FurrowFollow-v3``.
@@ -111,6 +118,10 @@ class FurrowFollowDepthEnv(FurrowFollowEnv):
     As ``AgriNav/FurrowFollow-v3``.
 
     ## Version History
+    * v3: at reset the robot settles on its tyres, wheels held, before the first observation
+      (the IMU reads gravity from the first step); the tyre model, the EKF and the route
+      tracking in compiled kernels where the extension is built (tyres and route to the bit,
+      the EKF to rounding).
     * v2: fields planted flat by default (roughness, no ridges; ``ridged`` preset for
       ridge-tilled fields): in v1 the 0.12 m ridges under every field steered the robot.
     * v1: default fields drivable (1 m rows, stalk-vs-footprint contact), tyre–soil drive
