@@ -1,4 +1,5 @@
 import math
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -194,3 +195,23 @@ def test_tuned_parameters_are_shipped_and_loaded(name: str) -> None:
         for key, value in chosen.items():
             lo, hi = SEARCH[name][key]
             assert lo <= value <= hi, key
+
+
+BENCHMARK_PARAMS = sorted(
+    p
+    for p in (Path(__file__).parents[2] / "benchmarks").glob("*.yaml")
+    if p.name.split("_")[0] in ("dwb", "rpp", "stanley")
+)
+
+
+@pytest.mark.parametrize("path", BENCHMARK_PARAMS, ids=lambda p: p.name)
+def test_every_shipped_controller_file_loads_as_its_controller(path: Path) -> None:
+    """The parameter files benchmark.md's commands name (``NAME:benchmarks/FILE.yaml``) build
+    their controller: a key the controller no longer has would stop a published command."""
+    name = path.name.split("_")[0]
+    env = gym.make("AgriNav/FieldRoute-v3", observations=list(OBSERVATION_KEYS))
+    try:
+        pol = make_policy(f"{name}:{path}", env)
+        assert pol.describe()
+    finally:
+        env.close()
