@@ -251,6 +251,9 @@ SENSITIVITY: tuple[tuple[str, str, dict[str, Any]], ...] = (
         (f"ground yields: {name}", "soil", {"contact_width": 0.15, **measured_strength(name)})
         for name in ("sandy loam 15 % (LLL)", "dry sand (LLL)")
     ),
+    # The proxy camera's plant parameters (DWB's costmap reads its depth): the table fitted on
+    # flat lanes instead of the ridged lanes' default; paired with "default soil"
+    ("proxy camera fitted on flat lanes", "camera", {"proxy_fit": "flat"}),
 )
 
 
@@ -258,13 +261,14 @@ def _sensitivity() -> list[Case]:
     """The ranking with each assumed simulator value at the ends of its range: soil values on
     the `unseen` fields (flat and ridged: where the soil decides how much a ridge steers),
     foliage loss under 2.5 m maize over the antenna (where the GNSS fix depends on it), open-sky
-    multipath slips of RTK fixed on the `unseen` fields."""
+    multipath slips of RTK fixed and the proxy camera's fitted table on the `unseen` fields."""
     (base,) = _unseen()
     cases = []
     first: dict[str, int] = {}  # every case of a kind drives the first one's fields and seeds
     for i, (group, kind, values) in enumerate(SENSITIVITY):
-        # the multipath rows pair with the default soil row: every value at its default
-        paired = 0 if kind == "multipath" else first.setdefault(kind, i)
+        # the multipath and camera rows pair with the default soil row: every value at its
+        # default
+        paired = 0 if kind in ("multipath", "camera") else first.setdefault(kind, i)
         if kind == "foliage":
             config = {**base.config, "gnss": {**RTK_EKF["gnss"], "fix": values}}
             over = {**PAPER_FIELD, "crop": {"stage": 5}}
@@ -280,8 +284,8 @@ def _sensitivity() -> list[Case]:
                 )
             )
             continue
-        if kind == "soil":
-            config = {**base.config, "soil": values}
+        if kind in ("soil", "camera"):
+            config = {**base.config, kind: values}
         else:
             config = {**base.config, "gnss": {**RTK_EKF["gnss"], "fix": values}}
         cases.append(

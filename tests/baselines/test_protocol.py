@@ -215,6 +215,8 @@ def test_published_sensitivity_rows_keep_their_places() -> None:
         "soil shear modulus 0.05 m", "tread 0.15 m", "tread 0.25 m",
         "canopy 2.5 m, foliage 0.4 dB/m", "canopy 2.5 m, foliage 2 dB/m",
         "multipath slips every 120 s", "no multipath slips",
+        "ground yields: sandy loam 15 % (LLL)", "ground yields: dry sand (LLL)",
+        "proxy camera fitted on flat lanes",
     ]  # fmt: skip
     assert [c.group for c in suite("sensitivity")][: len(published)] == published
 
@@ -229,10 +231,12 @@ def test_sensitivity_cases_drive_the_same_fields_and_seeds_as_their_reference(
     cases = suite("sensitivity")
     soil = [c for c in cases if "soil" in c.config]
     assert len(soil) >= 3 and {c.seeds_of for c in soil} == {cases.index(soil[0])}
-    # the multipath cases: the default row's fields and seeds, only the slip rate set
+    # the multipath and camera cases: the default row's fields and seeds, only their value set
     slips = [c for c in cases if "multipath_mtbf_s" in c.config.get("gnss", {}).get("fix", {})]
-    assert len(slips) == 2 and {c.seeds_of for c in slips} == {0}
-    for c in slips:
+    camera = [c for c in cases if "camera" in c.config]
+    assert len(slips) == 2 and len(camera) == 1
+    for c, key in [(c, "gnss") for c in slips] + [(c, "camera") for c in camera]:
+        assert c.seeds_of == 0
         assert (c.overrides, c.randomize, c.env_id) == (
             cases[0].overrides,
             cases[0].randomize,
@@ -240,8 +244,8 @@ def test_sensitivity_cases_drive_the_same_fields_and_seeds_as_their_reference(
         )
         # the reference row sets the soil to its defaults ({}), this row leaves it at them
         assert cases[0].config["soil"] == {}
-        assert {k: v for k, v in c.config.items() if k != "gnss"} == {
-            k: v for k, v in cases[0].config.items() if k not in ("gnss", "soil")
+        assert {k: v for k, v in c.config.items() if k != key} == {
+            k: v for k, v in cases[0].config.items() if k not in (key, "soil")
         }
     out = tmp_path / "sens"
     picked = f"{soil[0].group};{soil[1].group}"
