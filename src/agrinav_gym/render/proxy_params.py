@@ -14,7 +14,7 @@ from __future__ import annotations
 import json
 from collections.abc import Callable
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cache
 from importlib import resources
 from typing import Any
 
@@ -85,7 +85,7 @@ def check_planting(planting: Any) -> str:
     return str(planting)
 
 
-@lru_cache(maxsize=len(PLANTINGS))
+@cache  # one entry per valid call: a planting that is refused raises and is not kept
 def fitted(planting: str = "ridged") -> dict[str, FloatArray]:
     """The table fitted on ``planting``'s lanes, per species."""
     text = resources.files(__package__).joinpath(PLANTINGS[check_planting(planting)]).read_text()

@@ -38,7 +38,7 @@ from scenario_gen import CATALOG, Scenario
 from scenario_gen.arrays import FloatArray
 from scenario_gen.crops import WEED_SPECIES
 
-from ..config import EnvConfig
+from ..config import PROXY_PLANTINGS, EnvConfig
 from ..render.mesh_scene import MeshScene
 from ..render.proxy_params import COLUMNS, PLANTINGS, ProxyParams, parse_table
 from ..render.proxy_plants import PlantField
@@ -60,7 +60,7 @@ LANE_CAP = 1.0  # m: a side with nothing nearer counts as this far
 LANE_MIN_POINTS = 0.01  # of the image's pixels: fewer on a side (stray leaf tips) close nothing
 ROW_SPACINGS = (0.75, 1.0)
 #: each table's planting → the scenario preset whose terrain its lanes are drawn on
-FIT_PRESETS = {"ridged": "ridged", "flat": "default"}
+FIT_PRESETS = dict(zip(PROXY_PLANTINGS, ("ridged", "default"), strict=True))
 POSE_YAW_DEG = (-6.0, 6.0)
 POSE_LATERAL = (-0.1, 0.1)
 
