@@ -135,7 +135,7 @@ class World:
         )
         self._terrain = terrain
         self.tyres.reset(terrain)
-        self.patch = TerrainPatch(cid, terrain, self.soil.friction, row_angle)
+        self.patch = TerrainPatch(cid, terrain, self.soil.friction, row_angle, self._reach)
         self.robot = -1
         if self.obstacles is not None:  # resetSimulation removed their bodies and shapes
             self.obstacles.forget()
@@ -315,42 +315,64 @@ class World:
 
 
 class TerrainPatch:
-    """The physics ground: a fixed-size heightfield window of the terrain around the robot.
+    """The physics ground: a heightfield window of the terrain around the robot.
 
     pybullet's heightfield creation grows faster than linearly with its size (≈1 s for 360k
     samples here, and a 100k-plant field's terrain holds millions), so the ground is a window
-    of ``PATCH_M`` metres that is refilled in place (``replaceHeightfieldIndex``) when the robot
-    nears its edge. It moves by whole grid cells, so the surface under the wheels is the same
-    bits before and after a move.
+    that is refilled in place (``replaceHeightfieldIndex``) when the robot nears its edge. It
+    moves by whole grid cells, so the surface under the wheels is the same bits before and
+    after a move.
+
+    Only the chassis meets this ground (the tyre model is the wheels' contact with the soil,
+    ``obstacle_bodies`` "Collision groups"), so the window needs to hold the ground within the
+    robot's reach, and a control step's travel more: the robot stays ``margin`` (its reach +
+    ``MARGIN_M``) inside the window's edge. A refill costs pybullet ≈ 0.3 µs a sample (it
+    rebuilds the shape's ray accelerator), linear in the window's area, and comes every
+    ``L - a`` metres driven along the heading, ``a = 2·margin + 1`` m and a cell (the window is
+    laid ahead of the robot, ``follow``), so a window costs ``L·W / (L - a)`` per metre. A
+    square one costs least at ``L = 2·a``; rows that run near an axis get one ``LONG_M``
+    along them and ``2·margin + 2`` across (a metre of room each side of the lane before a
+    refill). Where and when the window moves changes nothing the robot feels unless the
+    chassis touches the ground.
 
     pybullet keeps a heightfield's original height range (its centring offset and its bounding
     box) when the data is replaced, so every window pins its two far corner samples to the
     terrain's global minimum and maximum: the range never changes and the body stays at one
-    height. Those corners are always more than RECENTRE_M from the robot.
+    height. Those corners are always more than ``margin`` from the robot, beyond its reach.
     """
 
-    PATCH_M = 24.0  # side of a square window (rows at an angle)
-    LONG_M, SHORT_M = 40.0, 14.0  # a window elongated along rows that run near an axis
-    RECENTRE_M = 5.0
+    LONG_M = 40.0  # a window's length along rows that run near an axis
+    MARGIN_M = 1.0  # beyond the robot's reach, as the obstacles' window (WINDOW_MARGIN)
 
     def __init__(
-        self, client: int, terrain: Terrain, friction: float, row_angle: float | None = None
+        self,
+        client: int,
+        terrain: Terrain,
+        friction: float,
+        row_angle: float | None = None,
+        reach: float = 1.0,
     ) -> None:
         self.client = client
         self.terrain = terrain
+        self.margin = reach + self.MARGIN_M
+        m, s = self.margin, terrain.spacing
         ny, nx = terrain.shape
-        # Refills cost ∝ window area and come every (length − 2·RECENTRE_M) of travel, so a
-        # window long along the lanes refills about half as often for the same cost.
-        wx = wy = self.PATCH_M
+        wx = wy = 2.0 * (2.0 * m + 1.0 + s)
         if row_angle is not None:
-            c, s = abs(math.cos(row_angle)), abs(math.sin(row_angle))
-            if max(c, s) > 0.97:
-                wx, wy = (self.LONG_M, self.SHORT_M) if c > s else (self.SHORT_M, self.LONG_M)
-        self.nx = min(nx, round(wx / terrain.spacing) + 1)
-        self.ny = min(ny, round(wy / terrain.spacing) + 1)
+            c, sn = abs(math.cos(row_angle)), abs(math.sin(row_angle))
+            if max(c, sn) > 0.97:
+                long, short = max(self.LONG_M, wx), 2.0 * m + 2.0
+                wx, wy = (long, short) if c > sn else (short, long)
+        # snapping to whole cells moves a window's centre up to a cell from where it was
+        # asked to be: two cells more than the margin each side of the centre, so that a
+        # move never leaves the robot past its recentre bound
+        least = 2.0 * (m + 2.0 * s)
+        self.nx = min(nx, math.ceil(max(wx, least) / s) + 1)
+        self.ny = min(ny, math.ceil(max(wy, least) / s) + 1)
         self.i0 = self.j0 = -1
         self.shape = -1
         self.body = -1
+        self._zrange = (float(terrain.heights.min()), float(terrain.heights.max()))
         self._friction = friction
         self.follow(
             terrain.x0 + 0.5 * (nx - 1) * terrain.spacing,
@@ -366,10 +388,11 @@ class TerrainPatch:
         return min(max(i, 0), ny - self.ny), min(max(j, 0), nx - self.nx)
 
     def follow(self, x: float, y: float, force: bool = False, heading: float | None = None) -> bool:
-        """Recentre if (x, y) is within RECENTRE_M of the patch edge; True if moved.
+        """Recentre if (x, y) is within ``margin`` of the patch edge; True if moved.
 
-        With a ``heading`` the new window lies ahead of the robot, which then sits RECENTRE_M
-        from its trailing edge: the next move is twice as far away.
+        With a ``heading`` the new window lies ahead of the robot, which then sits ``margin``
+        + 1 m (and a cell) from its trailing edge: the next move is as far away as the window
+        allows.
         """
         t = self.terrain
         if not force and self.shape >= 0:
@@ -377,15 +400,17 @@ class TerrainPatch:
             cx = t.x0 + (self.j0 + 0.5 * (self.nx - 1)) * s
             cy = t.y0 + (self.i0 + 0.5 * (self.ny - 1)) * s
             hx, hy = 0.5 * (self.nx - 1) * s, 0.5 * (self.ny - 1) * s
-            if abs(x - cx) < hx - self.RECENTRE_M and abs(y - cy) < hy - self.RECENTRE_M:
+            if abs(x - cx) < hx - self.margin and abs(y - cy) < hy - self.margin:
                 return False
         if heading is not None and not force:
             s_ = self.terrain.spacing
             hx, hy = 0.5 * (self.nx - 1) * s_, 0.5 * (self.ny - 1) * s_
             ch, sh = math.cos(heading), math.sin(heading)
-            # as far ahead as the window allows along the heading, RECENTRE_M + 1 m of margin
-            ax = (hx - self.RECENTRE_M - 1.0) / max(abs(ch), 1e-9)
-            ay = (hy - self.RECENTRE_M - 1.0) / max(abs(sh), 1e-9)
+            # as far ahead as the window allows along the heading: margin + 1 m behind, and a
+            # cell for the snapping
+            back = self.margin + 1.0 + s_
+            ax = (hx - back) / max(abs(ch), 1e-9)
+            ay = (hy - back) / max(abs(sh), 1e-9)
             ahead = max(0.0, min(ax, ay))
             x, y = x + ahead * ch, y + ahead * sh
         i0, j0 = self._window(x, y)
@@ -393,7 +418,7 @@ class TerrainPatch:
             return False
         self.i0, self.j0 = i0, j0
         h = t.heights[i0 : i0 + self.ny, j0 : j0 + self.nx].copy()
-        zmin, zmax = float(t.heights.min()), float(t.heights.max())
+        zmin, zmax = self._zrange
         h[0, 0], h[-1, -1] = zmin, zmax
         kwargs: dict[str, Any] = {}
         if self.shape >= 0:
