@@ -6,7 +6,7 @@ are inside the row above them. "raw physics" is what ``bench_env.py`` divides by
 command and the physics substeps (tyre model + pybullet). The timers cost ≈ 0.2 µs each, so
 the parts add up to a little more than an untimed step.
 
-    python benchmarks/profile_env.py [--steps 400] [--repeat 5] [--localisation ekf|blend]
+    python benchmarks/profile_env.py [--steps 400] [--repeat 5] [--localisation KIND]
 
 With ``--cprofile`` it prints cProfile's 30 most expensive functions instead (cProfile's own
 overhead inflates pure-Python code several times: use it to find functions, the timer table
@@ -176,7 +176,9 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--steps", type=int, default=400)
     ap.add_argument("--repeat", type=int, default=5)
-    ap.add_argument("--localisation", default="ekf", choices=("ekf", "blend", "ideal"))
+    ap.add_argument(
+        "--localisation", default="ekf", choices=("ekf", "robot_localization", "blend", "ideal")
+    )
     ap.add_argument("--cprofile", action="store_true")
     args = ap.parse_args()
     print(

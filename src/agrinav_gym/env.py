@@ -513,6 +513,8 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
             fix += f" + faults (jumps {f.jump_rate_hz:g}/s, wrong fixes {f.false_fix_prob:g})"
         if name == "robot_localization":
             name += self._rl_settings()
+        elif name in ("ekf", "ekf-oracle"):  # it knows the simulator's noise models
+            name += " (oracle, an upper bound)"
         return f"{name}, GNSS {g.mode} best, {fix}, {g.latency_s:g} s latency"
 
     def _rl_settings(self) -> str:

@@ -2,9 +2,10 @@
 
 Benchmarks Nav2-like DWB, the shipped PPO checkpoint (where the checkout has it) and the blind
 reference on the ``paper`` suite — the source paper's run: four Nav2 GPS waypoints, 33 m along a
-lane, across the headland and 31 m back, RTK through the EKF, in early and intermediate corn
-on its P1 field — and prints the metrics table. The fields it drives are saved first (one
-folder per case, with its preview) and printed, so what is printed is what is driven.
+lane, across the headland and 31 m back, RTK through robot_localization, in early and
+intermediate corn on its P1 field — and prints the metrics table. The fields it drives are
+saved first (one folder per case, with its preview) and printed, so what is printed is what
+is driven.
 Everything lands in ``runs/demo/``: ``scenarios/CASE/`` and ``paper/`` (the benchmark, a
 trajectory figure per episode).
 """

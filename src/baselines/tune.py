@@ -61,8 +61,10 @@ CONFIG_TUNED = ("dwb",)
 FAIL_SCORE = 1.0  # m: an unfinished route scores like a metre of cross-track error
 CROP_PENALTY = 0.05  # m per stalk touched
 ENV_ID = "AgriNav/FieldRoute-v3"
-#: The benchmark's conditions (suites.RTK_EKF); the path trackers ignore the depth camera, so
-#: they run without it (DWB's costmap reads it).
+#: The searches' conditions: RTK through the oracle EKF (suites.RTK_EKF), the same for every
+#: controller and the ones the shipped parameters were chosen under (the test suites run
+#: robot_localization, suites.RTK_NAV2); the path trackers ignore the depth camera, so they run
+#: without it (DWB's costmap reads it).
 OBSERVATIONS = [OBS_GPS, OBS_IMU, OBS_ODOM, OBS_ROUTE]
 
 
@@ -80,7 +82,7 @@ def score(records: list[dict[str, Any]]) -> float:
 
 
 def training_env(policy: str = "rpp", extra: str = "", route_clock: bool = False) -> Any:
-    """FieldRoute on the training split under the benchmark's conditions (built once a search:
+    """FieldRoute on the training split under the searches' conditions (built once a search:
     every trial drives the same fields); ``extra`` a JSON mapping merged over envs.yml's
     env_kwargs as ``agrinav train --env-kwargs`` merges its file (more ranges, other turns);
     ``route_clock``: truncated as the test suites are (suites.ROUTE_CLOCK), not after the

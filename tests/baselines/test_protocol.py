@@ -260,3 +260,38 @@ def test_sensitivity_cases_drive_the_same_fields_and_seeds_as_their_reference(
         by_case.setdefault(r["scenario"], []).append((r["seed"], r["geometry"]))
     first, second = by_case[soil[0].group], by_case[soil[1].group]
     assert first == second and len({g["scenario_seed"] for _, g in first}) == 2
+
+
+@pytest.mark.parametrize("name", ["paper", "unseen", "ood", "long", "sensitivity"])
+def test_the_navigation_suites_localise_as_a_nav2_user_does(name: str) -> None:
+    """robot_localization set up as its documentation asks (the gps transform, lagged fixes
+    smoothed, a GPS gate) drives every case; the env's row says so."""
+    from baselines.bench import _make_env
+    from baselines.suites import RL_USER_SETUP
+
+    cases = suite(name)
+    for case in cases:
+        loc = case.config["localisation"]
+        assert loc == {"kind": "robot_localization", "robot_localization": RL_USER_SETUP}
+    env = _make_env(cases[0])
+    try:
+        env.reset(seed=0)
+        label = env.unwrapped.conditions()["localisation"]
+    finally:
+        env.close()
+    assert label.startswith("robot_localization (gps lever arm, smooth_lagged_data 1 s")
+    assert "gps gate 5σ" in label
+
+
+def test_the_oracle_is_the_localisation_suites_reference_and_says_it_is_an_upper_bound() -> None:
+    from baselines.bench import _make_env
+
+    cases = {c.group: c for c in suite("localisation")}
+    for group in ("RTK fixed", "RTK float", "canopy 2.5 m"):
+        assert cases[group].config["localisation"] == {"kind": "ekf"}
+    env = _make_env(cases["canopy 2.5 m"])
+    try:
+        env.reset(seed=0)
+        assert env.unwrapped.conditions()["localisation"].startswith("ekf (oracle, an upper bound)")
+    finally:
+        env.close()
