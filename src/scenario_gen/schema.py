@@ -13,6 +13,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import re
 import types
 from dataclasses import field as dc_field
 from pathlib import Path
@@ -287,6 +288,16 @@ class _NoAliasLoader(yaml.SafeLoader):
                 )
             seen.add(key)
         return super().construct_mapping(node, deep=deep)
+
+
+# YAML 1.1 (PyYAML) reads an exponent only with a dot and a signed power: ``1e6``, ``2e-3`` and
+# ``1.5e3`` would be strings, and a config value typed as a number would be refused as one.
+# YAML 1.2 reads them as floats.
+_NoAliasLoader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$"),
+    list("-+.0123456789"),
+)
 
 
 def parse_yaml(text: str, what: str) -> Any:
