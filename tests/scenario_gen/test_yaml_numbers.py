@@ -37,9 +37,7 @@ def test_a_command_line_value_in_exponent_form_reaches_the_env_config() -> None:
 
     over = parse_set(["gnss.fix.multipath_mtbf_s=1e6"], "--config")
     assert over == {"gnss.fix.multipath_mtbf_s": 1e6}
-    env = gym.make(
-        "AgriNav/FurrowFollow-v3", config={"gnss": {"fix": {"multipath_mtbf_s": 1e6}}}
-    )
+    env = gym.make("AgriNav/FurrowFollow-v3", config={"gnss": {"fix": {"multipath_mtbf_s": 1e6}}})
     try:
         assert env.unwrapped.cfg.gnss.fix.multipath_mtbf_s == 1e6
     finally:
