@@ -48,13 +48,14 @@ def _baseline_module(rev: str) -> Any:
         capture_output=True,
         text=True,
     ).stdout
-    path = Path(tempfile.mkdtemp()) / "world_baseline.py"
-    path.write_text(src)
-    # a module of the same package, so its relative imports resolve
-    spec = importlib.util.spec_from_file_location("agrinav_gym.sim._world_baseline", path)
-    assert spec is not None and spec.loader is not None
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "world_baseline.py"
+        path.write_text(src)
+        # a module of the same package, so its relative imports resolve
+        spec = importlib.util.spec_from_file_location("agrinav_gym.sim._world_baseline", path)
+        assert spec is not None and spec.loader is not None
+        mod = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(mod)
     return mod
 
 
