@@ -349,8 +349,8 @@ class TerrainPatch:
         client: int,
         terrain: Terrain,
         friction: float,
-        row_angle: float | None = None,
-        reach: float = 1.0,
+        row_angle: float | None,
+        reach: float,
     ) -> None:
         self.client = client
         self.terrain = terrain
@@ -369,6 +369,8 @@ class TerrainPatch:
         least = 2.0 * (m + 2.0 * s)
         self.nx = min(nx, math.ceil(max(wx, least) / s) + 1)
         self.ny = min(ny, math.ceil(max(wy, least) / s) + 1)
+        self._half = (0.5 * (self.nx - 1) * s, 0.5 * (self.ny - 1) * s)
+        self._centre = (0.0, 0.0)  # the window's centre (x, y), set by each refill
         self.i0 = self.j0 = -1
         self.shape = -1
         self.body = -1
@@ -395,20 +397,16 @@ class TerrainPatch:
         allows.
         """
         t = self.terrain
+        hx, hy = self._half
         if not force and self.shape >= 0:
-            s = t.spacing
-            cx = t.x0 + (self.j0 + 0.5 * (self.nx - 1)) * s
-            cy = t.y0 + (self.i0 + 0.5 * (self.ny - 1)) * s
-            hx, hy = 0.5 * (self.nx - 1) * s, 0.5 * (self.ny - 1) * s
+            cx, cy = self._centre
             if abs(x - cx) < hx - self.margin and abs(y - cy) < hy - self.margin:
                 return False
         if heading is not None and not force:
-            s_ = self.terrain.spacing
-            hx, hy = 0.5 * (self.nx - 1) * s_, 0.5 * (self.ny - 1) * s_
             ch, sh = math.cos(heading), math.sin(heading)
             # as far ahead as the window allows along the heading: margin + 1 m behind, and a
             # cell for the snapping
-            back = self.margin + 1.0 + s_
+            back = self.margin + 1.0 + t.spacing
             ax = (hx - back) / max(abs(ch), 1e-9)
             ay = (hy - back) / max(abs(sh), 1e-9)
             ahead = max(0.0, min(ax, ay))
@@ -438,6 +436,7 @@ class TerrainPatch:
             t.y0 + (i0 + 0.5 * (self.ny - 1)) * t.spacing,
             0.5 * (zmin + zmax),
         ]
+        self._centre = (centre[0], centre[1])
         if self.body < 0:
             self.shape = shape
             # an explicit tiny visual: converting the heightfield to a render mesh costs more
