@@ -281,6 +281,9 @@ class OdomConfig:
 #: robot_localization's process_noise_covariance diagonal for x, y, yaw, vx, vy, vyaw, ax, ay:
 #: its default (``FilterBase::reset`` in src/filter_base.cpp and params/ekf.yaml, humble-devel)
 RL_PROCESS_NOISE = (0.05, 0.05, 0.06, 0.025, 0.025, 0.02, 0.01, 0.01)
+#: the same default for the variables only the 3D filter carries: z, roll, pitch, vz, vroll,
+#: vpitch, az
+RL_PROCESS_NOISE_3D = (0.06, 0.03, 0.03, 0.04, 0.01, 0.01, 0.015)
 
 
 @dataclass(frozen=True)
@@ -290,10 +293,24 @@ class RobotLocalizationConfig:
     (``odom0`` twist vx, vy, vyaw; ``imu0`` yaw; ``odom1`` the GPS odometry x, y). Defaults are
     robot_localization's own or the drivers' documented values (docs/localisation.md)."""
 
+    two_d_mode: bool = _f(
+        True,
+        "ekf_node's two_d_mode (Nav2's GPS tutorial): x, y, yaw on a plane, roll and pitch "
+        "zero, so navsat_transform removes the antenna offset through yaw only; false: the full "
+        "15-variable filter, the IMU's roll and pitch fused, the offset removed through the "
+        "filter's whole attitude (what a user on tilted or ridged ground can set)",
+    )
     process_noise: tuple[float, float, float, float, float, float, float, float] = _f(
         RL_PROCESS_NOISE,
         "process_noise_covariance diagonal for x, y, yaw, vx, vy, vyaw, ax, ay, per second "
         "(robot_localization scales it by the step; its Humble default)",
+        0.0,
+        100.0,
+    )
+    process_noise_3d: tuple[float, float, float, float, float, float, float] = _f(
+        RL_PROCESS_NOISE_3D,
+        "process_noise_covariance diagonal for z, roll, pitch, vz, vroll, vpitch, az, per "
+        "second (two_d_mode false only; robot_localization's Humble default)",
         0.0,
         100.0,
     )
@@ -319,7 +336,16 @@ class RobotLocalizationConfig:
         0.0,
         180.0,
     )
-    fuse_imu_yaw_rate: bool = _f(False, "also fuse the gyro's yaw rate (imu0_config vyaw)")
+    imu_roll_pitch_sigma_deg: float = _f(
+        0.2,
+        "roll and pitch std in the IMU driver's orientation covariance, degrees, fused when "
+        "two_d_mode is false (the MTi-300's dynamic roll/pitch spec)",
+        0.0,
+        90.0,
+    )
+    fuse_imu_yaw_rate: bool = _f(
+        False, "also fuse the gyro's yaw rate (imu0_config vyaw; all three rates in 3D)"
+    )
     imu_yaw_rate_sigma_deg_s: float = _f(
         0.05, "yaw-rate std in the IMU driver's angular velocity covariance, °/s", 0.0, 100.0
     )

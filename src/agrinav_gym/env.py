@@ -520,7 +520,9 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
     def _rl_settings(self) -> str:
         """What a robot_localization row sets beyond the node's defaults, in brackets."""
         rl = self.cfg.localisation.robot_localization
-        out = ["gps lever arm"] if rl.gps_lever_arm else []
+        out = [] if rl.two_d_mode else ["3D: imu roll and pitch"]
+        if rl.gps_lever_arm:
+            out.append("gps lever arm")
         if rl.smooth_lagged_data:
             out.append(f"smooth_lagged_data {rl.history_length_s:g} s")
         gates = (

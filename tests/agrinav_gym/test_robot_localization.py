@@ -196,7 +196,7 @@ def test_without_smoothing_a_late_fix_corrects_the_current_state() -> None:
     assert fix.time < t_last
     expect._correct(fix)
     assert expect.t_last == t_last  # no prediction back, no clock change
-    for m in (expect._odom(r, expect.k * DT), expect._imu_yaw(r, expect.k * DT)):
+    for m in (expect._odom(r, expect.k * DT), expect._imu_orientation(r, expect.k * DT)):
         expect._process(m)
     est.update(r, DT)
     assert np.array_equal(est.s, expect.s)

@@ -37,6 +37,7 @@ def make_estimator(
     from .ekf import Ekf
     from .ideal import IdealEstimator
     from .robot_localization import RobotLocalizationEkf
+    from .robot_localization_3d import RobotLocalizationEkf3D
 
     if kind == "blend":
         return GnssInsBlend()
@@ -47,7 +48,10 @@ def make_estimator(
         ekf.name = kind
         return ekf
     if kind == "robot_localization":
-        return RobotLocalizationEkf(cfg if cfg is not None else Cfg(), skid_factor, dt)
+        c = cfg if cfg is not None else Cfg()
+        if not c.robot_localization.two_d_mode:
+            return RobotLocalizationEkf3D(c, skid_factor, dt)
+        return RobotLocalizationEkf(c, skid_factor, dt)
     raise InputError(
         "config.localisation.kind",
         kind,

@@ -86,20 +86,25 @@ class RobotLocalizationEkf:
     multiplier χ (the odometry's yaw rate / χ)."""
 
     name = "robot_localization"
+    #: state size, the angles whose innovations and values wrap, and (x, y, yaw)'s indices
+    n = N
+    angles: tuple[int, ...] = (PSI,)
+    pose_index: tuple[int, int, int] = (X, Y, PSI)
 
     def __init__(self, cfg: LocalisationConfig, skid_factor: float, dt: float) -> None:
         self.cfg = cfg
         self.rl = cfg.robot_localization
         self.chi = skid_factor
         self.dt = dt
-        self.Q = np.diag(np.asarray(self.rl.process_noise, np.float64))
+        self.Q = np.diag(self._process_noise())
+        self._eye = np.eye(self.n)
         rl = self.rl
         self.odom_var = np.asarray(rl.odom_twist_variance, np.float64)
         self.yaw_var = math.radians(rl.imu_yaw_sigma_deg) ** 2
         self.rate_var = math.radians(rl.imu_yaw_rate_sigma_deg_s) ** 2
         self.accel_var = np.full(2, rl.imu_accel_sigma**2)
-        self.s = np.zeros(N)
-        self.P = np.eye(N) * rl.initial_covariance
+        self.s = np.zeros(self.n)
+        self.P = np.eye(self.n) * rl.initial_covariance
         self.t_last = 0.0
         self.k = 0
         self.anchored = False  # navsat_transform has its datum (the first fix)
@@ -115,10 +120,11 @@ class RobotLocalizationEkf:
         sp = c.init_position_sigma
         # a child stream, as the oracle's: the env's own draws stay the same whatever estimates
         d = rng.spawn(1)[0].standard_normal(2)
-        self.s = np.zeros(N)
-        self.s[X], self.s[Y], self.s[PSI] = x + sp * d[0], y + sp * d[1], yaw
-        self.P = np.eye(N) * self.rl.initial_covariance
-        self.P[X, X] = self.P[Y, Y] = max(sp * sp, MIN_VARIANCE)
+        self.s = np.zeros(self.n)
+        ix, iy, iyaw = self.pose_index
+        self.s[ix], self.s[iy], self.s[iyaw] = x + sp * d[0], y + sp * d[1], yaw
+        self.P = np.eye(self.n) * self.rl.initial_covariance
+        self.P[ix, ix] = self.P[iy, iy] = max(sp * sp, MIN_VARIANCE)
         self.t_last = 0.0
         self.k = -1
         self.anchored = False
@@ -146,11 +152,15 @@ class RobotLocalizationEkf:
 
     @property
     def pose(self) -> tuple[float, float, float]:
-        return float(self.s[X]), float(self.s[Y]), float(self.s[PSI])
+        ix, iy, iyaw = self.pose_index
+        return float(self.s[ix]), float(self.s[iy]), float(self.s[iyaw])
 
     @property
     def covariance(self) -> FloatArray:
-        return self.P[:3, :3].copy()
+        return self.P[np.ix_(self.pose_index, self.pose_index)].copy()
+
+    def _process_noise(self) -> FloatArray:
+        return np.asarray(self.rl.process_noise, np.float64)
 
     # ------------------------------------------------------------------ readings
     def _start(self, r: Readings) -> None:
@@ -174,11 +184,9 @@ class RobotLocalizationEkf:
             self._save()
 
     def _readings(self, r: Readings, now: float) -> list[Measurement]:
-        out = [self._odom(r, now), self._imu_yaw(r, now)]
+        out = [self._odom(r, now), self._imu_orientation(r, now)]
         if self.rl.fuse_imu_yaw_rate:
-            rate = np.array([float(r.gyro[2])])
-            thr = self.rl.imu_rejection_threshold
-            out.append(Measurement(now, _IMU_RATE, (W,), rate, np.array([self.rate_var]), thr))
+            out.append(self._imu_rate(r, now))
         if self.rl.fuse_imu_acceleration:
             out.append(self._imu_accel(r, now))
         if r.gnss_new and r.gnss_mode != GNSS_NONE:
@@ -200,11 +208,16 @@ class RobotLocalizationEkf:
             t, _ODOM, (VX, VY, W), z, self.odom_var.copy(), self.rl.odom_rejection_threshold
         )
 
-    def _imu_yaw(self, r: Readings, t: float) -> Measurement:
+    def _imu_orientation(self, r: Readings, t: float) -> Measurement:
         z = np.array([float(r.rpy[2])])
         return Measurement(
             t, _IMU, (PSI,), z, np.array([self.yaw_var]), self.rl.imu_rejection_threshold
         )
+
+    def _imu_rate(self, r: Readings, t: float) -> Measurement:
+        rate = np.array([float(r.gyro[2])])
+        thr = self.rl.imu_rejection_threshold
+        return Measurement(t, _IMU_RATE, (W,), rate, np.array([self.rate_var]), thr)
 
     def _imu_accel(self, r: Readings, t: float) -> Measurement:
         """imu0's linear acceleration with ``remove_gravitational_acceleration``: the specific
@@ -248,7 +261,7 @@ class RobotLocalizationEkf:
         x, y, psi, vx, vy, w, ax, ay = self.s.tolist()
         c, s = math.cos(psi), math.sin(psi)
         h2 = 0.5 * dt * dt
-        J = np.eye(N)
+        J = self._eye.copy()
         J[X, VX], J[X, VY], J[X, AX], J[X, AY] = c * dt, -s * dt, c * h2, -s * h2
         J[Y, VX], J[Y, VY], J[Y, AX], J[Y, AY] = s * dt, c * dt, s * h2, c * h2
         J[PSI, W] = J[VX, AX] = J[VY, AY] = dt
@@ -270,24 +283,27 @@ class RobotLocalizationEkf:
 
     def _correct(self, m: Measurement) -> bool:
         """Ekf::correct; False when the Mahalanobis test dropped the reading."""
+        # H selects state variables, so P Hᵀ, H P Hᵀ, K H and K R are gathers and scatters:
+        # the same numbers as the products, without the small-matrix overhead
         idx = list(m.index)
-        H = np.zeros((len(idx), N))
-        H[np.arange(len(idx)), idx] = 1.0
-        R = np.diag(np.maximum(np.abs(m.var), MIN_VARIANCE))
-        PHt = self.P @ H.T
-        S_inv = np.linalg.inv(H @ PHt + R)
+        r = np.maximum(np.abs(m.var), MIN_VARIANCE)
+        PHt = self.P[:, idx]
+        S = PHt[idx, :] + np.diag(r)
+        S_inv = 1.0 / S if len(idx) == 1 else np.linalg.inv(S)
         K = PHt @ S_inv
         nu = m.z - self.s[idx]
         for i, j in enumerate(idx):
-            if j == PSI:
+            if j in self.angles:
                 nu[i] = _wrap(float(nu[i]))
         if m.threshold is not None and float(nu @ S_inv @ nu) >= m.threshold**2:
             self.rejected[_SOURCE[m.order]] += 1
             return False
         self.s = self.s + K @ nu
-        self.s[PSI] = _wrap(float(self.s[PSI]))
-        G = np.eye(N) - K @ H
-        self.P = G @ self.P @ G.T + K @ R @ K.T
+        for j in self.angles:
+            self.s[j] = _wrap(float(self.s[j]))
+        G = self._eye.copy()
+        G[:, idx] -= K
+        self.P = G @ self.P @ G.T + (K * r) @ K.T
         return True
 
     # ------------------------------------------------------------------ lagged data
