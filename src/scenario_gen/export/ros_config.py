@@ -293,9 +293,12 @@ def ekf_yaml(robot: Nav2Robot) -> str:
 # the IMU's yaw, yaw rate{accel}; the yaw rate comes from the
 # {source} (the benchmarked DWB's yaw_rate_source).
 # two_d_mode keeps {BASE} on the odometry plane: the depth cloud's heights are then heights
-# above the wheels, as the benchmark's costmap measures them. The process noise is the one the
-# simulator's robot_localization filter runs with (per second; the node scales it by the time
-# step); covariances of the measurements come with the messages
+# above the wheels, as the benchmark's costmap measures them. It also removes the GNSS antenna's
+# offset through yaw alone, so on ridged or side-sloped ground the mast's lean (its height times
+# sin(roll)) stays in ekf_global's position: two_d_mode false with the IMU's roll and pitch fused
+# removes it (agrinav_gym docs/localisation.md, "Roll, pitch and the mast"). The process
+# noise is the one the simulator's robot_localization filter runs with (per second; the node
+# scales it by the time step); covariances of the measurements come with the messages
 # (scripts/sensor_covariances.py). State order:
 # {", ".join(STATE)}.
 """
