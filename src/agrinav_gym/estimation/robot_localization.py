@@ -5,7 +5,9 @@ Unlike ``ekf`` (the oracle), this filter knows nothing of the simulator's error 
 reading is white noise with the covariance its driver reports, and the parameters are
 robot_localization's defaults or the drivers' documented values (``RobotLocalizationConfig``).
 
-* **State** (``two_d_mode``): x, y, yaw (world), vx, vy, vyaw (base_link), ax, ay.
+* **State** (``two_d_mode``): x, y, yaw (world), vx, vy, vyaw (base_link), ax, ay
+  (``two_d_mode: false``: ``robot_localization_3d.py``, which shares everything below but the
+  state, the prediction and what each reading measures).
 * **Prediction** (``Ekf::predict``): the omnidirectional model, ``P = J P Jᵀ + Q·Δt`` with
   Q robot_localization's ``process_noise_covariance`` default.
 * **Readings**, as Nav2's GPS tutorial configures them: ``odom0`` the wheel odometry's twist
@@ -97,7 +99,6 @@ class RobotLocalizationEkf:
         self.chi = skid_factor
         self.dt = dt
         self.Q = np.diag(self._process_noise())
-        self._eye = np.eye(self.n)
         rl = self.rl
         self.odom_var = np.asarray(rl.odom_twist_variance, np.float64)
         self.yaw_var = math.radians(rl.imu_yaw_sigma_deg) ** 2
@@ -261,7 +262,7 @@ class RobotLocalizationEkf:
         x, y, psi, vx, vy, w, ax, ay = self.s.tolist()
         c, s = math.cos(psi), math.sin(psi)
         h2 = 0.5 * dt * dt
-        J = self._eye.copy()
+        J = np.eye(N)
         J[X, VX], J[X, VY], J[X, AX], J[X, AY] = c * dt, -s * dt, c * h2, -s * h2
         J[Y, VX], J[Y, VY], J[Y, AX], J[Y, AY] = s * dt, c * dt, s * h2, c * h2
         J[PSI, W] = J[VX, AX] = J[VY, AY] = dt
@@ -283,13 +284,12 @@ class RobotLocalizationEkf:
 
     def _correct(self, m: Measurement) -> bool:
         """Ekf::correct; False when the Mahalanobis test dropped the reading."""
-        # H selects state variables, so P Hᵀ, H P Hᵀ, K H and K R are gathers and scatters:
-        # the same numbers as the products, without the small-matrix overhead
         idx = list(m.index)
-        r = np.maximum(np.abs(m.var), MIN_VARIANCE)
-        PHt = self.P[:, idx]
-        S = PHt[idx, :] + np.diag(r)
-        S_inv = 1.0 / S if len(idx) == 1 else np.linalg.inv(S)
+        H = np.zeros((len(idx), self.n))
+        H[np.arange(len(idx)), idx] = 1.0
+        R = np.diag(np.maximum(np.abs(m.var), MIN_VARIANCE))
+        PHt = self.P @ H.T
+        S_inv = np.linalg.inv(H @ PHt + R)
         K = PHt @ S_inv
         nu = m.z - self.s[idx]
         for i, j in enumerate(idx):
@@ -301,9 +301,8 @@ class RobotLocalizationEkf:
         self.s = self.s + K @ nu
         for j in self.angles:
             self.s[j] = _wrap(float(self.s[j]))
-        G = self._eye.copy()
-        G[:, idx] -= K
-        self.P = G @ self.P @ G.T + (K * r) @ K.T
+        G = np.eye(self.n) - K @ H
+        self.P = G @ self.P @ G.T + K @ R @ K.T
         return True
 
     # ------------------------------------------------------------------ lagged data
