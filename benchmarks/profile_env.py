@@ -8,6 +8,8 @@ the parts add up to a little more than an untimed step.
 
     python benchmarks/profile_env.py [--steps 400] [--repeat 5] [--localisation KIND]
 
+``--localisation robot_localization-3d`` runs robot_localization with ``two_d_mode: false``.
+
 With ``--cprofile`` it prints cProfile's 30 most expensive functions instead (cProfile's own
 overhead inflates pure-Python code several times: use it to find functions, the timer table
 to weigh parts).
@@ -116,14 +118,24 @@ def instrument(env: Any, totals: dict[str, float]) -> Callable[[], None]:
     return restore
 
 
+#: ``--localisation`` names beyond the estimator kinds
+VARIANTS: dict[str, dict[str, Any]] = {
+    "robot_localization-3d": {
+        "kind": "robot_localization",
+        "robot_localization": {"two_d_mode": False},
+    },
+}
+
+
 def make(localisation: str) -> Any:
+    loc = VARIANTS.get(localisation, {"kind": localisation})
     return gym.make(
         "AgriNav/FurrowFollow-v3",
         scenario="paper-p1",
         observations=("gps", "imu", "odom", "route"),
         config={
             "task": {"max_crops_hit": 10**6, "corridor": 2.0},
-            "localisation": {"kind": localisation},
+            "localisation": loc,
         },
     )
 
@@ -177,7 +189,10 @@ def main() -> None:
     ap.add_argument("--steps", type=int, default=400)
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument(
-        "--localisation", default="ekf", choices=("ekf", "robot_localization", "blend", "ideal")
+        "--localisation",
+        default="ekf",
+        choices=("ekf", "robot_localization", "robot_localization-3d", "blend", "ideal"),
+        help="robot_localization-3d: robot_localization with two_d_mode false",
     )
     ap.add_argument("--cprofile", action="store_true")
     args = ap.parse_args()
