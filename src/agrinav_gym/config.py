@@ -289,7 +289,8 @@ RL_PROCESS_NOISE_3D = (0.06, 0.03, 0.03, 0.04, 0.01, 0.01, 0.015)
 @dataclass(frozen=True)
 class RobotLocalizationConfig:
     """``localisation.kind: robot_localization``: robot_localization's ``ekf_node`` (Humble) in
-    ``two_d_mode`` with ``navsat_transform_node``, configured as Nav2's GPS tutorial does
+    ``two_d_mode`` (or, with ``two_d_mode`` false, its full 3D filter) with
+    ``navsat_transform_node``, configured as Nav2's GPS tutorial does
     (``odom0`` twist vx, vy, vyaw; ``imu0`` yaw; ``odom1`` the GPS odometry x, y). Defaults are
     robot_localization's own or the drivers' documented values (docs/localisation.md)."""
 
@@ -316,7 +317,8 @@ class RobotLocalizationConfig:
     )
     initial_covariance: float = _f(
         1e-9,
-        "initial_estimate_covariance of the variables no first reading sets (ax, ay), "
+        "initial_estimate_covariance of the variables no first reading sets (the "
+        "accelerations; in 3D also z and the roll and pitch rates), "
         "robot_localization's default",
         0.0,
         1e6,
@@ -352,7 +354,8 @@ class RobotLocalizationConfig:
     fuse_imu_acceleration: bool = _f(
         False,
         "also fuse the accelerometer's horizontal specific force with gravity removed through "
-        "the IMU's roll and pitch (imu0_config ax, ay; imu0_remove_gravitational_acceleration)",
+        "the IMU's roll and pitch (imu0_config ax, ay; imu0_remove_gravitational_acceleration; "
+        "in 3D az too)",
     )
     imu_accel_sigma: float = _f(
         0.05,
