@@ -175,6 +175,11 @@ class RobotLocalizationEkf:
             acc = self._imu_accel(r, 0.0)
             self.s[AX], self.s[AY] = acc.z
             self.P[AX, AX], self.P[AY, AY] = np.maximum(acc.var, MIN_VARIANCE)
+        self._start_position(r)
+
+    def _start_position(self, r: Readings) -> None:
+        """The first fix (if there is one) sets the position and navsat's datum; the filter's
+        clock starts."""
         if r.gnss_new and r.gnss_mode != GNSS_NONE:
             fix = self._gps(r, 0.0)
             self.s[X], self.s[Y] = fix.z

@@ -28,7 +28,6 @@ import math
 import numpy as np
 
 from ..config import LocalisationConfig
-from ..interface import GNSS_NONE
 from .readings import FloatArray, Readings
 from .robot_localization import (
     _GPS,
@@ -95,14 +94,7 @@ class RobotLocalizationEkf3D(RobotLocalizationEkf):
             acc = self._imu_accel(r, 0.0)
             self.s[[AX, AY, AZ]] = acc.z
             self.P[[AX, AY, AZ], [AX, AY, AZ]] = np.maximum(acc.var, MIN_VARIANCE)
-        if r.gnss_new and r.gnss_mode != GNSS_NONE:
-            fix = self._gps(r, 0.0)
-            self.s[X], self.s[Y] = fix.z
-            self.P[X, X], self.P[Y, Y] = np.maximum(fix.var, MIN_VARIANCE)
-            self.anchored = True
-        self.t_last = 0.0
-        if self.rl.smooth_lagged_data:
-            self._save()
+        self._start_position(r)
 
     def _odom(self, r: Readings, t: float) -> Measurement:
         z = np.array([float(r.odom[0]), 0.0, 0.0, float(r.odom[1]) / self.chi])
