@@ -188,8 +188,13 @@ def shown(page: Any) -> int:
 
 def draw_polygon(page: Any, fractions: list[tuple[float, float]]) -> None:
     """Draw a polygon with leaflet-draw by clicking its vertices, then the first again."""
-    box = page.locator(".leaflet-container").first.bounding_box()
+    container = page.locator(".leaflet-container").first
+    container.scroll_into_view_if_needed()
     page.locator(".leaflet-draw-draw-polygon").click()
+    # measured after the button's click, which scrolls the page when the button is out of
+    # view (after a policy run the page sits at the trajectory figure): a box taken before
+    # it put the clicks beside the map
+    box = container.bounding_box()
     pts = [(box["x"] + fx * box["width"], box["y"] + fy * box["height"]) for fx, fy in fractions]
     for x, y in [*pts, pts[0]]:
         page.mouse.click(x, y)
