@@ -142,8 +142,8 @@ def test_studio_end_to_end(tmp_path: Path) -> None:
         # a self-intersecting polygon: the error is shown at the field, generation refused
         before_files = sorted(p.name for p in work.iterdir())
         draw_polygon(page, BOWTIE)
-        # the first redraw after a policy run: on a loaded 2-core CI machine it has taken
-        # longer than the 30 s default (27 s for the whole test when alone)
+        # the first redraw after a policy run, with room for a loaded 2-core CI machine (the
+        # whole test takes ≈ 30 s alone)
         page.wait_for_function(
             "document.querySelector('[data-error=\"field\"]').innerText.includes('Self-intersection')",
             timeout=90_000,
