@@ -17,9 +17,9 @@ from agrinav_gym.estimation.robot_localization_3d import (
     ROLL,
     YAW,
     RobotLocalizationEkf3D,
-    _rotation,
 )
 from agrinav_gym.interface import GNSS_RTK_FIXED
+from scenario_gen.obstacles import rotation
 
 from .helpers import make
 from .localisation_helpers import CHI, DT, drive
@@ -84,7 +84,7 @@ def test_transition_moves_along_the_tilted_body_axis() -> None:
 def rolled(roll: float, new: bool) -> Readings:
     """A robot at rest at the origin facing east, rolled by ``roll`` (its IMU says so); the
     antenna is where the rolled mast puts it."""
-    ant = _rotation(roll, 0.0, 0.0) @ LEVER
+    ant = rotation(roll, 0.0, 0.0) @ LEVER
     g = 9.80665
     return Readings(
         gnss_enu=ant,

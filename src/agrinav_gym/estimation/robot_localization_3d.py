@@ -27,6 +27,8 @@ import math
 
 import numpy as np
 
+from scenario_gen.obstacles import rotation
+
 from ..config import LocalisationConfig
 from .readings import FloatArray, Readings
 from .robot_localization import (
@@ -44,20 +46,6 @@ from .robot_localization import (
 
 N3 = 15
 X, Y, Z, ROLL, PITCH, YAW, VX, VY, VZ, VROLL, VPITCH, VYAW, AX, AY, AZ = range(N3)
-
-
-def _rotation(roll: float, pitch: float, yaw: float) -> FloatArray:
-    """base_link → world: Rz(yaw) Ry(pitch) Rx(roll)."""
-    sr, cr = math.sin(roll), math.cos(roll)
-    sp, cp = math.sin(pitch), math.cos(pitch)
-    sy, cy = math.sin(yaw), math.cos(yaw)
-    return np.array(
-        [
-            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-            [-sp, cp * sr, cp * cr],
-        ]
-    )
 
 
 class RobotLocalizationEkf3D(RobotLocalizationEkf):
@@ -132,7 +120,7 @@ class RobotLocalizationEkf3D(RobotLocalizationEkf):
         """The fix less the antenna offset rotated by the filter's roll, pitch and yaw."""
         e, n = float(r.gnss_enu[0]), float(r.gnss_enu[1])
         if self.rl.gps_lever_arm:
-            R = _rotation(float(self.s[ROLL]), float(self.s[PITCH]), float(self.s[YAW]))
+            R = rotation(float(self.s[ROLL]), float(self.s[PITCH]), float(self.s[YAW]))
             off = R @ np.asarray(r.antenna_lever[:3], np.float64)
             e, n = e - float(off[0]), n - float(off[1])
         var = np.asarray(r.gnss_sigma[:2], np.float64) ** 2
@@ -150,7 +138,7 @@ class RobotLocalizationEkf3D(RobotLocalizationEkf):
         sp, cp = math.sin(pitch), math.cos(pitch)
         cpi = 1.0 / cp
         tp = sp * cpi
-        R = _rotation(roll, pitch, yaw)
+        R = rotation(roll, pitch, yaw)
         h2 = 0.5 * dt * dt
         F = np.eye(N3)
         F[X : Z + 1, VX : VZ + 1] = R * dt
