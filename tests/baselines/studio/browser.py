@@ -108,6 +108,25 @@ def studio_server(workspace: Path, *args: str) -> Iterator[str]:
         log.close()
 
 
+def wait_for(page: Any, js: str, workspace: Path, timeout: float = 30_000) -> None:
+    """``page.wait_for_function`` that fails with the page's and the server's state."""
+    from playwright.sync_api import TimeoutError as PlaywrightTimeout
+
+    try:
+        page.wait_for_function(js, timeout=timeout)
+    except PlaywrightTimeout:
+        state = page.evaluate(
+            """() => ({
+              field_error: document.querySelector('[data-error="field"]')?.innerText,
+              drawn: window.studio.drawn.getLayers().length,
+              vertices: document.querySelectorAll('.leaflet-editing-icon').length,
+              counts: document.querySelector('[data-key="counts"]')?.innerText,
+            })"""
+        )
+        log = (workspace / "studio.log").read_text()[-3000:]
+        pytest.fail(f"waited {timeout / 1000:.0f} s for {js}\npage: {state}\nstudio.log:\n{log}")
+
+
 def printed_url(log: Path) -> str:
     """The address ``agrinav studio`` printed (with its access token), or ''."""
     for line in log.read_text().splitlines():
@@ -186,19 +205,36 @@ def shown(page: Any) -> int:
     return int(page.evaluate("window.studio.shown"))
 
 
+#: leaflet-draw's vertex handles of the shape being drawn
+VERTICES_JS = "document.querySelectorAll('.leaflet-marker-pane .leaflet-editing-icon').length"
+
+
 def draw_polygon(page: Any, fractions: list[tuple[float, float]]) -> None:
-    """Draw a polygon with leaflet-draw by clicking its vertices, then the first again."""
+    """Draw a polygon with leaflet-draw by clicking its vertices, then the first again.
+
+    Each click waits for its vertex to appear, then for leaflet-draw's own 50 ms re-arm timer
+    (``_enableNewMarkers``): a mouse-down that arrives before that timer has run is dropped
+    without a trace, and on a loaded machine Chromium runs queued input before late timers.
+    """
     container = page.locator(".leaflet-container").first
     container.scroll_into_view_if_needed()
+    drawn = int(page.evaluate("window.studio.drawn.getLayers().length"))
     page.locator(".leaflet-draw-draw-polygon").click()
     # measured after the button's click, which scrolls the page when the button is out of
     # view (after a policy run the page sits at the trajectory figure): a box taken before
     # it put the clicks beside the map
     box = container.bounding_box()
     pts = [(box["x"] + fx * box["width"], box["y"] + fy * box["height"]) for fx, fy in fractions]
-    for x, y in [*pts, pts[0]]:
+    for i, (x, y) in enumerate(pts):
         page.mouse.click(x, y)
-        page.wait_for_timeout(120)
+        page.wait_for_function(f"{VERTICES_JS} === {i + 1}")
+        # a timer queued after leaflet-draw's fires after it (timers run in due-time order)
+        page.evaluate("new Promise((resolve) => setTimeout(resolve, 60))")
+    page.mouse.click(*pts[0])
+    # the shape is created (its handles gone) and in the studio's editable group
+    page.wait_for_function(
+        f"{VERTICES_JS} === 0 && window.studio.drawn.getLayers().length === {drawn + 1}"
+    )
 
 
 #: pairs of consecutive visible form fields in one column where the first's hint runs over the
@@ -225,6 +261,19 @@ def overlapping_hints(page: Any) -> list[Any]:
 
 
 def open_section(page: Any, section: str) -> None:
-    """Expand a collapsed section of the form (its header is the first item)."""
+    """Expand a collapsed section of the form and wait until its slide-open has ended."""
     page.locator(f'[data-section="{section}"] .q-item').first.click()
-    page.wait_for_timeout(300)
+    # Quasar's slide transition animates the height; fields below move until it ends, so
+    # geometry read earlier (the hint overlap check) sees a half-open section
+    page.wait_for_function(
+        """(sel) => {
+          const el = document.querySelector(sel);
+          const h = el.getBoundingClientRect().height;
+          const busy = el.querySelector('[class*="q-slide-transition"], [class*="-active"]');
+          const same = el.dataset.lastHeight === String(h);
+          el.dataset.lastHeight = String(h);
+          return same && !busy;
+        }""",
+        arg=f'[data-section="{section}"]',
+        polling=150,
+    )

@@ -32,6 +32,7 @@ from .browser import (
     shown,
     studio_server,
     wait_field,
+    wait_for,
     wait_shown,
 )
 
@@ -130,8 +131,10 @@ def test_studio_end_to_end(tmp_path: Path) -> None:
         before_files = sorted(p.name for p in work.iterdir())
         draw_polygon(page, BOWTIE)
         # room for a loaded 2-core CI machine (the whole test takes ≈ 30 s alone)
-        page.wait_for_function(
+        wait_for(
+            page,
             "document.querySelector('[data-error=\"field\"]').innerText.includes('Self-intersection')",
+            work,
             timeout=90_000,
         )
         field(page, "out").fill(str(work / "bowtie"))
@@ -151,8 +154,7 @@ def test_studio_end_to_end(tmp_path: Path) -> None:
         )
         shot(page, tmp_path, "off-terrain")
 
-        # run a policy on the saved scenario (last: under a loaded CI machine the field's
-        # errors after a run have not always reached the page): trajectory figure and metrics
+        # run a policy on the saved scenario: trajectory figure and metrics
         field(page, "run").click()
         page.wait_for_selector('[data-key="trajectory"] img', timeout=90_000)
         field(page, "trajectory").scroll_into_view_if_needed()
