@@ -266,13 +266,13 @@ def bench(
         "version": _version(),
     }
     journal = Journal(out, identity)
-    with (
-        output_dir(out, force) as tmp,
-        tqdm(total=len(jobs), desc=f"bench {suite_name}", unit="ep") as bar,
-    ):
-        done = journal.open(force)
-        bar.update(sum(j.key in done for j in jobs))
-        with Tasks(workers, ray) as tasks:
+    with output_dir(out, force) as tmp:
+        done = journal.open(force)  # refused before a progress bar is drawn
+        with (
+            tqdm(total=len(jobs), desc=f"bench {suite_name}", unit="ep") as bar,
+            Tasks(workers, ray) as tasks,
+        ):
+            bar.update(sum(j.key in done for j in jobs))
             try:
                 for key, record, png in tasks.map(
                     episode_task, [j for j in jobs if j.key not in done]

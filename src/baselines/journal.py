@@ -93,4 +93,8 @@ def _differs(have: Any, want: dict[str, Any]) -> str:
     if not isinstance(have, dict):
         return "unreadable"
     keys = sorted(k for k in set(have) | set(want) if have.get(k) != want.get(k))
-    return ", ".join(f"{k} {have.get(k)!r} there, {want.get(k)!r} now" for k in keys[:3])
+
+    def shown(d: dict[str, Any], k: str) -> str:
+        return repr(d[k]) if k in d else "not set"
+
+    return ", ".join(f"{k} {shown(have, k)} there, {shown(want, k)} now" for k in keys[:3])

@@ -120,6 +120,9 @@ def test_another_runs_journal_is_refused_unless_forced(
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert "another run" in err and "--force" in err and not out.exists()
+    # what differs, in words (the other run's suite; its policies were not set)
+    assert "suite 'paper' there, 'smoke' now" in err and "policies not set there" in err
+    assert "bench smoke" not in err  # refused before the progress bar
     assert main([*argv, "--force"]) == 0
     assert len(_records(out)) == 1 and not journal.exists()
 
