@@ -127,6 +127,20 @@ def test_studio_end_to_end(tmp_path: Path) -> None:
         assert saved["counts"]["plants"] == wide_count
         shot(page, tmp_path, "generated")
 
+        # run a policy on the saved scenario: trajectory figure and metrics; the field's edits
+        # below are made after it
+        field(page, "run").click()
+        page.wait_for_selector('[data-key="trajectory"] img', timeout=90_000)
+        field(page, "trajectory").scroll_into_view_if_needed()
+        page.wait_for_function(  # the figure is served by the studio and decoded
+            "(() => { const i = document.querySelector('[data-key=\"trajectory\"] img');"
+            " return i && i.complete && i.naturalWidth > 500; })()"
+        )
+        metrics = field(page, "metrics").inner_text()
+        assert "rmse" in metrics and "completion" in metrics
+        assert (Path(str(out) + "-run-rpp") / "metrics.json").is_file()
+        shot(page, tmp_path, "run")
+
         # a self-intersecting polygon: the error is shown at the field, generation refused
         before_files = sorted(p.name for p in work.iterdir())
         draw_polygon(page, BOWTIE)
@@ -154,17 +168,5 @@ def test_studio_end_to_end(tmp_path: Path) -> None:
         )
         shot(page, tmp_path, "off-terrain")
 
-        # run a policy on the saved scenario: trajectory figure and metrics
-        field(page, "run").click()
-        page.wait_for_selector('[data-key="trajectory"] img', timeout=90_000)
-        field(page, "trajectory").scroll_into_view_if_needed()
-        page.wait_for_function(  # the figure is served by the studio and decoded
-            "(() => { const i = document.querySelector('[data-key=\"trajectory\"] img');"
-            " return i && i.complete && i.naturalWidth > 500; })()"
-        )
-        metrics = field(page, "metrics").inner_text()
-        assert "rmse" in metrics and "completion" in metrics
-        assert (Path(str(out) + "-run-rpp") / "metrics.json").is_file()
-        shot(page, tmp_path, "run")
     leaked = outside_localhost(requests, url)
     assert requests and not leaked, leaked
