@@ -214,7 +214,7 @@ def draw_polygon(page: Any, fractions: list[tuple[float, float]]) -> None:
 
     Each click waits for its vertex to appear, then for leaflet-draw's own 50 ms re-arm timer
     (``_enableNewMarkers``): a mouse-down that arrives before that timer has run is dropped
-    without a trace, and on a loaded machine Chromium runs queued input before late timers.
+    without a trace, which a loaded machine makes possible when the timer runs late.
     """
     container = page.locator(".leaflet-container").first
     container.scroll_into_view_if_needed()
