@@ -263,13 +263,15 @@ def overlapping_hints(page: Any) -> list[Any]:
 def open_section(page: Any, section: str) -> None:
     """Expand a collapsed section of the form and wait until its slide-open has ended."""
     page.locator(f'[data-section="{section}"] .q-item').first.click()
-    # Quasar's slide transition animates the height; fields below move until it ends, so
-    # geometry read earlier (the hint overlap check) sees a half-open section
+    # Quasar's QSlideTransition animates the height through an inline style that it removes
+    # at the end; fields below move until then, so geometry read earlier (the hint overlap
+    # check) sees a half-open section
     page.wait_for_function(
         """(sel) => {
           const el = document.querySelector(sel);
           const h = el.getBoundingClientRect().height;
-          const busy = el.querySelector('[class*="q-slide-transition"], [class*="-active"]');
+          const all = [...el.querySelectorAll('*')];
+          const busy = all.some((e) => e.style.transition.includes('height'));
           const same = el.dataset.lastHeight === String(h);
           el.dataset.lastHeight = String(h);
           return same && !busy;
