@@ -108,6 +108,10 @@ def studio_server(workspace: Path, *args: str) -> Iterator[str]:
         log.close()
 
 
+#: leaflet-draw's vertex handles of the shape being drawn
+VERTICES_JS = "document.querySelectorAll('.leaflet-marker-pane .leaflet-editing-icon').length"
+
+
 def wait_for(page: Any, js: str, workspace: Path, timeout: float = 30_000) -> None:
     """``page.wait_for_function`` that fails with the page's and the server's state."""
     from playwright.sync_api import TimeoutError as PlaywrightTimeout
@@ -116,12 +120,12 @@ def wait_for(page: Any, js: str, workspace: Path, timeout: float = 30_000) -> No
         page.wait_for_function(js, timeout=timeout)
     except PlaywrightTimeout:
         state = page.evaluate(
-            """() => ({
+            f"""() => ({{
               field_error: document.querySelector('[data-error="field"]')?.innerText,
               drawn: window.studio.drawn.getLayers().length,
-              vertices: document.querySelectorAll('.leaflet-editing-icon').length,
+              vertices: {VERTICES_JS},
               counts: document.querySelector('[data-key="counts"]')?.innerText,
-            })"""
+            }})"""
         )
         log = (workspace / "studio.log").read_text()[-3000:]
         pytest.fail(f"waited {timeout / 1000:.0f} s for {js}\npage: {state}\nstudio.log:\n{log}")
@@ -205,10 +209,6 @@ def shown(page: Any) -> int:
     return int(page.evaluate("window.studio.shown"))
 
 
-#: leaflet-draw's vertex handles of the shape being drawn
-VERTICES_JS = "document.querySelectorAll('.leaflet-marker-pane .leaflet-editing-icon').length"
-
-
 def draw_polygon(page: Any, fractions: list[tuple[float, float]]) -> None:
     """Draw a polygon with leaflet-draw by clicking its vertices, then the first again.
 
@@ -262,7 +262,9 @@ def overlapping_hints(page: Any) -> list[Any]:
 
 def open_section(page: Any, section: str) -> None:
     """Expand a collapsed section of the form and wait until its slide-open has ended."""
-    page.locator(f'[data-section="{section}"] .q-item').first.click()
+    sel = f'[data-section="{section}"]'
+    page.evaluate("(sel) => { delete document.querySelector(sel).dataset.lastHeight; }", sel)
+    page.locator(f"{sel} .q-item").first.click()
     # Quasar's QSlideTransition animates the height through an inline style that it removes
     # at the end; fields below move until then, so geometry read earlier (the hint overlap
     # check) sees a half-open section
@@ -276,6 +278,6 @@ def open_section(page: Any, section: str) -> None:
           el.dataset.lastHeight = String(h);
           return same && !busy;
         }""",
-        arg=f'[data-section="{section}"]',
+        arg=sel,
         polling=150,
     )

@@ -167,6 +167,5 @@ def test_studio_end_to_end(tmp_path: Path) -> None:
             "document.querySelector('[data-error=\"field\"]').innerText.includes('off the DEM')"
         )
         shot(page, tmp_path, "off-terrain")
-
     leaked = outside_localhost(requests, url)
     assert requests and not leaked, leaked
