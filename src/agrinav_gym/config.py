@@ -184,7 +184,7 @@ class GnssFixConfig:
     multipath_mtbf_s: float = _f(
         600.0,
         "mean time between multipath slips fixed -> float under open sky, s (assumed; the "
-        "sensitivity suite sweeps 120 s to none)",
+        "sensitivity suite sweeps 40 s to none)",
         1,
         1e6,
     )

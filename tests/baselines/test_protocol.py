@@ -216,7 +216,7 @@ def test_published_sensitivity_rows_keep_their_places() -> None:
         "canopy 2.5 m, foliage 0.4 dB/m", "canopy 2.5 m, foliage 2 dB/m",
         "multipath slips every 120 s", "no multipath slips",
         "ground yields: sandy loam 15 % (LLL)", "ground yields: dry sand (LLL)",
-        "proxy camera fitted on flat lanes",
+        "proxy camera fitted on flat lanes", "multipath slips every 40 s",
     ]  # fmt: skip
     assert [c.group for c in suite("sensitivity")][: len(published)] == published
 
@@ -234,7 +234,7 @@ def test_sensitivity_cases_drive_the_same_fields_and_seeds_as_their_reference(
     # the multipath and camera cases: the default row's fields and seeds, only their value set
     slips = [c for c in cases if "multipath_mtbf_s" in c.config.get("gnss", {}).get("fix", {})]
     camera = [c for c in cases if "camera" in c.config]
-    assert len(slips) == 2 and len(camera) == 1
+    assert len(slips) == 3 and len(camera) == 1
     for c, key in [(c, "gnss") for c in slips] + [(c, "camera") for c in camera]:
         assert c.seeds_of == 0
         assert (c.overrides, c.randomize, c.env_id) == (
