@@ -1,0 +1,164 @@
+"""Where the soil's effect on precision comes from, under each estimator, on tilted ground.
+
+The `sensitivity` suite's soil rows drive the `unseen` fields, several on side slopes. There the
+robot slips downhill, and the controller tracks its estimate with a lag on the downhill side;
+robot_localization in ``two_d_mode`` also puts its estimate downhill of the truth, by the GNSS
+mast's lean (0.71 m · sin roll: it removes the antenna's offset through yaw alone). The two
+errors point opposite ways, so a slipperier soil, with a larger lag, cancels more of the lean.
+
+For each soil row and estimator this drives the suite's fields and seeds with one controller
+and logs every control step: the true cross-track error, the estimate's cross-track error (what
+the controller steers on) and the roll. On the steps rolled more than ``--tilt`` degrees each
+is signed uphill-positive (REP 103: roll > 0 raises the left side; cross-track > 0 is left of
+the route). The table gives the episodes' means with 95 % bootstrap intervals: the estimate's
+offset (true − estimated cross-track: where the truth lies from the estimate), the estimate's
+cross-track (the tracking lag) and the true cross-track (their sum), and the RMS of the true
+cross-track over every step (time-weighted, headland included: not the suite's path RMSE).
+
+Run ``python benchmarks/lean_and_slip.py`` (≈ 12 min on 2 cores with the defaults;
+``--estimators robot_localization-3d`` for robot_localization with ``two_d_mode: false``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import platform
+import time
+import warnings
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from tqdm import tqdm
+
+import agrinav_gym  # noqa: F401  (registers the envs)
+from agrinav_gym.routes import Tracker
+from agrinav_gym.scenarios import FixedFieldWarning
+from baselines.bench import CASE_SEEDS, suite_cases
+from baselines.report import mean_ci
+from baselines.suites import EVAL_SEED
+from policies import make_policy
+
+SOIL_ROWS = (
+    "default soil",
+    "soil friction 0.4",
+    "soil friction 0.8",
+    "soil shear modulus 0.01 m",
+    "soil shear modulus 0.05 m",
+)
+#: each estimator's config over the suite's (robot_localization in two_d_mode is the suite's)
+ESTIMATORS = {
+    "robot_localization": "{}",
+    "ekf-oracle": '{"localisation.kind": "ekf"}',
+    "robot_localization-3d": '{"localisation.robot_localization.two_d_mode": false}',
+}
+
+
+def episode(env: Any, policy: Any, seed: int, tilt: float) -> dict[str, float]:
+    """One episode's uphill-signed means over its tilted steps and its RMS true cross-track."""
+    u = env.unwrapped
+    obs, _ = env.reset(seed=seed)
+    policy.reset()
+    est = Tracker(u.route)
+    est.reset(*u.estimator.pose[:2])
+    true_cte, est_cte, roll = [], [], []
+    while True:
+        obs, _, term, trunc, _ = env.step(policy.act(obs))
+        ex, ey, _ = u.estimator.pose
+        true_cte.append(u._cte)
+        est_cte.append(est.update(ex, ey)[0])
+        roll.append(float(u.state.rpy[0]))
+        if term or trunc:
+            break
+    t, e, r = np.array(true_cte), np.array(est_cte), np.array(roll)
+    tilted = np.abs(r) > math.radians(tilt)
+    up = np.sign(r[tilted])
+    out = {"tilted": float(tilted.mean()), "rms": float(np.sqrt(np.mean(t**2)))}
+    if tilted.any():
+        out |= {
+            "offset": float(np.mean((t - e)[tilted] * up)),
+            "lag": float(np.mean(e[tilted] * up)),
+            "true": float(np.mean(t[tilted] * up)),
+        }
+    return out
+
+
+def cell(values: list[float], sign: str = "+") -> str:
+    """Mean [95 % interval] in mm."""
+    ci = mean_ci([v * 1000 for v in values])
+    return "—" if ci is None else f"{ci[0]:{sign}.0f} [{ci[1]:{sign}.0f}, {ci[2]:{sign}.0f}]"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--policy", default="rpp:tuned", help="the controller (bench's spec)")
+    ap.add_argument("--seeds", type=int, default=8, help="episodes per row and estimator")
+    ap.add_argument("--tilt", type=float, default=2.0, help="roll above which a step counts, deg")
+    ap.add_argument(
+        "--estimators",
+        default="robot_localization,ekf-oracle",
+        help=f"comma-separated, of {', '.join(ESTIMATORS)}",
+    )
+    ap.add_argument("--json", help="also write every episode's numbers here")
+    args = ap.parse_args()
+    if args.seeds < 2:
+        ap.error(f"--seeds: {args.seeds}; allowed: at least 2 (an interval needs two episodes)")
+    if not 0.0 <= args.tilt < 45.0:
+        ap.error(f"--tilt: {args.tilt}; allowed: 0 to 45 degrees")
+
+    chosen = [e.strip() for e in args.estimators.split(",") if e.strip()]
+    unknown = [e for e in chosen if e not in ESTIMATORS]
+    if unknown or not chosen:
+        ap.error(f"--estimators: {args.estimators!r}; allowed: any of {', '.join(ESTIMATORS)}")
+
+    results: dict[str, dict[str, list[dict[str, float]]]] = {}
+    jobs = len(chosen) * len(SOIL_ROWS) * args.seeds
+    t0 = time.perf_counter()
+    with tqdm(total=jobs, unit="ep") as bar:
+        for est_name in chosen:
+            cases = suite_cases("sensitivity", ESTIMATORS[est_name])
+            index = {c.group: i for i, c in enumerate(cases)}
+            for row in SOIL_ROWS:
+                case = cases[index[row]]
+                paired = index[row] if case.seeds_of is None else case.seeds_of
+                kw = case.env_kwargs()
+                if case.max_steps is not None:
+                    kw["max_episode_steps"] = case.max_steps
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore", FixedFieldWarning)
+                    env = gym.make(case.env_id, **kw)
+                policy = make_policy(args.policy, env)
+                eps = results.setdefault(est_name, {}).setdefault(row, [])
+                for k in range(args.seeds):
+                    bar.set_postfix(estimator=est_name, row=row)
+                    eps.append(episode(env, policy, EVAL_SEED + CASE_SEEDS * paired + k, args.tilt))
+                    bar.update()
+                env.close()
+
+    print(
+        f"\n{args.policy}, {args.seeds} `sensitivity` seeds a row, steps rolled > {args.tilt:g}°; "
+        f"{platform.machine()}, {time.perf_counter() - t0:.0f} s. Uphill-signed means, mm "
+        "[95 % bootstrap over episodes]:\n"
+    )
+    print(
+        "| estimator | soil | estimate's offset | estimate's cross-track | true cross-track "
+        "| RMS true, all steps |"
+    )
+    print("|---|---|---|---|---|---|")
+    for est_name, rows in results.items():
+        for row, eps in rows.items():
+            tilted = [e for e in eps if "offset" in e]
+            print(
+                f"| {est_name} | {row} | {cell([e['offset'] for e in tilted])} | "
+                f"{cell([e['lag'] for e in tilted])} | {cell([e['true'] for e in tilted])} | "
+                f"{cell([e['rms'] for e in eps], '')} |"
+            )
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(results, f, indent=1)
+
+
+if __name__ == "__main__":
+    main()
