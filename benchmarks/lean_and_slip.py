@@ -16,7 +16,8 @@ cross-track (the tracking lag) and the true cross-track (their sum), and the RMS
 cross-track over every step (time-weighted, headland included: not the suite's path RMSE).
 
 Run ``python benchmarks/lean_and_slip.py`` (≈ 12 min on 2 cores with the defaults;
-``--estimators robot_localization-3d`` for robot_localization with ``two_d_mode: false``).
+``--estimators robot_localization-3d`` for robot_localization with ``two_d_mode: false``;
+``--suite ood --cases 'slope 9-12 deg' --policy ppo:shipped`` for another suite's cases).
 """
 
 from __future__ import annotations
@@ -93,6 +94,12 @@ def cell(values: list[float], sign: str = "+") -> str:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--suite", default="sensitivity", help="the benchmark suite to drive")
+    ap.add_argument(
+        "--cases",
+        default=";".join(SOIL_ROWS),
+        help="';'-separated case names of the suite (default: the sensitivity suite's soil rows)",
+    )
     ap.add_argument("--policy", default="rpp:tuned", help="the controller (bench's spec)")
     ap.add_argument("--seeds", type=int, default=8, help="episodes per row and estimator")
     ap.add_argument("--tilt", type=float, default=2.0, help="roll above which a step counts, deg")
@@ -113,14 +120,24 @@ def main() -> None:
     if unknown or not chosen:
         ap.error(f"--estimators: {args.estimators!r}; allowed: any of {', '.join(ESTIMATORS)}")
 
+    rows = [c.strip() for c in args.cases.split(";") if c.strip()]
+    try:
+        known = [c for c in suite_cases(args.suite) if not c.interventions]
+    except Exception as e:  # the suite's own message names what is allowed
+        ap.error(str(e))
+    names = [c.group for c in known]
+    missing = [r for r in rows if r not in names]
+    if missing or not rows:
+        ap.error(f"--cases: {missing or args.cases!r}; allowed: any of {'; '.join(names)}")
+
     results: dict[str, dict[str, list[dict[str, float]]]] = {}
-    jobs = len(chosen) * len(SOIL_ROWS) * args.seeds
+    jobs = len(chosen) * len(rows) * args.seeds
     t0 = time.perf_counter()
     with tqdm(total=jobs, unit="ep") as bar:
         for est_name in chosen:
-            cases = suite_cases("sensitivity", ESTIMATORS[est_name])
+            cases = suite_cases(args.suite, ESTIMATORS[est_name])
             index = {c.group: i for i, c in enumerate(cases)}
-            for row in SOIL_ROWS:
+            for row in rows:
                 case = cases[index[row]]
                 paired = index[row] if case.seeds_of is None else case.seeds_of
                 kw = case.env_kwargs()
@@ -138,12 +155,12 @@ def main() -> None:
                 env.close()
 
     print(
-        f"\n{args.policy}, {args.seeds} `sensitivity` seeds a row, steps rolled > {args.tilt:g}°; "
+        f"\n{args.policy}, {args.seeds} `{args.suite}` seeds a row, steps rolled > {args.tilt:g}°; "
         f"{platform.machine()}, {time.perf_counter() - t0:.0f} s. Uphill-signed means, mm "
         "[95 % bootstrap over episodes]:\n"
     )
     print(
-        "| estimator | soil | estimate's offset | estimate's cross-track | true cross-track "
+        "| estimator | case | estimate's offset | estimate's cross-track | true cross-track "
         "| RMS true, all steps |"
     )
     print("|---|---|---|---|---|---|")
