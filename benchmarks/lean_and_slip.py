@@ -27,20 +27,16 @@ import json
 import math
 import platform
 import time
-import warnings
 from typing import Any
 
-import gymnasium as gym
 import numpy as np
 from tqdm import tqdm
 
-import agrinav_gym  # noqa: F401  (registers the envs)
 from agrinav_gym.routes import Tracker
-from agrinav_gym.scenarios import FixedFieldWarning
-from baselines.bench import CASE_SEEDS, suite_cases
+from baselines.bench import _make_env, episode_seed, suite_cases
 from baselines.report import mean_ci
-from baselines.suites import EVAL_SEED
 from policies import make_policy
+from scenario_gen.errors import InputError
 
 SOIL_ROWS = (
     "default soil",
@@ -66,9 +62,9 @@ def episode(env: Any, policy: Any, seed: int, tilt: float) -> dict[str, float]:
     est.reset(*u.estimator.pose[:2])
     true_cte, est_cte, roll = [], [], []
     while True:
-        obs, _, term, trunc, _ = env.step(policy.act(obs))
+        obs, _, term, trunc, info = env.step(policy.act(obs))
         ex, ey, _ = u.estimator.pose
-        true_cte.append(u._cte)
+        true_cte.append(info["cte"])
         est_cte.append(est.update(ex, ey)[0])
         roll.append(float(u.state.rpy[0]))
         if term or trunc:
@@ -123,7 +119,7 @@ def main() -> None:
     rows = [c.strip() for c in args.cases.split(";") if c.strip()]
     try:
         known = [c for c in suite_cases(args.suite) if not c.interventions]
-    except Exception as e:  # the suite's own message names what is allowed
+    except InputError as e:  # its message names the suites there are
         ap.error(str(e))
     names = [c.group for c in known]
     missing = [r for r in rows if r not in names]
@@ -139,18 +135,12 @@ def main() -> None:
             index = {c.group: i for i, c in enumerate(cases)}
             for row in rows:
                 case = cases[index[row]]
-                paired = index[row] if case.seeds_of is None else case.seeds_of
-                kw = case.env_kwargs()
-                if case.max_steps is not None:
-                    kw["max_episode_steps"] = case.max_steps
-                with warnings.catch_warnings():
-                    warnings.simplefilter("ignore", FixedFieldWarning)
-                    env = gym.make(case.env_id, **kw)
+                env = _make_env(case)
                 policy = make_policy(args.policy, env)
                 eps = results.setdefault(est_name, {}).setdefault(row, [])
                 for k in range(args.seeds):
                     bar.set_postfix(estimator=est_name, row=row)
-                    eps.append(episode(env, policy, EVAL_SEED + CASE_SEEDS * paired + k, args.tilt))
+                    eps.append(episode(env, policy, episode_seed(index[row], case, k), args.tilt))
                     bar.update()
                 env.close()
 
@@ -164,8 +154,8 @@ def main() -> None:
         "| RMS true, all steps |"
     )
     print("|---|---|---|---|---|---|")
-    for est_name, rows in results.items():
-        for row, eps in rows.items():
+    for est_name, by_case in results.items():
+        for row, eps in by_case.items():
             tilted = [e for e in eps if "offset" in e]
             print(
                 f"| {est_name} | {row} | {cell([e['offset'] for e in tilted])} | "

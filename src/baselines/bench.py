@@ -321,6 +321,15 @@ def _chosen_cases(cases: Sequence[Any], groups: Sequence[str] | None, suite_name
     return [i for i, n in enumerate(names) if n in groups]
 
 
+def episode_seed(index: int, case: Case, k: int) -> int:
+    """Episode ``k``'s reset seed for the suite's case number ``index``: each case its own
+    sensor-noise draws, so groups that differ only in what a policy cannot see are still
+    independent samples — unless the case reuses another's seeds to be compared with it pair by
+    pair (``Case.seeds_of``)."""
+    paired = index if case.seeds_of is None else case.seeds_of
+    return EVAL_SEED + CASE_SEEDS * paired + k
+
+
 def trajectory_name(group: str, policy: str, k: int) -> str:
     """The trajectory figure of a suite's case, policy and k-th seed."""
     return f"traj_{_slug(group)}_{_slug(policy)}_{k:03d}.png"
@@ -361,12 +370,8 @@ def episode_task(job: EpisodeJob) -> tuple[str, dict[str, Any], bytes]:
     env, pols = cached["env"], cached["policies"]
     if job.policy not in pols:
         pols[job.policy] = _policy(job.spec, env, job.trust)
-    # each case its own sensor-noise draws, so groups that differ only in what a policy cannot
-    # see are still independent samples — unless a case reuses another's seeds to be compared
-    # with it pair by pair (Case.seeds_of)
     run = run_with_interventions if case.interventions else run_episode
-    paired = job.case if case.seeds_of is None else case.seeds_of
-    ep = run(env, pols[job.policy], EVAL_SEED + CASE_SEEDS * paired + job.seed, job.label)
+    ep = run(env, pols[job.policy], episode_seed(job.case, case, job.seed), job.label)
     record = _record(ep, job.suite, case.group, env)
     if job.config:
         record["config_set"] = json.loads(job.config)
