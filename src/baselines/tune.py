@@ -86,7 +86,8 @@ def training_env(policy: str = "rpp", extra: str = "", route_clock: bool = False
     every trial drives the same fields); ``extra`` a JSON mapping merged over envs.yml's
     env_kwargs as ``agrinav train --env-kwargs`` merges its file (more ranges, other turns);
     ``route_clock``: truncated as the test suites are (suites.ROUTE_CLOCK), not after the
-    registered step limit."""
+    registered step limit. A ``config`` in ``extra`` goes over the searches' conditions key by
+    key, so a file can set the estimator (``benchmarks/fieldroute_robot_localization.yaml``)."""
     import gymnasium as gym
 
     import agrinav_gym  # noqa: F401  (registers the ids)
@@ -96,7 +97,7 @@ def training_env(policy: str = "rpp", extra: str = "", route_clock: bool = False
 
     _, setup = load(ENV_ID)
     kw = merge_env_kwargs(dict(setup.env_kwargs), json.loads(extra) if extra else {})
-    config = {**kw.pop("config", {}), **RTK_EKF}
+    config = merge_env_kwargs(RTK_EKF, kw.pop("config", {}))
     if route_clock:
         config["task"] = {**config["task"], **ROUTE_CLOCK}
         kw["max_episode_steps"] = ROUTE_CLOCK_BACKSTOP

@@ -134,6 +134,31 @@ def test_env_kwargs_put_more_geometry_in_the_searched_training_fields(tmp_path: 
     assert not (tmp_path / "u").exists()
 
 
+def test_env_kwargs_can_set_the_estimator_the_searches_run() -> None:
+    """A config in ``--env-kwargs`` goes over the searches' conditions (the oracle EKF, RTK
+    fixed, the benchmark's progress checker) key by key: the shipped robot_localization ranges
+    change the estimator and keep the rest; without them the searches run the oracle."""
+    import json
+
+    from baselines.suites import RTK_NAV2
+    from baselines.tune import training_env
+
+    path = Path(__file__).resolve().parents[2] / "benchmarks" / "fieldroute_robot_localization.yaml"
+    extra = json.dumps(yaml.safe_load(path.read_text()))
+    for kwargs, kind in (("", "ekf"), (extra, "robot_localization")):
+        env = training_env("rpp", kwargs)
+        try:
+            cfg = env.unwrapped.cfg
+            assert cfg.localisation.kind == kind
+            assert cfg.task.progress_time == 10.0 and cfg.gnss.mode == RTK_NAV2["gnss"]["mode"]
+            assert cfg.reward["progress"].cte_scale == 0.1  # envs.yml's config, kept
+            if kind == "robot_localization":
+                want = RTK_NAV2["localisation"]["robot_localization"]["history_length_s"]
+                assert cfg.localisation.robot_localization.history_length_s == want
+        finally:
+            env.close()
+
+
 def test_the_route_clock_times_the_trials_as_the_test_suites_are(tmp_path: Path) -> None:
     """``--route-clock``: a trial's episodes end after 20 s per metre of route (the test
     suites' clock), not the registered 4,000 steps; the choice says so."""
