@@ -295,16 +295,3 @@ def test_the_oracle_is_the_localisation_suites_reference_and_says_it_is_an_upper
         assert env.unwrapped.conditions()["localisation"].startswith("ekf (oracle, an upper bound)")
     finally:
         env.close()
-
-
-def test_the_robot_localization_tuning_ranges_run_the_benchmarks_estimator() -> None:
-    """benchmarks/fieldroute_robot_localization.yaml (a tuning search's --env-kwargs) sets the
-    estimator the navigation suites run, and nothing else: the search differs from the
-    shipped one in the estimator alone."""
-    import yaml
-
-    from baselines.suites import RTK_NAV2
-
-    path = Path(__file__).resolve().parents[2] / "benchmarks" / "fieldroute_robot_localization.yaml"
-    extra = yaml.safe_load(path.read_text())
-    assert extra == {"config": {"localisation": RTK_NAV2["localisation"]}}

@@ -137,14 +137,17 @@ def test_env_kwargs_put_more_geometry_in_the_searched_training_fields(tmp_path: 
 def test_env_kwargs_can_set_the_estimator_the_searches_run() -> None:
     """A config in ``--env-kwargs`` goes over the searches' conditions (the oracle EKF, RTK
     fixed, the benchmark's progress checker) key by key: the shipped robot_localization ranges
-    change the estimator and keep the rest; without them the searches run the oracle."""
+    (the navigation suites' estimator, nothing else) change the estimator and keep the rest;
+    without them the searches run the oracle."""
     import json
 
     from baselines.suites import RTK_NAV2
     from baselines.tune import training_env
 
     path = Path(__file__).resolve().parents[2] / "benchmarks" / "fieldroute_robot_localization.yaml"
-    extra = json.dumps(yaml.safe_load(path.read_text()))
+    ranges = yaml.safe_load(path.read_text())
+    assert ranges == {"config": {"localisation": RTK_NAV2["localisation"]}}
+    extra = json.dumps(ranges)
     for kwargs, kind in (("", "ekf"), (extra, "robot_localization")):
         env = training_env("rpp", kwargs)
         try:
