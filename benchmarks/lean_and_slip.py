@@ -35,15 +35,15 @@ from tqdm import tqdm
 from agrinav_gym.routes import Tracker
 from baselines.bench import _make_env, episode_seed, suite_cases
 from baselines.report import mean_ci
+from baselines.suites import SENSITIVITY
 from policies import make_policy
 from scenario_gen.errors import InputError
 
-SOIL_ROWS = (
-    "default soil",
-    "soil friction 0.4",
-    "soil friction 0.8",
-    "soil shear modulus 0.01 m",
-    "soil shear modulus 0.05 m",
+#: the sensitivity suite's soil rows: its default and the friction and shear-modulus ends
+SOIL_ROWS = tuple(
+    group
+    for group, kind, values in SENSITIVITY
+    if kind == "soil" and set(values) <= {"friction", "shear_modulus"}
 )
 #: each estimator's config over the suite's (robot_localization in two_d_mode is the suite's)
 ESTIMATORS = {
