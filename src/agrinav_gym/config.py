@@ -93,6 +93,8 @@ class SoilConfig:
 
 #: the plantings the proxy camera's parameters are fitted on (``render.proxy_params``)
 PROXY_PLANTINGS = ("ridged", "flat")
+#: ``camera.proxy_fit``'s choices: a table by name, or ``auto``, each field's nearest one
+PROXY_FIT_CHOICES = (*PROXY_PLANTINGS, "auto")
 
 
 @dataclass(frozen=True)
@@ -106,9 +108,10 @@ class CameraConfig:
     proxy_fit: str = _f(
         "ridged",
         "proxy: the plant parameters fitted to the meshes on 'ridged' lanes (0.12 m ridges, the "
-        "camera in the furrow; every published proxy-camera result used them) or on 'flat' "
-        "planting (the default fields': docs/camera.md)",
-        choices=PROXY_PLANTINGS,
+        "camera in the furrow; every published proxy-camera result used them), on 'flat' "
+        "planting (the default fields'), or 'auto': per field, the table nearer its ridge "
+        "height (ridged from 0.06 m; docs/camera.md)",
+        choices=PROXY_FIT_CHOICES,
     )
     width: int = _f(64, "image width, pixels (848 for datasets)", 8, 1280)
     height: int = _f(48, "image height, pixels (480 for datasets)", 6, 800)

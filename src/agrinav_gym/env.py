@@ -35,6 +35,7 @@ from .metrics import EpisodeMetrics
 from .observations import OBSERVATION_MODELS, RouteObservation, Snapshot
 from .recoveries import ABORT, SKIP, Recoveries
 from .render.mesh_scene import SceneCache
+from .render.proxy_params import planting_of
 from .render.proxy_plants import PlantField
 from .robot import robot_interface
 from .routes import RoutePath, Tracker
@@ -557,7 +558,9 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         self.world.load(scn.terrain, scn.rows.angle if scn.rows.curve is None else None)
         self.world.set_obstacles(scn.obstacles)  # a no-op while they are the same
         if self._fields_of is not scn:
-            self.plants = PlantField.from_scenario(scn, planting=self.cfg.camera.proxy_fit)
+            fit = self.cfg.camera.proxy_fit
+            planting = planting_of(scn.spec.furrows) if fit == "auto" else fit
+            self.plants = PlantField.from_scenario(scn, planting=planting)
             self.field = FieldView(scn, self.plants, self._camera_scenes)
             self.contact = CropContact.from_scenario(scn, self.world.geometry)
             self.obstacle_contact = ObstacleContact.from_scenario(scn, self.world.geometry)

@@ -248,3 +248,54 @@ def test_the_env_draws_the_proxies_from_the_table_its_config_names() -> None:
             env.close()
     np.testing.assert_array_equal(depth[None], depth["ridged"])
     assert np.abs(depth["flat"] - depth["ridged"]).mean() > 0.01
+
+
+@pytest.mark.parametrize(
+    ("enabled", "depth", "table"),
+    [(False, 0.12, "flat"), (True, 0.0, "flat"), (True, 0.05, "flat"), (True, 0.06, "ridged")]
+    + [(True, 0.25, "ridged")],
+)
+def test_auto_takes_the_table_nearer_the_fields_ridge_height(
+    enabled: bool, depth: float, table: str
+) -> None:
+    from agrinav_gym.render.proxy_params import planting_of
+    from scenario_gen.spec import FurrowSpec
+
+    assert planting_of(FurrowSpec(enabled=enabled, depth=depth)) == table
+
+
+def test_auto_gives_each_fit_presets_fields_their_own_table() -> None:
+    """The ridge height ``auto`` measures against is the ridged fit's, so the fit's own lanes
+    (``FIT_PRESETS``) map back to the table fitted on them."""
+    from agrinav_gym.render.proxy_params import RIDGED_FIT_HEIGHT, planting_of
+    from agrinav_gym.tools.proxy_fit import FIT_PRESETS
+    from scenario_gen.presets import preset
+
+    assert preset(FIT_PRESETS["ridged"]).furrows.depth == RIDGED_FIT_HEIGHT
+    for planting in PLANTINGS:
+        assert planting_of(preset(FIT_PRESETS[planting]).furrows) == planting
+
+
+@pytest.mark.parametrize("ridged", [False, True])
+def test_auto_draws_each_fields_proxies_from_its_plantings_table(ridged: bool) -> None:
+    from agrinav_gym.render.proxy_plants import PlantField
+
+    from .helpers import TINY, make
+
+    furrows = {"enabled": ridged, "depth": 0.12}
+    over = {**TINY, "crop": {"stage": 3}, "furrows": furrows}
+    env = make(
+        "AgriNav/FurrowFollowDepth-v3",
+        config={"camera": {"proxy_fit": "auto"}},
+        scenario_overrides=over,
+    )
+    try:
+        env.reset(seed=3)
+        u = env.unwrapped
+        assert u.plants is not None
+        want = PlantField.from_scenario(u.scenario, planting="ridged" if ridged else "flat")
+        other = PlantField.from_scenario(u.scenario, planting="flat" if ridged else "ridged")
+        np.testing.assert_array_equal(u.plants.radius, want.radius)
+        assert not np.array_equal(u.plants.radius, other.radius)
+    finally:
+        env.close()

@@ -22,6 +22,7 @@ import numpy as np
 
 from scenario_gen.arrays import FloatArray
 from scenario_gen.errors import InputError
+from scenario_gen.spec import FurrowSpec
 
 from ..config import PROXY_PLANTINGS
 
@@ -77,6 +78,18 @@ def parse_table(doc: Any, source: str = PLANTINGS["ridged"]) -> dict[str, FloatA
             )
         out[str(name)] = t
     return out
+
+
+#: the ridge height of the lanes the ridged table was fitted on (the ``ridged`` preset's furrows;
+#: the flat table's lanes have none)
+RIDGED_FIT_HEIGHT = 0.12
+
+
+def planting_of(furrows: FurrowSpec) -> str:
+    """The table fitted nearer a field's ridge height: ``ridged`` from half the ridged fit's
+    ridges up, ``flat`` below (roughness and a planting furrow of a few cm are flat planting)."""
+    height = furrows.depth if furrows.enabled else 0.0
+    return "ridged" if height >= 0.5 * RIDGED_FIT_HEIGHT else "flat"
 
 
 def check_planting(planting: Any) -> str:
