@@ -36,6 +36,7 @@ setup(
                 "src/agrinav_gym/render/csrc/packets.c",
                 "src/agrinav_gym/render/csrc/tyres.c",
                 "src/agrinav_gym/render/csrc/ekf.c",
+                "src/agrinav_gym/render/csrc/rl.c",
                 "src/agrinav_gym/render/csrc/routes.c",
             ],
             depends=["src/agrinav_gym/render/csrc/native.h", "src/agrinav_gym/render/csrc/batch.h"],

@@ -5,7 +5,8 @@
 3. one interleaved run (every setup once per repeat, medians over repeats): the env step over
    raw physics of the same robot in the same world making the same moves — the wheel command,
    the terrain window following the robot and the 12 substeps (tyre model + pybullet) —
-   with the default estimator (EKF; target ≤ 1.3) and the blend; and simulated seconds per
+   with the default estimator (EKF; target ≤ 1.3), the blend and the navigation suites'
+   robot_localization (its filter in numpy and compiled); and simulated seconds per
    wall-clock second of the state-only env against pybullet's own ``RacecarGymEnv`` (target
    ≥ 3×) and of the 64 x 48 depth env against ``RacecarZEDGymEnv`` (its 100 x 10 camera),
    both run through ``pybullet_gym_shim`` (they were written for the old ``gym``);
@@ -41,6 +42,8 @@ import numpy as np
 import pybullet as p
 
 import agrinav_gym  # registers the envs
+from agrinav_gym.estimation.robot_localization import RobotLocalizationEkf
+from baselines.suites import RTK_NAV2
 from common import drive, s_curve
 from pybullet_gym_shim import quiet, racecar_envs, sim_seconds
 
@@ -60,13 +63,24 @@ def steps_per_second(observations: tuple[str, ...], repeat: int) -> tuple[float,
     return statistics.median(rates), min(rates)
 
 
-def _env(observations: tuple[str, ...] = STATE_OBS, localisation: str = "ekf") -> gym.Env:
+def _env(
+    observations: tuple[str, ...] = STATE_OBS, localisation: str | dict[str, Any] = "ekf"
+) -> gym.Env:
+    loc = {"kind": localisation} if isinstance(localisation, str) else localisation
     return gym.make(
-        ENV_ID,
-        scenario="paper-p1",
-        observations=observations,
-        config={**TASK, "localisation": {"kind": localisation}},
+        ENV_ID, scenario="paper-p1", observations=observations, config={**TASK, "localisation": loc}
     )
+
+
+def _rl_env(compiled: bool) -> gym.Env:
+    """The env with the navigation suites' estimator (robot_localization as a Nav2 user sets
+    it up, ``baselines.suites.RTK_NAV2``), its filter compiled (where the kernels are built)
+    or the numpy twin."""
+    env = _env(localisation=RTK_NAV2["localisation"])
+    u = env.unwrapped
+    if not compiled:
+        u.estimator = RobotLocalizationEkf(u.cfg.localisation, u.world.skid_factor, u.dt, False)
+    return env
 
 
 def raw_physics(env: gym.Env, seed: int, n: int, window: bool = True) -> float:
@@ -109,6 +123,7 @@ def interleaved(repeat: int, steps: int = 400) -> dict[str, float]:
     """Section 3: every setup once per repeat, in turn (the machine's load drifts alike for
     all); medians. Seconds per env step, and simulated seconds per wall second."""
     ekf, blend, depth = _env(), _env(localisation="blend"), _env((*STATE_OBS, "depth"))
+    rl_np, rl_c = _rl_env(False), _rl_env(True)
     racecar_cls, zed_cls = racecar_envs()
     with quiet():
         racecar = racecar_cls()
@@ -116,7 +131,7 @@ def interleaved(repeat: int, steps: int = 400) -> dict[str, float]:
         zed = zed_cls(renders=False)  # its constructor resets
     dt = ekf.unwrapped.dt
     runs: dict[str, list[float]] = {
-        k: [] for k in ("ekf", "raw", "raw_nowin", "blend", "depth", "rc", "zed")
+        k: [] for k in ("ekf", "raw", "raw_nowin", "blend", "rl", "rl_c", "depth", "rc", "zed")
     }
     race_steps, zed_steps, depth_steps = 40, 4, 100
     for r in range(repeat):
@@ -126,12 +141,15 @@ def interleaved(repeat: int, steps: int = 400) -> dict[str, float]:
         runs["raw_nowin"].append(raw_physics(ekf, r, steps, window=False))
         blend.reset(seed=r)  # the same physics as the EKF env's: the same raw
         runs["blend"].append(drive(blend, steps) / steps)
+        for key, env in (("rl", rl_np), ("rl_c", rl_c)):
+            env.reset(seed=r)
+            runs[key].append(drive(env, steps) / steps)
         depth.reset(seed=r)
         runs["depth"].append(drive(depth, depth_steps) / depth_steps)
         with quiet():
             runs["rc"].append(racecar_seconds(racecar, race_steps, r * race_steps) / race_steps)
             runs["zed"].append(racecar_seconds(zed, zed_steps, r * zed_steps) / zed_steps)
-    for env in (ekf, blend, depth):
+    for env in (ekf, blend, rl_np, rl_c, depth):
         env.close()
     med = {k: statistics.median(v) for k, v in runs.items()}
     med["rc_sim"] = sim_seconds(racecar) / med["rc"]
@@ -143,9 +161,11 @@ def interleaved(repeat: int, steps: int = 400) -> dict[str, float]:
     med["ratio_nowin"] = statistics.median(
         e / w for e, w in zip(runs["ekf"], runs["raw_nowin"], strict=True)
     )
-    med["blend_ratio"] = statistics.median(
-        e / w for e, w in zip(runs["blend"], runs["raw"], strict=True)
-    )
+    for key in ("blend", "rl", "rl_c"):
+        med[f"{key}_ratio"] = statistics.median(
+            e / w for e, w in zip(runs[key], runs["raw"], strict=True)
+        )
+    med["rl_sim"], med["rl_c_sim"] = dt / med["rl"], dt / med["rl_c"]
     return med
 
 
@@ -159,6 +179,13 @@ def report_interleaved(m: dict[str, float], repeat: int) -> None:
     print(
         f"   blend estimator: env step {m['blend'] * 1e3:.3f} ms, env / raw {m['blend_ratio']:.2f}"
     )
+    for key, name in (("rl", "numpy filter"), ("rl_c", "compiled filter")):
+        print(
+            f"   robot_localization (the suites' setup), {name}: env step "
+            f"{m[key] * 1e3:.3f} ms, env / raw {m[f'{key}_ratio']:.2f} (target ≤ 1.3); "
+            f"sim s per wall s {m[f'{key}_sim']:.1f}: {m[f'{key}_sim'] / m['rc_sim']:.2f}x "
+            "RacecarGymEnv"
+        )
     print(
         f"   sim s per wall s: state-only env {m['ekf_sim']:.1f} vs RacecarGymEnv "
         f"{m['rc_sim']:.1f} ({m['rc'] * 1e3:.1f} ms per 0.5 s step): "

@@ -8,7 +8,8 @@ the parts add up to a little more than an untimed step.
 
     python benchmarks/profile_env.py [--steps 400] [--repeat 5] [--localisation KIND]
 
-``--localisation robot_localization-3d`` runs robot_localization with ``two_d_mode: false``.
+``--localisation robot_localization-3d`` runs robot_localization with ``two_d_mode: false``,
+``robot_localization-numpy`` its planar filter's numpy twin instead of the compiled kernel.
 
 With ``--cprofile`` it prints cProfile's 30 most expensive functions instead (cProfile's own
 overhead inflates pure-Python code several times: use it to find functions, the timer table
@@ -32,6 +33,7 @@ import pybullet as p
 
 import agrinav_gym  # noqa: F401  (registers the envs)
 from agrinav_gym import rewards
+from agrinav_gym.estimation.robot_localization import RobotLocalizationEkf
 from agrinav_gym.render import native
 from common import drive
 
@@ -125,9 +127,16 @@ VARIANTS: dict[str, dict[str, Any]] = {
         "robot_localization": {"two_d_mode": False},
     },
 }
+#: ``--localisation`` names whose filter is swapped for another after the env is made
+NUMPY_TWINS = {"robot_localization-numpy": "robot_localization"}
 
 
 def make(localisation: str) -> Any:
+    if localisation in NUMPY_TWINS:
+        env = make(NUMPY_TWINS[localisation])
+        u = env.unwrapped
+        u.estimator = RobotLocalizationEkf(u.cfg.localisation, u.world.skid_factor, u.dt, False)
+        return env
     loc = VARIANTS.get(localisation, {"kind": localisation})
     return gym.make(
         "AgriNav/FurrowFollow-v3",
@@ -191,7 +200,7 @@ def main() -> None:
     ap.add_argument(
         "--localisation",
         default="ekf",
-        choices=("ekf", "robot_localization", "robot_localization-3d", "blend", "ideal"),
+        choices=("ekf", "robot_localization", *VARIANTS, *NUMPY_TWINS, "blend", "ideal"),
         help="robot_localization-3d: robot_localization with two_d_mode false",
     )
     ap.add_argument("--cprofile", action="store_true")

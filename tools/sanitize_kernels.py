@@ -39,6 +39,7 @@ TESTS = [
     "tests/agrinav_gym/test_pixel_noise.py",
     "tests/agrinav_gym/test_sensors.py",
     "tests/agrinav_gym/test_step_kernels.py",
+    "tests/agrinav_gym/test_robot_localization_kernel.py",
 ]
 SELECT = "not reference"
 FLAGS = [

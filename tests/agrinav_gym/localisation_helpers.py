@@ -67,14 +67,16 @@ def drive(
     seconds: float = 40.0,
     latency: float = 0.1,
     loc: LocalisationConfig | None = None,
+    estimator: StateEstimator | None = None,
 ) -> Drive:
-    """Run ``kind`` over a synthetic drive with a receiver held in ``mode``."""
+    """Run ``kind`` (or ``estimator``) over a synthetic drive with a receiver held in
+    ``mode``."""
     rng = np.random.default_rng(seed)
     gcfg = GnssConfig(mode=mode, latency_s=latency, fix=GnssFixConfig(model="constant"))
     gnss, imu = Gnss(gcfg, DT), Imu(ImuConfig(), DT)
     odo = WheelOdometry(OdomConfig(), RADIUS, TRACK)
     lever = np.array([gcfg.antenna_x, 0.0, gcfg.antenna_height])
-    est: StateEstimator = make_estimator(kind, loc or LocalisationConfig(), CHI, DT)
+    est = estimator or make_estimator(kind, loc or LocalisationConfig(), CHI, DT)
     x = y = yaw = t = 0.0
 
     def readings(st: RobotState, odom: np.ndarray) -> Readings:

@@ -252,8 +252,13 @@ def test_the_env_draws_the_proxies_from_the_table_its_config_names() -> None:
 
 @pytest.mark.parametrize(
     ("enabled", "depth", "table"),
-    [(False, 0.12, "flat"), (True, 0.0, "flat"), (True, 0.05, "flat"), (True, 0.06, "ridged")]
-    + [(True, 0.25, "ridged")],
+    [
+        (False, 0.12, "flat"),
+        (True, 0.0, "flat"),
+        (True, 0.05, "flat"),
+        (True, 0.06, "ridged"),
+        (True, 0.25, "ridged"),
+    ],
 )
 def test_auto_takes_the_table_nearer_the_fields_ridge_height(
     enabled: bool, depth: float, table: str

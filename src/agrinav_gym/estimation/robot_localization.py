@@ -37,17 +37,25 @@ robot_localization's defaults or the drivers' documented values (``RobotLocaliza
   from the odometry — each with its reading's covariance (robot_localization initialises a
   variable from the first measurement of it). Without a fix the start pose is the
   ``init_position_sigma`` prior (as the oracle's) until the first fix sets the datum.
+
+Each update of the planar filter runs in the compiled kernel ``rl_update``
+(``render/csrc/rl.c``) where the extension is built; this module's numpy filter is its twin and
+reference (the same operations in the same order; numpy's matrix products and LAPACK's inverse
+round differently, so the two agree to rounding, tests bound how closely).
 """
 
 from __future__ import annotations
 
+import ctypes
 import math
+import struct
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..config import LocalisationConfig
 from ..interface import GNSS_NONE
+from ..render import native as _native
 from .readings import FloatArray, Readings
 
 N = 8
@@ -57,6 +65,9 @@ MIN_VARIANCE = 1e-9  # Ekf::correct: a smaller measurement variance is raised to
 GRAVITY = 9.80665
 _ODOM, _IMU, _IMU_RATE, _IMU_ACCEL, _GPS = range(5)  # order of readings with equal stamps
 _SOURCE = ("odom", "imu", "imu", "imu", "gps")  # what each reading counts as when rejected
+_REJECTED = ("odom", "imu", "gps")  # the kernel's rejected[] counts, in order
+#: a step's readings as the kernel takes them (csrc/native.h: RL_READING)
+_PACK = struct.Struct(f"{_native.RL_READING}d")
 
 
 def _wrap(a: float) -> float:
@@ -85,7 +96,8 @@ class _Saved:
 
 class RobotLocalizationEkf:
     """See the module docstring; ``skid_factor`` is the controller's wheel-separation
-    multiplier χ (the odometry's yaw rate / χ)."""
+    multiplier χ (the odometry's yaw rate / χ); ``native`` picks the kernel (True) or the numpy
+    twin (False); None: the kernel where the extension is built."""
 
     name = "robot_localization"
     #: state size, the angles whose innovations and values wrap, and (x, y, yaw)'s indices
@@ -93,7 +105,9 @@ class RobotLocalizationEkf:
     angles: tuple[int, ...] = (PSI,)
     pose_index: tuple[int, int, int] = (X, Y, PSI)
 
-    def __init__(self, cfg: LocalisationConfig, skid_factor: float, dt: float) -> None:
+    def __init__(
+        self, cfg: LocalisationConfig, skid_factor: float, dt: float, native: bool | None = None
+    ) -> None:
         self.cfg = cfg
         self.rl = cfg.robot_localization
         self.chi = skid_factor
@@ -114,6 +128,49 @@ class RobotLocalizationEkf:
         self._done: list[Measurement] = []
         #: readings dropped by the Mahalanobis test, by source (for diagnostics and tests)
         self.rejected = {"odom": 0, "imu": 0, "gps": 0}
+        #: the kernel (True) or the numpy twin; None: the kernel where it is built
+        self.native = _native.available() if native is None else native
+        if self.native:
+            self._kernel_setup()
+
+    def _kernel_setup(self) -> None:
+        """The kernel's constants, state and history buffers (filled once, by name)."""
+        rl = self.rl
+        never = float("nan")
+
+        def threshold(t: float | None) -> float:
+            return never if t is None else float(t)
+
+        config = _native.RlConfig(
+            chi=self.chi, dt=self.dt, q=np.diag(self.Q).tolist(),
+            odom_var=self.odom_var.tolist(), yaw_var=self.yaw_var, rate_var=self.rate_var,
+            accel_var=self.accel_var.tolist(),
+            odom_threshold=threshold(rl.odom_rejection_threshold),
+            imu_threshold=threshold(rl.imu_rejection_threshold),
+            accel_threshold=threshold(rl.imu_accel_rejection_threshold),
+            gps_threshold=threshold(rl.gps_rejection_threshold), history_s=rl.history_length_s,
+            smooth=int(rl.smooth_lagged_data), fuse_rate=int(rl.fuse_imu_yaw_rate),
+            fuse_accel=int(rl.fuse_imu_acceleration), lever_arm=int(rl.gps_lever_arm),
+        )  # fmt: skip
+        # states are saved at control-step stamps: those within the history, one older, and
+        # the step in hand; each stamp holds at most five readings (odom, imu yaw, rate and
+        # acceleration, and one late fix)
+        cap = math.ceil(rl.history_length_s / self.dt) + 4
+        done = 5 * cap + 10
+        size = ctypes.sizeof(_native.RlMeasurement)
+        self._s, self._P = np.zeros(N), np.zeros((N, N))
+        self._filter = _native.RlFilter(
+            s=self._s, P=self._P, t_last=0.0, k=-1, anchored=0, rejected=[0, 0, 0],
+            capacity=cap, count=0, head=0, hist_t=np.zeros(cap), hist_s=np.zeros((cap, N)),
+            hist_P=np.zeros((cap, N * N)), done_capacity=done, done_count=0, done_head=0,
+            done=np.zeros(done * size, np.uint8), queue_capacity=done + 8,
+            queue=np.zeros((done + 8) * size, np.uint8),
+        )  # fmt: skip
+        self._io = np.zeros(_native.RL_READING)
+        self._iov = self._io.data.cast("B")
+        self._args = _native.RlUpdateArgs(config=config, filter=self._filter, reading=self._io)
+        self._call = _native.kernel("rl_update")
+        self._ref = ctypes.byref(self._args)
 
     # ------------------------------------------------------------------ protocol
     def reset(self, x: float, y: float, yaw: float, rng: np.random.Generator) -> None:
@@ -132,8 +189,18 @@ class RobotLocalizationEkf:
         self._states.clear()
         self._done.clear()
         self.rejected = {"odom": 0, "imu": 0, "gps": 0}
+        if self.native:  # the kernel's buffers hold the state from here on
+            self._s[:], self._P[:] = self.s, self.P
+            self.s, self.P = self._s, self._P
+            self._filter.set(
+                t_last=0.0, k=-1, anchored=0, rejected=[0, 0, 0], count=0, head=0,
+                done_count=0, done_head=0,
+            )  # fmt: skip
 
     def update(self, r: Readings, dt: float) -> None:
+        if self.native:
+            self._kernel_update(r)
+            return
         self.k += 1
         now = self.k * self.dt
         if self.k == 0:
@@ -150,6 +217,23 @@ class RobotLocalizationEkf:
                 self._save()
         if self.rl.smooth_lagged_data:
             self._expire()
+
+    def _kernel_update(self, r: Readings) -> None:
+        odom, rpy, enu, sigma, lever = r.odom, r.rpy, r.gnss_enu, r.gnss_sigma, r.antenna_lever
+        fix = 1.0 if r.gnss_new and r.gnss_mode != GNSS_NONE else 0.0
+        _PACK.pack_into(
+            self._iov, 0,
+            odom[0], odom[1], rpy[0], rpy[1], rpy[2], r.gyro[2], r.accel[0], r.accel[1],
+            fix, enu[0], enu[1], sigma[0], sigma[1], r.gnss_age, lever[0], lever[1],
+        )  # fmt: skip
+        status = self._call(self._ref)
+        f = self._filter
+        self.k, self.t_last, self.anchored = f.k, f.t_last, bool(f.anchored)
+        self.rejected = dict(zip(_REJECTED, f.rejected, strict=True))
+        if status == _native.NOT_POSITIVE:
+            raise np.linalg.LinAlgError("innovation covariance singular (rl_update)")
+        if status:
+            raise _native.failed("rl_update", status)
 
     @property
     def pose(self) -> tuple[float, float, float]:

@@ -56,7 +56,7 @@ class RobotLocalizationEkf3D(RobotLocalizationEkf):
     pose_index = (X, Y, YAW)
 
     def __init__(self, cfg: LocalisationConfig, skid_factor: float, dt: float) -> None:
-        super().__init__(cfg, skid_factor, dt)
+        super().__init__(cfg, skid_factor, dt, native=False)  # the kernel is the planar filter
         vx, vy, vyaw = self.odom_var
         #: the controller reports one variance for its linear twist; vz takes vy's
         self.odom_var = np.array([vx, vy, vy, vyaw])

@@ -1,6 +1,7 @@
 """The compiled kernels (``src/agrinav_gym/render/csrc``) through ctypes: the sensors', the tyre
-model's (``sim/tyres.py``), the EKF's (``estimation/ekf.py``) and the route's (``routes.py``,
-``metrics.py``: the trackers, the route observation, the metrics' nearest segment).
+model's (``sim/tyres.py``), the filters' (``estimation/ekf.py``, ``robot_localization.py``) and
+the route's (``routes.py``, ``metrics.py``: the trackers, the route observation, the metrics'
+nearest segment).
 
 The kernels are plain C functions in the optional extension ``agrinav_gym.render._native`` (built by
 ``pip install``/``make`` where a C compiler exists). ctypes releases the GIL during each call,
@@ -551,6 +552,82 @@ class EkfUpdateArgs(Args, kernel="ekf_update"):
         ("dt", f64),
         ("reading", F64),
         ("gnss", F64),
+    ]
+
+
+class RlConfig(Struct, c="rl_config_t"):
+    """robot_localization's planar filter's constants (estimation/robot_localization.py);
+    a threshold of NaN never rejects."""
+
+    _fields_ = [
+        ("chi", f64),
+        ("dt", f64),
+        ("q", vec(8)),
+        ("odom_var", vec(3)),
+        ("yaw_var", f64),
+        ("rate_var", f64),
+        ("accel_var", vec(2)),
+        ("odom_threshold", f64),
+        ("imu_threshold", f64),
+        ("accel_threshold", f64),
+        ("gps_threshold", f64),
+        ("history_s", f64),
+        ("smooth", i32),
+        ("fuse_rate", i32),
+        ("fuse_accel", i32),
+        ("lever_arm", i32),
+    ]
+
+
+class RlMeasurement(Struct, c="rl_measurement_t"):
+    """One queued reading (its rings are byte arrays of these, filled by the kernel)."""
+
+    _fields_ = [
+        ("time", f64),
+        ("order", i32),
+        ("m", i32),
+        ("index", ctypes.c_int32 * 3),
+        ("z", vec(3)),
+        ("var", vec(3)),
+        ("threshold", f64),
+    ]
+
+
+class RlFilter(Struct, c="rl_filter_t"):
+    """robot_localization's planar filter's state and history, which ``rl_update`` reads and
+    writes."""
+
+    _fields_ = [
+        ("s", F64),
+        ("P", F64),
+        ("t_last", f64),
+        ("k", i32),
+        ("anchored", i32),
+        ("rejected", ctypes.c_int32 * 3),
+        ("capacity", i32),
+        ("count", i32),
+        ("head", i32),
+        ("hist_t", F64),
+        ("hist_s", F64),
+        ("hist_P", F64),
+        ("done_capacity", i32),
+        ("done_count", i32),
+        ("done_head", i32),
+        ("done", U8),
+        ("queue_capacity", i32),
+        ("queue", U8),
+    ]
+
+
+#: values per step in ``RlUpdateArgs.reading`` (csrc/native.h's RL_READING)
+RL_READING = 16
+
+
+class RlUpdateArgs(Args, kernel="rl_update"):
+    _fields_ = [
+        ("config", block(RlConfig)),
+        ("filter", block(RlFilter)),
+        ("reading", F64),
     ]
 
 

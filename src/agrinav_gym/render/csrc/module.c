@@ -171,6 +171,27 @@ static const layout_t LAYOUT[] = {
     SIZE(ekf_update_args_t), AT(ekf_update_args_t, config), AT(ekf_update_args_t, filter),
     AT(ekf_update_args_t, dt), AT(ekf_update_args_t, reading), AT(ekf_update_args_t, gnss),
 
+    SIZE(rl_config_t), AT(rl_config_t, chi), AT(rl_config_t, dt), AT(rl_config_t, q),
+    AT(rl_config_t, odom_var), AT(rl_config_t, yaw_var), AT(rl_config_t, rate_var),
+    AT(rl_config_t, accel_var), AT(rl_config_t, odom_threshold), AT(rl_config_t, imu_threshold),
+    AT(rl_config_t, accel_threshold), AT(rl_config_t, gps_threshold),
+    AT(rl_config_t, history_s), AT(rl_config_t, smooth), AT(rl_config_t, fuse_rate),
+    AT(rl_config_t, fuse_accel), AT(rl_config_t, lever_arm),
+
+    SIZE(rl_measurement_t), AT(rl_measurement_t, time), AT(rl_measurement_t, order),
+    AT(rl_measurement_t, m), AT(rl_measurement_t, index), AT(rl_measurement_t, z),
+    AT(rl_measurement_t, var), AT(rl_measurement_t, threshold),
+
+    SIZE(rl_filter_t), AT(rl_filter_t, s), AT(rl_filter_t, P), AT(rl_filter_t, t_last),
+    AT(rl_filter_t, k), AT(rl_filter_t, anchored), AT(rl_filter_t, rejected),
+    AT(rl_filter_t, capacity), AT(rl_filter_t, count), AT(rl_filter_t, head),
+    AT(rl_filter_t, hist_t), AT(rl_filter_t, hist_s), AT(rl_filter_t, hist_P),
+    AT(rl_filter_t, done_capacity), AT(rl_filter_t, done_count), AT(rl_filter_t, done_head),
+    AT(rl_filter_t, done), AT(rl_filter_t, queue_capacity), AT(rl_filter_t, queue),
+
+    SIZE(rl_update_args_t), AT(rl_update_args_t, config), AT(rl_update_args_t, filter),
+    AT(rl_update_args_t, reading),
+
     SIZE(route_t), AT(route_t, xy), AT(route_t, arc), AT(route_t, n), AT(route_t, table),
     AT(route_t, tags), AT(route_t, m), AT(route_t, table_step), AT(route_t, end),
     AT(route_t, direction), AT(route_t, length), AT(route_t, furrow_last),

@@ -349,6 +349,74 @@ typedef struct {
 } ekf_update_args_t;
 EXPORT int ekf_update(const ekf_update_args_t *a);
 
+/* robot_localization's planar filter (estimation/robot_localization.py, computed there from
+ * config.localisation.robot_localization): the state is x, y, yaw (world), vx, vy, vyaw
+ * (base_link), ax, ay. Thresholds are Mahalanobis distances, NaN for never. */
+typedef struct {
+    double chi;         /* the drive's skid factor: odometry yaw rate / chi */
+    double dt;          /* the control period: readings are stamped k dt */
+    double q[8];        /* process_noise_covariance's diagonal (x dt per prediction) */
+    double odom_var[3]; /* the twist's vx, vy, vyaw variances */
+    double yaw_var, rate_var;
+    double accel_var[2];
+    double odom_threshold, imu_threshold, accel_threshold, gps_threshold;
+    double history_s; /* history_length */
+    int32_t smooth;   /* smooth_lagged_data */
+    int32_t fuse_rate, fuse_accel, lever_arm;
+} rl_config_t;
+
+/* most variables one reading measures */
+#define RL_MAX_M 3
+/* one queued reading: its stamp, order among equal stamps (odom, imu yaw, imu rate, imu
+ * acceleration, gps), the state variables it measures, their values and variances */
+typedef struct {
+    double time;
+    int32_t order, m;
+    int32_t index[RL_MAX_M];
+    double z[RL_MAX_M], var[RL_MAX_M];
+    double threshold;
+} rl_measurement_t;
+
+/* The filter's state, read and written by rl_update: s (8) and P (8 x 8, row-major), the time
+ * of its last reading, k (the steps since the reset, -1 before the first update), whether
+ * navsat_transform has its datum, the readings rejected (odom, imu, gps); with
+ * smooth_lagged_data the saved states (a ring from slot ``head``, ``count`` held: stamp, s, P)
+ * and the readings processed (a ring from ``done_head``); ``queue`` is scratch space for a
+ * step's readings and those replayed. */
+typedef struct {
+    double *s;
+    double *P;
+    double t_last;
+    int32_t k, anchored;
+    int32_t rejected[3];
+    int32_t capacity, count, head;
+    double *hist_t; /* (capacity,) */
+    double *hist_s; /* (capacity, 8) */
+    double *hist_P; /* (capacity, 64) */
+    int32_t done_capacity, done_count, done_head;
+    rl_measurement_t *done;  /* (done_capacity,) */
+    int32_t queue_capacity;  /* at least done_capacity + 5 */
+    rl_measurement_t *queue; /* (queue_capacity,) */
+} rl_filter_t;
+
+/* one control step's readings, in this order (RL_READING values) */
+enum {
+    RL_ODOM_V, RL_ODOM_W, RL_ROLL, RL_PITCH, RL_YAW, RL_GYRO_Z, RL_ACCEL_X, RL_ACCEL_Y,
+    RL_FIX,     /* 1: a new fix with a solution (the receiver reports one), else 0 */
+    RL_EAST, RL_NORTH, RL_SIGMA_E, RL_SIGMA_N, RL_AGE, RL_LEVER_X, RL_LEVER_Y,
+    RL_READING
+};
+
+/* rl.c: RobotLocalizationEkf.update, one control step (robot_localization.py is the reference;
+ * the same filter to rounding). AGN_NOT_POSITIVE: an innovation covariance was singular (the
+ * filter is left part-updated, as numpy's would raise); AGN_BAD_SIZE: a history ring is full. */
+typedef struct {
+    const rl_config_t *config;
+    rl_filter_t *filter;
+    const double *reading; /* (RL_READING,) */
+} rl_update_args_t;
+EXPORT int rl_update(const rl_update_args_t *a);
+
 /* A route (routes.RoutePath): n waypoints xy[2i], xy[2i+1] and their arc lengths; the table
  * of points every table_step of arc length (m of them, each with its furrow tag) that lookups
  * interpolate; past the table's end the last segment goes on from ``end`` along ``direction``
