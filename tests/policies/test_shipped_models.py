@@ -13,6 +13,7 @@ from policies import SHIPPED, make_policy, shipped_model
 from ..fields import drive
 
 GEOMETRY = "field_route_geometry_ppo"
+ROBOT_LOCALIZATION = "field_route_robot_localization_ppo"
 FIELD = {
     "field": {"width": 6.0, "length": 16.0},
     "layout": {"headland": 2.5},
@@ -25,9 +26,10 @@ def _returns(env: gym.Env, act: Any, seeds: range) -> list[float]:
 
 
 #: every checkpoint in the package: the ``ppo:shipped`` one of each env, and the route policy
-#: fine-tuned on curved and contour rows (used by path)
+#: fine-tuned on curved and contour rows and with robot_localization's pose (used by path)
 CHECKPOINTS = [(e, str(shipped_model(e))) for e in sorted(SHIPPED)] + [
-    ("AgriNav/FieldRoute-v3", str(shipped_model("AgriNav/FieldRoute-v3").parent / GEOMETRY))
+    ("AgriNav/FieldRoute-v3", str(shipped_model("AgriNav/FieldRoute-v3").parent / name))
+    for name in (GEOMETRY, ROBOT_LOCALIZATION)
 ]
 
 
