@@ -15,21 +15,8 @@
 enum { X, Y, PSI, VX, VY, W, AX, AY, BIAS, EE, EN, SCALE };
 #define G 9.81
 #define DIFFUSE 1e6
-#define PI 3.141592653589793
 #define FIX_NONE 0 /* interface.FIX_LEVELS: none, standalone, float, fixed */
 #define MAX_M 7    /* measurements in one update */
-
-/* (a + pi) % (2 pi) - pi with Python's float modulo (the result takes the divisor's sign) */
-static double wrap(double a) {
-    double b = 2.0 * PI, x = a + PI;
-    double mod = fmod(x, b);
-    if (mod != 0.0) {
-        if ((b < 0) != (mod < 0)) mod += b;
-    } else {
-        mod = copysign(0.0, b);
-    }
-    return mod - PI;
-}
 
 /* x <- x + K nu; P <- P - K (P H^T)^T, symmetrised; K = P H^T S^-1, S = H P H^T + diag(R)
  * (Ekf._correct). H is m x N, row-major. */
@@ -84,7 +71,7 @@ static int correct(ekf_filter_t *f, int m, const double *nu, const double *H, co
         dx[i] = acc;
     }
     for (int i = 0; i < N; i++) f->s[i] = f->s[i] + dx[i];
-    f->s[PSI] = wrap(f->s[PSI]);
+    f->s[PSI] = angle_wrap(f->s[PSI]);
     double Pn[N * N];
     for (int i = 0; i < N; i++)
         for (int j = 0; j < N; j++) {
@@ -132,7 +119,7 @@ static void predict(const ekf_config_t *c, ekf_filter_t *f, double dt) {
     F[EE * N + EE] = F[EN * N + EN] = phi;
     s[X] = x + (vx * ch - vy * sh) * dt + (ax * ch - ay * sh) * h2;
     s[Y] = y + (vx * sh + vy * ch) * dt + (ax * sh + ay * ch) * h2;
-    s[PSI] = wrap(psi + w * dt);
+    s[PSI] = angle_wrap(psi + w * dt);
     s[VX] = vx + ax * dt;
     s[VY] = vy + ay * dt;
     s[W] = w;
@@ -177,7 +164,7 @@ static int fuse_step(const ekf_config_t *c, ekf_filter_t *f, const double *r) {
     nu[1] = w_odom - w;
     nu[2] = -vy;
     nu[3] = r[2] - w;
-    nu[4] = wrap(r[5] - psi - b);
+    nu[4] = angle_wrap(r[5] - psi - b);
     for (int i = 0; i < m; i++) R[i] = c->r_step[i];
     double e0 = c->odom_speed_rel * fabs(v_odom) + c->odom_floor;
     double e1 = c->odom_yaw_rel * fabs(w_odom) + c->odom_floor;

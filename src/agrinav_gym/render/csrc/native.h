@@ -545,6 +545,20 @@ static inline void cam_ray_f(const cam_t *c, double a, double b, double f, doubl
     d[2] = r[2] * f + r[5] * y + r[8] * z;
 }
 
+/* an angle into [-pi, pi) as the filters' numpy twins wrap it: (a + pi) % (2 pi) - pi with
+ * Python's float modulo (the result takes the divisor's sign) */
+static inline double angle_wrap(double a) {
+    const double pi = 3.141592653589793;
+    double b = 2.0 * pi, x = a + pi;
+    double mod = fmod(x, b);
+    if (mod != 0.0) {
+        if ((b < 0) != (mod < 0)) mod += b;
+    } else {
+        mod = copysign(0.0, b);
+    }
+    return mod - pi;
+}
+
 /* floor as an integer, without a libm call */
 static inline int64_t ifloor(double x) {
     int64_t i = (int64_t)x;

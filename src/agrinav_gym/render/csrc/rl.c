@@ -17,21 +17,8 @@
 enum { X, Y, PSI, VX, VY, W, AX, AY };
 #define MIN_VARIANCE 1e-9
 #define GRAVITY 9.80665 /* the node's gravitational_acceleration default */
-#define PI 3.141592653589793
 enum { O_ODOM, O_IMU, O_IMU_RATE, O_IMU_ACCEL, O_GPS }; /* order of readings with equal stamps */
 static const int SOURCE[5] = {0, 1, 1, 1, 2};         /* rejected[]: odom, imu, gps */
-
-/* (a + pi) % (2 pi) - pi with Python's float modulo (the result takes the divisor's sign) */
-static double wrap(double a) {
-    double b = 2.0 * PI, x = a + PI;
-    double mod = fmod(x, b);
-    if (mod != 0.0) {
-        if ((b < 0) != (mod < 0)) mod += b;
-    } else {
-        mod = copysign(0.0, b);
-    }
-    return mod - PI;
-}
 
 static void matmul(const double *A, const double *B, double *C) { /* C = A B, N x N */
     for (int i = 0; i < N; i++)
@@ -70,7 +57,7 @@ static void predict(const rl_config_t *c, rl_filter_t *f, double dt) {
     J[Y * N + PSI] = (ch * vx - sh * vy) * dt + (ch * ax - sh * ay) * h2;
     s[X] = x + (ch * vx - sh * vy) * dt + (ch * ax - sh * ay) * h2;
     s[Y] = y + (sh * vx + ch * vy) * dt + (sh * ax + ch * ay) * h2;
-    s[PSI] = wrap(psi + w * dt);
+    s[PSI] = angle_wrap(psi + w * dt);
     s[VX] = vx + ax * dt;
     s[VY] = vy + ay * dt;
     matmul(J, f->P, JP);
@@ -132,7 +119,7 @@ static int correct(rl_filter_t *f, const rl_measurement_t *mm) {
         }
     for (int a = 0; a < m; a++) {
         nu[a] = mm->z[a] - f->s[idx[a]];
-        if (idx[a] == PSI) nu[a] = wrap(nu[a]);
+        if (idx[a] == PSI) nu[a] = angle_wrap(nu[a]);
     }
     if (!isnan(mm->threshold)) {
         double d2 = 0.0;
@@ -153,7 +140,7 @@ static int correct(rl_filter_t *f, const rl_measurement_t *mm) {
         dx[i] = acc;
     }
     for (int i = 0; i < N; i++) f->s[i] = f->s[i] + dx[i];
-    f->s[PSI] = wrap(f->s[PSI]);
+    f->s[PSI] = angle_wrap(f->s[PSI]);
     /* P = G P G^T + K R K^T, G = I - K H */
     double G[N * N], GP[N * N], KR[N * RL_MAX_M];
     memset(G, 0, sizeof G);
@@ -313,7 +300,7 @@ static int start(const rl_config_t *c, rl_filter_t *f, const double *r) {
         f->s[tw.index[a]] = tw.z[a];
         f->P[tw.index[a] * (N + 1)] = fmax(tw.var[a], MIN_VARIANCE);
     }
-    f->s[PSI] = wrap(r[RL_YAW]);
+    f->s[PSI] = angle_wrap(r[RL_YAW]);
     f->P[PSI * (N + 1)] = fmax(c->yaw_var, MIN_VARIANCE);
     if (c->fuse_accel) {
         rl_measurement_t acc = imu_accel(c, r, 0.0);
