@@ -126,8 +126,7 @@ class RobotLocalizationEkf:
         #: smooth_lagged_data: states saved after each stamp, and the readings processed
         self._states: list[_Saved] = []
         self._done: list[Measurement] = []
-        #: readings dropped by the Mahalanobis test, by source (for diagnostics and tests)
-        self.rejected = {"odom": 0, "imu": 0, "gps": 0}
+        self._rejected = {"odom": 0, "imu": 0, "gps": 0}
         #: the kernel (True) or the numpy twin; None: the kernel where it is built
         self.native = _native.available() if native is None else native
         if self.native:
@@ -188,7 +187,7 @@ class RobotLocalizationEkf:
         self.anchored = False
         self._states.clear()
         self._done.clear()
-        self.rejected = {"odom": 0, "imu": 0, "gps": 0}
+        self._rejected = {"odom": 0, "imu": 0, "gps": 0}
         if self.native:  # the kernel's buffers hold the state from here on
             self._s[:], self._P[:] = self.s, self.P
             self.s, self.P = self._s, self._P
@@ -229,11 +228,19 @@ class RobotLocalizationEkf:
         status = self._call(self._ref)
         f = self._filter
         self.k, self.t_last, self.anchored = f.k, f.t_last, bool(f.anchored)
-        self.rejected = dict(zip(_REJECTED, f.rejected, strict=True))
         if status == _native.NOT_POSITIVE:
             raise np.linalg.LinAlgError("innovation covariance singular (rl_update)")
         if status:
             raise _native.failed("rl_update", status)
+
+    @property
+    def rejected(self) -> dict[str, int]:
+        """Readings dropped by the Mahalanobis test, by source (diagnostics and tests).
+
+        Read on demand from the kernel: it changes rarely, and building it every step costs."""
+        if self.native:
+            return dict(zip(_REJECTED, self._filter.rejected, strict=True))
+        return dict(self._rejected)
 
     @property
     def pose(self) -> tuple[float, float, float]:
@@ -385,7 +392,7 @@ class RobotLocalizationEkf:
             if j in self.angles:
                 nu[i] = _wrap(float(nu[i]))
         if m.threshold is not None and float(nu @ S_inv @ nu) >= m.threshold**2:
-            self.rejected[_SOURCE[m.order]] += 1
+            self._rejected[_SOURCE[m.order]] += 1
             return False
         self.s = self.s + K @ nu
         for j in self.angles:
