@@ -299,6 +299,7 @@ def generate(spec: ScenarioSpec, seed: int) -> Scenario:
     info = {
         "credit": site.credit,
         **site.info,
+        "slope_deg": field_slope(base, poly),
         "growth": growth,
         **goals,
         "candidates": lay.candidates,
@@ -308,6 +309,24 @@ def generate(spec: ScenarioSpec, seed: int) -> Scenario:
         spec, int(seed), site.geo, terrain, poly, lay.rows, plants, route, info, user_model,
         obstacles,
     )  # fmt: skip
+
+
+def field_slope(base: Terrain, poly: BaseGeometry) -> dict[str, float] | None:
+    """The ground's own slope over the field (degrees: median, 90th percentile and maximum over
+    the grid nodes inside it), before ridges and roughness: what ``terrain.max_slope_deg``
+    does not bound (it caps a coarser DEM window's mean; docs/scenarios.md). None for a field
+    narrower than the grid."""
+    gx, gy = np.meshgrid(base.xs, base.ys)
+    inside = shapely.contains_xy(poly, gx, gy)
+    if not inside.any():
+        return None
+    s = base.slope_deg(gx[inside], gy[inside])
+    p50, p90 = np.percentile(s, [50.0, 90.0])
+    return {
+        "median": round(float(p50), 1),
+        "p90": round(float(p90), 1),
+        "max": round(float(s.max()), 1),
+    }
 
 
 @dataclass(frozen=True, eq=False)

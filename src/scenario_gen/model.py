@@ -104,6 +104,7 @@ class Scenario:
             "rows": len(self.rows.offsets),
             "field_area_m2": round(float(self.field.area), 1),
             "relief_m": round(self.terrain.relief, 2),
+            **({"slope_deg": self.info["slope_deg"]} if self.info.get("slope_deg") else {}),
             "row_spacing_m": self.spec.layout.row_spacing,
             "plant_spacing_m": self.spec.layout.plant_spacing,
             "grid": f"{self.terrain.shape[1]}x{self.terrain.shape[0]} @ "

@@ -156,7 +156,13 @@ def preview_figure(scn: Scenario, dpi: int = 110) -> Any:
     s = scn.summary()
     ax.set_title(
         f"{scn.spec.name} (seed {scn.seed}): {s['plants']} plants, {s['rows']} rows, "
-        f"relief {s['relief_m']} m\n datum {s['datum']} · {s['grid']}",
+        f"relief {s['relief_m']} m"
+        + (
+            f", slope {s['slope_deg']['median']}° (p90 {s['slope_deg']['p90']}°)"
+            if "slope_deg" in s
+            else ""
+        )
+        + f"\n datum {s['datum']} · {s['grid']}",
         fontsize=9,
     )
     ax.set_xlabel("east (m, ENU)")

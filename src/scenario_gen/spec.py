@@ -33,7 +33,12 @@ class TerrainSpec:
     lat: float | None = _f(None, "site latitude, degrees (site=latlon)", -90, 90)
     lon: float | None = _f(None, "site longitude, degrees (site=latlon)", -180, 180)
     max_slope_deg: float = _f(
-        90.0, "site=steepest picks the steepest window at most this steep", 0, 90
+        90.0,
+        "site=steepest picks the steepest DEM window (at least 3 pixels and the field's size "
+        "across) whose mean slope is at most this; the field inside it can be steeper "
+        "(the scenario's info.slope_deg measures it)",
+        0,
+        90,
     )
     datum: tuple[float, float, float] | None = _f(
         None,

@@ -114,6 +114,10 @@ class Terrain:
         n = np.stack([-zx, -zy, np.ones_like(zx)], axis=-1)
         return n / np.linalg.norm(n, axis=-1, keepdims=True)
 
+    def slope_deg(self, x: ArrayLike, y: ArrayLike) -> FloatArray:
+        """Slope of the bilinear surface at (x, y), degrees from horizontal."""
+        return np.degrees(np.arccos(np.clip(self.normal_at(x, y)[..., 2], -1.0, 1.0)))
+
     # ------------------------------------------------------------------ k-NN IDW
     @property
     def tree(self) -> cKDTree:

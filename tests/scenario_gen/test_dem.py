@@ -9,7 +9,7 @@ from rasterio.warp import Resampling, calculate_default_transform, reproject
 from scenario_gen import ScenarioError, generate
 from scenario_gen.dem import fill_small_holes, load_embedded
 
-from .helpers import small
+from .helpers import plane, small
 
 SITE = {"site": "latlon", "lat": 36.5492, "lon": -84.1425}
 
@@ -179,6 +179,18 @@ def test_site_selection_flattest_and_steepest() -> None:
 
     assert slope(steep) > 5.0 > 1.0 > slope(generate(small(furrows={"enabled": False}), 0))
     assert flat.geo.alt < steep.geo.alt
+
+
+@pytest.mark.parametrize("degrees", [0.0, 7.0, 14.0])
+def test_the_scenario_measures_its_fields_own_slope(degrees: float) -> None:
+    """info.slope_deg is the ground's slope over the field: a plane's everywhere, before ridges
+    (the crests and flanks of furrows are not the field's slope)."""
+    scn = generate(plane(degrees, 30.0, furrows={"enabled": True, "depth": 0.12}), seed=0)
+    s = scn.info["slope_deg"]
+    # bilinear over a plane's samples is the plane: exact up to the grid's float rounding
+    assert s["median"] == pytest.approx(degrees, abs=0.05)
+    assert s["max"] == pytest.approx(degrees, abs=0.05)
+    assert scn.summary()["slope_deg"] == s
 
 
 @pytest.mark.parametrize("bands,dtype,needle", [(3, "uint8", "3 bands"), (1, "complex64", "real")])

@@ -121,6 +121,7 @@ class ScenarioCard:
         self.result.set_text(
             f"saved {out}: {summary['plants']:,} plants, {summary['rows']} rows, "
             f"relief {summary['relief_m']} m"
+            + (f", slope {summary['slope_deg']['median']}°" if summary.get("slope_deg") else "")
             + (f"; field in {summary['field_file']}" if summary["field_file"] else "")
         )
 
