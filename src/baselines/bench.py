@@ -83,6 +83,8 @@ def geometry(scn: Any) -> dict[str, Any]:
         "row_length_m": round(s.field.length, 1),
         "turn_offset_m": round(s.route.turn_offset, 2),
         "max_slope_deg": round(s.terrain.max_slope_deg, 1),
+        # the ground's own median slope under the field (a DEM window's cap is not it)
+        "field_slope_deg": (scn.info.get("slope_deg") or {}).get("median"),
         "site": s.terrain.site,
         "crop_stage": s.crop.stage,
     }

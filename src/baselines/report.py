@@ -296,6 +296,7 @@ GEOMETRY = (
     "row_length_m",
     "turn_offset_m",
     "max_slope_deg",
+    "field_slope_deg",
     "site",
     "crop_stage",
 )

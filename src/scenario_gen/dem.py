@@ -144,14 +144,9 @@ class Dem:
         filled = _nearest_fill(self.elevation) if holes.any() else self.elevation
         return np.asarray(ndimage.map_coordinates(filled, [row, col], order=3, mode="nearest"))
 
-    def pick_site(
-        self, mode: str, extent_m: float, max_slope_deg: float = 90.0
-    ) -> tuple[float, float]:
-        """Centre (lat, lon) of the flattest or steepest window of ``extent_m`` metres.
-
-        Windows that touch water (DEMs flatten lakes and reservoirs into large areas of one
-        exact elevation), a nodata hole or the raster edge are not candidates.
-        """
+    def window_slopes(self, extent_m: float) -> tuple[FloatArray, NDArray[np.bool_]]:
+        """Per pixel, the mean slope (degrees) of the window of ``extent_m`` metres centred on
+        it — at least 3 pixels across — and whether that window is ruled out as a site."""
         dx, dy = self.pixel_size_m()
         win = max(3, math.ceil(extent_m / min(dx, dy)) | 1)
         rows, cols = self.shape
@@ -170,6 +165,18 @@ class Dem:
         half = win // 2 + 2
         bad[:half] = bad[-half:] = True
         bad[:, :half] = bad[:, -half:] = True
+        return mean, bad
+
+    def pick_site(
+        self, mode: str, extent_m: float, max_slope_deg: float = 90.0
+    ) -> tuple[float, float]:
+        """Centre (lat, lon) of the flattest or steepest window of ``extent_m`` metres.
+
+        Windows that touch water (DEMs flatten lakes and reservoirs into large areas of one
+        exact elevation), a nodata hole or the raster edge are not candidates.
+        """
+        mean, bad = self.window_slopes(extent_m)
+        cols = self.shape[1]
         if mode == "flattest":
             score = np.where(bad, np.inf, mean)
             idx = int(np.argmin(score))

@@ -51,6 +51,18 @@ def _fields(kwargs: dict, seeds: range) -> list[tuple]:
         env.close()
 
 
+def test_a_fields_geometry_carries_its_own_slope_beside_the_drawn_cap() -> None:
+    """The held-out table shows the slope the robot drove (a tilted plane: exact), not only the
+    DEM window's cap that was drawn."""
+    from scenario_gen import generate, preset
+
+    spec = preset("default", field={"width": 10.0, "length": 14.0}, layout={"headland": 2.0})
+    tilted = spec.replace({"terrain": {"source": "plane", "slope_deg": 7.0, "margin": 4.0}})
+    g = geometry(generate(tilted, seed=0))
+    assert g["field_slope_deg"] == pytest.approx(7.0, abs=0.05)
+    assert g["max_slope_deg"] == spec.terrain.max_slope_deg  # the cap, unchanged
+
+
 def test_no_evaluation_field_is_a_training_field() -> None:
     (case,) = suite("unseen")
     _, setup = load(case.env_id)
