@@ -322,6 +322,48 @@ def _sensitivity() -> list[Case]:
     return cases
 
 
+#: Rows off the map (docs/localisation.md "Rows off the map"): each planter pass drifts from the
+#: logged line by up to this amplitude (m): none, an RTK-guided planter's few centimetres, and
+#: pass-to-pass free or subscription corrections' decimetres (the cited ranges' 0.05 and 0.2 m).
+DRIFT_AMPLITUDES = ((0.0, "logged rows"), (0.05, "RTK planter"), (0.2, "SBAS planter"))
+#: the drift's longest wavelength is assumed (docs/localisation.md): drawn per field from the
+#: part of its swept range a 22 m lane feels as a curve rather than an offset
+DRIFT_WAVELENGTH = [30.0, 100.0]
+#: rows a planter sows in one pass, which drift together (common maize planters: 4 to 12 rows);
+#: the lane driven may lie inside a pass (its width kept) or between two (its width varies)
+DRIFT_PASS_ROWS = [4, 6, 8, 12]
+
+
+def _drift() -> list[Case]:
+    """GNSS-only following against perception on rows planted off their logged lines: one
+    lane of 0.3 m maize (where depth-only following works on the crop meshes) on the paper's
+    1 m rows, the route the logged line, the planter's drift at each amplitude; every case
+    drives the first one's fields and seeds (a new field and drift shape each episode), so the
+    rows differ only in how far the plants stray."""
+    cases = []
+    for i, (amplitude, label) in enumerate(DRIFT_AMPLITUDES):
+        over = {
+            "crop": {"stage": 1},
+            "layout": {"row_spacing": 1.0, "drift_amplitude": amplitude},
+        }
+        cases.append(
+            Case(
+                f"{label} ({amplitude:g} m)",
+                "AgriNav/FurrowFollow-v3",
+                "default",
+                over,
+                {**RTK_NAV2, "camera": {"model": "mesh"}},
+                max_steps=1500,
+                randomize={
+                    "layout.drift_wavelength": DRIFT_WAVELENGTH,
+                    "layout.drift_pass_rows": {"choices": DRIFT_PASS_ROWS},
+                },
+                seeds_of=None if i == 0 else 0,
+            )
+        )
+    return cases
+
+
 def _long() -> list[Case]:
     """Eight lanes of 30 m (≈ 260 m of route) with interventions, as field trials report
     row following: mean distance between interventions, sparse (P1) and real maize spacing."""
@@ -470,6 +512,8 @@ def suite(name: str) -> list[Case]:
             )
             for s, h in ((1, 0.3), (2, 0.6), (3, 1.2), (4, 1.8), (5, 2.5))
         ]
+    if name == "drift":
+        return _drift()
     if name == "density":
         return [
             Case(
@@ -501,4 +545,5 @@ SUITES = (
     "density",
     "terrain",
     "sensitivity",
+    "drift",
 )

@@ -307,3 +307,35 @@ def test_the_oracle_is_the_localisation_suites_reference_and_says_it_is_an_upper
         assert env.unwrapped.conditions()["localisation"].startswith("ekf (oracle, an upper bound)")
     finally:
         env.close()
+
+
+def test_drift_cases_move_the_plants_and_nothing_else() -> None:
+    """Paired: each `drift` case drives the first one's fields and seeds; its plants stray from
+    the logged rows by at most its amplitude, and the route (the logged line) stays put."""
+    import numpy as np
+
+    from baselines.bench import episode_seed
+
+    cases = suite("drift")
+    assert [c.seeds_of for c in cases] == [None, 0, 0]
+    fields = []
+    for i, c in enumerate(cases):
+        kw = c.env_kwargs()
+        kw["config"] = {**kw["config"], "camera": {"model": "proxy"}}  # fields, not pictures
+        env = gym.make(c.env_id, **kw)
+        try:
+            env.reset(seed=episode_seed(i, c, 0))
+            u = env.unwrapped
+            amp = u.scenario.spec.layout.drift_amplitude
+            p = u.scenario.plants
+            fields.append((amp, np.column_stack([p.x, p.y]), u.route.xy.copy()))
+        finally:
+            env.close()
+    (a0, plants0, route0), *drifted = fields
+    assert a0 == 0.0
+    for amp, plants, route in drifted:
+        assert amp > 0 and np.array_equal(route, route0)
+        assert plants.shape == plants0.shape
+        moved = np.hypot(*(plants - plants0).T)
+        # sideways only, within the amplitude (plus rounding); most plants move
+        assert moved.max() <= amp + 1e-9 and np.median(moved) > 0.1 * amp
