@@ -1,4 +1,5 @@
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -33,6 +34,8 @@ def test_cli_writes_a_scenario_and_prints_a_summary(tmp_path: Path, capsys) -> N
     assert rc == 0
     text = capsys.readouterr().out
     assert "plants" in text and "LoD 19" in text and "total_s" in text
+    # the field's own slope, readable: "slope_deg  median 0.4, p90 0.7, max 0.9"
+    assert re.search(r"slope_deg +median [\d.]+, p90 [\d.]+, max [\d.]+", text)
     assert (out / "scenario.json").is_file() and not (out / "preview.png").exists()
 
 

@@ -63,6 +63,8 @@ def run(args: argparse.Namespace) -> int:
         }
         width = max(map(len, rows))
         for k, v in rows.items():
+            if isinstance(v, dict):  # slope_deg, obstacle counts: "median 3.1, p90 4.0, ..."
+                v = ", ".join(f"{a} {b}" for a, b in v.items())
             print(f"{k:<{width}}  {v}")
         return 0
     # A bank: one scenario per seed, written as one folder that appears only when complete;
