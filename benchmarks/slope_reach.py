@@ -47,13 +47,13 @@ def disc_slopes(dem: Dem, coeffs: np.ndarray, sites: np.ndarray, radius: float) 
     inside = np.hypot(ex, ny) <= radius
     ex, ny = ex[inside], ny[inside]
     out = np.empty((len(sites), len(ex)))
+
+    def z(r: np.ndarray, c: np.ndarray) -> np.ndarray:
+        return ndimage.map_coordinates(coeffs, [r, c], order=3, mode="nearest", prefilter=False)
+
     for k, (i, j) in enumerate(sites):
         # a north-up raster: rows grow southward; pixel centres at integer indices
         col, row = j + ex / dx, i - ny / dy
-
-        def z(r: np.ndarray, c: np.ndarray) -> np.ndarray:
-            return ndimage.map_coordinates(coeffs, [r, c], order=3, mode="nearest", prefilter=False)
-
         zx = (z(row, col + DIFF_M / dx) - z(row, col - DIFF_M / dx)) / (2 * DIFF_M)
         zy = (z(row - DIFF_M / dy, col) - z(row + DIFF_M / dy, col)) / (2 * DIFF_M)
         out[k] = np.degrees(np.arctan(np.hypot(zx, zy)))
