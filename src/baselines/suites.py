@@ -337,9 +337,10 @@ DRIFT_PASS_ROWS = [4, 6, 8, 12]
 def _drift() -> list[Case]:
     """GNSS-only following against perception on rows planted off their logged lines: one
     lane of 0.3 m maize (where depth-only following works on the crop meshes) on the paper's
-    1 m rows, the route the logged line, the planter's drift at each amplitude; every case
-    drives the first one's fields and seeds (a new field and drift shape each episode), so the
-    rows differ only in how far the plants stray."""
+    1 m rows, the route the logged line, the planter's drift at each amplitude, the navigation
+    suites' estimator, progress checker and route clock; every case drives the first one's
+    fields and seeds (a new field and drift shape each episode), so the rows differ only in
+    how far the plants stray."""
     cases = []
     for i, (amplitude, label) in enumerate(DRIFT_AMPLITUDES):
         over = {
@@ -352,8 +353,14 @@ def _drift() -> list[Case]:
                 "AgriNav/FurrowFollow-v3",
                 "default",
                 over,
-                {**RTK_NAV2, "camera": {"model": "mesh"}},
-                max_steps=1500,
+                {
+                    **RTK_NAV2,
+                    "camera": {"model": "mesh"},
+                    "task": {**NAV2_PROGRESS, **ROUTE_CLOCK},
+                },
+                # the route's clock, not a step limit, ends a slow run the progress checker
+                # lets go on (DWB reads the leaves into its costmap and slows in the lane)
+                max_steps=ROUTE_CLOCK_BACKSTOP,
                 randomize={
                     "layout.drift_wavelength": DRIFT_WAVELENGTH,
                     "layout.drift_pass_rows": {"choices": DRIFT_PASS_ROWS},
