@@ -70,7 +70,7 @@ def main(argv: list[str] | None = None) -> int:
     dem = load_embedded()
     radius = math.hypot(args.length / 2, args.width / 2)
     extent = 2 * radius
-    coeffs = ndimage.spline_filter(dem.elevation, order=3, mode="nearest")
+    coeffs = ndimage.spline_filter(dem.surface_grid(), order=3, mode="nearest")
     print(f"{dem.source}; fields up to {args.length:g} x {args.width:g} m: a {radius:.1f} m disc")
     results = {}
     for name, (lo, hi) in (("train", args.train), ("test", args.test)):

@@ -141,8 +141,14 @@ class Dem:
                     f"lies over a nodata hole larger than terrain.fill_max_pixels in "
                     f"{self.source}; move the field or raise the fill limit",
                 )
-        filled = _nearest_fill(self.elevation) if holes.any() else self.elevation
-        return np.asarray(ndimage.map_coordinates(filled, [row, col], order=3, mode="nearest"))
+        return np.asarray(
+            ndimage.map_coordinates(self.surface_grid(), [row, col], order=3, mode="nearest")
+        )
+
+    def surface_grid(self) -> FloatArray:
+        """The grid ``sample_lonlat`` interpolates bicubically: the elevation, small holes filled
+        from their nearest pixels."""
+        return _nearest_fill(self.elevation) if self.hole_mask.any() else self.elevation
 
     def window_slopes(self, extent_m: float) -> tuple[FloatArray, NDArray[np.bool_]]:
         """Per pixel, the mean slope (degrees) of the window of ``extent_m`` metres centred on
