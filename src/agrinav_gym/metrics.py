@@ -12,6 +12,9 @@ adds its error again each step); the ``path_*`` RMSEs weigh each pose by the pat
 it (half of the distance to each neighbour, trapezoidal in arc length), so they measure where
 the robot went, not how long it stayed — the headline of the benchmark tables. A category
 without poses reports ``None``, not NaN, so results compare and serialize cleanly.
+
+Where rows were planted off their logged lines (``layout.drift_amplitude``) the route is the
+logged line, and ``planted_lane_rmse`` measures the driven path from the lanes as planted.
 """
 
 from __future__ import annotations
@@ -275,3 +278,26 @@ class EpisodeMetrics:
     def trajectory(self) -> FloatArray:
         """Ground-truth base positions (N, 2): for evaluation, never policies."""
         return np.asarray(self.poses, np.float64).reshape(-1, 2)
+
+
+def planted_lane_rmse(poses: FloatArray, scenario: Any) -> float | None:
+    """Path-weighted RMSE (m) of the poses (N, 2) that stand in a planted lane from that
+    lane's centre as planted, midway between its two rows with their drift
+    (``scenario_gen.drift.lane_error``): the error a follower of the rows is judged by where
+    the route is the logged line. Each pose weighs half the path to each neighbour, as the
+    ``path_*`` RMSEs; None without a pose in a lane."""
+    from scenario_gen.drift import lane_error
+    from scenario_gen.generate import planting_drift
+
+    xy = np.asarray(poses, np.float64).reshape(-1, 2)
+    if len(xy) == 0:
+        return None
+    err, inside = lane_error(
+        scenario.rows, planting_drift(scenario), scenario.spec.layout, xy[:, 0], xy[:, 1]
+    )
+    step = np.hypot(*np.diff(xy, axis=0).T)
+    weight = 0.5 * (np.concatenate([[0.0], step]) + np.concatenate([step, [0.0]]))
+    w = weight[inside]
+    if w.sum() <= 0.0:
+        return None
+    return math.sqrt(float(np.sum(w * err[inside] ** 2) / w.sum()))

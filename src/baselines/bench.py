@@ -36,7 +36,11 @@ __all__ = ["METRICS", "bench", "command_line", "run"]
 CASE_SEEDS = 10_000  # reset seeds per case: case i evaluates EVAL_SEED + 10⁴·i + k
 
 
-def _record(ep: Episode, suite_name: str, scenario: str, env: Any = None) -> dict[str, Any]:
+def _record(
+    ep: Episode, suite_name: str, scenario: str, env: Any = None, planted: bool = False
+) -> dict[str, Any]:
+    """One episode's row of results.json; ``planted``: with ``planted_rmse`` (``_planted``) even
+    where the rows were not drifted (a drift case's reference)."""
     return {
         "policy": ep.policy,
         "suite": suite_name,
@@ -60,6 +64,7 @@ def _record(ep: Episode, suite_name: str, scenario: str, env: Any = None) -> dic
         ),
         **ep.conditions,
         **({"geometry": geometry(env.unwrapped.scenario)} if env is not None else {}),
+        **_planted(ep, env, planted),
         **(
             {
                 "interventions": len(ep.interventions),
@@ -70,6 +75,20 @@ def _record(ep: Episode, suite_name: str, scenario: str, env: Any = None) -> dic
             else {}
         ),
     }
+
+
+def _planted(ep: Episode, env: Any, planted: bool) -> dict[str, Any]:
+    """On rows planted off their logged lines (or with ``planted``), the path's error from the
+    lanes as planted (``planted_rmse``); a run with interventions jumps, so its path is not one
+    line: left out."""
+    scn = None if env is None else env.unwrapped.scenario
+    if scn is None or ep.interventions is not None:
+        return {}
+    if not planted and scn.spec.layout.drift_amplitude <= 0.0:
+        return {}
+    from agrinav_gym.metrics import planted_lane_rmse
+
+    return {"planted_rmse": planted_lane_rmse(ep.poses, scn)}
 
 
 def geometry(scn: Any) -> dict[str, Any]:
@@ -374,7 +393,7 @@ def episode_task(job: EpisodeJob) -> tuple[str, dict[str, Any], bytes]:
         pols[job.policy] = _policy(job.spec, env, job.trust)
     run = run_with_interventions if case.interventions else run_episode
     ep = run(env, pols[job.policy], episode_seed(job.case, case, job.seed), job.label)
-    record = _record(ep, job.suite, case.group, env)
+    record = _record(ep, job.suite, case.group, env, case.planted)
     if job.config:
         record["config_set"] = json.loads(job.config)
     buf = io.BytesIO()

@@ -28,6 +28,10 @@ CTE_METRICS = (
     "headland_rmse",
 )
 METRICS = (*CTE_METRICS, "completion", "crops_hit", "obstacles_hit")
+#: On rows planted off their logged lines: the path's error from the lanes as planted
+#: (``agrinav_gym.metrics.planted_lane_rmse``), beside the logged route's.
+PLANTED_METRIC = "planted_rmse"
+ERRORS = (*CTE_METRICS, PLANTED_METRIC)  # averaged over the finished episodes only
 BOOTSTRAP = 2000  # resamples of the per-episode values for a 95 % percentile interval
 
 
@@ -125,9 +129,11 @@ def table(records: list[dict[str, Any]], suite_name: str, command: str) -> str:
     pols = list(dict.fromkeys(r["policy"] for r in records))
     # each case draws its own reset seeds: count episodes per (case, policy), not seeds overall
     episodes = max(Counter((r["scenario"], r["policy"]) for r in records).values())
-    metrics = METRICS + (
-        ("missed_waypoints",) if any("missed_waypoints" in r for r in records) else ()
+    planted = any(PLANTED_METRIC in r for r in records)
+    optional = (PLANTED_METRIC,) * planted + ("missed_waypoints",) * any(
+        "missed_waypoints" in r for r in records
     )
+    metrics = METRICS + optional
     head = ["scenario", "policy", "finished", *metrics, "poses", "episodes"]
     lines = [
         f"# Benchmark: `{suite_name}` suite",
@@ -143,8 +149,16 @@ def table(records: list[dict[str, Any]], suite_name: str, command: str) -> str:
         + (
             "; `missed_waypoints`: waypoints the navigator gave up on and went past (a run with "
             "one is not finished)."
-            if len(metrics) > len(METRICS)
+            if "missed_waypoints" in optional
             else "."
+        )
+        + (
+            " The rows were planted off the lines the route follows: `planted_rmse` is the path's "
+            "error from the lanes as planted (midway between each lane's two drifted rows, the "
+            "poses inside a lane, path-weighted), where the route's columns measure it from the "
+            "logged line."
+            if planted
+            else ""
         ),
         *_config_set(records),
         "",
@@ -157,7 +171,7 @@ def table(records: list[dict[str, Any]], suite_name: str, command: str) -> str:
             if rows:
                 done = [r for r in rows if finished(r)]
                 cells = [
-                    _cell([r.get(m) for r in (done if m in CTE_METRICS else rows)]) for m in metrics
+                    _cell([r.get(m) for r in (done if m in ERRORS else rows)]) for m in metrics
                 ]
                 counts = [int(r["poses"]) for r in rows if r.get("poses") is not None]
                 poses = f"{statistics.fmean(counts):.0f}" if counts else "—"

@@ -36,6 +36,13 @@ class Case:
     # comparisons). None: the case's own seeds.
     seeds_of: int | None = None
 
+    @property
+    def planted(self) -> bool:
+        """The case sets the planting drift (at 0 too: the reference row), so its records
+        carry the path's error from the lanes as planted beside the logged route's."""
+        layout = self.overrides.get("layout", {})
+        return "drift_amplitude" in layout or "layout.drift_amplitude" in self.randomize
+
     def env_kwargs(self) -> dict[str, Any]:
         kw: dict[str, Any] = {
             "scenario": self.scenario,

@@ -14,6 +14,10 @@ for the same seed. The plants of a pass move with it; weeds do not; the ``RowFra
 the route and every export of the rows) stays the logged lines. A plant moved out of the field
 is dropped, as the layout drops jittered ones. Off by default (A = 0): nothing is drawn and the
 layout is returned as it is.
+
+Where the rows were planted is known to the benchmark, not to the robot: ``lane_error`` measures
+a pose from the planted lane's centre (midway between its two drifted rows), the error a
+follower of the rows is judged by where the route is only the logged line.
 """
 
 from __future__ import annotations
@@ -25,7 +29,7 @@ import numpy as np
 import shapely
 from shapely.geometry.base import BaseGeometry
 
-from .arrays import FloatArray, IntArray
+from .arrays import BoolArray, FloatArray, IntArray
 from .layout import Layout, RowFrame
 from .spec import LayoutSpec
 
@@ -70,3 +74,51 @@ def apply_drift(
     return dataclasses.replace(
         lay, x=x[keep], y=y[keep], row=lay.row[keep], is_weed=lay.is_weed[keep]
     )
+
+
+def planted_offset(
+    rows: RowFrame, phases: FloatArray, spec: LayoutSpec, row: IntArray, t: FloatArray
+) -> FloatArray:
+    """Where rows ``row`` were planted at along-row positions ``t``: each one's logged offset
+    along ``RowFrame.n`` plus its pass's drift (``phases`` as ``drift_phases`` drew them)."""
+    row = np.asarray(row, np.int64)
+    base = np.asarray(rows.offsets, np.float64)[row]
+    if spec.drift_amplitude <= 0.0 or len(row) == 0:
+        return base
+    return base + drift_offset(t, phases[pass_of(row, spec.drift_pass_rows)], spec)
+
+
+def lane_error(
+    rows: RowFrame, phases: FloatArray, spec: LayoutSpec, x: FloatArray, y: FloatArray
+) -> tuple[FloatArray, BoolArray]:
+    """(error, in_lane) of ENU points: the signed offset (m, along ``RowFrame.n``) of each
+    from the centre of the lane it stands in as planted, midway between the lane's two rows
+    with their drift, and whether it stands in a planted lane (between two adjacent logged
+    rows, along the row where both are planted). Outside a lane the error is NaN."""
+    t, s = rows.to_rows(np.asarray(x, np.float64), np.asarray(y, np.float64))
+    t, s = np.atleast_1d(t), np.atleast_1d(s)
+    offsets = np.asarray(rows.offsets, np.float64)
+    lane = np.searchsorted(offsets, s, side="right") - 1
+    inside = (lane >= 0) & (lane < len(offsets) - 1)
+    assert rows.seg_row is not None and rows.seg_t is not None
+    seg_row, seg_t = np.asarray(rows.seg_row), np.asarray(rows.seg_t, np.float64)
+
+    def planted(r: IntArray) -> BoolArray:
+        on = (
+            (seg_row[None, :] == r[:, None])
+            & (seg_t[None, :, 0] <= t[:, None])
+            & (t[:, None] <= seg_t[None, :, 1])
+        )
+        return on.any(axis=1)
+
+    k = np.where(inside, lane, 0)
+    inside &= planted(k) & planted(k + 1)
+    err = np.full(len(t), np.nan)
+    if inside.any():
+        ti, ki = t[inside], k[inside]
+        centre = 0.5 * (
+            planted_offset(rows, phases, spec, ki, ti)
+            + planted_offset(rows, phases, spec, ki + 1, ti)
+        )
+        err[inside] = s[inside] - centre
+    return err, inside

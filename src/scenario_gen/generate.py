@@ -19,7 +19,7 @@ from . import crops
 from .arrays import FloatArray
 from .bounds import MAX_PLANE_RADIUS_M, check_budget, check_lod
 from .crops import scaled_by_height
-from .drift import apply_drift
+from .drift import apply_drift, drift_phases
 from .errors import InputError
 from .field import check_field, long_axis_deg, lonlat_to_enu, rectangle
 from .fieldfile import read_field
@@ -183,6 +183,12 @@ def resolve_paths(spec: ScenarioSpec) -> ScenarioSpec:
             if resolved != value:
                 over[key] = resolved
     return spec.replace(over) if over else spec
+
+
+def planting_drift(scn: Scenario) -> FloatArray:
+    """The drift phases ``scn``'s rows were planted with (``drift.lane_error`` reads them):
+    the ``drift`` stream's first draw, as ``generate`` made it."""
+    return drift_phases(len(scn.rows.offsets), scn.spec.layout, streams(scn.seed)["drift"])
 
 
 def streams(seed: int) -> dict[str, np.random.Generator]:

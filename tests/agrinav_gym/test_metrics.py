@@ -4,7 +4,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from agrinav_gym.metrics import EpisodeMetrics, RouteProjector
+from agrinav_gym.metrics import EpisodeMetrics, RouteProjector, planted_lane_rmse
 from agrinav_gym.routes import RoutePath
 
 from .helpers import TINY
@@ -136,3 +136,48 @@ def test_route_lookup_interpolates_and_continues_past_the_end() -> None:
         pts, [[0.5, 0.0], [1.0, 0.5], [1.0, 1.03], [1.0, 1.43], [1.0, 1.83]], atol=1e-9
     )
     assert tags[0] and not tags[-1]
+
+
+def test_planted_lane_rmse_by_hand() -> None:
+    """From the lanes as planted, path-weighted: poses along a drifted lane's planted centre
+    score 0 (the logged line would not), a steady 5 cm aside 5 cm, standing still adds nothing,
+    and the headland beyond the rows' ends is not in a lane."""
+    import scenario_gen as sg
+    from scenario_gen.drift import planted_offset
+    from scenario_gen.generate import planting_drift
+
+    scn = sg.generate(
+        sg.preset(
+            "default",
+            field={"width": 12.0, "length": 40.0},
+            layout={"drift_amplitude": 0.2, "drift_pass_rows": 1, "jitter_lateral": 0.0},
+        ),
+        3,
+    )
+    rows, phases = scn.rows, planting_drift(scn)
+    k = np.full(200, 2)
+    t = np.linspace(rows.starts[2] + 0.5, rows.ends[2] - 0.5, 200)
+    centre = 0.5 * (
+        planted_offset(rows, phases, scn.spec.layout, k, t)
+        + planted_offset(rows, phases, scn.spec.layout, k + 1, t)
+    )
+
+    def poses(aside: np.ndarray) -> np.ndarray:
+        return np.column_stack(rows.to_enu(t, centre + aside))
+
+    assert planted_lane_rmse(poses(np.zeros(200)), scn) == pytest.approx(0.0, abs=1e-9)
+    logged = 0.5 * (rows.offsets[2] + rows.offsets[3])
+    on_log = np.column_stack(rows.to_enu(t, np.full(200, logged)))
+    assert planted_lane_rmse(on_log, scn) == pytest.approx(
+        float(np.sqrt(np.mean((logged - centre) ** 2))), rel=0.05
+    )
+    assert planted_lane_rmse(poses(np.full(200, 0.05)), scn) == pytest.approx(0.05, abs=1e-9)
+    # the first half 0.1 m aside, the second half on the centre, plus a long stop 0.3 m aside
+    # at the end of the first half: the stop weighs nothing, the halves equal path
+    aside = np.where(np.arange(200) < 100, 0.1, 0.0)
+    still = poses(aside)
+    stop = np.repeat(np.column_stack(rows.to_enu(t[99:100], centre[99:100] + 0.1)), 50, axis=0)
+    driven = np.concatenate([still[:100], stop, still[100:]])
+    assert planted_lane_rmse(driven, scn) == pytest.approx(0.1 / math.sqrt(2), rel=0.02)
+    beyond = np.column_stack(rows.to_enu(np.full(5, rows.ends[2] + 2.0), centre[:5]))
+    assert planted_lane_rmse(beyond, scn) is None

@@ -314,10 +314,14 @@ def test_drift_cases_move_the_plants_and_nothing_else() -> None:
     the logged rows by at most its amplitude, and the route (the logged line) stays put."""
     import numpy as np
 
+    from agrinav_gym.metrics import planted_lane_rmse
     from baselines.bench import episode_seed
 
     cases = suite("drift")
     assert [c.seeds_of for c in cases] == [None, 0, 0]
+    # each case's records carry the error from the lanes as planted, the reference's too
+    assert all(c.planted for c in cases)
+    assert not any(c.planted for c in suite("unseen") + suite("paper"))
     fields = []
     for i, c in enumerate(cases):
         kw = c.env_kwargs()
@@ -329,6 +333,11 @@ def test_drift_cases_move_the_plants_and_nothing_else() -> None:
             amp = u.scenario.spec.layout.drift_amplitude
             p = u.scenario.plants
             fields.append((amp, np.column_stack([p.x, p.y]), u.route.xy.copy()))
+            # the route is the logged line: measured from the lanes as planted it is off by
+            # the drift (at most the amplitude), on the logged rows by nothing
+            on_route = planted_lane_rmse(u.route.xy, u.scenario)
+            assert on_route is not None and on_route <= amp + 1e-9
+            assert (on_route < 1e-9) == (amp == 0.0)
         finally:
             env.close()
     (a0, plants0, route0), *drifted = fields

@@ -135,6 +135,21 @@ def test_a_run_past_a_missed_waypoint_is_not_finished() -> None:
     assert "missed_waypoints" not in table([_rec("p", 0.1, "success", 100.0)], "t", "")
 
 
+def test_the_planted_lane_column_appears_on_drifted_rows_for_finished_runs() -> None:
+    """Rows planted off the logged lines: `planted_rmse` beside the route's columns, over the
+    finished runs only as every error; absent where no record carries it."""
+    done, failed = _rec("p", 0.02, "success", 100.0), _rec("p", 0.02, "corridor", 40.0)
+    done["planted_rmse"], failed["planted_rmse"], failed["seed"] = 0.07, 0.01, 1
+    md = table([done, failed], "t", "")
+    head = next(line for line in md.splitlines() if line.startswith("| scenario |"))
+    row = next(line for line in md.splitlines() if line.startswith("| field | p |"))
+    cols = [c.strip() for c in head.strip("|").split("|")]
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    assert cells[cols.index("planted_rmse")] == "0.070"
+    assert "lanes as planted" in md
+    assert "planted_rmse" not in table([_rec("p", 0.1, "success", 100.0)], "t", "")
+
+
 def test_the_tyres_column_appears_where_a_row_has_a_tread() -> None:
     from baselines.report import conditions
 

@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 
 import scenario_gen as sg
+from scenario_gen.drift import lane_error, planted_offset
 from scenario_gen.errors import InputError
-from scenario_gen.generate import STREAMS, streams
+from scenario_gen.generate import STREAMS, planting_drift, streams
 from scenario_gen.io import save
 from scenario_gen.reading import load
 
@@ -112,3 +113,51 @@ def test_a_drifted_scenario_saves_and_loads_with_its_drift(tmp_path: Path) -> No
     assert np.allclose(back.plants.y, scn.plants.y, rtol=0, atol=1e-6)
     assert np.array_equal(back.plants.row, scn.plants.row)
     assert np.array_equal(back.rows.offsets, scn.rows.offsets)
+
+
+@pytest.mark.parametrize("geometry", ["straight", "curved"])
+def test_the_planted_rows_are_recovered_from_the_scenario(geometry: str, tmp_path: Path) -> None:
+    kw = {"drift_amplitude": 0.15, "drift_pass_rows": 2, "jitter_lateral": 0.0}
+    if geometry == "curved":
+        kw |= {"row_geometry": "curved", "curve_radius": [20.0, 30.0]}
+    scn = scenario(9, **kw)
+    row, t, _ = residual(scn)
+    _, s = scn.rows.to_rows(scn.plants.x[scn.plants.row >= 0], scn.plants.y[scn.plants.row >= 0])
+    # every crop plant stands where the drift put its row (no lateral jitter here), and a
+    # saved and loaded scenario gives the same phases
+    phases = planting_drift(scn)
+    assert np.allclose(planted_offset(scn.rows, phases, scn.spec.layout, row, t), s, atol=1e-9)
+    save(scn, tmp_path / "out")
+    assert np.array_equal(planting_drift(load(tmp_path / "out")), phases)
+
+
+def test_lane_error_is_measured_from_the_planted_lane_centre() -> None:
+    scn = scenario(10, drift_amplitude=0.2, drift_pass_rows=1, jitter_lateral=0.0)
+    rows, spec, phases = scn.rows, scn.spec.layout, planting_drift(scn)
+    k = np.array([1, 1, 1])
+    t = np.full(3, 0.5 * (rows.starts[1] + rows.ends[1]))
+    left, right = (planted_offset(rows, phases, spec, k + j, t) for j in (0, 1))
+    centre = 0.5 * (left + right)
+    # rows 1 and 2 are two passes: their drifts differ, and the lane centre moves with both
+    assert abs(centre[0] - 0.5 * (rows.offsets[1] + rows.offsets[2])) > 1e-3
+    x, y = rows.to_enu(t, centre + np.array([0.0, 0.1, -0.05]))
+    err, inside = lane_error(rows, phases, spec, x, y)
+    assert inside.all()
+    assert err == pytest.approx([0.0, 0.1, -0.05], abs=1e-9)
+    # beyond the outer rows and past the rows' ends there is no lane: NaN, not a number
+    out_x, out_y = rows.to_enu(
+        np.array([t[0], t[0], rows.ends[1] + 3.0]),
+        np.array([rows.offsets[0] - 0.3, rows.offsets[-1] + 0.3, centre[0]]),
+    )
+    err, inside = lane_error(rows, phases, spec, out_x, out_y)
+    assert not inside.any() and np.isnan(err).all()
+
+
+def test_without_drift_the_lane_centre_is_the_logged_centreline() -> None:
+    scn = scenario(11)
+    rows = scn.rows
+    t = np.linspace(rows.starts[2] + 0.1, rows.ends[2] - 0.1, 7)
+    mid = 0.5 * (rows.offsets[2] + rows.offsets[3])
+    x, y = rows.to_enu(t, np.full(7, mid + 0.07))
+    err, inside = lane_error(rows, planting_drift(scn), scn.spec.layout, x, y)
+    assert inside.all() and err == pytest.approx(np.full(7, 0.07), abs=1e-9)
