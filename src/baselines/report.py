@@ -217,7 +217,7 @@ def paired_differences(
         rb = by.get((b, seed))
         if pol != a or rb is None or seed is None:
             continue
-        if metric in CTE_METRICS and not (finished(ra) and finished(rb)):
+        if metric in ERRORS and not (finished(ra) and finished(rb)):
             continue
         va, vb = ra.get(metric), rb.get(metric)
         if va is not None and vb is not None:
@@ -230,7 +230,9 @@ def paired(records: list[dict[str, Any]], groups: list[str], pols: list[str]) ->
     if len(pols) < 2:
         return []
     ref = pols[0]
-    head = ["scenario", "policy", *(f"Δ {m}" for m, _ in PAIRED)]
+    planted = any(PLANTED_METRIC in r for r in records)
+    metrics = [m for m, _ in PAIRED] + [PLANTED_METRIC] * planted
+    head = ["scenario", "policy", *(f"Δ {m}" for m in metrics)]
     lines = [
         "",
         f"Paired differences against `{ref}` (this policy − {ref}, same fields and reset seeds; "
@@ -244,7 +246,7 @@ def paired(records: list[dict[str, Any]], groups: list[str], pols: list[str]) ->
     for g in groups:
         for p in pols[1:]:
             cells = []
-            for metric, _ in PAIRED:
+            for metric in metrics:
                 ci, n = paired_differences(records, g, p, ref, metric)
                 cells.append(
                     "—" if ci is None else f"{ci[0]:+.3f} [{ci[1]:+.3f}, {ci[2]:+.3f}] ({n})"

@@ -147,6 +147,11 @@ def test_the_planted_lane_column_appears_on_drifted_rows_for_finished_runs() -> 
     cells = [c.strip() for c in row.strip("|").split("|")]
     assert cells[cols.index("planted_rmse")] == "0.070"
     assert "lanes as planted" in md
+    # paired on the runs both finished, beside the route's columns
+    other = [dict(r, policy="q", planted_rmse=r["planted_rmse"] - 0.03) for r in (done, failed)]
+    md = table([done, failed, *other], "t", "")
+    pair = [line for line in md.splitlines() if line.startswith("| field | q |")][-1]
+    assert pair.endswith("| -0.030 [-0.030, -0.030] (1) |")
     assert "planted_rmse" not in table([_rec("p", 0.1, "success", 100.0)], "t", "")
 
 
