@@ -28,12 +28,9 @@ import time
 from typing import Any
 
 import numpy as np
-from tqdm import tqdm
 
-from baselines.bench import _make_env, episode_seed, suite_cases
 from baselines.report import mean_ci
-from policies import make_policy
-from scenario_gen.errors import InputError
+from common import drive_cases, suite_case_names
 
 #: each estimator's config over the suite's, and whether it removes the antenna's offset
 #: through yaw alone (``two_d_mode``) and so keeps the lean in its estimate
@@ -111,33 +108,17 @@ def main() -> None:
     chosen = [e.strip() for e in args.estimators.split(",") if e.strip()]
     if not chosen or any(e not in ESTIMATORS for e in chosen):
         ap.error(f"--estimators: {args.estimators!r}; allowed: any of {', '.join(ESTIMATORS)}")
-    rows = [c.strip() for c in args.cases.split(";") if c.strip()]
-    try:
-        names = [c.group for c in suite_cases(args.suite) if not c.interventions]
-    except InputError as e:  # its message names the suites there are
-        ap.error(str(e))
-    missing = [r for r in rows if r not in names]
-    if missing or not rows:
-        ap.error(f"--cases: {missing or args.cases!r}; allowed: any of {'; '.join(names)}")
+    rows = suite_case_names(ap, args.suite, args.cases)
 
-    results: dict[tuple[str, str], list[dict[str, dict[str, float]]]] = {}
     t0 = time.perf_counter()
-    with tqdm(total=len(chosen) * len(rows) * args.seeds, unit="ep") as bar:
-        for est_name in chosen:
-            config, planar = ESTIMATORS[est_name]
-            cases = suite_cases(args.suite, config)
-            index = {c.group: i for i, c in enumerate(cases)}
-            for row in rows:
-                case = cases[index[row]]
-                env = _make_env(case)
-                policy = make_policy(args.policy, env)
-                eps = results.setdefault((est_name, row), [])
-                for k in range(args.seeds):
-                    bar.set_postfix(estimator=est_name, case=row)
-                    seed = episode_seed(index[row], case, k)
-                    eps.append(episode(env, policy, seed, args.pitch, planar))
-                    bar.update()
-                env.close()
+    results = drive_cases(
+        args.suite,
+        rows,
+        {name: ESTIMATORS[name][0] for name in chosen},
+        args.policy,
+        args.seeds,
+        lambda env, pi, seed, name: episode(env, pi, seed, args.pitch, ESTIMATORS[name][1]),
+    )
 
     print(
         f"\n{args.policy}, {args.seeds} `{args.suite}` seeds a case, steps pitched more than "

@@ -4,11 +4,14 @@ from __future__ import annotations
 
 import math
 import time
-from typing import Any
+from collections.abc import Callable
+from typing import Any, TypeVar
 
 import numpy as np
 
 import scenario_gen as sg
+
+T = TypeVar("T")
 
 
 def s_curve(i: int) -> np.ndarray:
@@ -57,3 +60,56 @@ def pybullet_camera(
     aspect = model.width / model.height
     proj = p.computeProjectionMatrixFOV(vfov_deg, aspect, 0.1, 2 * max_range, physicsClientId=cid)
     return view, proj
+
+
+def suite_case_names(ap: Any, suite: str, cases: str) -> list[str]:
+    """The ``;``-separated case names ``cases`` of ``suite`` (cases without interventions),
+    or an argparse error naming the suites or the cases there are."""
+    from baselines.bench import suite_cases
+    from scenario_gen.errors import InputError
+
+    rows = [c.strip() for c in cases.split(";") if c.strip()]
+    try:
+        names = [c.group for c in suite_cases(suite) if not c.interventions]
+    except InputError as e:  # its message names the suites there are
+        ap.error(str(e))
+    missing = [r for r in rows if r not in names]
+    if missing or not rows:
+        ap.error(f"--cases: {missing or cases!r}; allowed: any of {'; '.join(names)}")
+    return rows
+
+
+def drive_cases(
+    suite: str,
+    rows: list[str],
+    configs: dict[str, str],
+    policy: str,
+    seeds: int,
+    episode: Callable[[Any, Any, int, str], T],
+) -> dict[tuple[str, str], list[T]]:
+    """``episode(env, policy, reset seed, estimator name)`` on the first ``seeds`` evaluation
+    seeds of each case in ``rows``, under each of ``configs`` (name: JSON of dotted env config
+    keys merged over the suite's), with a progress bar; keyed by (name, case)."""
+    from tqdm import tqdm
+
+    from baselines.bench import _make_env, episode_seed, suite_cases
+    from policies import make_policy
+
+    results: dict[tuple[str, str], list[T]] = {}
+    with tqdm(total=len(configs) * len(rows) * seeds, unit="ep") as bar:
+        for name, config in configs.items():
+            cases = suite_cases(suite, config)
+            index = {c.group: i for i, c in enumerate(cases)}
+            for row in rows:
+                case = cases[index[row]]
+                env = _make_env(case)
+                try:
+                    pi = make_policy(policy, env)
+                    eps = results.setdefault((name, row), [])
+                    for k in range(seeds):
+                        bar.set_postfix(estimator=name, case=row)
+                        eps.append(episode(env, pi, episode_seed(index[row], case, k), name))
+                        bar.update()
+                finally:
+                    env.close()
+    return results

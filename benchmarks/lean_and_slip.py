@@ -30,14 +30,11 @@ import time
 from typing import Any
 
 import numpy as np
-from tqdm import tqdm
 
 from agrinav_gym.routes import Tracker
-from baselines.bench import _make_env, episode_seed, suite_cases
 from baselines.report import mean_ci
 from baselines.suites import SENSITIVITY
-from policies import make_policy
-from scenario_gen.errors import InputError
+from common import drive_cases, suite_case_names
 
 #: the sensitivity suite's soil rows: its default and the friction and shear-modulus ends
 SOIL_ROWS = tuple(
@@ -116,33 +113,17 @@ def main() -> None:
     if unknown or not chosen:
         ap.error(f"--estimators: {args.estimators!r}; allowed: any of {', '.join(ESTIMATORS)}")
 
-    rows = [c.strip() for c in args.cases.split(";") if c.strip()]
-    try:
-        known = [c for c in suite_cases(args.suite) if not c.interventions]
-    except InputError as e:  # its message names the suites there are
-        ap.error(str(e))
-    names = [c.group for c in known]
-    missing = [r for r in rows if r not in names]
-    if missing or not rows:
-        ap.error(f"--cases: {missing or args.cases!r}; allowed: any of {'; '.join(names)}")
+    rows = suite_case_names(ap, args.suite, args.cases)
 
-    results: dict[str, dict[str, list[dict[str, float]]]] = {}
-    jobs = len(chosen) * len(rows) * args.seeds
     t0 = time.perf_counter()
-    with tqdm(total=jobs, unit="ep") as bar:
-        for est_name in chosen:
-            cases = suite_cases(args.suite, ESTIMATORS[est_name])
-            index = {c.group: i for i, c in enumerate(cases)}
-            for row in rows:
-                case = cases[index[row]]
-                env = _make_env(case)
-                policy = make_policy(args.policy, env)
-                eps = results.setdefault(est_name, {}).setdefault(row, [])
-                for k in range(args.seeds):
-                    bar.set_postfix(estimator=est_name, row=row)
-                    eps.append(episode(env, policy, episode_seed(index[row], case, k), args.tilt))
-                    bar.update()
-                env.close()
+    results = drive_cases(
+        args.suite,
+        rows,
+        {name: ESTIMATORS[name] for name in chosen},
+        args.policy,
+        args.seeds,
+        lambda env, pi, seed, _: episode(env, pi, seed, args.tilt),
+    )
 
     print(
         f"\n{args.policy}, {args.seeds} `{args.suite}` seeds a row, steps rolled > {args.tilt:g}°; "
@@ -154,17 +135,19 @@ def main() -> None:
         "| RMS true, all steps |"
     )
     print("|---|---|---|---|---|---|")
-    for est_name, by_case in results.items():
-        for row, eps in by_case.items():
-            tilted = [e for e in eps if "offset" in e]
-            print(
-                f"| {est_name} | {row} | {cell([e['offset'] for e in tilted])} | "
-                f"{cell([e['lag'] for e in tilted])} | {cell([e['true'] for e in tilted])} | "
-                f"{cell([e['rms'] for e in eps], '')} |"
-            )
+    for (est_name, row), eps in results.items():
+        tilted = [e for e in eps if "offset" in e]
+        print(
+            f"| {est_name} | {row} | {cell([e['offset'] for e in tilted])} | "
+            f"{cell([e['lag'] for e in tilted])} | {cell([e['true'] for e in tilted])} | "
+            f"{cell([e['rms'] for e in eps], '')} |"
+        )
     if args.json:
+        by_estimator: dict[str, dict[str, list[dict[str, float]]]] = {}
+        for (est_name, row), eps in results.items():
+            by_estimator.setdefault(est_name, {})[row] = eps
         with open(args.json, "w") as f:
-            json.dump(results, f, indent=1)
+            json.dump(by_estimator, f, indent=1)
 
 
 if __name__ == "__main__":
