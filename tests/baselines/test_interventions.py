@@ -93,6 +93,17 @@ def test_the_table_reports_distance_between_interventions() -> None:
     md = table([rec, none], "long", "")
     row = next(line for line in md.splitlines() if line.startswith("| long | p | 200 |"))
     assert "| 2 | 100.0 |" in row and "crops_hit 1, progress 1" in row
+    # a second policy on the same seeds: its rate paired with the first's, seed by seed
+    # (rates 1/100 m − 2/120 m and 3/100 m − 0/80 m)
+    q = [
+        {**rec, "policy": "q", "interventions": 1, "autonomous_m": 100.0},
+        {**none, "policy": "q", "interventions": 3, "autonomous_m": 100.0},
+    ]
+    md = table([rec, none, *q], "long", "")
+    pair = next(line for line in md.splitlines() if line.startswith("| long | q − p |"))
+    mean = ((1.0 - 200.0 / 120.0) + 3.0) / 2
+    assert pair.startswith(f"| long | q − p | {mean:+.2f} [") and pair.endswith("(2) |")
+    assert "q − p" not in table([rec, none], "long", "")
 
 
 class _StallsLate:
