@@ -29,8 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from baselines.report import mean_ci
-from common import drive_cases, suite_case_names
+from common import ci_cell, drive_cases, estimator_names, suite_case_names
 
 #: each estimator's config over the suite's, and whether it removes the antenna's offset
 #: through yaw alone (``two_d_mode``) and so keeps the lean in its estimate
@@ -83,11 +82,6 @@ def episode(
     return out
 
 
-def cell(values: list[float], scale: float = 1000.0, fmt: str = "+.0f") -> str:
-    ci = mean_ci([v * scale for v in values])
-    return "—" if ci is None else f"{ci[0]:{fmt}} [{ci[1]:{fmt}}, {ci[2]:{fmt}}]"
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--suite", default="ood", help="the benchmark suite to drive")
@@ -105,9 +99,7 @@ def main() -> None:
         ap.error(f"--seeds: {args.seeds}; allowed: at least 2 (an interval needs two episodes)")
     if not 0.0 <= args.pitch < 45.0:
         ap.error(f"--pitch: {args.pitch}; allowed: 0 to 45 degrees")
-    chosen = [e.strip() for e in args.estimators.split(",") if e.strip()]
-    if not chosen or any(e not in ESTIMATORS for e in chosen):
-        ap.error(f"--estimators: {args.estimators!r}; allowed: any of {', '.join(ESTIMATORS)}")
+    chosen = estimator_names(ap, args.estimators, ESTIMATORS)
     rows = suite_case_names(ap, args.suite, args.cases)
 
     t0 = time.perf_counter()
@@ -133,12 +125,12 @@ def main() -> None:
     for (est_name, row), eps in results.items():
         for travel in TRAVEL:
             got = [e[travel] for e in eps if travel in e]
-            lean = cell([g["lean"] for g in got])
+            lean = ci_cell([g["lean"] for g in got]) if ESTIMATORS[est_name][1] else "—"
             print(
                 f"| {est_name} | {row} | {travel} | {len(got)} | "
-                f"{cell([g['along'] for g in got])} | {lean if ESTIMATORS[est_name][1] else '—'} | "
-                f"{cell([g['rest'] for g in got])} | "
-                f"{cell([g['speed'] for g in got], 1.0, '.3f')} |"
+                f"{ci_cell([g['along'] for g in got])} | {lean} | "
+                f"{ci_cell([g['rest'] for g in got])} | "
+                f"{ci_cell([g['speed'] for g in got], 1.0, '.3f')} |"
             )
 
 

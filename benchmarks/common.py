@@ -113,3 +113,19 @@ def drive_cases(
                 finally:
                     env.close()
     return results
+
+
+def estimator_names(ap: Any, text: str, known: Any) -> list[str]:
+    """The comma-separated names in ``text``, each one of ``known``, or an argparse error."""
+    chosen = [e.strip() for e in text.split(",") if e.strip()]
+    if not chosen or any(e not in known for e in chosen):
+        ap.error(f"--estimators: {text!r}; allowed: any of {', '.join(known)}")
+    return chosen
+
+
+def ci_cell(values: list[float], scale: float = 1000.0, fmt: str = "+.0f") -> str:
+    """Mean [95 % bootstrap interval] of ``values`` × ``scale`` (default: m as mm)."""
+    from baselines.report import mean_ci
+
+    ci = mean_ci([v * scale for v in values])
+    return "—" if ci is None else f"{ci[0]:{fmt}} [{ci[1]:{fmt}}, {ci[2]:{fmt}}]"

@@ -32,9 +32,8 @@ from typing import Any
 import numpy as np
 
 from agrinav_gym.routes import Tracker
-from baselines.report import mean_ci
 from baselines.suites import SENSITIVITY
-from common import drive_cases, suite_case_names
+from common import ci_cell, drive_cases, estimator_names, suite_case_names
 
 #: the sensitivity suite's soil rows: its default and the friction and shear-modulus ends
 SOIL_ROWS = tuple(
@@ -79,12 +78,6 @@ def episode(env: Any, policy: Any, seed: int, tilt: float) -> dict[str, float]:
     return out
 
 
-def cell(values: list[float], sign: str = "+") -> str:
-    """Mean [95 % interval] in mm."""
-    ci = mean_ci([v * 1000 for v in values])
-    return "—" if ci is None else f"{ci[0]:{sign}.0f} [{ci[1]:{sign}.0f}, {ci[2]:{sign}.0f}]"
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--suite", default="sensitivity", help="the benchmark suite to drive")
@@ -108,10 +101,7 @@ def main() -> None:
     if not 0.0 <= args.tilt < 45.0:
         ap.error(f"--tilt: {args.tilt}; allowed: 0 to 45 degrees")
 
-    chosen = [e.strip() for e in args.estimators.split(",") if e.strip()]
-    unknown = [e for e in chosen if e not in ESTIMATORS]
-    if unknown or not chosen:
-        ap.error(f"--estimators: {args.estimators!r}; allowed: any of {', '.join(ESTIMATORS)}")
+    chosen = estimator_names(ap, args.estimators, ESTIMATORS)
 
     rows = suite_case_names(ap, args.suite, args.cases)
 
@@ -138,9 +128,9 @@ def main() -> None:
     for (est_name, row), eps in results.items():
         tilted = [e for e in eps if "offset" in e]
         print(
-            f"| {est_name} | {row} | {cell([e['offset'] for e in tilted])} | "
-            f"{cell([e['lag'] for e in tilted])} | {cell([e['true'] for e in tilted])} | "
-            f"{cell([e['rms'] for e in eps], '')} |"
+            f"| {est_name} | {row} | {ci_cell([e['offset'] for e in tilted])} | "
+            f"{ci_cell([e['lag'] for e in tilted])} | {ci_cell([e['true'] for e in tilted])} | "
+            f"{ci_cell([e['rms'] for e in eps], fmt='.0f')} |"
         )
     if args.json:
         by_estimator: dict[str, dict[str, list[dict[str, float]]]] = {}
