@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from common import ci_cell, drive_cases, estimator_names, suite_case_names
+from common import add_drive_args, checked_drive_args, ci_cell, drive_cases
 
 #: each estimator's config over the suite's, and whether it removes the antenna's offset
 #: through yaw alone (``two_d_mode``) and so keeps the lean in its estimate
@@ -84,23 +84,14 @@ def episode(
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--suite", default="ood", help="the benchmark suite to drive")
-    ap.add_argument("--cases", default="slope 9-12 deg", help="';'-separated case names")
-    ap.add_argument("--policy", default="rpp:tuned", help="the controller (bench's spec)")
-    ap.add_argument("--seeds", type=int, default=8, help="episodes per case and estimator")
-    ap.add_argument("--pitch", type=float, default=3.0, help="pitch above which a step counts, deg")
-    ap.add_argument(
-        "--estimators",
-        default="robot_localization,robot_localization-3d",
-        help=f"comma-separated, of {', '.join(ESTIMATORS)}",
+    add_drive_args(
+        ap, "ood", "slope 9-12 deg", "robot_localization,robot_localization-3d", ESTIMATORS
     )
+    ap.add_argument("--pitch", type=float, default=3.0, help="pitch above which a step counts, deg")
     args = ap.parse_args()
-    if args.seeds < 2:
-        ap.error(f"--seeds: {args.seeds}; allowed: at least 2 (an interval needs two episodes)")
     if not 0.0 <= args.pitch < 45.0:
         ap.error(f"--pitch: {args.pitch}; allowed: 0 to 45 degrees")
-    chosen = estimator_names(ap, args.estimators, ESTIMATORS)
-    rows = suite_case_names(ap, args.suite, args.cases)
+    chosen, rows = checked_drive_args(ap, args, ESTIMATORS)
 
     t0 = time.perf_counter()
     results = drive_cases(

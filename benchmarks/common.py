@@ -115,12 +115,31 @@ def drive_cases(
     return results
 
 
-def estimator_names(ap: Any, text: str, known: Any) -> list[str]:
-    """The comma-separated names in ``text``, each one of ``known``, or an argparse error."""
-    chosen = [e.strip() for e in text.split(",") if e.strip()]
+def add_drive_args(
+    ap: Any, suite: str, cases: str, estimators: str, known: Any, cases_help: str = ""
+) -> None:
+    """The arguments ``drive_cases`` needs: --suite, --cases, --policy, --seeds, --estimators
+    (comma-separated, of ``known``); ``checked_drive_args`` reads them back."""
+    ap.add_argument("--suite", default=suite, help="the benchmark suite to drive")
+    ap.add_argument(
+        "--cases", default=cases, help="';'-separated case names of the suite" + cases_help
+    )
+    ap.add_argument("--policy", default="rpp:tuned", help="the controller (bench's spec)")
+    ap.add_argument("--seeds", type=int, default=8, help="episodes per case and estimator")
+    ap.add_argument(
+        "--estimators", default=estimators, help=f"comma-separated, of {', '.join(known)}"
+    )
+
+
+def checked_drive_args(ap: Any, args: Any, known: Any) -> tuple[list[str], list[str]]:
+    """(estimator names, case names) from ``add_drive_args``'s arguments, or an argparse error
+    naming the value and what is allowed."""
+    if args.seeds < 2:
+        ap.error(f"--seeds: {args.seeds}; allowed: at least 2 (an interval needs two episodes)")
+    chosen = [e.strip() for e in args.estimators.split(",") if e.strip()]
     if not chosen or any(e not in known for e in chosen):
-        ap.error(f"--estimators: {text!r}; allowed: any of {', '.join(known)}")
-    return chosen
+        ap.error(f"--estimators: {args.estimators!r}; allowed: any of {', '.join(known)}")
+    return chosen, suite_case_names(ap, args.suite, args.cases)
 
 
 def ci_cell(values: list[float], scale: float = 1000.0, fmt: str = "+.0f") -> str:

@@ -33,7 +33,7 @@ import numpy as np
 
 from agrinav_gym.routes import Tracker
 from baselines.suites import SENSITIVITY
-from common import ci_cell, drive_cases, estimator_names, suite_case_names
+from common import add_drive_args, checked_drive_args, ci_cell, drive_cases
 
 #: the sensitivity suite's soil rows: its default and the friction and shear-modulus ends
 SOIL_ROWS = tuple(
@@ -80,30 +80,20 @@ def episode(env: Any, policy: Any, seed: int, tilt: float) -> dict[str, float]:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--suite", default="sensitivity", help="the benchmark suite to drive")
-    ap.add_argument(
-        "--cases",
-        default=";".join(SOIL_ROWS),
-        help="';'-separated case names of the suite (default: the sensitivity suite's soil rows)",
+    add_drive_args(
+        ap,
+        "sensitivity",
+        ";".join(SOIL_ROWS),
+        "robot_localization,ekf-oracle",
+        ESTIMATORS,
+        " (default: the sensitivity suite's soil rows)",
     )
-    ap.add_argument("--policy", default="rpp:tuned", help="the controller (bench's spec)")
-    ap.add_argument("--seeds", type=int, default=8, help="episodes per row and estimator")
     ap.add_argument("--tilt", type=float, default=2.0, help="roll above which a step counts, deg")
-    ap.add_argument(
-        "--estimators",
-        default="robot_localization,ekf-oracle",
-        help=f"comma-separated, of {', '.join(ESTIMATORS)}",
-    )
     ap.add_argument("--json", help="also write every episode's numbers here")
     args = ap.parse_args()
-    if args.seeds < 2:
-        ap.error(f"--seeds: {args.seeds}; allowed: at least 2 (an interval needs two episodes)")
     if not 0.0 <= args.tilt < 45.0:
         ap.error(f"--tilt: {args.tilt}; allowed: 0 to 45 degrees")
-
-    chosen = estimator_names(ap, args.estimators, ESTIMATORS)
-
-    rows = suite_case_names(ap, args.suite, args.cases)
+    chosen, rows = checked_drive_args(ap, args, ESTIMATORS)
 
     t0 = time.perf_counter()
     results = drive_cases(
