@@ -39,6 +39,8 @@ ENV_KEYS = (
     "gnss.fix.false_fix_prob",
     "gnss.fix.foliage_db_per_m",
     "gnss.fix.jump_rate_hz",
+    # open sky: how often multipath slips RTK fixed to float (assumed: docs/localisation.md)
+    "gnss.fix.multipath_mtbf_s",
     "gnss.fix.refix_sky_exponent",
     "lighting.soil_rgb",
     "lighting.sun_azimuth_deg",

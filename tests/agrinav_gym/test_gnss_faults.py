@@ -280,3 +280,24 @@ def test_randomize_draws_the_receiver_under_canopy_per_reset() -> None:
         assert len(seen) == 6
     finally:
         env.close()
+
+
+def test_randomize_draws_the_open_sky_slip_interval_per_reset() -> None:
+    """The one receiver value no study gives (open-sky multipath slips) is drawn per reset like
+    the others, reaches the fix-mode chain, and the rollout's conditions name it."""
+    from .helpers import make
+
+    env = make(randomize={"gnss.fix.multipath_mtbf_s": {"choices": [40.0, 600.0]}})
+    try:
+        seen = set()
+        for i in range(8):
+            env.reset(seed=i)
+            gnss = env.unwrapped.sensors.gnss
+            mtbf = gnss.cfg.fix.multipath_mtbf_s
+            assert mtbf in (40.0, 600.0) and gnss.chain.cfg.multipath_mtbf_s == mtbf
+            label = env.unwrapped.conditions()["localisation"]
+            assert ("multipath MTBF 40 s" in label) == (mtbf == 40.0)
+            seen.add(mtbf)
+        assert seen == {40.0, 600.0}
+    finally:
+        env.close()
