@@ -70,3 +70,29 @@ def test_a_bad_env_kwargs_file_exits_2_before_writing(
     err = capsys.readouterr().err
     assert code == 2 and needle in err and len(err.strip().splitlines()) == 1
     assert not out.exists()
+
+
+def test_the_receiver_randomized_file_draws_the_receiver_over_fieldroutes_own_ranges() -> None:
+    import gymnasium as gym
+
+    import agrinav_gym
+    from baselines.hyperparams import load
+
+    _, setup = load("AgriNav/FieldRoute-v3")
+    root = Path(__file__).resolve().parents[2]
+    extra = root / "benchmarks" / "fieldroute_receiver_randomized.yaml"
+    kw = merge_env_kwargs(dict(setup.env_kwargs), extra)
+    assert set(setup.env_kwargs["randomize"]) < set(kw["randomize"])  # the fields' ranges stay
+    env = gym.make(agrinav_gym.check_env_id("AgriNav/FieldRoute-v3"), **kw)
+    try:
+        drawn = set()
+        for seed in range(6):
+            env.reset(seed=seed)
+            fix = env.unwrapped.sensors.gnss.cfg.fix
+            assert fix.multipath_mtbf_s in (40.0, 120.0, 600.0)
+            assert 0.4 <= fix.foliage_db_per_m <= 2.0 and 0.0 <= fix.false_fix_prob <= 0.3
+            drawn.add(fix.multipath_mtbf_s)
+        assert len(drawn) > 1
+        assert env.unwrapped.estimator.name == "robot_localization"
+    finally:
+        env.close()
