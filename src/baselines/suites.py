@@ -6,6 +6,7 @@ disjoint from every training range (MetaDrive-style splits).
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -74,6 +75,9 @@ PAPER_FIELD = {"field": {"width": 12.5, "length": 30.0}, "route": {"lanes": 2}}
 #: The field the seed robot's four waypoints lie on (31 m lanes; benchmarks/paper_waypoints.py).
 PAPER_WAYPOINT_FIELD: dict[str, Any] = {"field": {"width": 12.5, "length": 39.0}}
 
+
+#: The `paper` case on ridged planting, as the source paper's simulated field was.
+PAPER_RIDGED = "corn-early, ridged 12 cm"
 
 #: The paper run's step limit: the navigator, not the clock, ends a stuck run. Per goal Nav2's
 #: tree gives up after 14 progress-check failures (10 s each) and six recoveries (≤ 10 s
@@ -473,7 +477,7 @@ def suite(name: str) -> list[Case]:
             "stop_on_failure": False,
         }
         goals = {**RTK_NAV2, "task": nav2}
-        return [
+        cases = [
             Case(
                 f"corn-{label}",
                 "AgriNav/FieldRoute-v3",
@@ -483,6 +487,13 @@ def suite(name: str) -> list[Case]:
                 max_steps=PAPER_MAX_STEPS,
             )
             for label, stage in (("early", 1), ("intermediate", 3))
+        ]
+        # Appended: early corn on the ridges the paper's own field had (its heightmap furrows,
+        # 0.10-0.15 m: the ridged preset's 0.12 m), on the first case's fields and seeds.
+        ridged = {**cases[0].overrides, "furrows": {"enabled": True, "depth": 0.12}}
+        return [
+            *cases,
+            dataclasses.replace(cases[0], group=PAPER_RIDGED, overrides=ridged, seeds_of=0),
         ]
     if name == "zigzag":
         # The v1 `paper` run: a zigzag over two lanes with a headland U-turn of the row
