@@ -182,6 +182,7 @@ def table(records: list[dict[str, Any]], suite_name: str, command: str) -> str:
                 )
     lines += ["", *conditions(records, groups, pols)]
     lines += paired(records, groups, pols)
+    lines += case_pairs(records, groups, pols)
     lines += held_out(records)
     lines += ["", *failures(records, groups, pols)]
     lines += interventions(records, groups, pols)
@@ -212,17 +213,76 @@ def paired_differences(
     number of pairs. Pairing removes the field-to-field spread both policies share, so a
     difference smaller than either policy's own interval can still be resolved."""
     by = {(r["policy"], r.get("seed")): r for r in records if r["scenario"] == group}
+    pairs = [
+        (ra, by[(b, seed)])
+        for (pol, seed), ra in by.items()
+        if pol == a and seed is not None and (b, seed) in by
+    ]
+    return _pair_diffs(pairs, metric)
+
+
+def _pair_diffs(
+    pairs: list[tuple[dict[str, Any], dict[str, Any]]], metric: str
+) -> tuple[tuple[float, float, float] | None, int]:
+    """Mean of ``a − b`` over ``(a, b)`` record pairs (cross-track metrics: both finished)."""
     diffs = []
-    for (pol, seed), ra in by.items():
-        rb = by.get((b, seed))
-        if pol != a or rb is None or seed is None:
-            continue
+    for ra, rb in pairs:
         if metric in ERRORS and not (finished(ra) and finished(rb)):
             continue
         va, vb = ra.get(metric), rb.get(metric)
         if va is not None and vb is not None:
             diffs.append(float(va) - float(vb))
     return mean_ci(diffs), len(diffs)
+
+
+#: What the paired comparison of two scenario groups reports: the paper's per-pose in-furrow
+#: and headland errors beside the headline, since a case often moves one and not the other.
+PAIRED_CASES = ("completion", "crops_hit", "path_rmse", "in_furrow_rmse", "headland_rmse")
+
+
+def case_pairs(records: list[dict[str, Any]], groups: list[str], pols: list[str]) -> list[str]:
+    """Each scenario group against the first earlier group whose episodes (per policy) drove
+    the same reset seeds: a case that reuses another's fields and seeds (``Case.seeds_of``)
+    differs from it only in what it sets, so the difference is that setting's effect."""
+    seeds = {
+        (g, p): {r.get("seed") for r in records if r["scenario"] == g and r["policy"] == p}
+        for g in groups
+        for p in pols
+    }
+    metrics = [*PAIRED_CASES, *[PLANTED_METRIC] * any(PLANTED_METRIC in r for r in records)]
+    lines: list[str] = []
+    for p in pols:
+        for i, g in enumerate(groups):
+            own = seeds[(g, p)]
+            ref = next(
+                (h for h in groups[:i] if own and None not in own and seeds[(h, p)] == own), None
+            )
+            if ref is None:
+                continue
+            by_ref = {r["seed"]: r for r in records if r["scenario"] == ref and r["policy"] == p}
+            pairs = [
+                (r, by_ref[r["seed"]]) for r in records if r["scenario"] == g and r["policy"] == p
+            ]
+            cells = []
+            for metric in metrics:
+                ci, n = _pair_diffs(pairs, metric)
+                cells.append(
+                    "—" if ci is None else f"{ci[0]:+.3f} [{ci[1]:+.3f}, {ci[2]:+.3f}] ({n})"
+                )
+            lines.append(f"| {g} | {ref} | {p} | " + " | ".join(cells) + " |")
+    if not lines:
+        return []
+    head = ["scenario", "against", "policy", *(f"Δ {m}" for m in metrics)]
+    return [
+        "",
+        "Paired differences between scenario groups that drove the same fields and reset seeds "
+        "(this group − the one it is set against, per policy; cross-track over episodes both "
+        "finished): mean [95 % bootstrap interval] (pairs).",
+        "",
+        "| " + " | ".join(head) + " |",
+        "|" + "---|" * len(head),
+        *lines,
+    ]
 
 
 def paired(records: list[dict[str, Any]], groups: list[str], pols: list[str]) -> list[str]:

@@ -187,3 +187,28 @@ def test_an_env_on_treads_says_so_in_its_conditions() -> None:
             assert env.unwrapped.conditions().get("tyres") == expect
         finally:
             env.close()
+
+
+def test_groups_that_drove_the_same_seeds_are_paired_and_others_are_not() -> None:
+    """A case on another's fields and seeds (``Case.seeds_of``) is set against it per policy;
+    a case on seeds of its own is not (its fields are other fields)."""
+    from baselines.report import case_pairs
+
+    rng = np.random.default_rng(5)
+    field = rng.normal(0.10, 0.05, 20).clip(0.01)
+    records = []
+    for group, offset, first in (("flat", 0.0, 0), ("ridged", 0.011, 0), ("other", 0.0, 100)):
+        for k, base in enumerate(field):
+            r = _rec("dwb", float(base + offset), "success", 100.0)
+            r.update(scenario=group, seed=first + k)
+            records.append(r)
+    lines = case_pairs(records, ["flat", "ridged", "other"], ["dwb"])
+    rows = [ln for ln in lines if ln.startswith("| ridged") or ln.startswith("| other")]
+    assert len(rows) == 1 and rows[0].startswith("| ridged | flat | dwb | +0.000 [+0.000, +0.000]")
+    assert "+0.011 [+0.011, +0.011] (20)" in rows[0]  # every cross-track column moved 11 mm
+    assert "Paired differences between scenario groups" in table(records, "t", "agrinav bench")
+    # one unfinished run drops out of the cross-track pairs, not out of completion's
+    records[25]["termination"] = "corridor"
+    row = next(ln for ln in case_pairs(records, ["flat", "ridged"], ["dwb"]) if "| ridged" in ln)
+    assert "(19)" in row and "(20)" in row
+    assert case_pairs(records, ["flat", "other"], ["dwb"]) == []
