@@ -219,6 +219,28 @@ def test_the_paper_suite_drives_the_seed_robots_four_waypoints() -> None:
         env.close()
 
 
+def test_the_papers_ridged_case_drives_the_early_fields_and_seeds_on_ridges() -> None:
+    """Paired with early corn: the same field, plants and reset seeds, only the ground ridged
+    under the rows (the source paper's heightmap furrows)."""
+    import numpy as np
+
+    from baselines.bench import episode_seed
+    from baselines.suites import PAPER_RIDGED
+
+    cases = suite("paper")
+    flat, ridged = cases[0], next(c for c in cases if c.group == PAPER_RIDGED)
+    assert [c.group for c in cases[:2]] == ["corn-early", "corn-intermediate"]  # published
+    assert episode_seed(cases.index(ridged), ridged, 3) == episode_seed(0, flat, 3)
+    assert {k: v for k, v in ridged.overrides.items() if k != "furrows"} == flat.overrides
+    a, b = flat.field(), ridged.field()
+    np.testing.assert_array_equal(a.plants.x, b.plants.x)
+    np.testing.assert_array_equal(a.route.xy, b.route.xy)
+    assert not a.spec.furrows.enabled and b.spec.furrows.depth == 0.12
+    across = a.rows.to_enu(np.zeros(9), np.linspace(-0.5, 0.5, 9) * a.rows.spacing)
+    relief = b.terrain.height_at(*across) - a.terrain.height_at(*across)
+    assert np.ptp(relief) > 0.1  # a ridge and a furrow between two rows
+
+
 def test_published_sensitivity_rows_keep_their_places() -> None:
     """A case's index sets its episodes' seeds: rows are appended, never inserted, so every
     table already published (benchmark.md) reproduces."""
