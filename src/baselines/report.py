@@ -235,6 +235,14 @@ def _pair_diffs(
     return mean_ci(diffs), len(diffs)
 
 
+def _delta_cell(ci: tuple[float, float, float] | None, n: int, digits: int = 3) -> str:
+    """A paired difference's cell: signed mean [interval] (pairs), or — without pairs."""
+    if ci is None:
+        return "—"
+    m, lo, hi = (f"{v:+.{digits}f}" for v in ci)
+    return f"{m} [{lo}, {hi}] ({n})"
+
+
 #: What the paired comparison of two scenario groups reports: the paper's per-pose in-furrow
 #: and headland errors beside the headline, since a case often moves one and not the other.
 PAIRED_CASES = ("completion", "crops_hit", "path_rmse", "in_furrow_rmse", "headland_rmse")
@@ -266,9 +274,7 @@ def case_pairs(records: list[dict[str, Any]], groups: list[str], pols: list[str]
             cells = []
             for metric in metrics:
                 ci, n = _pair_diffs(pairs, metric)
-                cells.append(
-                    "—" if ci is None else f"{ci[0]:+.3f} [{ci[1]:+.3f}, {ci[2]:+.3f}] ({n})"
-                )
+                cells.append(_delta_cell(ci, n))
             lines.append(f"| {g} | {ref} | {p} | " + " | ".join(cells) + " |")
     if not lines:
         return []
@@ -308,9 +314,7 @@ def paired(records: list[dict[str, Any]], groups: list[str], pols: list[str]) ->
             cells = []
             for metric in metrics:
                 ci, n = paired_differences(records, g, p, ref, metric)
-                cells.append(
-                    "—" if ci is None else f"{ci[0]:+.3f} [{ci[1]:+.3f}, {ci[2]:+.3f}] ({n})"
-                )
+                cells.append(_delta_cell(ci, n))
             if any(c != "—" for c in cells):
                 lines.append(f"| {g} | {p} | " + " | ".join(cells) + " |")
                 rows += 1
@@ -479,9 +483,7 @@ def _paired_rates(records: list[dict[str, Any]], groups: list[str], pols: list[s
             for q in pols[:i]:
                 ci, n = paired_differences(rated, g, p, q, "rate")
                 if ci is not None and n >= 2:
-                    lines.append(
-                        f"| {g} | {p} − {q} | {ci[0]:+.2f} [{ci[1]:+.2f}, {ci[2]:+.2f}] ({n}) |"
-                    )
+                    lines.append(f"| {g} | {p} − {q} | {_delta_cell(ci, n, 2)} |")
     if not lines:
         return []
     head = [
