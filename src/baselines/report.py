@@ -252,25 +252,20 @@ def case_pairs(records: list[dict[str, Any]], groups: list[str], pols: list[str]
     """Each scenario group against the first earlier group whose episodes (per policy) drove
     the same reset seeds: a case that reuses another's fields and seeds (``Case.seeds_of``)
     differs from it only in what it sets, so the difference is that setting's effect."""
-    seeds = {
-        (g, p): {r.get("seed") for r in records if r["scenario"] == g and r["policy"] == p}
-        for g in groups
-        for p in pols
-    }
+    by: dict[tuple[str, str], dict[Any, dict[str, Any]]] = {}
+    for r in records:
+        by.setdefault((r["scenario"], r["policy"]), {})[r.get("seed")] = r
     metrics = [*PAIRED_CASES, *[PLANTED_METRIC] * any(PLANTED_METRIC in r for r in records)]
     lines: list[str] = []
     for p in pols:
         for i, g in enumerate(groups):
-            own = seeds[(g, p)]
-            ref = next(
-                (h for h in groups[:i] if own and None not in own and seeds[(h, p)] == own), None
-            )
+            own = by.get((g, p), {})
+            if not own or None in own:
+                continue
+            ref = next((h for h in groups[:i] if by.get((h, p), {}).keys() == own.keys()), None)
             if ref is None:
                 continue
-            by_ref = {r["seed"]: r for r in records if r["scenario"] == ref and r["policy"] == p}
-            pairs = [
-                (r, by_ref[r["seed"]]) for r in records if r["scenario"] == g and r["policy"] == p
-            ]
+            pairs = [(r, by[(ref, p)][seed]) for seed, r in own.items()]
             cells = []
             for metric in metrics:
                 ci, n = _pair_diffs(pairs, metric)
