@@ -289,8 +289,11 @@ def generate(spec: ScenarioSpec, seed: int) -> Scenario:
     plants, lay = lodging.plants, lodging.layout  # a fallen plant leaves its place empty
     goals: dict[str, Any] = {}
     if spec.route.waypoints is not None:
+        wps = read_gps_waypoints(spec.route.waypoints, "route.waypoints")
+        # the file's yaws, kept so that an export writes the user's waypoints back as given
+        goals["route_goal_yaw"] = [None if math.isnan(y) else float(y) for y in wps[:, 2]]
         route, goals["route_goals"] = waypoint_route(
-            read_gps_waypoints(spec.route.waypoints, "route.waypoints"),
+            wps,
             site.geo,
             terrain,
             spec.route.spacing,

@@ -60,7 +60,14 @@ def read_gps_waypoints(path: str | Path, what: str = "--waypoints") -> FloatArra
         out[k] = [
             _number(wp["latitude"], f"{where}.latitude", -90.0, 90.0),
             _number(wp["longitude"], f"{where}.longitude", -180.0, 180.0),
-            _number(wp.get("yaw", math.nan), f"{where}.yaw", -4 * math.pi, 4 * math.pi, True),
+            # yaw: null reads as an absent yaw, as YAML writers emit for a missing value
+            _number(
+                math.nan if wp.get("yaw") is None else wp["yaw"],
+                f"{where}.yaw",
+                -4 * math.pi,
+                4 * math.pi,
+                True,
+            ),
         ]
     return out
 
@@ -68,7 +75,10 @@ def read_gps_waypoints(path: str | Path, what: str = "--waypoints") -> FloatArra
 def _number(v: Any, where: str, lo: float, hi: float, nan_ok: bool = False) -> float:
     if isinstance(v, bool) or not isinstance(v, (int, float)):
         raise InputError(where, v, f"allowed: a number in [{lo:g}, {hi:g}]")
-    x = float(v)
+    try:
+        x = float(v)
+    except OverflowError:  # YAML reads integers of any length
+        x = math.inf
     if nan_ok and math.isnan(x):
         return x
     if not (math.isfinite(x) and lo <= x <= hi):
@@ -101,11 +111,17 @@ def waypoint_route(
     inside = terrain.contains(xy[:, 0], xy[:, 1])
     if not np.all(inside):
         k = int(np.flatnonzero(~np.asarray(inside))[0])
+        # the terrain is the field's site and margin, which the waypoints do not move: say
+        # where a site would have to be for them (the centre of their box, through the datum)
+        mid = (xy.min(axis=0) + xy.max(axis=0)) / 2.0
+        lat, lon, _ = geo.enu_to_geodetic(mid[0], mid[1], 0.0)
         raise InputError(
             f"{what} waypoints[{k}]",
             [float(wps[k, 0]), float(wps[k, 1])],
-            f"is {float(np.hypot(*xy[k])):.1f} m from the datum, off the terrain; allowed: "
-            "waypoints on the scenario's terrain",
+            f"is {float(np.hypot(*xy[k])):.1f} m from the datum, off the terrain (the field's "
+            "site and its margin); allowed: waypoints on the scenario's terrain — to centre the "
+            f"site on them set terrain.site=latlon, terrain.lat={float(lat):.7f}, "
+            f"terrain.lon={float(lon):.7f}, and a field and terrain.margin that reach them",
         )
     legs = np.diff(xy, axis=0)
     length = np.hypot(legs[:, 0], legs[:, 1])

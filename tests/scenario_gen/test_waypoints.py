@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -75,6 +76,13 @@ def test_a_waypoint_off_the_terrain_is_refused_by_number(field, tmp_path: Path) 
     with pytest.raises(InputError) as e:
         generate(small(route={"waypoints": str(path)}), seed=0)
     assert e.value.field == "route.waypoints waypoints[2]" and "off the terrain" in str(e.value)
+    # it says where a site would hold them: the centre of their box
+    found = re.search(r"terrain\.lat=([-\d.]+), terrain\.lon=([-\d.]+)", str(e.value))
+    assert found is not None
+    lat, lon = (float(v) for v in found.groups())
+    lats, lons = [w["latitude"] for w in wps], [w["longitude"] for w in wps]
+    assert lat == pytest.approx((min(lats) + max(lats)) / 2, abs=1e-6)
+    assert lon == pytest.approx((min(lons) + max(lons)) / 2, abs=1e-6)
 
 
 @pytest.mark.parametrize(
@@ -144,3 +152,46 @@ def test_on_curved_rows_a_leg_along_the_local_rows_is_furrow(tmp_path: Path) -> 
     path = _write(tmp_path / "curved.yaml", wps)
     r = generate(small(**curved, route={"waypoints": str(path)}), seed=0).route
     assert (r.segment == "furrow").mean() > 0.9
+
+
+def test_a_waypoint_route_exports_its_waypoints_and_reads_back(field, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    """``export --to nav2`` writes the file's own waypoints (not lane ends rebuilt from the
+    route), each with the yaw the file gave or else its leaving leg's heading; reading the
+    export back plans the same route."""
+    from baselines.nav2_robot import nav2_options
+    from scenario_gen import save
+    from scenario_gen.export import ExportOptions, export
+
+    wps = _corners(field)
+    wps[0]["yaw"] = 0.5
+    wps[1]["yaw"] = None  # YAML's null: no yaw
+    scn = generate(small(route={"waypoints": str(_write(tmp_path / "w.yaml", wps))}), seed=0)
+    save(scn, tmp_path / "scn")
+    out = tmp_path / "nav2"
+    export(tmp_path / "scn", "nav2", out, ExportOptions.from_dict(nav2_options(plants="tiles")))
+    got = yaml.safe_load((out / "config" / "gps_waypoints.yaml").read_text())["waypoints"]
+    assert len(got) == len(wps)
+    for w, g in zip(wps, got, strict=True):
+        assert g["latitude"] == pytest.approx(w["latitude"], abs=1e-9)  # ≈ 0.1 mm
+        assert g["longitude"] == pytest.approx(w["longitude"], abs=1e-9)
+    from scenario_gen import load
+
+    xy = load(tmp_path / "scn").route.xy  # what the export read (route.csv, 1 µm)
+    goals = scn.info["route_goals"]
+    leg = [float(np.arctan2(*(xy[i + 1] - xy[i])[::-1])) for i in goals[:-1]]
+    # the last waypoint faces along the leg arriving at it
+    last = float(np.arctan2(*(xy[goals[-1]] - xy[goals[-1] - 1])[::-1]))
+    assert [g["yaw"] for g in got] == pytest.approx([0.5, leg[1], leg[2], last], abs=1e-12)
+    again = generate(
+        small(route={"waypoints": str(out / "config" / "gps_waypoints.yaml")}), seed=0
+    )
+    assert again.info["route_goals"] == scn.info["route_goals"]
+    np.testing.assert_allclose(again.route.xy, scn.route.xy, atol=1e-4)
+
+
+def test_yaw_null_is_no_yaw_and_a_huge_integer_is_refused(tmp_path: Path) -> None:
+    ok = [{"latitude": 0, "longitude": 0, "yaw": None}, {"latitude": 0, "longitude": 1e-5}]
+    assert np.isnan(read_gps_waypoints(_write(tmp_path / "null.yaml", ok))[:, 2]).all()
+    big = [{"latitude": 10**400, "longitude": 0}, {"latitude": 0, "longitude": 0}]
+    with pytest.raises(InputError, match=r"waypoints\[0\]\.latitude"):
+        read_gps_waypoints(_write(tmp_path / "big.yaml", big))

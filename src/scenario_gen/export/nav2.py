@@ -6,7 +6,8 @@ Waypoints are sparse — every lane entry and exit, the apex of every headland t
 cusps of a three-point turn) and the end of the lead-out — since a waypoint follower plans
 between them; the 0.1 m reference path is for measuring cross-track error afterwards, not for
 driving. Yaw is the way the robot faces: against the direction of travel where the route is
-driven backwards.
+driven backwards. A route planned through the user's GPS waypoints exports those waypoints,
+with the yaws the file gave, so that ``agrinav scenario --waypoints`` reads the export back.
 """
 
 from __future__ import annotations
@@ -43,8 +44,12 @@ def route_yaw(xy: FloatArray, direction: np.ndarray | None = None) -> FloatArray
 
 
 def sparse_waypoints(scn: Scenario) -> list[tuple[int, str]]:
-    """(route index, label) of the waypoints: lane ends, headland-turn apexes, the end."""
+    """(route index, label) of the waypoints: lane ends, headland-turn apexes, the end; for a
+    route planned through the user's GPS waypoints (``route.waypoints``), those waypoints."""
     r = scn.route
+    goals = scn.info.get("route_goals")
+    if goals is not None:
+        return [(int(i), f"waypoint {k}") for k, i in enumerate(goals)]
     seg = r.segment
     cuts = np.flatnonzero(seg[1:] != seg[:-1]) + 1
     bounds = [0, *cuts.tolist(), len(seg)]
@@ -73,6 +78,23 @@ def sparse_waypoints(scn: Scenario) -> list[tuple[int, str]]:
             out.append((a + int(np.argmax(dist)), "headland turn"))
     if len(seg):
         out.append((len(seg) - 1, "route end"))
+    return out
+
+
+def waypoint_yaw(scn: Scenario, idx: np.ndarray, yaw: FloatArray) -> FloatArray:
+    """The yaw written with each waypoint: the user's where the route was planned through a
+    waypoint file that gave one, else the heading of the leg leaving it (arriving, at the
+    last) — not the route's yaw there, which averages the two legs at a corner."""
+    out = yaw[idx].copy()
+    given = scn.info.get("route_goal_yaw")
+    if scn.info.get("route_goals") is None:
+        return out
+    xy = scn.route.xy
+    for k, i in enumerate(idx):
+        a, b = (i, i + 1) if i + 1 < len(xy) else (i - 1, i)
+        out[k] = np.arctan2(*(xy[b] - xy[a])[::-1])
+        if given is not None and given[k] is not None:
+            out[k] = given[k]
     return out
 
 
@@ -135,11 +157,12 @@ def export_nav2(scn: Scenario, out: Path, opts: ExportOptions) -> dict[str, Any]
     yaw = route_yaw(r.xy, r.direction)
     wps = sparse_waypoints(scn)
     idx = np.array([i for i, _ in wps], np.int64)
+    wp_yaw = waypoint_yaw(scn, idx, yaw)
     lat, lon, _ = scn.geo.enu_to_geodetic(r.xyz[idx, 0], r.xyz[idx, 1], r.xyz[idx, 2])
     gps = {
         "waypoints": [
-            {"latitude": float(la), "longitude": float(lo), "yaw": float(yaw[i])}
-            for la, lo, i in zip(lat, lon, idx, strict=True)
+            {"latitude": float(la), "longitude": float(lo), "yaw": float(y)}
+            for la, lo, y in zip(lat, lon, wp_yaw, strict=True)
         ]
     }
     header = (
@@ -154,9 +177,9 @@ def export_nav2(scn: Scenario, out: Path, opts: ExportOptions) -> dict[str, Any]
             {
                 "x": round(float(r.xyz[i, 0]), 4),
                 "y": round(float(r.xyz[i, 1]), 4),
-                "yaw": round(float(yaw[i]), 6),
+                "yaw": round(float(y), 6),
             }
-            for i in idx
+            for i, y in zip(idx, wp_yaw, strict=True)
         ],
     }
     (config / "waypoints_enu.yaml").write_text(
@@ -170,6 +193,6 @@ def export_nav2(scn: Scenario, out: Path, opts: ExportOptions) -> dict[str, Any]
     info = {"spawn": spawn, "waypoints": len(wps), "controller": bundle["controller"]}
     (out / "README.md").write_text(nav2_readme(scn, g, {**info, **bundle}))
     render_export_preview(
-        scn, out / "preview.png", gazebo=g, waypoints=(idx, yaw[idx]), spawn=spawn, opts=opts
+        scn, out / "preview.png", gazebo=g, waypoints=(idx, wp_yaw), spawn=spawn, opts=opts
     )
     return {**g.__dict__, **info}
