@@ -27,8 +27,10 @@ def unwrap_lon(lon: Any) -> FloatArray:
     if a.size < 2:
         return a.copy()
     step = np.diff(a)
-    step = (step + 180.0) % 360.0 - 180.0
-    return np.concatenate([a[:1], a[0] + np.cumsum(step)])
+    # whole turns added to each value: a running sum of the steps would drift by rounding, and
+    # a closed ring's last point must come back to its first exactly
+    turns = np.round(((step + 180.0) % 360.0 - 180.0 - step) / 360.0)
+    return a + 360.0 * np.concatenate([[0.0], np.cumsum(turns)])
 
 
 def _crosses(lon: FloatArray) -> bool:

@@ -19,6 +19,18 @@ def test_unwrap_keeps_consecutive_longitudes_within_180_degrees() -> None:
     np.testing.assert_allclose(unwrap_lon([10.0, 20.0]), [10.0, 20.0])
 
 
+def test_an_unwrapped_closed_ring_stays_closed_to_the_bit() -> None:
+    """Whole turns are added, not steps summed: a ring whose steps do not sum to exactly zero
+    in floating point still ends where it began (GEOS refuses an open ring)."""
+    lon = np.array([179.99990043, -179.99998311, -179.99990123, 179.99998765, 179.99990043])
+    u = unwrap_lon(lon)
+    assert u[-1] == u[0]
+    assert np.all(np.abs(np.diff(u)) <= 180.0)
+    ring = [[x, y] for x, y in zip(lon, [0.0, 0.0, 1e-4, 1e-4, 0.0], strict=True)]
+    out = cut_geometry({"type": "Polygon", "coordinates": [ring]})
+    assert out["type"] == "MultiPolygon"  # cut in two, not refused by GEOS
+
+
 def test_a_line_across_the_antimeridian_is_cut_on_it_with_heights_interpolated() -> None:
     lines = split_line([[179.9, 10.0, 100.0], [-179.9, 10.2, 200.0]])
     assert len(lines) == 2
