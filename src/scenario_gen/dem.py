@@ -23,6 +23,7 @@ heights; every ``Dem`` says what its heights are (``Dem.heights``).
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -384,13 +385,17 @@ def clean_elevation(
     where: str,
     offset: tuple[int, int] = (0, 0),
     scale: float = 1.0,
+    linear: tuple[float, float] = (1.0, 0.0),
 ) -> FloatArray:
-    """Untagged sentinels to NaN, values times ``scale`` (metres per vertical unit), then refuse
-    elevations no terrain on Earth has (``offset``: the window's first row and column, so the
-    pixel named is the raster's)."""
+    """Untagged sentinels (of the stored values) to NaN, then the band's ``linear`` scale and
+    offset, then times ``scale`` (metres per vertical unit); refuse elevations no terrain on
+    Earth has (``offset``: the window's first row and column, so the pixel named is the
+    raster's)."""
     if not tagged:
         sentinel = np.isin(elev, SENTINELS) | (elev <= SENTINEL_FLOOR)
         elev = np.where(sentinel, np.nan, elev)
+    if linear != (1.0, 0.0):
+        elev = elev * linear[0] + linear[1]
     if scale != 1.0:
         elev = elev * scale
     lo, hi = ELEVATION_RANGE
@@ -410,13 +415,84 @@ def clean_elevation(
     return elev
 
 
+#: metres per unit of ``terrain.vertical_unit``
+VERTICAL_UNITS = {"m": 1.0, "ft": 0.3048, "us_ft": 1200.0 / 3937.0}
+#: metres per unit of a band unit string, by the words GDAL writers use ("metre", "m a.s.l.",
+#: "US survey foot", "ftUS", ...)
+_METRIC = {"m": 1.0, "metre": 1.0, "meter": 1.0, "dm": 0.1, "cm": 0.01, "mm": 0.001}
+_FEET = {"ft", "foot", "feet"}
+_US = {"us", "survey", "ftus"}
+
+
+def band_unit_metres(unit: str) -> tuple[str, float] | None:
+    """(name, metres per unit) of a band unit string; None where it names no length unit."""
+    words = set(
+        re.findall(r"[a-z]+", unit.lower().replace("metres", "metre").replace("meters", "meter"))
+    )
+    if words & _US and (words & _FEET or "ftus" in words):
+        return "us_ft", VERTICAL_UNITS["us_ft"]
+    if words & _FEET:
+        return "ft", VERTICAL_UNITS["ft"]
+    metric = [w for w in words if w in _METRIC]
+    if len(metric) == 1:
+        return ("m" if _METRIC[metric[0]] == 1.0 else metric[0]), _METRIC[metric[0]]
+    return None
+
+
+def height_unit(vert: CRS | None, band_unit: str, crs: CRS, declared: str, where: str) -> float:
+    """Metres per unit of a DEM's heights: its vertical CRS's unit, else its band unit, else
+    ``declared`` (``terrain.vertical_unit``), else metres — except on a CRS measured in feet,
+    where metres is a guess that turns a 3° field into 10°, so the user must say."""
+    own = band_unit.strip()
+    if vert is not None and vert.axis_info:
+        factor = unit_factor(vert)
+        if declared != "auto" and abs(VERTICAL_UNITS[declared] - factor) > 1e-9:
+            raise InputError(
+                "terrain.vertical_unit",
+                declared,
+                f"{where} declares its heights in {vert.axis_info[0].unit_name} ({vert.name}); "
+                "allowed: auto or that unit",
+            )
+        return factor
+    if own:
+        known = band_unit_metres(own)
+        if known is None:
+            raise InputError(
+                "terrain.path",
+                where,
+                f"declares its band unit {band_unit!r}; allowed: a length (metres, cm, feet, "
+                "US survey feet)",
+            )
+        if declared != "auto" and abs(VERTICAL_UNITS[declared] - known[1]) > 1e-12:
+            raise InputError(
+                "terrain.vertical_unit",
+                declared,
+                f"{where} declares its band unit {band_unit!r}; allowed: auto or {known[0]}",
+            )
+        return known[1]
+    if declared != "auto":
+        return VERTICAL_UNITS[declared]
+    unit = crs.axis_info[0].unit_name if crs.axis_info else ""
+    if "foot" in unit.lower() or "feet" in unit.lower():
+        raise InputError(
+            "terrain.vertical_unit",
+            "auto",
+            f"{where} is in {crs.name} ({unit}) and declares no unit for its heights; "
+            "allowed: m, ft or us_ft, saying which",
+        )
+    return 1.0
+
+
 def load_geotiff(
     path: str | Path,
     fill_max_pixels: int,
     need: tuple[float, float, float, float] | None = None,
     why_whole: str = "",
+    vertical_unit: str = "auto",
 ) -> Dem:
-    """A GeoTIFF DEM: the window around the lon/lat box ``need``, or (None) the whole raster."""
+    """A GeoTIFF DEM: the window around the lon/lat box ``need``, or (None) the whole raster,
+    in metres (``height_unit``) after the band's scale and offset (GDAL's
+    ``value · scale + offset``)."""
     import rasterio
     from rasterio.errors import RasterioError
     from rasterio.windows import Window
@@ -445,6 +521,15 @@ def load_geotiff(
                     "terrain.path", str(path), f"holds {ds.dtypes[0]} values; allowed: real numbers"
                 )
             crs, vert, ellipsoidal = split_crs(CRS.from_wkt(ds.crs.to_wkt()))
+            metres = height_unit(vert, ds.units[0] or "", crs, vertical_unit, str(path))
+            linear = (float(ds.scales[0]), float(ds.offsets[0]))
+            if not all(math.isfinite(v) for v in linear) or linear[0] == 0.0:
+                raise InputError(
+                    "terrain.path",
+                    str(path),
+                    f"has band scale {linear[0]:g} and offset {linear[1]:g}; allowed: finite, "
+                    "a non-zero scale",
+                )
             shape = (ds.height, ds.width)
             check_georeference(ds.transform, crs, shape, str(path))
             if need is None:
@@ -480,7 +565,7 @@ def load_geotiff(
         raise InputError("terrain.path", str(path), f"cannot be read as a raster ({exc})") from None
     elev = np.ma.filled(band.astype(np.float64), np.nan)
     elev[~np.isfinite(elev)] = np.nan
-    elev = clean_elevation(elev, tagged, str(path), (r0, c0), unit_factor(vert))
+    elev = clean_elevation(elev, tagged, str(path), (r0, c0), metres, linear)
     whole = (r0, c0) == (0, 0) and (r1, c1) == shape
     elev = fill_small_holes(elev, fill_max_pixels, open_border=not whole)
     if ellipsoidal:

@@ -99,6 +99,12 @@ def _dem_site(
         raise InputError("terrain.path", spec.path, "is only used with terrain.source dem or mesh")
     if spec.source == "dem" and spec.path is None:
         raise InputError("terrain.path", None, "terrain.source=dem needs a GeoTIFF path")
+    if spec.source != "dem" and spec.vertical_unit != "auto":
+        raise InputError(
+            "terrain.vertical_unit",
+            spec.vertical_unit,
+            f"allowed: auto with terrain.source={spec.source} (it is a GeoTIFF DEM's unit)",
+        )
     need: tuple[float, float, float, float] | None = None
     if field_ll is not None:
         lat, lon = centroid_latlon(field_ll)
@@ -121,7 +127,11 @@ def _dem_site(
     else:
         assert spec.path is not None
         dem = load_geotiff(
-            spec.path, spec.fill_max_pixels, need, f"terrain.site={spec.site} searches it"
+            spec.path,
+            spec.fill_max_pixels,
+            need,
+            f"terrain.site={spec.site} searches it",
+            spec.vertical_unit,
         )
         credit = f"DEM {Path(spec.path).name}"
     if need is None:

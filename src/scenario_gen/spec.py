@@ -60,6 +60,12 @@ class TerrainSpec:
         0.0, "plane: downhill direction, degrees clockwise from north", -360, 360
     )
     fill_max_pixels: int = _f(64, "DEM nodata holes up to this many pixels are filled", 0, 10**7)
+    vertical_unit: str = _f(
+        "auto",
+        "unit of a GeoTIFF DEM's heights (auto: its vertical CRS's, else its band unit, else "
+        "metres; a DEM in a feet CRS that declares neither is refused until this says)",
+        choices=("auto", "m", "ft", "us_ft"),
+    )
     up_axis: str = _f(
         "auto", "mesh up axis (auto: y for glTF/GLB, z otherwise)", choices=("auto", "y", "z")
     )

@@ -278,3 +278,8 @@ def test_the_embedded_dems_water_is_all_its_flat_areas() -> None:
     every_flat = ndimage.binary_dilation(big[labels])
     assert n >= 5 and every_flat.any()
     np.testing.assert_array_equal(water_mask(e), every_flat)
+
+
+def test_a_vertical_unit_without_a_geotiff_is_refused() -> None:
+    with pytest.raises(ScenarioError, match="terrain.vertical_unit"):
+        generate(small(terrain={"vertical_unit": "ft"}), seed=0)

@@ -16,6 +16,7 @@ from rasterio.transform import from_origin
 
 from scenario_gen import generate, save
 from scenario_gen.dem import load_embedded, load_geotiff
+from scenario_gen.errors import InputError
 from scenario_gen.export import ExportOptions, export
 from scenario_gen.vertical import ELLIPSOIDAL, ORTHOMETRIC, UNDECLARED, of_scenario
 
@@ -113,6 +114,51 @@ def test_vertical_feet_become_metres(tmp_path) -> None:
     assert dem.heights.crs == "EPSG:6360"
     if dem.heights.reference == ORTHOMETRIC:  # no GEOID18 grid here
         np.testing.assert_allclose(dem.elevation, plain.elevation, atol=1e-3)
+
+
+def _band(path: Path, **meta: tuple) -> Path:
+    """Set band metadata (units, scales, offsets) on a written GeoTIFF."""
+    with rasterio.open(path, "r+") as ds:
+        for key, value in meta.items():
+            setattr(ds, key, value)
+    return path
+
+
+def test_the_band_unit_and_gdal_scale_and_offset_are_applied(tmp_path) -> None:
+    plain = load_geotiff(_dem(tmp_path / "plain.tif", "EPSG:4326"), 64)
+    feet = _band(_dem(tmp_path / "ft.tif", "EPSG:4326", scale=0.3048), units=("ft",))
+    np.testing.assert_allclose(load_geotiff(feet, 64).elevation, plain.elevation, atol=1e-3)
+    # decimetres above 100 m, as GDAL's scale and offset say (value · 0.1 + 100)
+    dm = _dem(tmp_path / "dm.tif", "EPSG:4326", scale=0.1)
+    with rasterio.open(dm, "r+") as ds:
+        ds.write(ds.read(1) - 1000.0, 1)
+    _band(dm, scales=(0.1,), offsets=(100.0,))
+    np.testing.assert_allclose(load_geotiff(dm, 64).elevation, plain.elevation, atol=1e-3)
+    bad = _band(_dem(tmp_path / "fur.tif", "EPSG:4326"), units=("furlong",))
+    with pytest.raises(InputError, match="band unit 'furlong'"):
+        load_geotiff(bad, 64)
+    with pytest.raises(InputError, match="terrain.vertical_unit"):  # the file says feet
+        load_geotiff(feet, 64, vertical_unit="m")
+
+
+def test_a_dem_in_a_feet_crs_must_say_what_its_heights_are_in(tmp_path) -> None:
+    """California's state plane (US survey feet) with heights of no declared unit: metres
+    would be a guess that makes a 3° field 10°, so it is refused until terrain.vertical_unit
+    says; each answer scales the heights by its unit."""
+    z = load_embedded().elevation[100:140, 100:140]
+    path = tmp_path / "ca.tif"
+    with rasterio.open(
+        path, "w", driver="GTiff", height=40, width=40, count=1, dtype="float32",
+        crs="EPSG:2227", transform=from_origin(6_000_000.0, 2_100_000.0, 30.0, 30.0),
+    ) as ds:  # fmt: skip
+        ds.write(z.astype(np.float32), 1)
+    with pytest.raises(InputError, match="terrain.vertical_unit") as e:
+        load_geotiff(path, 64)
+    assert "US survey foot" in str(e.value)
+    metres = load_geotiff(path, 64, vertical_unit="m").elevation
+    np.testing.assert_allclose(metres, z, atol=1e-3)
+    us_ft = load_geotiff(path, 64, vertical_unit="us_ft").elevation
+    np.testing.assert_allclose(us_ft, z * 1200.0 / 3937.0, atol=1e-3)
 
 
 def test_gis_export_labels_orthometric_heights(tmp_path) -> None:

@@ -109,7 +109,9 @@ def elevation_source(spec: TerrainSpec) -> Elevation:
         return DemElevation(load_embedded())
     if spec.source == "dem":
         assert spec.path is not None  # the spec was checked by the CLI's own parser
-        return DemElevation(load_geotiff(spec.path, spec.fill_max_pixels))
+        return DemElevation(
+            load_geotiff(spec.path, spec.fill_max_pixels, vertical_unit=spec.vertical_unit)
+        )
     if spec.source == "mesh":
         assert spec.path is not None and spec.datum is not None
         return MeshElevation(spec.path, spec.datum, spec.up_axis)

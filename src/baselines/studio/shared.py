@@ -29,7 +29,16 @@ class Studio:
 
     def elevation(self, s: Session) -> layers.Elevation:
         t = s.spec().terrain
-        key = (t.source, t.path, t.datum, t.up_axis, t.slope_deg, t.aspect_deg, t.fill_max_pixels)
+        key = (
+            t.source,
+            t.path,
+            t.datum,
+            t.up_axis,
+            t.slope_deg,
+            t.aspect_deg,
+            t.fill_max_pixels,
+            t.vertical_unit,
+        )
         if key not in self.elevations:
             self.elevations[key] = layers.elevation_source(t)
         return self.elevations[key]
