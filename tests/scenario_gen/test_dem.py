@@ -283,3 +283,41 @@ def test_the_embedded_dems_water_is_all_its_flat_areas() -> None:
 def test_a_vertical_unit_without_a_geotiff_is_refused() -> None:
     with pytest.raises(ScenarioError, match="terrain.vertical_unit"):
         generate(small(terrain={"vertical_unit": "ft"}), seed=0)
+
+
+def test_a_raster_stored_past_180_degrees_is_reached_by_ordinary_longitudes(
+    tmp_path: Path,
+) -> None:
+    """A geographic DEM stored 179.994..180.006° (the 0..360° convention): its flattest site
+    comes back as a longitude in -180..180, and a site given at -179.9995° reads the pixel
+    stored at 180.0005°."""
+    n = 120
+    yy, xx = np.mgrid[0:n, 0:n].astype(np.float64)
+    z = 50.0 + 0.2 * xx + 0.1 * yy + 3.0 * np.sin(xx / 15.0) * np.cos(yy / 20.0)
+    path = tmp_path / "e360.tif"
+    _write_4326(path, z, 179.994, -16.98, 1e-4)
+    flat = generate(small(terrain={"source": "dem", "path": str(path)}), seed=0)
+    assert -180.0 <= flat.geo.lon <= 180.0
+    site = {"site": "latlon", "lat": -16.98605, "lon": -179.99945}
+    scn = generate(small(terrain={"source": "dem", "path": str(path), **site}), seed=0)
+    # the datum's altitude is the raster's value at the pixel stored at 180.00055°
+    col, row = (180.00055 - 179.994) / 1e-4 - 0.5, (16.98605 - 16.98) / 1e-4 - 0.5
+    assert (col, row) == pytest.approx((65.0, 60.0))
+    assert scn.geo.alt == pytest.approx(z[60, 65], abs=1e-3)
+
+
+def test_window_slopes_of_a_tall_geographic_dem_use_each_rows_width(tmp_path: Path) -> None:
+    """A uniform 5° east-facing slope stored in degrees from 20° to 60° N: a pixel is half as
+    wide at 60° as at 20°, and every window still measures 5°, not cos(lat)/cos(40°) of it."""
+    from pyproj import Geod
+
+    from scenario_gen.dem import load_geotiff
+
+    d, rows, cols = 0.005, 8000, 24
+    lat = 60.0 - (np.arange(rows) + 0.5) * d
+    width = Geod(ellps="WGS84").inv(np.zeros(rows), lat, np.full(rows, d), lat)[2]
+    z = np.arange(cols)[None, :] * width[:, None] * np.tan(np.radians(5.0))
+    path = tmp_path / "tall.tif"
+    _write_4326(path, z + 100.0, 10.0, 60.0, d)
+    mean, bad = load_geotiff(path, 64).window_slopes(2_000.0)
+    assert mean[~bad] == pytest.approx(5.0, abs=0.05)

@@ -182,9 +182,7 @@ def test_a_waypoint_route_exports_its_waypoints_and_reads_back(field, tmp_path: 
     # the last waypoint faces along the leg arriving at it
     last = float(np.arctan2(*(xy[goals[-1]] - xy[goals[-1] - 1])[::-1]))
     assert [g["yaw"] for g in got] == pytest.approx([0.5, leg[1], leg[2], last], abs=1e-12)
-    again = generate(
-        small(route={"waypoints": str(out / "config" / "gps_waypoints.yaml")}), seed=0
-    )
+    again = generate(small(route={"waypoints": str(out / "config" / "gps_waypoints.yaml")}), seed=0)
     assert again.info["route_goals"] == scn.info["route_goals"]
     np.testing.assert_allclose(again.route.xy, scn.route.xy, atol=1e-4)
 

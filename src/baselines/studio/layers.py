@@ -58,8 +58,9 @@ class DemElevation(Elevation):
         self._from = dem.from_lonlat()
 
     def __call__(self, lon: FloatArray, lat: FloatArray) -> FloatArray:
-        x, y = self._from.transform(np.asarray(lon, np.float64), np.asarray(lat, np.float64))
-        col, row = self.dem.crs_to_pixel(np.asarray(x), np.asarray(y))
+        col, row = self.dem.lonlat_to_pixel(
+            np.asarray(lon, np.float64), np.asarray(lat, np.float64), self._from
+        )
         col, row = col - 0.5, row - 0.5
         rows, cols = self.dem.shape
         z = ndimage.map_coordinates(self._filled, [row, col], order=3, mode="nearest")
