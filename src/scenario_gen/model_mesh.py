@@ -23,6 +23,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 from typing import Any
+from urllib.parse import unquote
 from xml.etree import ElementTree
 
 import numpy as np
@@ -67,14 +68,36 @@ def collada_up_axis(path: Path) -> str | None:
     return None
 
 
+def spellings(name: str) -> list[str]:
+    """The names a model's reference may mean, as ``model_files`` reads it: as written,
+    URL-decoded (glTF and COLLADA references are URIs: ``leaf%20tex.png``), with Windows
+    folder separators, and an MTL map's last word (``map_Kd -s 1 1 1 -bm 1 leaf.png``)."""
+    out: list[str] = []
+    for n in (name, unquote(name)):
+        for m in (n, n.replace("\\", "/")):
+            for k in (m, m.split()[-1] if m.split() else m):
+                if k not in out:
+                    out.append(k)
+    return out
+
+
 def read_scene(path: Path) -> Any:
-    """The file as a trimesh Scene, referenced files resolved from its folder (the caller has
-    checked them with ``model_files.bundle``)."""
+    """The file as a trimesh Scene, referenced files resolved from its folder as
+    ``model_files.bundle`` checked them (``spellings``): trimesh asks for a reference as
+    written and, not finding it, leaves the texture out without a word."""
     import trimesh
     from trimesh.resolvers import FilePathResolver
 
-    resolver = FilePathResolver(str(path), allow_anywhere=True)
-    return trimesh.load(str(path), force="scene", resolver=resolver)
+    class Resolver(FilePathResolver):  # type: ignore[misc]
+        def get(self, name: str) -> bytes:
+            for k in spellings(name):
+                try:
+                    return bytes(super().get(k))
+                except OSError:
+                    continue
+            return bytes(super().get(name))
+
+    return trimesh.load(str(path), force="scene", resolver=Resolver(str(path), allow_anywhere=True))
 
 
 def one_mesh(scene: Any, unit: float = 1.0) -> Any:

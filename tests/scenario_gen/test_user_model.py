@@ -279,3 +279,40 @@ def test_a_zip_member_named_dot_is_refused(tmp_path: Path, member: str) -> None:
         f.writestr(member, b"")
     with pytest.raises(ScenarioError, match="not '.'"):
         inspect_model(z)
+
+
+@pytest.mark.parametrize(
+    "rename,map_kd",
+    [
+        ("plant.png", "-s 1 1 1 -bm 1 plant.png"),  # an MTL map with options before its file
+        ("tex/plant.png", "tex\\plant.png"),  # a Windows folder separator
+    ],
+)
+def test_a_texture_referenced_as_exporters_write_it_is_loaded(
+    tmp_path: Path, rename: str, map_kd: str
+) -> None:
+    """The texture ``model_files`` found and copied is the one the mesh is drawn with: trimesh
+    asks for the reference as written and, missing it, draws the Kd grey without a word."""
+    src = tmp_path / "obj"
+    shutil.copytree(DATA / "textured_obj", src)
+    (src / rename).parent.mkdir(exist_ok=True)
+    (src / "plant.png").rename(src / rename)
+    (src / "plant.mtl").write_text(
+        (src / "plant.mtl").read_text().replace("map_Kd plant.png", f"map_Kd {map_kd}")
+    )
+    mesh = load_model(str(src / "plant.obj"), 1.0)
+    tex = np.asarray(mesh.visual.material.image.convert("RGB"))
+    assert (tex.reshape(-1, 3) == OBJ_RGB).all(axis=1).any()
+
+
+def test_a_url_encoded_collada_texture_is_loaded(tmp_path: Path) -> None:
+    """COLLADA's (and glTF's) references are URIs: a file named ``leaf tex.png`` is written
+    ``leaf%20tex.png``; the leaf keeps its texture's colour."""
+    src = tmp_path / "plant"
+    shutil.copytree(CUTOUT, src)
+    textures = src / "materials" / "textures"
+    (textures / "leaf.png").rename(textures / "leaf tex.png")
+    dae = src / "meshes" / "plant.dae"
+    dae.write_text(dae.read_text().replace("textures/leaf.png", "textures/leaf%20tex.png"))
+    image = np.asarray(load_model(str(dae), 1.0).visual.material.image).reshape(-1, 4)
+    assert (image[:, :3] == LEAF).all(axis=1).any()
