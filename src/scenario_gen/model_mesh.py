@@ -288,6 +288,9 @@ def _pack(blocks: list[NDArray[np.uint8]]) -> tuple[NDArray[np.uint8], list[tupl
             break
         scale *= max(width, height) / MAX_ATLAS * 1.01
     atlas = np.zeros((height, width, 4), np.uint8)
+    # the space between blocks is opaque: no UV reaches it, and transparent padding would make
+    # every multi-part model look cut out (and be ray-cast through its alpha)
+    atlas[..., 3] = 255
     for b, (r, c) in zip(sized, where, strict=True):
         atlas[r : r + b.shape[0], c : c + b.shape[1]] = b
     if scale > 1.0:

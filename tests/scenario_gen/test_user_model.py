@@ -316,3 +316,28 @@ def test_a_url_encoded_collada_texture_is_loaded(tmp_path: Path) -> None:
     dae.write_text(dae.read_text().replace("textures/leaf.png", "textures/leaf%20tex.png"))
     image = np.asarray(load_model(str(dae), 1.0).visual.material.image).reshape(-1, 4)
     assert (image[:, :3] == LEAF).all(axis=1).any()
+
+
+def test_an_opaque_model_of_several_materials_has_no_cut_outs(tmp_path: Path) -> None:
+    """Two textured parts packed into one atlas: the space between their blocks is not a
+    cut-out, so the cameras need not test alpha on this model (nor ray-cast it for that)."""
+    from agrinav_gym.render.plant_meshes import CROP, Prototype
+
+    src = tmp_path / "two"
+    shutil.copytree(DATA / "textured_obj", src)
+    obj = (src / "plant.obj").read_text()
+    (src / "plant.png").rename(src / "b.png")
+    shutil.copyfile(src / "b.png", src / "a.png")
+    (src / "plant.mtl").write_text(
+        "newmtl a\nKd 0.8 0.8 0.8\nmap_Kd a.png\nnewmtl b\nKd 0.8 0.8 0.8\nmap_Kd b.png\n"
+    )
+    lines = obj.splitlines()
+    first = next(i for i, line in enumerate(lines) if line.startswith("f "))
+    half = first + sum(line.startswith("f ") for line in lines) // 2
+    lines = [ln for ln in lines if not ln.startswith("usemtl")]
+    lines.insert(half, "usemtl b")
+    lines.insert(first, "usemtl a")
+    (src / "plant.obj").write_text("\n".join(lines) + "\n")
+    mesh = load_model(str(src / "plant.obj"), 1.0)
+    assert mesh.visual.material.image.size[0] > 1  # an atlas of the two
+    assert Prototype.from_trimesh(mesh, "two", CROP).alpha is None
