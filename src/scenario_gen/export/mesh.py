@@ -25,7 +25,7 @@ def merged_plants(scn: Scenario) -> Any:
     """Every plant's mesh at its pose and height, as one face-coloured trimesh (ENU, Z up)."""
     import trimesh
 
-    from .meshes import face_colours
+    from .meshes import face_colours, opaque_faces
 
     a = assign(scn)
     p = scn.plants
@@ -34,19 +34,32 @@ def merged_plants(scn: Scenario) -> Any:
         sel = np.flatnonzero(a.model == m)
         if len(sel) == 0:
             continue
+        keep = opaque_faces(pm.mesh)  # a cut-out face is not painted its hidden colour
         v = np.asarray(pm.mesh.vertices, np.float64)
-        f = np.asarray(pm.mesh.faces, np.int64)
+        f = np.asarray(pm.mesh.faces, np.int64)[keep]
         rot = rotations(p.roll[sel], p.pitch[sel], p.yaw[sel])
         rot *= (p.height[sel] / pm.height)[:, None, None]
         verts = np.einsum("kij,vj->kvi", rot, v) + np.column_stack([p.x, p.y, p.z])[sel, None]
         faces = f[None] + len(v) * np.arange(len(sel))[:, None, None]
         mesh = trimesh.Trimesh(verts.reshape(-1, 3), faces.reshape(-1, 3), process=False)
-        rgb = np.tile(face_colours(pm.mesh), (len(sel), 1))
+        rgb = np.tile(face_colours(pm.mesh)[keep], (len(sel), 1))
         mesh.visual = trimesh.visual.ColorVisuals(
             mesh, face_colors=np.column_stack([rgb, np.full(len(rgb), 255, np.uint8)])
         )
         parts.append(mesh)
     return trimesh.util.concatenate(parts) if parts else None
+
+
+def _unshared(mesh: Any) -> Any:
+    """A face-coloured trimesh with three vertices of its own per face, colours kept."""
+    import trimesh
+
+    f = np.asarray(mesh.faces)
+    out = trimesh.Trimesh(
+        np.asarray(mesh.vertices)[f.ravel()], np.arange(f.size).reshape(-1, 3), process=False
+    )
+    out.visual = trimesh.visual.ColorVisuals(out, face_colors=mesh.visual.face_colors)
+    return out
 
 
 def export_mesh(scn: Scenario, out: Path, opts: ExportOptions) -> dict[str, Any]:
@@ -63,14 +76,17 @@ def export_mesh(scn: Scenario, out: Path, opts: ExportOptions) -> dict[str, Any]
         if plants is not None:
             for fmt in opts.formats:
                 name = f"plants.{fmt}"
+                # glTF and OBJ carry colours per vertex: each face gets vertices of its own, so
+                # no vertex is shared by two colours (and blended between them)
+                own = plants if fmt == "ply" else _unshared(plants)
                 if fmt in ("glb", "gltf"):  # glTF is Y-up: x east, y up, z south
-                    y_up = plants.copy()
+                    y_up = own.copy()
                     y_up.vertices = np.column_stack(
-                        [plants.vertices[:, 0], plants.vertices[:, 2], -plants.vertices[:, 1]]
+                        [own.vertices[:, 0], own.vertices[:, 2], -own.vertices[:, 1]]
                     )
                     y_up.export(out / name)
                 else:
-                    save_mesh(plants, out / name)
+                    save_mesh(own, out / name)
                 files.append(name)
         if len(scn.obstacles):  # the field's other objects, one node each (obstacles.py)
             from .obstacles import write_obstacle_mesh

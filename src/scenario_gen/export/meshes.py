@@ -98,7 +98,27 @@ def textured_mesh(mesh: Any) -> tuple[MeshData, NDArray[np.uint8]] | None:
         np.asarray(uv, np.float64),
         faces,
     )
-    return md, np.asarray(image.convert("RGB"), np.uint8)
+    rgba = np.asarray(image.convert("RGBA"), np.uint8)
+    # a cut-out texture keeps its alpha (the DAE then says so: ``write_dae``'s ``transparent``)
+    return md, rgba if (rgba[..., 3] < 255).any() else np.ascontiguousarray(rgba[..., :3])
+
+
+def opaque_faces(mesh: Any) -> NDArray[np.bool_]:
+    """(f,) whether each face of a trimesh is drawn: False where a textured face's UV centroid
+    lies on a cut-out texel (alpha below one half), as the cameras see it; a flat-colour copy
+    drops those faces rather than paint the cut-out's hidden colour."""
+    from trimesh.visual.color import uv_to_color
+
+    visual = mesh.visual
+    faces = np.asarray(mesh.faces)
+    if getattr(visual, "kind", None) == "texture" and visual.uv is not None:
+        material = visual.material
+        image = getattr(material, "image", None) or getattr(material, "baseColorTexture", None)
+        if image is not None:
+            centroid = np.asarray(visual.uv, np.float64)[faces].mean(axis=1)
+            alpha = np.asarray(uv_to_color(centroid, image.convert("RGBA")), np.uint8)[:, 3]
+            return np.asarray(alpha >= 128)
+    return np.ones(len(faces), bool)
 
 
 def face_colours(mesh: Any) -> NDArray[np.uint8]:
@@ -142,15 +162,30 @@ def _write_ints(f: TextIO, a: IntArray) -> None:
         f.write((" " if i else "") + " ".join(map(str, flat[i : i + CHUNK].tolist())))
 
 
-def write_dae(path: Path, md: MeshData, texture: str, name: str, decimals: int = 5) -> None:
+def write_dae(
+    path: Path,
+    md: MeshData,
+    texture: str,
+    name: str,
+    decimals: int = 5,
+    cutout: bool = False,
+) -> None:
     """COLLADA 1.4.1, Z up, metres: one textured triangle list named ``name``, streamed.
 
     When normals and texture coordinates are indexed like the positions (a smooth mesh such
-    as the terrain) every corner carries one index instead of three.
+    as the terrain) every corner carries one index instead of three. With ``cutout`` the
+    texture's alpha is its opacity (``<transparent opaque="A_ONE">`` with the texture: what
+    gz-common's COLLADA loader turns into an alpha test).
     """
     shared = np.array_equal(md.normal_index, md.faces) and np.array_equal(md.uv_index, md.faces)
     offsets = (0, 0, 0) if shared else (0, 1, 2)
     tex = escape(texture)
+    transparent = (
+        '<transparent opaque="A_ONE"><texture texture="texture-sampler" texcoord="UVMap"/>'
+        "</transparent>"
+        if cutout
+        else ""
+    )
     with open(path, "w") as f:
         f.write(
             f"""<?xml version="1.0" encoding="utf-8"?>
@@ -164,7 +199,7 @@ def write_dae(path: Path, md: MeshData, texture: str, name: str, decimals: int =
 </newparam>
 <newparam sid="texture-sampler"><sampler2D><source>texture-surface</source></sampler2D></newparam>
 <technique sid="common"><lambert><diffuse><texture texture="texture-sampler" texcoord="UVMap"/>
-</diffuse></lambert></technique></profile_COMMON></effect></library_effects>
+</diffuse>{transparent}</lambert></technique></profile_COMMON></effect></library_effects>
 <library_materials><material id="material" name="material">
 <instance_effect url="#material-effect"/></material></library_materials>
 <library_geometries><geometry id="mesh" name="{escape(name)}"><mesh>

@@ -348,4 +348,10 @@ def _write_mesh(folder: Path, pm: PlantModel) -> None:
         )
     md, image = data
     save_png(image, folder / "materials" / "textures" / "plant.png")
-    write_dae(folder / "meshes" / "plant.dae", md, "../materials/textures/plant.png", pm.name)
+    write_dae(
+        folder / "meshes" / "plant.dae",
+        md,
+        "../materials/textures/plant.png",
+        pm.name,
+        cutout=image.shape[2] == 4,
+    )

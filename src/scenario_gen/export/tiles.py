@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 
 from ..arrays import FloatArray, IntArray
 from ..model import Scenario
-from .meshes import face_colours, write_stl
+from .meshes import face_colours, opaque_faces, write_stl
 from .plantmodels import Assignment, fmt, model_config, static_model_sdf, visual_xml
 
 #: Stem proxies of a tile are one collision mesh of prisms: one SDF <collision> per plant costs
@@ -136,15 +136,19 @@ class _Shape:
 
 def _shapes(a: Assignment) -> tuple[list[_Shape | None], NDArray[np.uint8]]:
     """Per model its triangles and their palette colours (None: referenced, not merged)."""
-    rgb = [face_colours(pm.mesh) if pm.user is None else None for pm in a.models]
+    keep = [opaque_faces(pm.mesh) for pm in a.models]  # no cut-out face, painted
+    rgb = [
+        face_colours(pm.mesh)[k] if pm.user is None else None
+        for pm, k in zip(a.models, keep, strict=True)
+    ]
     used = [c for c in rgb if c is not None]
     palette = np.unique(np.concatenate(used), axis=0) if used else np.empty((0, 3), np.uint8)
     shapes: list[_Shape | None] = []
-    for pm, c in zip(a.models, rgb, strict=True):
+    for pm, c, k in zip(a.models, rgb, keep, strict=True):
         if c is None:
             shapes.append(None)
             continue
-        v = np.asarray(pm.mesh.vertices, np.float64)[np.asarray(pm.mesh.faces)]
+        v = np.asarray(pm.mesh.vertices, np.float64)[np.asarray(pm.mesh.faces)[k]]
         idx = np.array([np.flatnonzero((palette == col).all(axis=1))[0] for col in c], np.int64)
         shapes.append(_Shape(v, idx))
     return shapes, palette

@@ -5,6 +5,7 @@ from __future__ import annotations
 import re
 import shutil
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -393,3 +394,90 @@ def test_user_collada_model_is_referenced_with_its_textures(tmp_path, sdf_check)
         assert np.allclose(r, want, atol=1e-6)
         top = (world - xyz) @ want[:, 2]  # heights of the box corners along the plant's axis
         assert top.max() - top.min() == pytest.approx(p.height[i], rel=1e-5)
+
+
+def _quads_glb(path: Path, image: Any, mode: str | None = None) -> Path:
+    """Two crossed quads 1 m tall (glTF's Y up) textured with ``image``: each quad's lower
+    triangle samples the image's lower half, its upper triangle the upper half."""
+    import trimesh
+
+    v = [[-0.1, 0, 0], [0.1, 0, 0], [0.1, 1, 0], [-0.1, 1, 0]]
+    v += [[0, 0, -0.1], [0, 0, 0.1], [0, 1, 0.1], [0, 1, -0.1]]
+    f = [[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]]
+    uv = np.array([[0, 0], [1, 0], [1, 1], [0, 1]] * 2, float)
+    pbr = trimesh.visual.material.PBRMaterial(
+        baseColorTexture=image, baseColorFactor=[1.0] * 4, alphaMode=mode
+    )
+    visual = trimesh.visual.TextureVisuals(uv=uv, material=pbr)
+    trimesh.Trimesh(np.array(v, float), f, visual=visual, process=False).export(path)
+    return path
+
+
+def _quads_scenario(tmp_path: Path, model: Path) -> Path:
+    from scenario_gen import generate, save
+
+    from ..helpers import plane
+
+    spec = plane(
+        field={"width": 3.0, "length": 3.6},
+        layout={"headland": 0.8, "plant_spacing": 0.5},
+        terrain={"margin": 2.5},
+        route={"lead_in": 0.8},
+        crop={"model": str(model)},
+    )
+    save(generate(spec, 2), tmp_path / "scn", preview=False)
+    return tmp_path / "scn"
+
+
+def test_a_cut_out_model_keeps_its_alpha_and_is_never_painted_its_hidden_colour(
+    tmp_path: Path,
+) -> None:
+    """A leaf whose upper half is cut out (alpha 0 over a magenta the cameras never show): the
+    converted Gazebo model keeps the texture's alpha and declares it (gz-common's COLLADA
+    loader alpha-tests a ``<transparent>`` texture); flat-colour copies (merged tiles, the mesh
+    export) leave the cut-out faces out instead of painting them magenta."""
+    from PIL import Image
+
+    img = Image.new("RGBA", (4, 4), (30, 160, 40, 255))
+    img.paste((255, 0, 255, 0), (0, 0, 4, 2))  # the image's top half: high v, cut out
+    src = _quads_scenario(tmp_path, _quads_glb(tmp_path / "leaf.glb", img, "MASK"))
+    scn = load(src)
+    out = tmp_path / "gz"
+    export(src, "gazebo", out, ExportOptions(plants="include"))
+    (base,) = [m for m in assign(scn).models if m.species == "corn"]
+    folder = out / "models" / base.name
+    with Image.open(folder / "materials" / "textures" / "plant.png") as png:
+        rgba = np.asarray(png.convert("RGBA"))
+        assert png.mode == "RGBA" and (rgba[..., 3] == 0).any()
+    assert '<transparent opaque="A_ONE">' in (folder / "meshes" / "plant.dae").read_text()
+    tiled = tmp_path / "tiles"
+    export(src, "gazebo", tiled, ExportOptions(plants="tiles"))
+    sdf = next(tiled.glob("models/agrinav_tile_*/model.sdf")).read_text()
+    assert "<diffuse>1.0000 0.0000 1.0000" not in sdf and "<diffuse>0.1176 0.6275" in sdf
+    mesh_out = tmp_path / "mesh"
+    export(src, "mesh", mesh_out, ExportOptions(mesh_plants=True, formats=("ply",)))
+    import trimesh
+
+    ply = trimesh.load(mesh_out / "plants.ply", process=False)
+    colours = np.unique(np.asarray(ply.visual.face_colors)[:, :3], axis=0)
+    assert colours.tolist() == [[30, 160, 40]]
+
+
+def test_merged_plants_in_glb_and_obj_keep_one_colour_per_face(tmp_path: Path) -> None:
+    """glTF and OBJ colour vertices, not faces: a leaf red below and green above, whose two
+    triangles share an edge, is written with no vertex shared by the two colours (a shared
+    one was blended into a brown no face had)."""
+    import trimesh
+    from PIL import Image
+
+    img = Image.new("RGB", (4, 4), (200, 30, 30))
+    img.paste((30, 160, 40), (0, 0, 4, 2))
+    src = _quads_scenario(tmp_path, _quads_glb(tmp_path / "plant.glb", img))
+    out = tmp_path / "mesh"
+    export(src, "mesh", out, ExportOptions(mesh_plants=True, formats=("glb", "obj")))
+    for name in ("plants.glb", "plants.obj"):
+        mesh = trimesh.load(out / name, force="mesh", process=False)
+        corner = np.asarray(mesh.visual.vertex_colors)[np.asarray(mesh.faces)][..., :3]
+        assert (corner == corner[:, :1]).all(), name  # one colour per face
+        got = {tuple(c) for c in corner[:, 0].tolist()}
+        assert got == {(200, 30, 30), (30, 160, 40)}, name
