@@ -100,15 +100,16 @@ def read_scene(path: Path) -> Any:
     return trimesh.load(str(path), force="scene", resolver=Resolver(str(path), allow_anywhere=True))
 
 
-def one_mesh(scene: Any, unit: float = 1.0) -> Any:
+def one_mesh(scene: Any, unit: float = 1.0, gltf: bool = False) -> Any:
     """The scene's parts as one trimesh: vertices in the scene frame (× ``unit``), an RGBA
-    atlas texture where any part is textured (else face colours)."""
+    atlas texture where any part is textured (else face colours). ``gltf``: the scene is a
+    glTF file's, whose materials without an ``alphaMode`` are opaque (the glTF 2.0 default)."""
     import trimesh
 
     parts = [g for g in scene.dump(concatenate=False) if len(getattr(g, "faces", ())) > 0]
     if not parts:
         return trimesh.Trimesh()
-    looks = [_look(g) for g in parts]
+    looks = [_look(g, gltf) for g in parts]
     if not any(isinstance(lk, _Image) for lk in looks):
         v, f, rgba = [], [], []
         base = 0
@@ -133,7 +134,7 @@ class _Image:
         self.uv = uv
 
 
-def _look(g: Any) -> _Image | NDArray[np.uint8]:
+def _look(g: Any, gltf: bool = False) -> _Image | NDArray[np.uint8]:
     """A part's texture (``_Image``) or its per-face RGBA colours."""
     visual = g.visual
     n = len(g.faces)
@@ -141,6 +142,8 @@ def _look(g: Any) -> _Image | NDArray[np.uint8]:
         mat = getattr(visual, "material", None)
         uv = getattr(visual, "uv", None)
         image, factor, mode, cutoff = _material(mat)
+        if gltf and mode is None:
+            mode = "OPAQUE"
         if image is not None and uv is not None and len(uv) == len(g.vertices):
             rgba = np.asarray(image.convert("RGBA"), np.float64)
             rgba = rgba * factor[None, None, :]

@@ -295,7 +295,7 @@ def _read_mesh(p: Path, given: Path, up_axis: str = "auto") -> Any:
     try:
         scene = read_scene(p)
         unit = collada_unit(p) if p.suffix.lower() == ".dae" else 1.0
-        mesh = one_mesh(scene, unit)
+        mesh = one_mesh(scene, unit, gltf=p.suffix.lower() in (".gltf", ".glb"))
     except InputError:
         raise
     except Exception as exc:  # trimesh raises many types for malformed files

@@ -341,3 +341,26 @@ def test_an_opaque_model_of_several_materials_has_no_cut_outs(tmp_path: Path) ->
     mesh = load_model(str(src / "plant.obj"), 1.0)
     assert mesh.visual.material.image.size[0] > 1  # an atlas of the two
     assert Prototype.from_trimesh(mesh, "two", CROP).alpha is None
+
+
+@pytest.mark.parametrize("mode,cut", [(None, False), ("OPAQUE", False), ("MASK", True)])
+def test_a_gltf_without_an_alpha_mode_is_opaque(
+    tmp_path: Path, mode: str | None, cut: bool
+) -> None:
+    """glTF 2.0: a material without ``alphaMode`` is OPAQUE, its texture's alpha ignored; only
+    MASK (or BLEND) cuts out (COLLADA and OBJ keep their textures' alpha)."""
+    import trimesh
+    from PIL import Image
+
+    img = Image.new("RGBA", (4, 4), (30, 160, 40, 255))
+    img.paste((255, 0, 255, 0), (0, 0, 4, 2))
+    v = np.array([[-0.1, 0, 0], [0.1, 0, 0], [0.1, 1, 0], [-0.1, 1, 0]], float)
+    uv = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float)
+    pbr = trimesh.visual.material.PBRMaterial(
+        baseColorTexture=img, baseColorFactor=[1.0] * 4, alphaMode=mode
+    )
+    visual = trimesh.visual.TextureVisuals(uv=uv, material=pbr)
+    path = tmp_path / "leaf.glb"
+    trimesh.Trimesh(v, [[0, 1, 2], [0, 2, 3]], visual=visual, process=False).export(path)
+    alpha = np.asarray(load_model(str(path), 1.0).visual.material.image)[..., 3]
+    assert (alpha == 0).any() == cut
