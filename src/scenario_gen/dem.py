@@ -88,6 +88,9 @@ class Dem:
     crs: CRS  # horizontal
     source: str
     heights: Heights = NOT_DECLARED
+    #: a window of a larger raster: its holes touching the window's edge, whose size is unknown
+    #: (so never filled, whatever the limit); None for a whole raster
+    open_holes: NDArray[np.bool_] | None = None
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -162,9 +165,22 @@ class Dem:
             near = ndimage.map_coordinates(holes.astype(np.float64), [row, col], order=1)
             if (near > 0).any():
                 i = int(np.argmax(near > 0))
+                where = f"lat {float(lat.flat[i]):.5f}, lon {float(lon.flat[i]):.5f}"
+                if self.open_holes is not None:
+                    op = ndimage.map_coordinates(
+                        self.open_holes.astype(np.float64), [row, col], order=1
+                    )
+                    if op.flat[i] > 0:
+                        raise InputError(
+                            what,
+                            where,
+                            f"lies over a nodata area of {self.source} that reaches beyond the "
+                            "window read around the field (its size unknown, it is not filled "
+                            "whatever terrain.fill_max_pixels says); move the field off it",
+                        )
                 raise InputError(
                     what,
-                    f"lat {float(lat.flat[i]):.5f}, lon {float(lon.flat[i]):.5f}",
+                    where,
                     f"lies over a nodata hole larger than terrain.fill_max_pixels in "
                     f"{self.source}; move the field or raise the fill limit",
                 )
@@ -283,6 +299,13 @@ def _nearest_fill(a: FloatArray) -> FloatArray:
     return a[tuple(idx)]
 
 
+def edge_holes(elev: FloatArray) -> NDArray[np.bool_]:
+    """The nodata pixels of the holes that touch the array's edge."""
+    labels, _ = ndimage.label(~np.isfinite(elev))
+    edge = np.unique(np.concatenate([labels[0], labels[-1], labels[:, 0], labels[:, -1]]))
+    return np.isin(labels, edge[edge > 0])
+
+
 def fill_small_holes(elev: FloatArray, max_pixels: int, open_border: bool = False) -> FloatArray:
     """Fill nodata components of at most ``max_pixels`` pixels; larger ones stay NaN.
 
@@ -292,7 +315,14 @@ def fill_small_holes(elev: FloatArray, max_pixels: int, open_border: bool = Fals
     if not holes.any():
         return elev
     if holes.all():
-        raise InputError("terrain.path", "all nodata", "the DEM holds no valid elevation")
+        raise InputError(
+            "terrain.path",
+            "all nodata",
+            "the DEM window read around the field holds no valid elevation; allowed: a field "
+            "over valid elevations"
+            if open_border
+            else "the DEM holds no valid elevation",
+        )
     labels, n = ndimage.label(holes)
     sizes = np.bincount(labels.ravel(), minlength=n + 1)
     small = (sizes <= max_pixels) & (np.arange(n + 1) > 0)
@@ -613,6 +643,7 @@ def load_geotiff(
     elev = clean_elevation(elev, tagged, str(path), (r0, c0), metres, linear)
     whole = (r0, c0) == (0, 0) and (r1, c1) == shape
     elev = fill_small_holes(elev, fill_max_pixels, open_border=not whole)
+    open_holes = None if whole else edge_holes(elev)
     if ellipsoidal:
         heights = Heights(ELLIPSOIDAL, "WGS 84", "", f"{p.name} declares a 3-D {crs.name}")
     elif vert is None:
@@ -625,7 +656,7 @@ def load_geotiff(
         tr, heights = to_ellipsoidal(crs, vert, area_of(crs, cx, cy))
         if tr is not None:
             elev = elev + _geoid(tr, transform, elev.shape)
-    return Dem(elev, transform, crs, p.name, heights)
+    return Dem(elev, transform, crs, p.name, heights, open_holes)
 
 
 def _geoid(tr: Any, transform: Affine, shape: tuple[int, int]) -> FloatArray:

@@ -321,3 +321,35 @@ def test_window_slopes_of_a_tall_geographic_dem_use_each_rows_width(tmp_path: Pa
     _write_4326(path, z + 100.0, 10.0, 60.0, d)
     mean, bad = load_geotiff(path, 64).window_slopes(2_000.0)
     assert mean[~bad] == pytest.approx(5.0, abs=0.05)
+
+
+def test_nodata_under_a_latlon_site_is_named_for_what_it_is(tmp_path: Path) -> None:
+    """A 1 km nodata block in a UTM DEM, a site read as a window around the field: inside the
+    block the window holds nothing valid; on its edge the block runs out of the window, so no
+    fill limit fills it, and the message says to move the field, not to raise the limit."""
+    from pyproj import Transformer
+
+    rows = cols = 300
+    yy, xx = np.mgrid[0:rows, 0:cols].astype(np.float64)
+    z = 300.0 + 0.05 * xx + 0.02 * yy
+    z[100:200, 100:200] = np.nan
+    path = tmp_path / "hole.tif"
+    x0, y0 = 700_000.0, 4_050_000.0
+    with rasterio.open(
+        path, "w", driver="GTiff", height=rows, width=cols, count=1, dtype="float32",
+        crs="EPSG:32616", transform=from_origin(x0, y0, 10.0, 10.0), nodata=np.nan,
+    ) as ds:  # fmt: skip
+        ds.write(z.astype(np.float32), 1)
+    to_ll = Transformer.from_crs("EPSG:32616", "EPSG:4326", always_xy=True)
+
+    def site(col: float, row: float, fill: int = 64) -> dict:
+        lon, lat = to_ll.transform(x0 + 10.0 * col, y0 - 10.0 * row)
+        return {"source": "dem", "path": str(path), "site": "latlon", "lat": lat, "lon": lon,
+                "fill_max_pixels": fill}  # fmt: skip
+
+    with pytest.raises(ScenarioError, match="window read around the field holds no valid"):
+        generate(small(terrain=site(150, 150)), seed=0)
+    for fill in (64, 20_000):  # the block is 10,000 pixels: no limit can count it from here
+        with pytest.raises(ScenarioError, match="reaches beyond the window") as e:
+            generate(small(terrain=site(100, 150, fill)), seed=0)
+        assert "raise the fill limit" not in str(e.value)
