@@ -215,12 +215,18 @@ def bundle(mesh: Path, given: Path | None = None, limit_root: Path | None = None
     missing = [r for r, p in zip(refs, paths, strict=True) if p.is_symlink() or not p.is_file()]
     if missing:
         more = f" and {len(missing) - 3} more" if len(missing) > 3 else ""
+        # inside an archive the folder is a temporary extraction: name the member's folder
+        where = (
+            f"in the archive's {PurePosixPath(folder.relative_to(limit).as_posix())}/"
+            if limit is not None and folder.is_relative_to(limit)
+            else f"beside the mesh, in {folder}"
+        )
         raise InputError(
             "crop.model",
             str(given),
             f"references {', '.join(missing[:3])}{more}, which "
-            f"{'is' if len(missing) == 1 else 'are'} missing (looked for beside the mesh, in "
-            f"{folder}); allowed: a model with all its files (or a .zip holding them)",
+            f"{'is' if len(missing) == 1 else 'are'} missing (looked for {where}); allowed: "
+            "a model with all its files (or a .zip holding them)",
         )
     total = sum(p.stat().st_size for p in paths)
     if total > MAX_FILE_BYTES:

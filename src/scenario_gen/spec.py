@@ -180,8 +180,8 @@ class CropSpec:
     model: str | None = _f(
         None,
         "user plant model: a mesh file (COLLADA, glTF/GLB, OBJ, PLY, STL) with the files it "
-        "references (textures, .mtl, .bin), or a .zip of them; copied into the scenario folder "
-        "(models/)",
+        "references (textures, .mtl, .bin), or a .zip of them, at most 50,000 triangles; "
+        "copied into the scenario folder (models/)",
     )
     model_scale: str = _f(
         "stage",

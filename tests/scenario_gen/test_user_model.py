@@ -1,6 +1,7 @@
 """crop.model is part of the scenario: recorded, copied, loaded from the copy, previewed; a zip
 with two meshes is refused."""
 
+import dataclasses
 import hashlib
 import json
 import re
@@ -265,6 +266,10 @@ def test_models_over_the_triangle_budget_or_without_area_are_refused(tmp_path: P
     many.write_text("v 0 0 0\nv 1 0 0\nv 0 1 1\n" + "f 1 2 3\n" * n)
     with pytest.raises(ScenarioError, match=f"{n:,} triangles"):
         inspect_model(many)
+    from scenario_gen.spec import CropSpec
+
+    doc = {f.name: f.metadata for f in dataclasses.fields(CropSpec)}["model"]
+    assert f"at most {MAX_MODEL_TRIANGLES:,} triangles" in str(doc)  # the limit is documented
     line = tmp_path / "line.obj"  # collinear vertices: tall but no surface
     line.write_text("v 0 0 0\nv 0 0 1\nv 0 0 2\nf 1 2 3\n")
     with pytest.raises(ScenarioError, match="no surface area"):
@@ -364,3 +369,13 @@ def test_a_gltf_without_an_alpha_mode_is_opaque(
     trimesh.Trimesh(v, [[0, 1, 2], [0, 2, 3]], visual=visual, process=False).export(path)
     alpha = np.asarray(load_model(str(path), 1.0).visual.material.image)[..., 3]
     assert (alpha == 0).any() == cut
+
+
+def test_a_zip_missing_a_texture_names_the_archives_folder(tmp_path: Path) -> None:
+    """Not the temporary folder it was extracted to, which is gone when the user reads it."""
+    p = tmp_path / "plant.zip"
+    with zipfile.ZipFile(p, "w") as z:
+        z.write(CUTOUT / "meshes" / "plant.dae", "corn/meshes/plant.dae")
+    with pytest.raises(ScenarioError, match=r"looked for in the archive's corn/meshes/") as e:
+        inspect_model(p)
+    assert "agrinav-model-" not in str(e.value)
