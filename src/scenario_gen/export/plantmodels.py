@@ -57,9 +57,10 @@ class UserFiles:
     """A user model exported as its own files into the base model's ``user/`` folder."""
 
     model: UserModel
-    mesh: str  # the mesh's path inside the base model's folder (user/...)
+    mesh: str  # the mesh's path inside the base model's folder (user/...), URI-safe
     lo: tuple[float, ...]  # its bounding box as Gazebo reads it (metres, +z up)
     hi: tuple[float, ...]
+    original: str | None = None  # the mesh's own path under user/ where ``mesh`` renames it
 
     def placement(self, height: float) -> tuple[float, FloatArray]:
         """Uniform scale and offset (before the plant's rotation) that stand the mesh on the
@@ -76,12 +77,29 @@ class UserFiles:
         dest = folder / USER_DIR
         if um.path.suffix.lower() == ".zip":
             safe_extract(um.path, dest)
+        else:
+            pairs = [(um.path, PurePosixPath(um.mesh if um.bundle else um.name))]
+            pairs += [(um.root / rel, PurePosixPath(rel)) for rel, _ in um.files]
+            for src, rel in pairs:
+                (dest / rel).parent.mkdir(parents=True, exist_ok=True)
+                shutil.copyfile(src, dest / rel)
+        if self.original is None:
             return
-        pairs = [(um.path, PurePosixPath(um.mesh if um.bundle else um.name))]
-        pairs += [(um.root / rel, PurePosixPath(rel)) for rel, _ in um.files]
-        for src, rel in pairs:
-            (dest / rel).parent.mkdir(parents=True, exist_ok=True)
-            shutil.copyfile(src, dest / rel)
+        # the folders and file on the mesh's own path take their URI-safe names (everything
+        # under a renamed folder moves with it, so the mesh's relative references still hold)
+        cur = dest
+        safe = PurePosixPath(self.mesh).relative_to(USER_DIR).parts
+        for o, n in zip(PurePosixPath(self.original).parts, safe, strict=True):
+            if o != n:
+                if (cur / n).exists():
+                    raise InputError(
+                        "crop.model",
+                        str(um.path),
+                        f"has both {o!r} and {n!r} where the export must rename the first to "
+                        "the second (a Gazebo URI allows letters, digits and ._- only here)",
+                    )
+                (cur / o).rename(cur / n)
+            cur = cur / n
 
 
 def user_files(um: UserModel) -> UserFiles | None:
@@ -100,7 +118,10 @@ def user_files(um: UserModel) -> UserFiles | None:
         if up != "Z_UP":
             return None
     lo, hi = native_bounds(um.path)
-    return UserFiles(um, f"{USER_DIR}/{mesh}", lo, hi)
+    # gz-common's URIPath::Valid refuses non-ASCII (and older releases spaces, ?, = and &):
+    # the mesh's own path gets names of letters, digits and ._- only
+    safe = PurePosixPath(*(re.sub(r"[^A-Za-z0-9._-]", "_", part) for part in mesh.parts))
+    return UserFiles(um, f"{USER_DIR}/{safe}", lo, hi, None if safe == mesh else str(mesh))
 
 
 @dataclass(frozen=True, eq=False)

@@ -481,3 +481,29 @@ def test_merged_plants_in_glb_and_obj_keep_one_colour_per_face(tmp_path: Path) -
         assert (corner == corner[:, :1]).all(), name  # one colour per face
         got = {tuple(c) for c in corner[:, 0].tolist()}
         assert got == {(200, 30, 30), (30, 160, 40)}, name
+
+
+def test_a_user_model_named_outside_uri_characters_is_renamed_in_its_uri(
+    tmp_path: Path, sdf_check
+) -> None:
+    """gz-common's URIPath::Valid refuses non-ASCII bytes (older releases spaces too): an OBJ
+    named ``my plänt é.obj`` is exported as ``user/my_pl_nt__.obj``, its material library and
+    texture beside it as they were, and libsdformat resolves the mesh."""
+    src = tmp_path / "model"
+    shutil.copytree(
+        Path(__file__).resolve().parents[2] / "data" / "crop_models" / "textured_obj", src
+    )
+    obj = src / "my plänt é.obj"
+    (src / "plant.obj").rename(obj)
+    scn_dir = _quads_scenario(tmp_path, obj)
+    out = tmp_path / "gz"
+    export(scn_dir, "gazebo", out, ExportOptions(plants="include"))
+    (base,) = [m for m in assign(load(scn_dir)).models if m.species == "corn"]
+    assert base.user is not None and base.user.mesh == "user/my_pl_nt__.obj"
+    folder = out / "models" / base.name / "user"
+    assert sorted(p.name for p in folder.iterdir()) == ["my_pl_nt__.obj", "plant.mtl", "plant.png"]
+    assert (folder / "my_pl_nt__.obj").read_bytes() == obj.read_bytes()
+    sdf = (out / "models" / base.name / "model.sdf").read_text()
+    assert f"model://{base.name}/user/my_pl_nt__.obj" in sdf and "plänt" not in sdf
+    c = run_check(sdf_check, out / "worlds" / "field.sdf", out / "models")
+    assert c.valid, c.stderr
