@@ -11,6 +11,7 @@ import argparse
 import functools
 import shlex
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any, NoReturn
 
 import yaml
@@ -88,13 +89,22 @@ def spec_from_args(args: argparse.Namespace) -> Any:
     import dataclasses
 
     from scenario_gen import preset
-    from scenario_gen.generate import check_spec, resolve_paths
+    from scenario_gen.generate import PATH_KEYS, check_spec, resolve_paths
     from scenario_gen.presets import source_name
     from scenario_gen.schema import load_yaml, merge
     from scenario_gen.spec import ScenarioSpec
 
     base = preset(args.preset).to_dict()
     config: dict[str, Any] = load_yaml(args.config) if args.config else {}
+    if args.config:  # a file the config names is where the config's folder says it is
+        folder = Path(args.config).expanduser().parent
+        for key in PATH_KEYS:
+            section, name = key.split(".")
+            part = config.get(section)
+            if isinstance(part, dict) and isinstance(part.get(name), str):
+                path = Path(part[name]).expanduser()
+                if not path.is_absolute():
+                    config = {**config, section: {**part, name: str(folder / path)}}
     base = merge(base, config)
     flags: dict[str, Any] = {}
     if args.dem and args.mesh:

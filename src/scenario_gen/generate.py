@@ -165,16 +165,17 @@ def check_spec(spec: ScenarioSpec) -> None:
         )
 
 
+#: the spec's fields that name input files (dotted: section, field)
+PATH_KEYS = ("terrain.path", "field.geojson", "crop.model", "route.waypoints")
+
+
 def resolve_paths(spec: ScenarioSpec) -> ScenarioSpec:
     """The spec with its input files as absolute, resolved paths (so that scenario.json
     regenerates the scenario from any working directory)."""
     over: dict[str, str] = {}
-    for key, value in (
-        ("terrain.path", spec.terrain.path),
-        ("field.geojson", spec.field.geojson),
-        ("crop.model", spec.crop.model),
-        ("route.waypoints", spec.route.waypoints),
-    ):
+    for key in PATH_KEYS:
+        section, name = key.split(".")
+        value = getattr(getattr(spec, section), name)
         if value is not None:
             try:
                 resolved = str(Path(value).expanduser().resolve())

@@ -130,3 +130,20 @@ def test_a_scenario_is_named_after_its_preset_and_files(
     assert main(args) == 0
     meta = json.loads((out / "scenario.json").read_text())
     assert meta["name"] == name.replace("--", "-") and meta["spec"]["name"] == meta["name"]
+
+
+def test_a_config_files_relative_paths_are_its_folders(tmp_path: Path, monkeypatch) -> None:
+    """``route: {waypoints: gps.yaml}`` in cfg/c.yaml names cfg/gps.yaml, whatever the working
+    folder; on the command line a relative path is the working folder's."""
+    from baselines.scenario_spec import spec_from_argv
+
+    cfg = tmp_path / "cfg"
+    cfg.mkdir()
+    for folder in (cfg, tmp_path):
+        (folder / "gps.yaml").write_text("waypoints: []\n")
+    (cfg / "c.yaml").write_text("route: {waypoints: gps.yaml}\n")
+    monkeypatch.chdir(tmp_path)
+    spec = spec_from_argv(["--config", str(cfg / "c.yaml")])
+    assert spec.route.waypoints == str((cfg / "gps.yaml").resolve())
+    spec = spec_from_argv(["--config", str(cfg / "c.yaml"), "--waypoints", "gps.yaml"])
+    assert spec.route.waypoints == str((tmp_path / "gps.yaml").resolve())
