@@ -269,7 +269,7 @@ def generate(spec: ScenarioSpec, seed: int) -> Scenario:
     t_start = time.perf_counter()
     growth = growth_of(spec.crop)
     user_model = (
-        inspect_model(spec.crop.model, spec.crop.model_scale)
+        inspect_model(spec.crop.model, spec.crop.model_scale, spec.crop.model_up_axis)
         if spec.crop.model is not None
         else None
     )

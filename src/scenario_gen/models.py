@@ -44,6 +44,8 @@ MAX_RATIO = 200.0
 #: the mesh camera's cost grows with the triangles under each pixel (a 100k-triangle model
 #: made one 848 × 480 frame take minutes). Plant models made for simulation have 1-20k.
 MAX_MODEL_TRIANGLES = 50_000
+#: ``crop.model_up_axis``: the axis a model's file stands along
+UP_AXES = ("auto", "y", "z")
 #: How a model becomes each plant (``crop.model_scale``): recorded in scenario.json.
 SCALE_RULES = {
     "stage": "uniform scale = plant height / native_size[2] (the plant heights follow the growth "
@@ -68,6 +70,7 @@ class UserModel:
     bundle: str | None = None  # the folder under models/ of a mesh kept with its files
     scale: str = "stage"  # crop.model_scale
     shape: ProxyShape | None = None  # the proxy camera's cylinders for this model
+    up_axis: str = "auto"  # crop.model_up_axis
 
     @property
     def file(self) -> str:
@@ -90,6 +93,7 @@ class UserModel:
             "mesh": self.mesh,
             "native_size": list(self.size),
             "model_scale": self.scale,
+            "model_up_axis": self.up_axis,
             "scale": SCALE_RULES[self.scale],
             "source": self.source,
         }
@@ -224,14 +228,16 @@ def _mesh_of(p: Path) -> Iterator[tuple[Path, Bundle, str]]:
         yield p, bundle(p, p), p.name
 
 
-def inspect_model(path: str | Path, scale: str = "stage") -> UserModel:
+def inspect_model(path: str | Path, scale: str = "stage", up_axis: str = "auto") -> UserModel:
     """Check a user model completely and record it (hashes, mesh, native size, proxy shape)."""
     p = Path(path).expanduser().resolve()
     _check_file(p)
     if scale not in SCALE_RULES:
         raise InputError("crop.model_scale", scale, f"allowed: {', '.join(SCALE_RULES)}")
+    if up_axis not in UP_AXES:
+        raise InputError("crop.model_up_axis", up_axis, f"allowed: {', '.join(UP_AXES)}")
     with _mesh_of(p) as (mesh_path, b, member):
-        native = _read_mesh(mesh_path, p)
+        native = _read_mesh(mesh_path, p, up_axis)
         lo, hi = native.bounds
         size = (float(hi[0] - lo[0]), float(hi[1] - lo[1]), float(hi[2] - lo[2]))
         shape = proxy_shape(_placed(native, 1.0))
@@ -241,7 +247,9 @@ def inspect_model(path: str | Path, scale: str = "stage") -> UserModel:
             files = tuple((str(f), sha256_file(b.root / f)) for f in b.files)
             member = str(b.mesh)
             kept_as = _slug(p.stem)
-    return UserModel(p, p.name, sha256_file(p), member, size, str(p), files, kept_as, scale, shape)
+    return UserModel(
+        p, p.name, sha256_file(p), member, size, str(p), files, kept_as, scale, shape, up_axis
+    )
 
 
 def model_shape(um: UserModel) -> ProxyShape:
@@ -249,12 +257,12 @@ def model_shape(um: UserModel) -> ProxyShape:
     scenario saved before it was recorded) measured from the model now."""
     if um.shape is not None:
         return um.shape
-    return _measured_shape(str(um.path), um.sha256)
+    return _measured_shape(str(um.path), um.sha256, um.up_axis)
 
 
 @lru_cache(maxsize=8)
-def _measured_shape(path: str, sha256: str) -> ProxyShape:
-    return proxy_shape(load_model(path, 1.0))
+def _measured_shape(path: str, sha256: str, up_axis: str) -> ProxyShape:
+    return proxy_shape(load_model(path, 1.0, up_axis))
 
 
 def load_model(path: str | Path, height: float, up_axis: str = "auto") -> Any:
@@ -267,14 +275,23 @@ def load_model(path: str | Path, height: float, up_axis: str = "auto") -> Any:
     return _placed(mesh, height)
 
 
-def native_bounds(path: str | Path) -> tuple[tuple[float, ...], tuple[float, ...]]:
+def native_bounds(
+    path: str | Path, up_axis: str = "auto"
+) -> tuple[tuple[float, ...], tuple[float, ...]]:
     """The model's bounding box as read (metres, +z up), before it is placed and scaled: what
     an exporter that references the file itself needs to place it."""
     p = Path(path)
     _check_file(p)
     with _mesh_of(p) as (mesh_path, _, _):
-        lo, hi = _read_mesh(mesh_path, p).bounds
+        lo, hi = _read_mesh(mesh_path, p, up_axis).bounds
     return tuple(float(v) for v in lo), tuple(float(v) for v in hi)
+
+
+def resolved_up_axis(p: Path, up_axis: str) -> str:
+    """``crop.model_up_axis`` for the mesh file ``p``: auto is y for glTF/GLB, z otherwise."""
+    if up_axis != "auto":
+        return up_axis
+    return "y" if p.suffix.lower() in (".glb", ".gltf") else "z"
 
 
 def _placed(mesh: Any, height: float) -> Any:
@@ -315,7 +332,7 @@ def _read_mesh(p: Path, given: Path, up_axis: str = "auto") -> Any:
         )
     if not float(getattr(mesh, "area", 0.0)) > 0.0:
         raise InputError("crop.model", str(given), "has no surface area (degenerate triangles)")
-    up = up_axis if up_axis != "auto" else ("y" if p.suffix.lower() in (".glb", ".gltf") else "z")
+    up = resolved_up_axis(p, up_axis)
     if up == "y":
         mesh.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, [1, 0, 0]))
     lo, hi = mesh.bounds

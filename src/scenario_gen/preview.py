@@ -227,7 +227,7 @@ def _model_panel(panel: Any, scn: Scenario) -> None:
     assert um is not None
     crop = ~scn.plants.is_weed
     height = float(np.median(scn.plants.height[crop])) if crop.any() else 1.0
-    mesh = load_model(um.path, height)
+    mesh = load_model(um.path, height, um.up_axis)
     faces = np.asarray(mesh.faces)
     step = max(1, len(faces) // 20000)  # a preview needs the silhouette, not every face
     v = np.asarray(mesh.vertices)

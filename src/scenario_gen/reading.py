@@ -50,7 +50,7 @@ from .model import Plants, Scenario
 from .model_files import MAX_FILES as MAX_MODEL_FILES
 from .model_shape import ProxyShape
 from .models import MAX_TOTAL_BYTES as MAX_MODEL_BYTES
-from .models import SCALE_RULES, UserModel, sha256_file
+from .models import SCALE_RULES, UP_AXES, UserModel, sha256_file
 from .obstacles import OBSTACLE_KINDS, Obstacles
 from .routes import SEGMENTS, TURN_TAGS, Route
 from .rowcurve import RowCurve
@@ -302,6 +302,9 @@ def _user_model(d: Path, rec: Any, version: int) -> UserModel | None:
         raise InputError(
             "scenario.json: crop_model.model_scale", scale, f"allowed: {list(SCALE_RULES)}"
         )
+    up = rec.get("model_up_axis", "auto")
+    if up not in UP_AXES:
+        raise InputError("scenario.json: crop_model.model_up_axis", up, f"allowed: {list(UP_AXES)}")
     return UserModel(
         path.resolve(),
         PurePosixPath(mesh).name if len(parts) > 2 else parts[1],
@@ -313,6 +316,7 @@ def _user_model(d: Path, rec: Any, version: int) -> UserModel | None:
         parts[1] if len(parts) > 2 else None,
         scale,
         _proxy_shape(rec.get("proxy")),
+        up,
     )
 
 

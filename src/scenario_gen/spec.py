@@ -190,6 +190,12 @@ class CropSpec:
         "height_std varies both",
         choices=("stage", "native"),
     )
+    model_up_axis: str = _f(
+        "auto",
+        "the axis crop.model's file stands along: auto (y for glTF/GLB, as the format says; z "
+        "otherwise), y (e.g. an OBJ from Blender's default export), z",
+        choices=("auto", "y", "z"),
+    )
 
 
 @dataclass(frozen=True)

@@ -379,3 +379,34 @@ def test_a_zip_missing_a_texture_names_the_archives_folder(tmp_path: Path) -> No
     with pytest.raises(ScenarioError, match=r"looked for in the archive's corn/meshes/") as e:
         inspect_model(p)
     assert "agrinav-model-" not in str(e.value)
+
+
+def test_a_y_up_obj_stands_up_when_the_spec_says_so(tmp_path: Path) -> None:
+    """Blender's OBJ export writes y up by default: a 2 m cone along +y lies on its side as z
+    up (0.6 m tall), stands 2 m tall with crop.model_up_axis=y, is recorded so in scenario.json,
+    and the Gazebo export converts it rather than reference a file Gazebo would lay down."""
+    import trimesh
+
+    from scenario_gen.export import ExportOptions, export
+    from scenario_gen.export.plantmodels import assign
+
+    cone = trimesh.creation.cone(radius=0.3, height=2.0)
+    cone.apply_transform(trimesh.transformations.rotation_matrix(-np.pi / 2, [1, 0, 0]))
+    assert cone.bounds[1, 1] == pytest.approx(2.0)  # its tip on +y
+    p = tmp_path / "yup.obj"
+    p.write_text(trimesh.exchange.obj.export_obj(cone))
+    assert inspect_model(p, "native").size[2] == pytest.approx(0.6, abs=1e-6)
+    um = inspect_model(p, "native", "y")
+    assert um.size[2] == pytest.approx(2.0, abs=1e-6)
+    spec = small(crop={"model": str(p), "model_scale": "native", "model_up_axis": "y"})
+    out = save(generate(spec, 0), tmp_path / "s", preview=False)
+    scn = load(out)
+    assert scn.crop_model is not None and scn.crop_model.up_axis == "y"
+    crop = ~scn.plants.is_weed
+    assert np.median(scn.plants.height[crop]) == pytest.approx(2.0, rel=0.2)
+    (base,) = [m for m in assign(scn).models if m.species == "corn"]
+    assert base.user is None and base.mesh.bounds[1, 2] == pytest.approx(base.height, rel=1e-6)
+    export(out, "gazebo", tmp_path / "gz", ExportOptions(plants="include"))
+    assert (tmp_path / "gz" / "models" / base.name / "meshes" / "plant.dae").is_file()
+    with pytest.raises(ScenarioError, match="crop.model_up_axis"):
+        inspect_model(p, "native", "x")

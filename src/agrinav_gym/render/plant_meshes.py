@@ -195,16 +195,16 @@ def catalog_prototype(
 
 
 @lru_cache(maxsize=8)
-def _user_prototype(path: str, mtime: float, height: float) -> Prototype:
+def _user_prototype(path: str, mtime: float, height: float, up_axis: str) -> Prototype:
     from scenario_gen.models import load_model
 
-    return Prototype.from_trimesh(load_model(path, height), Path(path).name, CROP)
+    return Prototype.from_trimesh(load_model(path, height, up_axis), Path(path).name, CROP)
 
 
-def user_prototype(path: str | Path, height: float) -> Prototype:
+def user_prototype(path: str | Path, height: float, up_axis: str = "auto") -> Prototype:
     """A user model (mesh file or zip with textures) at ``height`` m, cached by file and time."""
     p = Path(path)
-    return _user_prototype(str(p.resolve()), p.stat().st_mtime, round(float(height), 6))
+    return _user_prototype(str(p.resolve()), p.stat().st_mtime, round(float(height), 6), up_axis)
 
 
 @dataclass(frozen=True, eq=False)
@@ -244,7 +244,8 @@ class PlantMeshes:
             sp = CATALOG[str(name)]
             if model is not None and name != WEED_SPECIES:
                 growth = float(sp.growth_of_stage(float(np.median(p.stage[sel]))))
-                k = add(user_prototype(model, float(sp.height(growth))))
+                up = scn.spec.crop.model_up_axis
+                k = add(user_prototype(model, float(sp.height(growth)), up))
                 proto[sel] = k
                 continue
             nodes = growth_node(str(name), sp.growth_of_stage(p.stage[sel]))

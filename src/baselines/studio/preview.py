@@ -225,14 +225,14 @@ def _nominal(spec: ScenarioSpec) -> float | None:
         return None
     path = Path(spec.crop.model)
     stat = path.stat()
-    return _native_height(str(path), stat.st_mtime_ns, stat.st_size)
+    return _native_height(str(path), stat.st_mtime_ns, stat.st_size, spec.crop.model_up_axis)
 
 
 @functools.lru_cache(maxsize=8)
-def _native_height(path: str, mtime_ns: int, size: int) -> float:
+def _native_height(path: str, mtime_ns: int, size: int, up_axis: str) -> float:
     # keyed by the file's time and size: reading a model takes a while, and a changed
     # file is read again
-    return float(inspect_model(path, "native").size[2])
+    return float(inspect_model(path, "native", up_axis).size[2])
 
 
 def layout_preview(

@@ -13,8 +13,8 @@ copied byte for byte into the base model's ``user/`` folder in their own layout 
 file's ``../materials/textures`` beside its ``meshes/``, an OBJ's material library and maps, an
 archive's members), the visual naming the mesh with the ``<scale>`` and ``<pose>`` that put
 its base centre on the plant and make it the plant's height. Other formats (glTF, GLB, PLY,
-and COLLADA in another or no up axis, which Gazebo would turn) become a COLLADA mesh and its
-texture as the catalog models do.
+COLLADA in another or no up axis, which Gazebo would turn, and any model declared y-up by
+``crop.model_up_axis``) become a COLLADA mesh and its texture as the catalog models do.
 
 Collision proxy: a stem cylinder of the catalog's stem radius at the model's growth times the
 plant's scale — the circle agrinav_gym counts crop contact with — as tall as the plant. Weeds
@@ -106,8 +106,8 @@ def user_files(um: UserModel) -> UserFiles | None:
     """How ``um`` is exported by reference, or None where Gazebo would read it otherwise than
     the cameras do (see the module docstring)."""
     mesh = PurePosixPath(um.mesh if (um.bundle or um.path.suffix.lower() == ".zip") else um.name)
-    if mesh.suffix.lower() not in REFERENCED:
-        return None
+    if mesh.suffix.lower() not in REFERENCED or um.up_axis == "y":
+        return None  # Gazebo would stand a y-up OBJ, STL or COLLADA on its side
     if mesh.suffix.lower() == ".dae":
         if um.path.suffix.lower() == ".zip":
             with tempfile.TemporaryDirectory(prefix="agrinav-export-") as tmp:
@@ -117,7 +117,7 @@ def user_files(um: UserModel) -> UserFiles | None:
             up = collada_up_axis(um.path)
         if up != "Z_UP":
             return None
-    lo, hi = native_bounds(um.path)
+    lo, hi = native_bounds(um.path, um.up_axis)
     # gz-common's URIPath::Valid refuses non-ASCII (and older releases spaces, ?, = and &):
     # the mesh's own path gets names of letters, digits and ._- only
     safe = PurePosixPath(*(re.sub(r"[^A-Za-z0-9._-]", "_", part) for part in mesh.parts))
@@ -192,7 +192,7 @@ def assign(scn: Scenario) -> Assignment:
     user = user_model_path(scn)
     um = scn.crop_model
     if user is not None and um is None:  # a scenario made in memory from a spec
-        um = inspect_model(user, scn.spec.crop.model_scale)
+        um = inspect_model(user, scn.spec.crop.model_scale, scn.spec.crop.model_up_axis)
     ref = user_files(um) if um is not None else None
     models: list[PlantModel] = []
     model = np.zeros(len(p), np.int64)
@@ -212,7 +212,7 @@ def assign(scn: Scenario) -> Assignment:
                 assert user is not None and um is not None
                 if um.scale == "native":
                     nominal = um.size[2]
-                mesh = load_model(user, nominal)
+                mesh = load_model(user, nominal, um.up_axis)
                 base = f"agrinav_{_slug(user.stem)}_{name}_g{round(g * 1000):04d}"
                 source = str(user)
             else:
