@@ -287,6 +287,19 @@ def native_bounds(
     return tuple(float(v) for v in lo), tuple(float(v) for v in hi)
 
 
+def _unreadable(p: Path, exc: Exception) -> str:
+    """Why a mesh file did not load, in the file's terms: trimesh reads a .gltf that is not
+    JSON as a binary file and reports a missing internal key."""
+    if p.suffix.lower() == ".gltf":
+        import json
+
+        try:
+            json.loads(p.read_text(encoding="utf-8-sig"))
+        except (ValueError, OSError) as bad:
+            return f"not valid glTF JSON: {bad}"
+    return f"{type(exc).__name__}: {exc}"
+
+
 def resolved_up_axis(p: Path, up_axis: str) -> str:
     """``crop.model_up_axis`` for the mesh file ``p``: auto is y for glTF/GLB, z otherwise."""
     if up_axis != "auto":
@@ -316,7 +329,9 @@ def _read_mesh(p: Path, given: Path, up_axis: str = "auto") -> Any:
     except InputError:
         raise
     except Exception as exc:  # trimesh raises many types for malformed files
-        raise InputError("crop.model", str(given), f"cannot be read as a mesh ({exc})") from None
+        raise InputError(
+            "crop.model", str(given), f"cannot be read as a mesh ({_unreadable(p, exc)})"
+        ) from None
     v = np.asarray(getattr(mesh, "vertices", np.empty((0, 3))))
     if len(v) < 3 or len(getattr(mesh, "faces", [])) == 0:
         raise InputError("crop.model", str(given), "holds no geometry")

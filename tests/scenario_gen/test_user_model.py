@@ -410,3 +410,12 @@ def test_a_y_up_obj_stands_up_when_the_spec_says_so(tmp_path: Path) -> None:
     assert (tmp_path / "gz" / "models" / base.name / "meshes" / "plant.dae").is_file()
     with pytest.raises(ScenarioError, match="crop.model_up_axis"):
         inspect_model(p, "native", "x")
+
+
+def test_a_truncated_gltf_is_named_as_such(tmp_path: Path) -> None:
+    """Not trimesh's KeyError for a file name the user never wrote."""
+    p = tmp_path / "plant.gltf"
+    p.write_text('{"asset": {"version": "2.0"}, "meshes": [{"name": "lea')
+    with pytest.raises(ScenarioError, match="not valid glTF JSON: Unterminated string") as e:
+        inspect_model(p)
+    assert "model.gltf" not in str(e.value)
