@@ -142,6 +142,16 @@ def checked_drive_args(ap: Any, args: Any, known: Any) -> tuple[list[str], list[
     return chosen, suite_case_names(ap, args.suite, args.cases)
 
 
+def drive_chosen(
+    ap: Any, args: Any, known: dict[str, str], episode: Callable[[Any, Any, int, str], T]
+) -> dict[tuple[str, str], list[T]]:
+    """``drive_cases`` over the estimators and cases ``add_drive_args``'s arguments chose
+    (``checked_drive_args``), each estimator's config from ``known``."""
+    chosen, rows = checked_drive_args(ap, args, known)
+    configs = {name: known[name] for name in chosen}
+    return drive_cases(args.suite, rows, configs, args.policy, args.seeds, episode)
+
+
 def ci_cell(values: list[float], scale: float = 1000.0, fmt: str = "+.0f") -> str:
     """Mean [95 % bootstrap interval] of ``values`` × ``scale`` (default: m as mm)."""
     from baselines.report import mean_ci

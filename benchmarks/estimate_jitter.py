@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from agrinav_gym.routes import Tracker
-from common import add_drive_args, checked_drive_args, ci_cell, drive_cases
+from common import add_drive_args, ci_cell, drive_chosen
 
 ESTIMATORS = {
     "robot_localization": "{}",
@@ -99,17 +99,8 @@ def main() -> None:
     )
     ap.add_argument("--json", help="also write every episode's numbers here")
     args = ap.parse_args()
-    chosen, rows = checked_drive_args(ap, args, ESTIMATORS)
-
     t0 = time.perf_counter()
-    results = drive_cases(
-        args.suite,
-        rows,
-        {name: ESTIMATORS[name] for name in chosen},
-        args.policy,
-        args.seeds,
-        lambda env, pi, seed, _: episode(env, pi, seed),
-    )
+    results = drive_chosen(ap, args, ESTIMATORS, lambda env, pi, seed, _: episode(env, pi, seed))
     print(
         f"\n{args.policy}, {args.seeds} `{args.suite}` seeds a case; {platform.machine()}, "
         f"{time.perf_counter() - t0:.0f} s. Means over episodes [95 % bootstrap]: RMS over each "

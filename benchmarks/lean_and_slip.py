@@ -33,7 +33,7 @@ import numpy as np
 
 from agrinav_gym.routes import Tracker
 from baselines.suites import SENSITIVITY
-from common import add_drive_args, checked_drive_args, ci_cell, drive_cases
+from common import add_drive_args, ci_cell, drive_chosen
 
 #: the sensitivity suite's soil rows: its default and the friction and shear-modulus ends
 SOIL_ROWS = tuple(
@@ -93,16 +93,9 @@ def main() -> None:
     args = ap.parse_args()
     if not 0.0 <= args.tilt < 45.0:
         ap.error(f"--tilt: {args.tilt}; allowed: 0 to 45 degrees")
-    chosen, rows = checked_drive_args(ap, args, ESTIMATORS)
-
     t0 = time.perf_counter()
-    results = drive_cases(
-        args.suite,
-        rows,
-        {name: ESTIMATORS[name] for name in chosen},
-        args.policy,
-        args.seeds,
-        lambda env, pi, seed, _: episode(env, pi, seed, args.tilt),
+    results = drive_chosen(
+        ap, args, ESTIMATORS, lambda env, pi, seed, _: episode(env, pi, seed, args.tilt)
     )
 
     print(

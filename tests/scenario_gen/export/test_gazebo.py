@@ -250,32 +250,13 @@ def test_user_model_keeps_its_texture(tmp_path, sdf_check) -> None:
     import trimesh
     from PIL import Image
 
-    from scenario_gen import generate, save
-
-    from ..helpers import plane
-
-    # two crossed quads 1 m tall, Y up as glTF wants, red below and green above
-    v = [[-0.1, 0, 0], [0.1, 0, 0], [0.1, 1, 0], [-0.1, 1, 0]]
-    v += [[0, 0, -0.1], [0, 0, 0.1], [0, 1, 0.1], [0, 1, -0.1]]
-    f = [[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]]
-    uv = np.array([[0, 0], [1, 0], [1, 1], [0, 1]] * 2, float)
+    # two crossed quads 1 m tall, Y up as glTF wants, red below and green above; glTF's
+    # texels are baseColorFactor × the image: a factor of 1 keeps the image's colours
+    # (trimesh's default material would write 0.4)
     img = Image.new("RGB", (4, 4), (200, 30, 30))
     img.paste((30, 160, 40), (0, 0, 4, 2))  # the image's top half: high v
-    # glTF's texels are baseColorFactor × the image: a factor of 1 keeps the image's colours
-    # (trimesh's default material would write 0.4)
-    pbr = trimesh.visual.material.PBRMaterial(baseColorTexture=img, baseColorFactor=[1.0] * 4)
-    visual = trimesh.visual.TextureVisuals(uv=uv, material=pbr)
-    model = tmp_path / "plant.glb"
-    trimesh.Trimesh(np.array(v, float), f, visual=visual, process=False).export(model)
-    spec = plane(
-        field={"width": 3.0, "length": 3.6},
-        layout={"headland": 0.8, "plant_spacing": 0.5},
-        terrain={"margin": 2.5},
-        route={"lead_in": 0.8},
-        crop={"model": str(model)},
-    )
-    src = tmp_path / "scn"
-    save(generate(spec, 2), src, preview=False)
+    model = _quads_glb(tmp_path / "plant.glb", img)
+    src = _quads_scenario(tmp_path, model)
     scn = load(src)
     out = tmp_path / "gz"
     export(src, "gazebo", out, ExportOptions(plants="include"))
