@@ -73,8 +73,10 @@ def enu_to_lonlat(geom: BaseGeometry, geo: GeoFrame) -> BaseGeometry:
 
 
 def centroid_latlon(geom: BaseGeometry) -> tuple[float, float]:
+    """Latitude and longitude (in -180..180: a field joined across the antimeridian has
+    longitudes past 180) of a lon/lat geometry's centroid."""
     c = geom.centroid
-    return float(c.y), float(c.x)
+    return float(c.y), (float(c.x) + 180.0) % 360.0 - 180.0
 
 
 def check_field(poly: BaseGeometry, where: str) -> Polygon | MultiPolygon:

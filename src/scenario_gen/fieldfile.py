@@ -71,8 +71,26 @@ def read_field(path: str | Path, layer: str | None = None) -> BaseGeometry:
         polys, crs = _gdal_polygons(p, suffix, layer)
     for poly in polys:
         _check_valid(poly, str(path))
-    lonlat = [_to_lonlat(poly, crs, str(path)) for poly in polys]
+    lonlat = _joined_across_180([_to_lonlat(poly, crs, str(path)) for poly in polys])
     return shapely.union_all(lonlat) if len(lonlat) > 1 else lonlat[0]
+
+
+def _joined_across_180(parts: list[BaseGeometry]) -> list[BaseGeometry]:
+    """Parts spanning more than 180° of longitude are a field cut at the antimeridian (as
+    RFC 7946 asks, and as this project's own field.geojson writes one): the western
+    hemisphere's coordinates go 360° east, so the halves meet at 180° and merge again."""
+    lo = min(g.bounds[0] for g in parts)
+    hi = max(g.bounds[2] for g in parts)
+    if hi - lo <= 180.0:
+        return parts
+
+    def east(xy: np.ndarray) -> np.ndarray:
+        out = np.array(xy, np.float64)
+        out[:, 0] = np.where(out[:, 0] < 0.0, out[:, 0] + 360.0, out[:, 0])
+        return out
+
+    pieces = shapely.get_parts(np.array([shapely.transform(g, east) for g in parts]))
+    return [shapely.union_all(pieces)]
 
 
 def _check_file(path: str | Path) -> Path:
@@ -207,27 +225,44 @@ def _geojson_crs(data: Any, where: str) -> CRS | None:
         raise InputError(
             PATH_FIELD, f"crs {name!r}", f"is not a CRS pyproj knows ({exc})"
         ) from None
-    return _horizontal(crs)
+    return _horizontal(crs, where)
 
 
-def _horizontal(crs: CRS) -> CRS:
-    """The horizontal part of a compound CRS (the field is 2-D)."""
+def _horizontal(crs: CRS, where: str = "") -> CRS:
+    """The horizontal part of a compound CRS (the field is 2-D), refused unless it places
+    points on the Earth: a local or engineering grid (a CAD or survey export), a vertical CRS,
+    or GDAL's stand-ins for a missing one ("Undefined geographic/Cartesian SRS", a GeoPackage's
+    srs_id 0 and -1) have no way to longitude and latitude."""
     if crs.is_compound:
-        return crs.sub_crs_list[0]
+        crs = crs.sub_crs_list[0]
+    if not (crs.is_geographic or crs.is_projected) or crs.name.lower().startswith("undefined"):
+        raise InputError(
+            PATH_FIELD,
+            where,
+            f"declares the {crs.type_name} {crs.name!r}, not one that gives a longitude and "
+            "latitude; allowed: a file that names its geographic or projected CRS",
+        )
     return crs
 
 
 # ----------------------------------------------------------------------------- GDAL formats
+#: how far into a KML file its root element is looked for (comments may come first)
+KML_SNIFF_BYTES = 65536
+
+
 def _check_magic(p: Path, suffix: str) -> None:
     with open(p, "rb") as f:
-        head = f.read(512)
+        head = f.read(KML_SNIFF_BYTES)
     fmt = GDAL_SUFFIXES[suffix]
     if suffix == ".gpkg":
         ok = head.startswith(b"SQLite format 3\x00")
     elif suffix == ".shp":
         ok = len(head) >= 100 and head[:4] == b"\x00\x00\x27\x0a"
     else:
-        ok = b"<kml" in head.lstrip(b"\xef\xbb\xbf")[:512]
+        # past an XML declaration and comments, in UTF-8 or UTF-16
+        utf16 = head[:2] in (b"\xff\xfe", b"\xfe\xff")
+        text = head.decode("utf-16", errors="ignore") if utf16 else head
+        ok = (b"<kml" in text) if isinstance(text, bytes) else ("<kml" in text)
     if not ok:
         raise InputError(PATH_FIELD, str(p), f"is not a {fmt} file (its first bytes say so)")
 
@@ -363,10 +398,10 @@ def _read_layer(
             "declares no CRS (a Shapefile without its .prj?); allowed: a file that names its CRS",
         )
     try:
-        crs = _horizontal(CRS.from_user_input(meta["crs"]))
+        crs = CRS.from_user_input(meta["crs"])
     except Exception as exc:  # pyproj.exceptions.CRSError
         raise InputError(PATH_FIELD, where, f"has a CRS pyproj cannot read ({exc})") from None
-    return polys, crs
+    return polys, _horizontal(crs, where)
 
 
 def _polygons_of(geoms: list[BaseGeometry]) -> list[BaseGeometry]:

@@ -97,3 +97,26 @@ def test_the_gis_export_writes_multi_layers_gdal_reads(across: sg.Scenario, tmp_
     assert layers["field"] == "MultiPolygon" and layers["route"] == "MultiLineString Z"
     doc = json.loads((tmp_path / "gis" / "field.geojson").read_text())
     assert doc["features"][0]["geometry"]["type"] == "MultiPolygon"
+
+
+def test_a_field_cut_at_the_antimeridian_reads_back_whole(
+    across: sg.Scenario, tmp_path: Path
+) -> None:
+    """The field.geojson a scenario writes (two halves either side of ±180°, as RFC 7946 asks)
+    is read back as the one field it was, centred where it was, and generates the same
+    plants and route (the halves' plain centroid lay on the far side of the world, and two
+    parts broke every row at the meridian)."""
+    from scenario_gen.fieldfile import read_field
+
+    out = sg.save(across, tmp_path / "scn", preview=False)
+    field = read_field(out / "field.geojson")
+    assert field.geom_type == "Polygon"
+    x0, _, x1, _ = field.bounds
+    assert x0 < 180.0 < x1 and x1 - x0 < 1.0
+    spec = across.spec.replace(
+        {"field": {"geojson": str(out / "field.geojson")}, "terrain": {"datum": None}}
+    )
+    again = sg.generate(spec, 0)
+    assert abs(again.geo.lon - across.geo.lon) < 1e-4  # metres, not 180°
+    assert len(again.plants) == len(across.plants)
+    assert again.route.length == pytest.approx(across.route.length, abs=0.05)

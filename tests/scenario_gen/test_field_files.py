@@ -174,6 +174,33 @@ def test_bad_files_are_one_input_error(source, tmp_path) -> None:
         read_field("/vsicurl/https://example.org/f.gpkg")
 
 
+def test_a_crs_that_gives_no_longitude_and_latitude_is_refused(source, tmp_path) -> None:
+    """A CAD or survey grid (a .prj holding a LOCAL_CS) and GDAL's stand-ins for a missing CRS
+    (a GeoPackage written without one reads as "Undefined geographic SRS") are one line each,
+    not a PROJ traceback or a field placed by whatever its numbers happen to be."""
+    _pyogrio()
+    shp = tmp_path / "grid.shp"
+    _ogr("-f", "ESRI Shapefile", str(shp), str(source))
+    shp.with_suffix(".prj").write_text('LOCAL_CS["Farm grid",UNIT["metre",1]]')
+    with pytest.raises(InputError, match="Engineering CRS 'Farm grid'"):
+        read_field(shp)
+    gpkg = tmp_path / "nocrs.gpkg"
+    _ogr("-f", "GPKG", str(gpkg), str(source), "-a_srs", "None")
+    with pytest.raises(InputError, match="'Undefined geographic SRS'"):
+        read_field(gpkg)
+
+
+def test_a_kml_whose_root_comes_after_a_long_comment_is_read(source, tmp_path) -> None:
+    _pyogrio()
+    kml = tmp_path / "f.kml"
+    _ogr("-f", "KML", str(kml), str(source))
+    text = kml.read_text()
+    head = '<?xml version="1.0" encoding="utf-8"?>\n'
+    body = text.split("?>", 1)[1] if text.startswith("<?xml") else text
+    kml.write_text(head + "<!-- " + "exported by a farm management tool. " * 40 + "-->" + body)
+    _same(read_field(kml), read_field(source))
+
+
 def test_feature_and_layer_limits(source, tmp_path, monkeypatch) -> None:
     _pyogrio()
     from scenario_gen import fieldfile
@@ -201,6 +228,8 @@ def test_missing_pyogrio_names_the_extra(source, tmp_path, monkeypatch) -> None:
         ({"type": "link", "properties": {"href": "http://x/crs"}}, "linked CRSs are not fetched"),
         ({"type": "name", "properties": {"name": "+proj=utm +zone=16"}}, "EPSG::<code>"),
         ({"type": "name", "properties": {"name": "EPSG:999999"}}, "not a CRS pyproj knows"),
+        ({"type": "name", "properties": {"name": "EPSG:5703"}}, "Vertical CRS 'NAVD88 height'"),
+        ({"type": "name", "properties": {"name": "EPSG:4978"}}, "Geocentric CRS"),
     ],
 )
 def test_geojson_crs_member_is_checked(tmp_path, crs, match) -> None:
