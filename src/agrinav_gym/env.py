@@ -605,7 +605,12 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
     def _check_action(self, action: Any) -> tuple[float, float]:
         self._check_open("step")
         if self.route is None:
-            raise InputError("step", "before reset()", "allowed: call reset() first")
+            raise InputError(
+                "step",
+                "before reset()",
+                "allowed: call reset() first (a copied or unpickled env is a new one, built from "
+                "its constructor's arguments: it does not carry the episode)",
+            )
         if self._ended:
             raise gym.error.ResetNeeded(
                 "step() after the episode terminated: call reset() first (Gymnasium's contract)"
@@ -620,9 +625,9 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
             raw = np.asarray(None)
         if raw.dtype.kind not in "fiu":  # strings, complex, objects: never coerced silently
             raise InputError("action", action, "allowed: 2 real numbers (v, w) in [-1, 1]")
-        a = raw.astype(np.float64).reshape(-1)
-        if a.shape != (2,):
-            raise InputError("action", f"shape {np.shape(action)}", "allowed: shape (2,)")
+        if raw.shape != (2,):  # a (1, 2) batch of one is refused, not flattened: one env
+            raise InputError("action", f"shape {raw.shape}", "allowed: shape (2,)")
+        a = raw.astype(np.float64)
         if not np.isfinite(a).all():
             raise InputError(
                 "action",
@@ -634,6 +639,8 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
 
 
 def _check_observations(obs: Any, default: tuple[str, ...]) -> tuple[str, ...]:
+    if isinstance(obs, str):  # one name, not its letters
+        obs = (obs,)
     names = tuple(obs) if obs is not None else default
     bad = [o for o in names if o not in OBSERVATION_MODELS]
     if bad or not names or len(set(names)) != len(names):

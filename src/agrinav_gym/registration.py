@@ -56,6 +56,8 @@ def check_env_id(env_id: Any, field: str = "env") -> str:
     checkpoint or a command line is checked here before it reaches ``gym.make``: a file can
     never name code to run."""
     entry_points = {d.entry_point for d in ENVS}
+    if isinstance(env_id, str) and env_id.startswith("agrinav_gym:"):
+        env_id = env_id.removeprefix("agrinav_gym:")  # this package: importing it is safe
     if isinstance(env_id, str) and env_id.startswith(f"{NAMESPACE}/") and ":" not in env_id:
         spec = registry.get(env_id)
         if spec is not None and spec.entry_point in entry_points:

@@ -471,6 +471,16 @@ def _is_fixed(scenario: Any) -> bool:
         return True
     if str(scenario) in sg.preset_names():
         return False
+    if Path(scenario).is_dir():
+        raise InputError(
+            "scenario",
+            str(scenario),
+            "is a folder without scenario.json; allowed: a folder `agrinav scenario` wrote",
+        )
+    if isinstance(scenario, Path) or "/" in str(scenario) or "\\" in str(scenario):
+        raise InputError(
+            "scenario", str(scenario), "no such folder; allowed: a scenario directory or a preset"
+        )
     raise InputError(
         "scenario",
         str(scenario),

@@ -232,16 +232,20 @@ class BatchedVectorEnv(VectorEnv):
         """Every worker's reply, in worker order; any failure raised once all have replied (so
         the pipes stay in step)."""
         out, errors = [], []
+        any_bad_input = False
         for i, remote in enumerate(self._remotes):
             try:
                 ok, value = remote.recv()
             except EOFError:
                 ok, value = False, "the process exited"
             if not ok:
-                errors.append(f"worker {i}: {value}")
+                bad_input = isinstance(value, tuple) and value[0]
+                errors.append(f"worker {i}: {value[1] if isinstance(value, tuple) else value}")
+                any_bad_input = any_bad_input or bad_input
             out.append(value)
         if errors:
-            raise RuntimeError("\n".join(errors))
+            kind = WorkerInputError if any_bad_input else WorkerError
+            raise kind("\n".join(errors))
         return out
 
     def __del__(self) -> None:
@@ -368,6 +372,20 @@ def _blank(template: np.ndarray, n: int) -> np.ndarray:
     return np.zeros((n, *template.shape[1:]), template.dtype)
 
 
+class WorkerError(RuntimeError):
+    """A worker's env raised: its exception and traceback, named by worker, in the message."""
+
+
+class WorkerInputError(WorkerError, ValueError):
+    """A worker's env refused its input (a ValueError there, e.g. an ``InputError`` for a NaN
+    action or a bad config): a ValueError here too, as the same call raises in one process."""
+
+
+def _failure(exc: Exception) -> tuple[bool, str]:
+    """What a worker sends for an exception: whether it was bad input, and its text."""
+    return isinstance(exc, ValueError), f"{type(exc).__name__}: {exc}\n{traceback.format_exc()}"
+
+
 def _worker(
     remote: Connection,
     parent: Connection,
@@ -400,7 +418,7 @@ def _worker(
             )
         )
     except Exception as exc:  # the main process raises it, naming this worker
-        remote.send((False, f"{type(exc).__name__}: {exc}\n{traceback.format_exc()}"))
+        remote.send((False, _failure(exc)))
         remote.close()
         return
     layout: Layout | None = None
@@ -436,5 +454,5 @@ def _worker(
                 raise ValueError(f"unknown command {cmd!r}")
             remote.send((True, out))
         except Exception as exc:
-            remote.send((False, f"{type(exc).__name__}: {exc}\n{traceback.format_exc()}"))
+            remote.send((False, _failure(exc)))
     remote.close()

@@ -138,7 +138,7 @@ class Dem:
     def row_widths_m(self) -> FloatArray:
         """Ground width of one pixel along each row at the raster's middle column, metres."""
         rows, cols = self.shape
-        r = np.arange(rows) + 0.5
+        r = np.arange(rows, dtype=np.float64) + 0.5
         c = np.full(rows, cols / 2.0)
         x0, y0 = self.pixel_to_crs(c, r)
         x1, y1 = self.pixel_to_crs(c + 1.0, r)

@@ -88,7 +88,7 @@ def read_scene(path: Path) -> Any:
     import trimesh
     from trimesh.resolvers import FilePathResolver
 
-    class Resolver(FilePathResolver):  # type: ignore[misc]
+    class Resolver(FilePathResolver):
         def get(self, name: str) -> bytes:
             for k in spellings(name):
                 try:

@@ -49,6 +49,7 @@ ID = "AgriNav/FurrowFollow-v3"
         ({"observations": ["gps", "gps"]}, "observations"),
         ({"observations": []}, "observations"),
         ({"bank": "/no/such/bank"}, "bank"),
+        ({"scenario": "/no/such/folder"}, "scenario"),
     ],
 )
 def test_bad_constructor_arguments(kwargs: dict[str, Any], field: str) -> None:
@@ -83,6 +84,8 @@ def test_step_before_reset(env: Any) -> None:
         {"v": 1.0},
         [1.0],
         [[1.0, 0.0, 0.0]],
+        [[0.5, 0.0]],  # a batch of one was flattened silently
+        np.zeros((2, 1), np.float32),
         [np.nan, 0.0],
         [np.inf, 0.0],
         None,
@@ -171,5 +174,21 @@ def test_a_route_too_short_to_drive_is_refused_not_a_success(tmp_path: Any) -> N
     try:
         with pytest.raises(InputError, match="route of at least 1.3 m"):
             env.reset(seed=0)
+    finally:
+        env.close()
+
+
+def test_a_scenario_path_is_named_for_what_is_wrong_with_it(tmp_path: Any) -> None:
+    with pytest.raises(InputError, match="no such folder"):
+        gym.make(ID, scenario=str(tmp_path / "missing"))
+    with pytest.raises(InputError, match="a folder without scenario.json"):
+        gym.make(ID, scenario=tmp_path)
+
+
+def test_one_observation_name_is_one_observation() -> None:
+    env = gym.make(ID, observations="gps", scenario_overrides=TINY)
+    try:
+        obs, _ = env.reset(seed=0)
+        assert list(obs) == ["gps"]
     finally:
         env.close()

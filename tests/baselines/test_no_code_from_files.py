@@ -37,6 +37,14 @@ def test_only_agrinav_env_ids_pass(env_id: object) -> None:
     assert e.value.field == "spec.env" and "AgriNav/FurrowFollow-v3" in str(e.value)
 
 
+def test_this_packages_module_prefix_passes() -> None:
+    """The form SB3's subprocess workers need (gym.make imports ``agrinav_gym`` first), and
+    only that module: the README recommends it beside ``make_vec``."""
+    assert check_env_id("agrinav_gym:AgriNav/FieldRoute-v3") == "AgriNav/FieldRoute-v3"
+    with pytest.raises(InputError):
+        check_env_id("agrinav_gym.evil:AgriNav/FieldRoute-v3")
+
+
 def test_user_registered_scenarios_pass(tmp_path: Path) -> None:
     from scenario_gen import generate, preset, save
 
