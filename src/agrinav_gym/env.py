@@ -151,6 +151,7 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
             k: OBSERVATION_MODELS[k](self.cfg, self.interface) for k in self.observation_names
         }
         self.observation_space = spaces.Dict({k: m.space() for k, m in self.obs_models.items()})  # type: ignore[assignment]
+        self._obs_keys = tuple(self.observation_space.spaces)
         route_model = self.obs_models.get(OBS_ROUTE)
         #: the route observation that hands the route over a goal at a time (waypoint_goals)
         self._goal_model = (
@@ -468,7 +469,10 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         )
 
     def _observe(self, snap: Snapshot) -> Obs:
-        return {k: m.encode(snap) for k, m in self.obs_models.items()}
+        # encoded in the models' order (their random draws keep their order), returned in the
+        # space's (gymnasium's Dict sorts its keys: flatten(space, obs) lines up with obs)
+        obs = {k: m.encode(snap) for k, m in self.obs_models.items()}
+        return {k: obs[k] for k in self._obs_keys}
 
     def _info(self, ctx: rewards.StepContext | None, parts: dict[str, float]) -> dict[str, Any]:
         assert self.route is not None

@@ -137,6 +137,25 @@ def test_same_seed_same_rollout(env_id: str) -> None:
 
 
 @pytest.mark.parametrize("env_id", IDS)
+def test_observations_come_in_the_spaces_key_order(env_id: str) -> None:
+    """gymnasium's Dict sorts its keys: an observation in the same order lines up with
+    ``flatten(space, obs)`` when a user concatenates its values."""
+    from gymnasium import spaces
+
+    env = make(env_id)
+    try:
+        obs, _ = env.reset(seed=0)
+        keys = list(env.observation_space.spaces)
+        assert list(obs) == keys
+        obs, *_ = env.step(env.action_space.sample())
+        assert list(obs) == keys
+        flat = np.concatenate([np.ravel(obs[k]) for k in obs])
+        np.testing.assert_array_equal(flat, spaces.flatten(env.observation_space, obs))
+    finally:
+        env.close()
+
+
+@pytest.mark.parametrize("env_id", IDS)
 def test_env_pickles(env_id: str) -> None:
     env = make(env_id)
     try:
