@@ -10,6 +10,7 @@ docs/design.md, "Where do I add ...?").
 from __future__ import annotations
 
 import dataclasses
+import inspect
 import math
 import os
 import sys
@@ -668,7 +669,13 @@ def env_creator(cls: type[AgriNavEnv]) -> Any:
     unrelated message. The class itself declares only the modes that work here (the checkers
     build the env in each)."""
 
+    allowed = [n for n in inspect.signature(cls.__init__).parameters if n != "self"]
+
     def make(**kwargs: Any) -> AgriNavEnv:
+        # an unknown keyword (a typo in a kwargs file) is one line, not a TypeError traceback
+        unknown = sorted(k for k in kwargs if k not in allowed)
+        if unknown:
+            raise InputError("env kwargs", unknown, f"unknown; allowed: {', '.join(allowed)}")
         return cls(**kwargs)
 
     make.metadata = {**cls.metadata, "render_modes": ["rgb_array", "human"]}  # type: ignore[attr-defined]

@@ -30,9 +30,11 @@ def demo(out: str | Path, seeds: int = 2) -> Path:
     out = Path(out)
     if seeds < 1:
         raise InputError("--seeds", seeds, "allowed: an integer >= 1")
-    check_output_dir(out, overwrite=True)  # re-running the demo replaces its own results
+    check_output_dir(
+        out, overwrite=True, kind="demo"
+    )  # re-running the demo replaces its own results
     out.mkdir(parents=True, exist_ok=True)
-    mark_output(out)
+    mark_output(out, "demo")
     print(
         f"the {SUITE} suite: the source paper's run (four Nav2 GPS waypoints: 33 m along a "
         "lane, across the headland, 31 m back) in each field below"

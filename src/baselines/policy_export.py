@@ -98,7 +98,7 @@ def export_policy(
         from policies.onnx_export import require_onnx
 
         require_onnx()
-    check_output_dir(out, force, "--out")
+    check_output_dir(out, force, "--out", "policy export")
     src = resolve_source(source, trust)
     command = " ".join(shlex.quote(a) for a in (argv or ["agrinav", "export-policy", source]))
     if to == "onnx":
@@ -147,7 +147,7 @@ def _export_onnx(src: Source, out: Path, force: bool, command: str) -> dict[str,
         )
     layout = input_layout(src.loaded.policy.observation_space)
     space = src.loaded.policy.action_space
-    with output_dir(out, force, "--out") as tmp:
+    with output_dir(out, force, "--out", "policy export") as tmp:
         (tmp / ONNX_FILE).write_bytes(model)
         (tmp / "README.md").write_text(
             _onnx_readme(src, layout, space, diff, command, OPSET, OUTPUT)
@@ -350,7 +350,7 @@ def _export_sb3(src: Source, out: Path, force: bool, command: str) -> dict[str, 
         )
     )
     obs = sample_observations(src.loaded, SAMPLES)
-    with output_dir(out, force, "--out") as tmp:
+    with output_dir(out, force, "--out", "policy export") as tmp:
         run = tmp / ZOO_ALGO / f"{name}_1"
         params = run / name
         params.mkdir(parents=True)

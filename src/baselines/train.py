@@ -29,7 +29,7 @@ import numpy as np
 import yaml
 
 from policies import checkpoint
-from scenario_gen.atomic import lock_output
+from scenario_gen.atomic import check_creatable, lock_output
 from scenario_gen.errors import InputError
 from scenario_gen.schema import to_mapping
 
@@ -107,6 +107,7 @@ def prepare(run: TrainRun) -> tuple[hpmod.PPOHyperparams, hpmod.EnvSetup, dict[s
     hp, setup = hpmod.load(run.env_id, overrides)
     if run.out.exists() and (not run.out.is_dir() or any(run.out.iterdir())):
         raise InputError("--out", str(run.out), "allowed: a new or empty directory")
+    check_creatable(run.out, "--out")
     resolve_device(run.device)  # an unavailable device is refused before anything is made
     if run.init_from is not None and run.resume is not None:
         raise InputError(

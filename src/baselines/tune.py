@@ -201,7 +201,7 @@ def tune(
     if policy not in SEARCH:
         raise InputError("--policy", policy, f"allowed: one of {', '.join(SEARCH)}")
     check_spread(workers, ray)
-    check_output_dir(out, force, "--out")
+    check_output_dir(out, force, "--out", "tune")
     extra = ""
     if env_kwargs is not None:
         from scenario_gen.schema import load_yaml
@@ -226,7 +226,7 @@ def tune(
     if route_clock:  # absent otherwise: a journal from before the option still resumes
         identity["route_clock"] = True
     journal = Journal(out, identity)
-    with output_dir(out, force, "--out") as tmp:
+    with output_dir(out, force, "--out", "tune") as tmp:
         done = journal.open(force, "--out")
         with Tasks(workers, ray) as tasks:
             try:

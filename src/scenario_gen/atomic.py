@@ -40,10 +40,13 @@ _RENAME_EXCHANGE = 2
 _AT_FDCWD = -100
 
 
-def check_output_dir(directory: str | Path, overwrite: bool, what: str = "out") -> Path:
+def check_output_dir(
+    directory: str | Path, overwrite: bool, what: str = "out", kind: str | None = None
+) -> Path:
     """Refuse an unusable output path before any work is done (and before anything is made).
 
-    Overwriting replaces only a folder agrinav wrote (it holds ``MARKER``), and never the
+    Overwriting replaces only a folder agrinav wrote (it holds ``MARKER``) — with ``kind``,
+    only one of that kind (a policy export must not replace a scenario) — and never the
     current folder, one above it, the home folder or ``/``: ``--out . --force`` must not
     delete a user's files."""
     out = Path(os.path.abspath(directory))  # "." and ".." resolved: out.name is a real name
@@ -56,17 +59,24 @@ def check_output_dir(directory: str | Path, overwrite: bool, what: str = "out") 
             "already exists; choose another directory or allow overwriting (--force)",
         )
     if out.exists():
-        check_replaceable(out, what)
+        check_replaceable(out, what, kind)
+    check_creatable(out, what)
+    return out
+
+
+def check_creatable(out: Path, what: str = "out") -> None:
+    """Refuse a folder that cannot be made: a file where a parent folder should be, or a
+    parent that is not writable (not errno's "File exists" from deep inside a mkdir)."""
     parent = _existing_parent(out)
     if not parent.is_dir():
         raise InputError(what, str(out), f"its parent {parent} is not a directory")
     if not os.access(parent, os.W_OK | os.X_OK):
         raise InputError(what, str(out), f"cannot be created: {parent} is not writable")
-    return out
 
 
-def check_replaceable(out: Path, what: str = "out") -> None:
-    """Refuse to replace ``out`` unless agrinav wrote it (see ``check_output_dir``)."""
+def check_replaceable(out: Path, what: str = "out", kind: str | None = None) -> None:
+    """Refuse to replace ``out`` unless agrinav wrote it, as output of ``kind`` where that is
+    given and the marker names one (see ``check_output_dir``)."""
     real = out.resolve()
     cwd = Path.cwd().resolve()
     protected = {Path("/"), Path.home().resolve()}
@@ -81,12 +91,33 @@ def check_replaceable(out: Path, what: str = "out") -> None:
             f"was not written by agrinav (no {MARKER} in it), so --force will not replace it; "
             "choose another folder or remove it yourself",
         )
+    found = marked_kind(out)
+    if kind is not None and found is not None and found != kind:
+        raise InputError(
+            what,
+            str(out),
+            f"holds agrinav's {found} output; --force here replaces only {kind} output "
+            "(choose another folder)",
+        )
 
 
-def mark_output(folder: Path) -> None:
-    """Mark ``folder`` as agrinav's output: ``--force`` may replace it later."""
+def marked_kind(folder: Path) -> str | None:
+    """The kind of output ``folder``'s marker names (None: none named, an older marker)."""
+    try:
+        text = (folder / MARKER).read_text(errors="replace")
+    except OSError:
+        return None
+    for line in text.splitlines():
+        if line.startswith("kind: "):
+            return line.removeprefix("kind: ").strip()
+    return None
+
+
+def mark_output(folder: Path, kind: str | None = None) -> None:
+    """Mark ``folder`` as agrinav's output (of ``kind``): ``--force`` may replace it later."""
     (folder / MARKER).write_text(
         "Written by agrinav; a later run with --force may replace this folder.\n"
+        + (f"kind: {kind}\n" if kind else "")
     )
 
 
@@ -196,18 +227,21 @@ def _remove_empty(folders: list[Path]) -> None:
 
 
 @contextlib.contextmanager
-def output_dir(directory: str | Path, overwrite: bool = False, what: str = "out") -> Iterator[Path]:
-    """Yield a temporary folder that becomes ``directory`` when the block succeeds.
+def output_dir(
+    directory: str | Path, overwrite: bool = False, what: str = "out", kind: str | None = None
+) -> Iterator[Path]:
+    """Yield a temporary folder that becomes ``directory`` when the block succeeds (marked as
+    agrinav's output of ``kind``).
 
     On failure nothing is left: not the temporary folder, not a parent folder this call made.
     """
-    out = check_output_dir(directory, overwrite, what)
+    out = check_output_dir(directory, overwrite, what, kind)
     made: list[Path] = []
     try:
         made = _make_parents(out)
         with lock_output(out, what):
             clean_stale(out)
-            check_output_dir(out, overwrite, what)  # again, under the lock
+            check_output_dir(out, overwrite, what, kind)  # again, under the lock
             try:
                 tmp = Path(
                     tempfile.mkdtemp(prefix=f".{out.name}{TMP_TAG}{os.getpid()}-", dir=out.parent)
@@ -219,7 +253,7 @@ def output_dir(directory: str | Path, overwrite: bool = False, what: str = "out"
                 os.umask(umask)
                 os.chmod(tmp, 0o777 & ~umask)  # mkdtemp makes 0700; honour the umask like mkdir
                 yield tmp
-                mark_output(tmp)
+                mark_output(tmp, kind)
                 _publish(tmp, out)
             except BaseException:
                 shutil.rmtree(tmp, ignore_errors=True)

@@ -89,7 +89,7 @@ def save(
     scn: Scenario, directory: str | Path, overwrite: bool = False, preview: bool = True
 ) -> Path:
     """Write ``scn`` to ``directory`` (atomically: the folder appears complete or not at all)."""
-    with output_dir(directory, overwrite) as tmp:
+    with output_dir(directory, overwrite, kind="scenario") as tmp:
         _write_all(scn, tmp, preview)
     return Path(directory)
 

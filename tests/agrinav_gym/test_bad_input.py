@@ -50,6 +50,7 @@ ID = "AgriNav/FurrowFollow-v3"
         ({"observations": []}, "observations"),
         ({"bank": "/no/such/bank"}, "bank"),
         ({"scenario": "/no/such/folder"}, "scenario"),
+        ({"nosuch": 1}, "env kwargs"),  # a typo in a kwargs file: not a TypeError traceback
     ],
 )
 def test_bad_constructor_arguments(kwargs: dict[str, Any], field: str) -> None:

@@ -392,6 +392,35 @@ def test_cli_refuses_before_creating_the_output(
     assert not out.exists() and list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["train", "--env", "AgriNav/FurrowFollow-v3", "--timesteps", "64"],
+        ["dataset", "perception", "--frames", "1"],
+    ],
+)
+def test_an_out_under_a_file_is_one_line(
+    tmp_path: Path, args: list[str], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Not errno 17 from inside a mkdir, exit 1: the parent is named, exit 2."""
+    (tmp_path / "afile").write_text("x")
+    code = main([*args, "--out", str(tmp_path / "afile" / "x")])
+    err = capsys.readouterr().err
+    assert code == 2 and "is not a directory" in err and "Errno" not in err, err
+
+
+def test_env_kwargs_with_an_unknown_key_is_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    kw = tmp_path / "k.yaml"
+    kw.write_text("nosuch: 1\n")
+    args = ["train", "--env", "AgriNav/FurrowFollow-v3", "--timesteps", "64"]
+    code = main([*args, "--env-kwargs", str(kw), "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert code == 2 and "env kwargs: got ['nosuch']" in err and "Traceback" not in err, err
+    assert not (tmp_path / "o").exists()
+
+
 def test_run_refuses_to_overwrite_without_force(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

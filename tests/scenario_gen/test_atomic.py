@@ -171,6 +171,27 @@ def test_force_replaces_only_a_folder_agrinav_wrote(tmp_path: Path) -> None:
     assert (out / "data.txt").read_text() == "new" and (out / atomic.MARKER).is_file()
 
 
+def test_force_replaces_only_output_of_the_same_kind(tmp_path: Path) -> None:
+    """A policy export with --force must not replace a scenario folder (it did, leaving only
+    the policy); a folder of the same kind, or marked before kinds were named, is replaced."""
+    scn = tmp_path / "scn"
+    with output_dir(scn, kind="scenario") as tmp:
+        _write(tmp, "plants")
+    assert atomic.marked_kind(scn) == "scenario"
+    with pytest.raises(InputError, match="holds agrinav's scenario output; --force here "
+                       "replaces only policy export output"):  # fmt: skip
+        with output_dir(scn, True, kind="policy export"):
+            pass
+    assert (scn / "data.txt").read_text() == "plants"
+    with output_dir(scn, True, kind="scenario") as tmp:
+        _write(tmp, "again")
+    assert (scn / "data.txt").read_text() == "again"
+    (scn / atomic.MARKER).write_text("Written by agrinav; a later run with --force may replace.\n")
+    with output_dir(scn, True, kind="tune") as tmp:  # an older marker names no kind
+        _write(tmp, "tuned")
+    assert atomic.marked_kind(scn) == "tune"
+
+
 @pytest.mark.parametrize("where", [".", "..", "~", "/"])
 def test_force_never_replaces_the_current_home_or_root_folder(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, where: str

@@ -49,7 +49,7 @@ def run(args: argparse.Namespace) -> int:
             f"allowed: seeds up to {MAX_SEED} (seed + count - 1)",
         )
     out = Path(args.out)
-    check_output_dir(out, args.force)
+    check_output_dir(out, args.force, kind="scenario")
     if args.count == 1:
         t0 = time.perf_counter()
         scn = generate(spec, args.seed)
@@ -72,7 +72,7 @@ def run(args: argparse.Namespace) -> int:
     seeds = range(args.seed, args.seed + args.count)
     names = [f"seed-{seed:06d}" for seed in seeds]
     first = generate(spec, seeds.start)  # bad input is reported before the bank folder exists
-    with output_dir(out, args.force) as tmp:
+    with output_dir(out, args.force, kind="scenario") as tmp:
         for seed, name in tqdm(
             zip(seeds, names, strict=True), total=len(names), desc="scenarios", unit="scn"
         ):

@@ -12,7 +12,7 @@ from typing import Any
 
 from tqdm import tqdm
 
-from scenario_gen.atomic import lock_output
+from scenario_gen.atomic import check_creatable, lock_output
 from scenario_gen.errors import InputError
 from scenario_gen.schema import parse_json, to_mapping
 
@@ -110,6 +110,7 @@ def generate(
     A finished dataset is a no-op."""
     check_spread(workers, ray)
     out = Path(out)
+    check_creatable(out.absolute(), "--out")
     out.absolute().parent.mkdir(parents=True, exist_ok=True)
     # A second run on the same --out is refused while this one holds it (two used to race
     # and both fail, advising to "free the space").

@@ -36,7 +36,7 @@ def export(
     src = Path(directory)
     if not src.is_dir():
         raise InputError("scenario", str(src), "allowed: a scenario folder (agrinav scenario)")
-    check_output_dir(out, overwrite)
+    check_output_dir(out, overwrite, kind="export")
     if Path(out).resolve() == src.resolve():
         raise InputError("out", str(out), "is the scenario folder itself; choose another")
     try:
@@ -58,13 +58,13 @@ def export_scenario(
     """Export an in-memory scenario; every input is checked before ``out`` is created."""
     if to not in TARGETS:
         raise InputError("--to", to, f"allowed: one of {', '.join(TARGETS)}")
-    check_output_dir(out, overwrite)
+    check_output_dir(out, overwrite, kind="export")
     if to in ("gazebo", "nav2") or (to == "mesh" and opts.mesh_plants):
         user_model_path(scn)
     if to == "nav2":
         _check_robot(opts.robot_urdf)
         _check_nav2_robot(opts.nav2_robot)
-    with output_dir(out, overwrite) as tmp:
+    with output_dir(out, overwrite, kind="export") as tmp:
         if to == "gazebo":
             from .gazebo import export_gazebo
             from .readme import gazebo_readme
