@@ -94,6 +94,7 @@ def load(directory: str | Path) -> Scenario:
     route = _route(_member(d, "route.csv", MAX_ROUTE_WAYPOINTS * MAX_CSV_ROW_BYTES), rows, version)
     _on_terrain(terrain, plants.x, plants.y, "plants.csv")
     _on_terrain(terrain, route.xy[:, 0], route.xy[:, 1], "route.csv")
+    _counted(meta, plants, len(route))
     obstacles = Obstacles.empty()
     if version >= 4:
         obstacles = _obstacles(_member(d, "obstacles.csv", MAX_OBSTACLES * MAX_CSV_ROW_BYTES))
@@ -510,6 +511,26 @@ def _float_or_nan(v: str) -> float:
         return float(v)
     except ValueError:
         return math.nan
+
+
+def _counted(meta: dict[str, Any], plants: Plants, waypoints: int) -> None:
+    """The CSVs hold as many lines as scenario.json counted: a file cut at a line's end (a
+    copy that stopped, a hand edit) parses cleanly, and would load as a smaller field."""
+    counts = meta.get("counts")
+    if not isinstance(counts, dict):
+        return
+    crops = int((~plants.is_weed).sum())
+    for name, got, want in (
+        ("plants.csv", (crops, len(plants) - crops), (counts.get("plants"), counts.get("weeds"))),
+        ("route.csv", (waypoints,), (counts.get("route_waypoints"),)),
+    ):
+        if all(isinstance(w, int) for w in want) and tuple(want) != got:
+            raise InputError(
+                name,
+                f"{sum(got)} lines",
+                f"scenario.json counts {sum(w for w in want if isinstance(w, int))}; allowed: "
+                "the file as saved (truncated or edited?)",
+            )
 
 
 def _plants(path: Path, rows: RowFrame, version: int) -> Plants:

@@ -73,6 +73,16 @@ def _route_lines(n: int) -> Callable[[Path], None]:
     return edit
 
 
+def _keep_lines(name: str, n: int) -> Callable[[Path], None]:
+    """``name`` cut after its header and ``n`` lines, at a line's end: it parses cleanly."""
+
+    def edit(d: Path) -> None:
+        lines = (d / name).read_text().splitlines()
+        (d / name).write_text("\n".join(lines[: n + 1]) + "\n")
+
+    return edit
+
+
 def _symlink_out(name: str) -> Callable[[Path], None]:
     def edit(d: Path) -> None:
         outside = d.parent / f"outside-{name}"
@@ -206,6 +216,8 @@ CASES: list[tuple[str, Callable[[Path], None], str]] = [
         lambda d: (d / "plants.csv").write_bytes(b"\xff\xfe\x00\x01"),
         "plants.csv",
     ),
+    ("plants.csv cut at a line's end", _keep_lines("plants.csv", 10), "plants.csv"),
+    ("route.csv cut at a line's end", _keep_lines("route.csv", 20), "route.csv"),
     ("one-point route", _route_lines(1), "route.csv"),
     ("empty route", _route_lines(0), "route.csv"),
     (
