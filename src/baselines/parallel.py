@@ -17,6 +17,7 @@ import importlib.util
 import logging
 import multiprocessing as mp
 import re
+import socket
 from collections.abc import Callable, Iterable, Iterator
 from types import TracebackType
 from typing import Any, TypeVar
@@ -29,6 +30,10 @@ R = TypeVar("R")
 ADDRESS = re.compile(r"^(local|auto|(ray://)?[A-Za-z0-9.\-]+:[0-9]{1,5})$")
 
 
+#: s a cluster's head has to accept a TCP connection before --ray is refused
+CONNECT_TIMEOUT_S = 5.0
+
+
 def check_address(address: str) -> None:
     """Before anything is written: Ray is installed and ``address`` has a usable form."""
     if not ADDRESS.match(address):
@@ -37,6 +42,18 @@ def check_address(address: str) -> None:
         raise InputError(
             "--ray", address, "needs Ray: pip install 'agrinav-gym[ray]' (or omit --ray)"
         )
+    if address not in ("local", "auto"):
+        # ray.init retries an unreachable head for minutes, printing as it goes
+        host, _, port = address.removeprefix("ray://").rpartition(":")
+        try:
+            socket.create_connection((host, int(port)), timeout=CONNECT_TIMEOUT_S).close()
+        except OSError as exc:
+            raise InputError(
+                "--ray",
+                address,
+                f"cannot be reached ({exc.strerror or exc}); allowed: a running cluster's "
+                "head (host:port, or ray://host:port for Ray Client), local or auto",
+            ) from None
 
 
 def check_spread(workers: int, ray: str | None) -> None:

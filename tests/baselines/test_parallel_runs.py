@@ -135,6 +135,16 @@ def test_workers_and_ray_are_checked_before_anything_runs(
     assert "--workers" in capsys.readouterr().err
     assert main([*SMOKE, "--ray", "not an address", "--out", str(out)]) == 2
     assert "--ray" in capsys.readouterr().err and not out.exists()
+    # a head nobody listens on: refused in one line, not minutes of Ray's retries
+    import socket
+
+    with socket.socket() as free:
+        free.bind(("127.0.0.1", 0))
+        port = free.getsockname()[1]
+    assert main([*SMOKE, "--ray", f"127.0.0.1:{port}", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "cannot be reached" in err and not out.exists()
+    assert not list(tmp_path.iterdir())  # no journal either
 
 
 def test_tune_with_two_workers_and_after_an_interruption_makes_the_same_search(
