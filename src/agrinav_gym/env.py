@@ -151,8 +151,9 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         self.obs_models = {
             k: OBSERVATION_MODELS[k](self.cfg, self.interface) for k in self.observation_names
         }
-        self.observation_space = spaces.Dict({k: m.space() for k, m in self.obs_models.items()})  # type: ignore[assignment]
-        self._obs_keys = tuple(self.observation_space.spaces)
+        space = spaces.Dict({k: m.space() for k, m in self.obs_models.items()})
+        self.observation_space = space  # type: ignore[assignment]
+        self._obs_keys = tuple(space.spaces)
         route_model = self.obs_models.get(OBS_ROUTE)
         #: the route observation that hands the route over a goal at a time (waypoint_goals)
         self._goal_model = (
