@@ -299,10 +299,15 @@ def _nearest_fill(a: FloatArray) -> FloatArray:
     return a[tuple(idx)]
 
 
+def _edge_labels(labels: NDArray[np.int32]) -> NDArray[np.int32]:
+    """The labels (0 included) of the components that touch the array's edge."""
+    return np.unique(np.concatenate([labels[0], labels[-1], labels[:, 0], labels[:, -1]]))
+
+
 def edge_holes(elev: FloatArray) -> NDArray[np.bool_]:
     """The nodata pixels of the holes that touch the array's edge."""
     labels, _ = ndimage.label(~np.isfinite(elev))
-    edge = np.unique(np.concatenate([labels[0], labels[-1], labels[:, 0], labels[:, -1]]))
+    edge = _edge_labels(labels)
     return np.isin(labels, edge[edge > 0])
 
 
@@ -327,8 +332,7 @@ def fill_small_holes(elev: FloatArray, max_pixels: int, open_border: bool = Fals
     sizes = np.bincount(labels.ravel(), minlength=n + 1)
     small = (sizes <= max_pixels) & (np.arange(n + 1) > 0)
     if open_border:
-        edge = np.unique(np.concatenate([labels[0], labels[-1], labels[:, 0], labels[:, -1]]))
-        small[edge] = False
+        small[_edge_labels(labels)] = False
     fill_mask = small[labels]
     if not fill_mask.any():
         return elev
