@@ -30,9 +30,8 @@ def demo(out: str | Path, seeds: int = 2) -> Path:
     out = Path(out)
     if seeds < 1:
         raise InputError("--seeds", seeds, "allowed: an integer >= 1")
-    check_output_dir(
-        out, overwrite=True, kind="demo"
-    )  # re-running the demo replaces its own results
+    # re-running the demo replaces its own results
+    check_output_dir(out, overwrite=True, kind="demo")
     out.mkdir(parents=True, exist_ok=True)
     mark_output(out, "demo")
     print(

@@ -30,7 +30,7 @@ R = TypeVar("R")
 ADDRESS = re.compile(r"^(local|auto|(ray://)?[A-Za-z0-9.\-]+:[0-9]{1,5})$")
 
 
-#: s a cluster's head has to accept a TCP connection before --ray is refused
+#: seconds a cluster's head has to accept a TCP connection before --ray is refused
 CONNECT_TIMEOUT_S = 5.0
 
 
