@@ -36,9 +36,9 @@ def export(
     src = Path(directory)
     if not src.is_dir():
         raise InputError("scenario", str(src), "allowed: a scenario folder (agrinav scenario)")
-    check_output_dir(out, overwrite, kind="export")
-    if Path(out).resolve() == src.resolve():
+    if Path(out).resolve() == src.resolve():  # the plainer reason, before the marker's kind
         raise InputError("out", str(out), "is the scenario folder itself; choose another")
+    check_output_dir(out, overwrite, kind="export")
     try:
         scn = load(src)
     except InputError:
