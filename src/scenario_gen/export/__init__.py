@@ -36,7 +36,8 @@ def export(
     src = Path(directory)
     if not src.is_dir():
         raise InputError("scenario", str(src), "allowed: a scenario folder (agrinav scenario)")
-    if Path(out).resolve() == src.resolve():  # the plainer reason, before the marker's kind
+    # with --force, the plainer reason before the marker's kind; without, "already exists"
+    if overwrite and Path(out).resolve() == src.resolve():
         raise InputError("out", str(out), "is the scenario folder itself; choose another")
     check_output_dir(out, overwrite, kind="export")
     try:
