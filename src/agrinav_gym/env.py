@@ -272,6 +272,7 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         # or the route's own limit (task.seconds_per_metre): the running metrics ride on every
         # step's info, so the last one is final.
         truncated = self._step_limit is not None and self._steps >= self._step_limit
+        self._ended = self._ended or truncated  # ended either way: Gymnasium's contract
         return obs, float(sum(parts.values())), ctx.termination is not None, truncated, info
 
     def render(self) -> NDArray[np.uint8] | None:
@@ -619,7 +620,8 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
             )
         if self._ended:
             raise gym.error.ResetNeeded(
-                "step() after the episode terminated: call reset() first (Gymnasium's contract)"
+                "step() after the episode terminated or was truncated: call reset() first "
+                "(Gymnasium's contract)"
             )
         if type(action) is np.ndarray and action.shape == (2,) and action.dtype.kind == "f":
             a0, a1 = action.tolist()  # the usual action: checked without a copy

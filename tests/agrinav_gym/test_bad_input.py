@@ -116,6 +116,27 @@ def test_step_after_termination_needs_a_reset(env: Any) -> None:
     env.step(np.zeros(2, np.float32))  # a new episode steps again
 
 
+def test_step_after_the_envs_own_truncation_needs_a_reset() -> None:
+    """The route's clock (task.seconds_per_metre) truncates: the episode has ended, as after a
+    termination (the robot drove on before)."""
+    env = gym.make(ID, scenario_overrides=TINY, config={"task": {"seconds_per_metre": 0.1}})
+    try:
+        env.reset(seed=0)
+        truncated = False
+        for _ in range(200):
+            _, _, terminated, truncated, _ = env.step(np.array([0.2, 0.0], np.float32))
+            assert not terminated
+            if truncated:
+                break
+        assert truncated
+        with pytest.raises(gym.error.ResetNeeded):
+            env.unwrapped.step(np.zeros(2, np.float32))
+        env.reset(seed=1)
+        env.step(np.zeros(2, np.float32))
+    finally:
+        env.close()
+
+
 @pytest.mark.parametrize(
     "options,field",
     [

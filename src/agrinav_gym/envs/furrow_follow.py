@@ -58,7 +58,8 @@ class FurrowFollowEnv(AgriNavEnv):
     headland RMSE, completion, crops hit, obstacles hit in all and
     ``obstacles_hit_by_kind``), so the last one holds the final values however the episode
     ended; a terminating step also names its ``termination`` (success,
-    corridor, off_terrain, tip_over, crops_hit, progress). Stepping after a termination raises
+    corridor, off_terrain, tip_over, crops_hit, progress). Stepping after a termination, or
+    after the env's own truncation (``config.task.seconds_per_metre``), raises
     ``gymnasium.error.ResetNeeded``.
 
     ## Arguments
