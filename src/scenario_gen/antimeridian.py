@@ -6,7 +6,8 @@ line around the whole globe. Here each line or ring is unwrapped along its verti
 longitudes never more than 180° apart), and what lies east of +180° or west of −180° is cut off
 and shifted back by 360°: the result is a Multi- geometry whose parts each stay on one side,
 new vertices exactly on the meridian (heights interpolated linearly). A geometry that does not
-cross is returned unchanged.
+cross is returned unchanged. Reading goes the other way: parts cut so are joined again
+(``joined_across``).
 """
 
 from __future__ import annotations
@@ -21,6 +22,12 @@ from shapely.geometry import box, mapping, shape
 from .arrays import FloatArray
 
 
+def wrap_lon(lon: Any) -> Any:
+    """Longitude(s) in [-180, 180): a raster stored 0..360°, or a field joined across the
+    antimeridian, gives values past 180."""
+    return (lon + 180.0) % 360.0 - 180.0
+
+
 def unwrap_lon(lon: Any) -> FloatArray:
     """Longitudes with 360° added or subtracted so consecutive ones differ by at most 180°."""
     a = np.asarray(lon, np.float64)
@@ -29,8 +36,27 @@ def unwrap_lon(lon: Any) -> FloatArray:
     step = np.diff(a)
     # whole turns added to each value: a running sum of the steps would drift by rounding, and
     # a closed ring's last point must come back to its first exactly
-    turns = np.round(((step + 180.0) % 360.0 - 180.0 - step) / 360.0)
+    turns = np.round((wrap_lon(step) - step) / 360.0)
     return a + 360.0 * np.concatenate([[0.0], np.cumsum(turns)])
+
+
+def joined_across(parts: list[Any]) -> list[Any]:
+    """Lon/lat parts spanning more than 180° of longitude are a field cut at the antimeridian
+    (as RFC 7946 asks, and as ``cut_geometry`` writes one): the western hemisphere's
+    coordinates go 360° east, so the halves meet at 180° and merge into one again. Parts that
+    span less are returned as they are."""
+    lo = min(g.bounds[0] for g in parts)
+    hi = max(g.bounds[2] for g in parts)
+    if hi - lo <= 180.0:
+        return parts
+
+    def east(xy: FloatArray) -> FloatArray:
+        out = np.array(xy, np.float64)
+        out[:, 0] = np.where(out[:, 0] < 0.0, out[:, 0] + 360.0, out[:, 0])
+        return out
+
+    pieces = shapely.get_parts(np.array([shapely.transform(g, east) for g in parts]))
+    return [shapely.union_all(pieces)]
 
 
 def _crosses(lon: FloatArray) -> bool:

@@ -34,6 +34,7 @@ from numpy.typing import NDArray
 from pyproj import CRS, Geod, Transformer
 from scipy import ndimage
 
+from .antimeridian import wrap_lon
 from .arrays import FloatArray
 from .bounds import MAX_DEM_PIXELS
 from .errors import InputError
@@ -249,7 +250,7 @@ class Dem:
         r, c = divmod(idx, cols)
         x, y = self.pixel_to_crs(np.array([c + 0.5]), np.array([r + 0.5]))
         lon, lat = self.to_lonlat().transform(x[0], y[0])
-        return float(lat), (float(lon) + 180.0) % 360.0 - 180.0  # a raster stored 0..360°
+        return float(lat), float(wrap_lon(float(lon)))  # a raster stored 0..360°
 
 
 #: A flat area is water when at most this share of the pixels around it lie lower: a lake's

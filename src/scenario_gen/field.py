@@ -11,6 +11,7 @@ from shapely.geometry import MultiPolygon, Polygon
 from shapely.geometry.base import BaseGeometry
 from shapely.validation import explain_validity
 
+from .antimeridian import wrap_lon
 from .errors import InputError
 from .geodesy import GeoFrame
 from .spec import FieldSpec
@@ -76,7 +77,7 @@ def centroid_latlon(geom: BaseGeometry) -> tuple[float, float]:
     """Latitude and longitude (in -180..180: a field joined across the antimeridian has
     longitudes past 180) of a lon/lat geometry's centroid."""
     c = geom.centroid
-    return float(c.y), (float(c.x) + 180.0) % 360.0 - 180.0
+    return float(c.y), float(wrap_lon(float(c.x)))
 
 
 def check_field(poly: BaseGeometry, where: str) -> Polygon | MultiPolygon:

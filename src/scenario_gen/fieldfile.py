@@ -31,6 +31,7 @@ from shapely.geometry import GeometryCollection, MultiPolygon, Polygon, shape
 from shapely.geometry.base import BaseGeometry
 from shapely.validation import explain_validity
 
+from .antimeridian import joined_across
 from .errors import InputError
 from .field import MAX_NESTING, geometries
 from .geodesy import area_of, best_transformer
@@ -71,26 +72,8 @@ def read_field(path: str | Path, layer: str | None = None) -> BaseGeometry:
         polys, crs = _gdal_polygons(p, suffix, layer)
     for poly in polys:
         _check_valid(poly, str(path))
-    lonlat = _joined_across_180([_to_lonlat(poly, crs, str(path)) for poly in polys])
+    lonlat = joined_across([_to_lonlat(poly, crs, str(path)) for poly in polys])
     return shapely.union_all(lonlat) if len(lonlat) > 1 else lonlat[0]
-
-
-def _joined_across_180(parts: list[BaseGeometry]) -> list[BaseGeometry]:
-    """Parts spanning more than 180° of longitude are a field cut at the antimeridian (as
-    RFC 7946 asks, and as this project's own field.geojson writes one): the western
-    hemisphere's coordinates go 360° east, so the halves meet at 180° and merge again."""
-    lo = min(g.bounds[0] for g in parts)
-    hi = max(g.bounds[2] for g in parts)
-    if hi - lo <= 180.0:
-        return parts
-
-    def east(xy: np.ndarray) -> np.ndarray:
-        out = np.array(xy, np.float64)
-        out[:, 0] = np.where(out[:, 0] < 0.0, out[:, 0] + 360.0, out[:, 0])
-        return out
-
-    pieces = shapely.get_parts(np.array([shapely.transform(g, east) for g in parts]))
-    return [shapely.union_all(pieces)]
 
 
 def _check_file(path: str | Path) -> Path:

@@ -86,9 +86,9 @@ def waypoint_yaw(scn: Scenario, idx: np.ndarray, yaw: FloatArray) -> FloatArray:
     waypoint file that gave one, else the heading of the leg leaving it (arriving, at the
     last) — not the route's yaw there, which averages the two legs at a corner."""
     out = yaw[idx].copy()
-    given = scn.info.get("route_goal_yaw")
     if scn.info.get("route_goals") is None:
         return out
+    given = scn.info.get("route_goal_yaw")
     xy = scn.route.xy
     for k, i in enumerate(idx):
         a, b = (i, i + 1) if i + 1 < len(xy) else (i - 1, i)
