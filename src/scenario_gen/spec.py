@@ -255,9 +255,9 @@ class RouteSpec:
     )
     waypoints: str | None = _f(
         None,
-        "Nav2 GPS waypoint YAML ({waypoints: [{latitude, longitude, yaw}]}): the route is the "
-        "straight-leg plan through them instead of the zigzag (scenario_gen.waypoints); "
-        "stored resolved",
+        "Nav2 GPS waypoint YAML ({waypoints: [{latitude, longitude, yaw}]}; an altitude is read "
+        "and not used): the route is the straight-leg plan through them instead of the zigzag "
+        "(scenario_gen.waypoints); stored resolved",
     )
 
 

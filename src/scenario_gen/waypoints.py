@@ -37,7 +37,8 @@ MAX_WAYPOINTS = 10_000
 
 def read_gps_waypoints(path: str | Path, what: str = "--waypoints") -> FloatArray:
     """(n, 3) latitude, longitude (degrees) and yaw (rad; NaN when absent) of a Nav2 GPS
-    waypoint file, every entry checked."""
+    waypoint file, every entry checked. An ``altitude`` (metres) is accepted and not used: the
+    route follows the terrain."""
     data: Any = load_yaml(path, what)
     items = data.get("waypoints") if isinstance(data, dict) else None
     if not isinstance(items, list) or not 2 <= len(items) <= MAX_WAYPOINTS:
@@ -52,11 +53,17 @@ def read_gps_waypoints(path: str | Path, what: str = "--waypoints") -> FloatArra
         where = f"{what} waypoints[{k}]"
         if not isinstance(wp, dict) or not {"latitude", "longitude"} <= set(wp):
             raise InputError(where, wp, "allowed: a mapping with latitude and longitude")
-        extra = set(wp) - {"latitude", "longitude", "yaw"}
+        extra = set(wp) - {"latitude", "longitude", "yaw", "altitude"}
         if extra:
             raise InputError(
-                where, sorted(extra), "unknown keys; allowed: latitude, longitude, yaw"
+                where,
+                sorted(extra),
+                "unknown keys; allowed: latitude, longitude, yaw, altitude",
             )
+        if wp.get("altitude") is not None:
+            # a GeoPoint's third field, as GNSS loggers write it: checked, then left to the
+            # terrain (the route lies on the ground, whatever height a receiver once read)
+            _number(wp["altitude"], f"{where}.altitude", -500.0, 9000.0)
         out[k] = [
             _number(wp["latitude"], f"{where}.latitude", -90.0, 90.0),
             _number(wp["longitude"], f"{where}.longitude", -180.0, 180.0),
@@ -115,13 +122,19 @@ def waypoint_route(
         # where a site would have to be for them (the centre of their box, through the datum)
         mid = (xy.min(axis=0) + xy.max(axis=0)) / 2.0
         lat, lon, _ = geo.enu_to_geodetic(mid[0], mid[1], 0.0)
+        hint = ""
+        if _on_terrain_swapped(wps, geo, terrain):
+            hint = (
+                "; every waypoint lies on the terrain with latitude and longitude swapped: "
+                "check which the file gives first"
+            )
         raise InputError(
             f"{what} waypoints[{k}]",
             [float(wps[k, 0]), float(wps[k, 1])],
             f"is {float(np.hypot(*xy[k])):.1f} m from the datum, off the terrain (the field's "
             "site and its margin); allowed: waypoints on the scenario's terrain — to centre the "
             f"site on them set terrain.site=latlon, terrain.lat={float(lat):.7f}, "
-            f"terrain.lon={float(lon):.7f}, and a field and terrain.margin that reach them",
+            f"terrain.lon={float(lon):.7f}, and a field and terrain.margin that reach them" + hint,
         )
     legs = np.diff(xy, axis=0)
     length = np.hypot(legs[:, 0], legs[:, 1])
@@ -151,6 +164,15 @@ def waypoint_route(
     )
     seg = np.where(np.asarray(along) & inside, FURROW, HEADLAND)
     return Route(np.column_stack([p, z]), seg, np.full(len(p), -1, np.int64)), goals
+
+
+def _on_terrain_swapped(wps: FloatArray, geo: GeoFrame, terrain: Any) -> bool:
+    """Whether the waypoints, latitude and longitude exchanged, would all lie on the terrain
+    (the commonest slip in a hand-written file: GeoJSON and many GIS tools give lon first)."""
+    if not np.all(np.abs(wps[:, 1]) <= 90.0):
+        return False
+    x, y, _ = geo.geodetic_to_enu(wps[:, 1], wps[:, 0], geo.alt)
+    return bool(np.all(terrain.contains(np.asarray(x), np.asarray(y))))
 
 
 def _along(heading: FloatArray, rows: Any, p: FloatArray) -> NDArray[np.bool_]:

@@ -320,6 +320,11 @@ def test_episode_seconds_leave_the_video_out(monkeypatch: pytest.MonkeyPatch) ->
     [
         (["bench", "--suite", "moon", "--policies", "dwb", "--out", "x"], "--suite: got 'moon'"),
         (["bench", "--suite", "smoke", "--policies", "mpc", "--out", "x"], "policy: got 'mpc'"),
+        (["bench", "--suite", "smoke", "--policies", "rpp,,", "--out", "x"], "no empty entry"),
+        (
+            ["bench", "--suite", "smoke", "--policies", "rpp", "--cases", "a;", "--out", "x"],
+            "no empty entry",
+        ),
         (["train", "--env", "AgriNav/Nope-v0", "--timesteps", "10", "--out", "x"], "--env"),
     ],
 )

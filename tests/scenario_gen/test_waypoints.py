@@ -63,6 +63,13 @@ def test_waypoints_round_trip_through_enu_within_a_millimetre(field, tmp_path: P
     assert (r.segment == "furrow").mean() > 0.7
 
 
+def test_an_altitude_is_read_and_left_to_the_terrain(field, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    wps = _corners(field)
+    plain = read_gps_waypoints(_write(tmp_path / "a.yaml", wps))
+    high = read_gps_waypoints(_write(tmp_path / "b.yaml", [{**w, "altitude": 312.5} for w in wps]))
+    assert np.array_equal(plain, high, equal_nan=True)
+
+
 def test_an_exported_waypoint_file_reads_back(field, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
     path = _write(tmp_path / "w.yaml", [{**w, "yaw": 1.5} for w in _corners(field)])
     got = read_gps_waypoints(path)
@@ -83,6 +90,18 @@ def test_a_waypoint_off_the_terrain_is_refused_by_number(field, tmp_path: Path) 
     lats, lons = [w["latitude"] for w in wps], [w["longitude"] for w in wps]
     assert lat == pytest.approx((min(lats) + max(lats)) / 2, abs=1e-6)
     assert lon == pytest.approx((min(lons) + max(lons)) / 2, abs=1e-6)
+
+
+def test_waypoints_with_latitude_and_longitude_swapped_get_a_hint(field, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    wps = _corners(field)
+    swapped = [{"latitude": w["longitude"], "longitude": w["latitude"]} for w in wps]
+    with pytest.raises(InputError, match="latitude and longitude swapped"):
+        generate(small(route={"waypoints": str(_write(tmp_path / "s.yaml", swapped))}), seed=0)
+    # a waypoint merely far away gets no such hint
+    far = [*wps[:2], {"latitude": wps[2]["latitude"] + 0.01, "longitude": wps[2]["longitude"]}]
+    with pytest.raises(InputError) as e:
+        generate(small(route={"waypoints": str(_write(tmp_path / "f.yaml", far))}), seed=0)
+    assert "swapped" not in str(e.value)
 
 
 @pytest.mark.parametrize(
@@ -110,6 +129,15 @@ def test_a_waypoint_off_the_terrain_is_refused_by_number(field, tmp_path: Path) 
                 ]
             },
             "unknown",
+        ),
+        (
+            {
+                "waypoints": [
+                    {"latitude": 0, "longitude": 0, "altitude": "high"},
+                    {"latitude": 0, "longitude": 0},
+                ]
+            },
+            r"waypoints\[0\]\.altitude",
         ),
     ],
 )

@@ -27,3 +27,18 @@ seed_type = int_at_least(0, MAX_SEED)
 #: simulation already; a typo such as 10¹² must be an error, not a run that never ends.
 MAX_EPISODES = 10_000
 episodes_type = int_at_least(1, MAX_EPISODES)
+
+
+def separated(sep: str, what: str) -> Callable[[str], list[str]]:
+    """A ``sep``-separated list of non-empty entries: ``"a,,b"`` or a trailing ``sep`` is
+    refused (a lost entry is more often a slip than an intent), spaces around entries dropped."""
+
+    def parse(text: str) -> list[str]:
+        items = [part.strip() for part in text.split(sep)]
+        if not text.strip() or any(not item for item in items):
+            raise argparse.ArgumentTypeError(
+                f"got {text!r}; allowed: a {sep!r}-separated list of {what} with no empty entry"
+            )
+        return items
+
+    return parse

@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from .args import episodes_type, int_at_least, seed_type
+from .args import episodes_type, int_at_least, seed_type, separated
 
 
 def add(sub: Any) -> None:
@@ -42,12 +42,16 @@ def add(sub: Any) -> None:
     )
     be.add_argument(
         "--cases",
+        type=separated(";", "case names"),
         help="only these cases of the suite, separated by ';' (their names as benchmark.md "
         "shows them, e.g. 'curved rows R 15-30 m;contour rows, slope 4-8 deg'); each keeps "
         "its seeds",
     )
     be.add_argument(
-        "--policies", required=True, help="comma list, e.g. dwb:nav2,dwb:furrow,rpp,depth,ppo:PATH"
+        "--policies",
+        required=True,
+        type=separated(",", "policies"),
+        help="comma list, e.g. dwb:nav2,dwb:furrow,rpp,depth,ppo:PATH",
     )
     be.add_argument("--seeds", type=episodes_type, default=3)
     be.add_argument("--out", required=True)
@@ -116,10 +120,9 @@ def bench(args: argparse.Namespace) -> int:
     from baselines.bench import command_line
     from baselines.scenario_spec import parse_set
 
-    pols = [p.strip() for p in args.policies.split(",") if p.strip()]
     run_bench(
         args.suite,
-        pols,
+        args.policies,
         args.seeds,
         args.out,
         command_line(args.argv),
@@ -127,7 +130,7 @@ def bench(args: argparse.Namespace) -> int:
         trust_checkpoint=args.trust_checkpoint,
         workers=args.workers,
         ray=args.ray,
-        groups=[c.strip() for c in args.cases.split(";") if c.strip()] if args.cases else None,
+        groups=args.cases,
         config=parse_set(args.config, "--config", "soil.contact_width=0.15"),
     )
     print((Path(args.out) / "benchmark.md").read_text())

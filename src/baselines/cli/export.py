@@ -8,6 +8,8 @@ from typing import Any
 
 from scenario_gen.errors import InputError
 
+from .args import separated
+
 
 def add(sub: Any) -> None:
     from scenario_gen.export import MESH_FORMATS, TARGETS, ExportOptions
@@ -53,6 +55,7 @@ def add(sub: Any) -> None:
     ex.add_argument(
         "--formats",
         default="glb",
+        type=separated(",", "formats"),
         help=f"mesh: comma-separated formats from {','.join(MESH_FORMATS)} (default glb)",
     )
     ex.add_argument(
@@ -73,7 +76,7 @@ def run(args: argparse.Namespace) -> int:
     data: dict[str, Any] = {
         "plants": args.plants,
         "heightmap": args.heightmap,
-        "formats": [f.strip() for f in args.formats.split(",") if f.strip()],
+        "formats": args.formats,
         "mesh_plants": args.with_plants,
     }
     if args.include_limit is not None:
@@ -86,7 +89,7 @@ def run(args: argparse.Namespace) -> int:
         data = nav2_options(dwb=args.dwb or "furrow", **data)
     elif args.dwb is not None:
         raise InputError("--dwb", args.to, "allowed only with --to nav2")
-    if args.to != "mesh" and (args.with_plants or args.formats != "glb"):
+    if args.to != "mesh" and (args.with_plants or args.formats != ["glb"]):
         raise InputError("--formats/--with-plants", args.to, "allowed only with --to mesh")
     world_only = {
         "--plants": args.plants != "auto",
