@@ -1,5 +1,5 @@
 """The compiled kernels (src/agrinav_gym/render/csrc: the sensors', the tyres', the EKF's, the
-route's); everything else is in pyproject.toml.
+route's, the GNSS sky's); everything else is in pyproject.toml.
 
 The extension is optional: where it cannot be built the sensors fall back to numpy and Embree
 (the same images, slower), the tyre model, the EKF and the route to their Python twins. Flags:
@@ -38,6 +38,7 @@ setup(
                 "src/agrinav_gym/render/csrc/ekf.c",
                 "src/agrinav_gym/render/csrc/rl.c",
                 "src/agrinav_gym/render/csrc/routes.c",
+                "src/agrinav_gym/render/csrc/sky.c",
             ],
             depends=["src/agrinav_gym/render/csrc/native.h", "src/agrinav_gym/render/csrc/batch.h"],
             define_macros=[("AGRINAV_SOURCE_HASH", f'"{source_hash()}"')],

@@ -1,4 +1,4 @@
-"""Where an env step's time goes: a per-part timer over FurrowFollow-v3 steps on paper-p1.
+"""Where an env step's time goes: a per-part timer over FurrowFollow-v3 steps (on paper-p1).
 
 Each part of ``AgriNavEnv.step`` (design.md §3) is wrapped, on the env instance, in a timer;
 the table lists microseconds per env step and the share of the step. Nested rows (indented)
@@ -7,6 +7,7 @@ command and the physics substeps (tyre model + pybullet). The timers cost ≈ 0.
 the parts add up to a little more than an untimed step.
 
     python benchmarks/profile_env.py [--steps 400] [--repeat 5] [--localisation KIND]
+        [--scenario PRESET]
 
 ``--localisation robot_localization-3d`` runs robot_localization with ``two_d_mode: false``,
 ``robot_localization-numpy`` its planar filter's numpy twin instead of the compiled kernel.
@@ -131,16 +132,16 @@ VARIANTS: dict[str, dict[str, Any]] = {
 NUMPY_TWINS = {"robot_localization-numpy": "robot_localization"}
 
 
-def make(localisation: str) -> Any:
+def make(localisation: str, scenario: str = "paper-p1") -> Any:
     if localisation in NUMPY_TWINS:
-        env = make(NUMPY_TWINS[localisation])
+        env = make(NUMPY_TWINS[localisation], scenario)
         u = env.unwrapped
         u.estimator = RobotLocalizationEkf(u.cfg.localisation, u.world.skid_factor, u.dt, False)
         return env
     loc = VARIANTS.get(localisation, {"kind": localisation})
     return gym.make(
         "AgriNav/FurrowFollow-v3",
-        scenario="paper-p1",
+        scenario=scenario,
         observations=("gps", "imu", "odom", "route"),
         config={
             "task": {"max_crops_hit": 10**6, "corridor": 2.0},
@@ -149,9 +150,9 @@ def make(localisation: str) -> Any:
     )
 
 
-def table(localisation: str, steps: int, repeat: int) -> None:
+def table(localisation: str, steps: int, repeat: int, scenario: str = "paper-p1") -> None:
     """Each repeat: a reset (seed r) and ``steps`` timed steps, as bench_env.py's ratio."""
-    env = make(localisation)
+    env = make(localisation, scenario)
     u = env.unwrapped
     runs: list[dict[str, float]] = []
     for r in range(repeat):
@@ -168,7 +169,7 @@ def table(localisation: str, steps: int, repeat: int) -> None:
     total = med["env step (total)"]
     top = sum(med[label] for label, _, _, depth in PARTS if depth == 0)
     raw = med["physics substeps"] + med["drive (wheel motor targets)"]
-    print(f"\nFurrowFollow-v3 on paper-p1, gps/imu/odom/route, {localisation}: µs per env step")
+    print(f"\nFurrowFollow-v3 on {scenario}, gps/imu/odom/route, {localisation}: µs per env step")
     print(f"(median of {repeat} runs of {steps} steps from a reset; kernels: {kernels()})\n")
     print("| part | µs / step | share |")
     print("|---|---|---|")
@@ -203,6 +204,12 @@ def main() -> None:
         choices=("ekf", "robot_localization", *VARIANTS, *NUMPY_TWINS, "blend", "ideal"),
         help="robot_localization-3d: robot_localization with two_d_mode false",
     )
+    ap.add_argument(
+        "--scenario",
+        default="paper-p1",
+        help="a preset: mature-corn puts a 3 m canopy over the antenna (the GNSS sky model's "
+        "heaviest case)",
+    )
     ap.add_argument("--cprofile", action="store_true")
     args = ap.parse_args()
     print(
@@ -210,7 +217,7 @@ def main() -> None:
         f"{platform.python_version()}, pybullet {p.getAPIVersion()}"
     )
     if args.cprofile:
-        env = make(args.localisation)
+        env = make(args.localisation, args.scenario)
         env.reset(seed=0)
         drive(env, 50)
         pr = cProfile.Profile()
@@ -220,7 +227,7 @@ def main() -> None:
         env.close()
         pstats.Stats(pr).sort_stats("tottime").print_stats(30)
         return
-    table(args.localisation, args.steps, args.repeat)
+    table(args.localisation, args.steps, args.repeat, args.scenario)
 
 
 if __name__ == "__main__":

@@ -97,32 +97,21 @@ class RouteProjector:
 
     def _grid_block(self) -> _native.RouteGrid:
         """The search as the kernel ``route_nearest`` reads it: the segments, and the vertices
-        in a dense grid of cells (coarser than ``cell`` where the route's box would need more
-        than 2²⁰ of them: the candidates are a superset, the answer the same)."""
-        cell = self.cell
-        while True:
-            ij = np.floor(self.xy / cell).astype(np.int64)
-            lo = ij.min(axis=0)
-            ncx, ncy = (ij.max(axis=0) - lo + 1).tolist()
-            if ncx * ncy <= 1 << 20:
-                break
-            cell *= 2.0
-        ids = (ij[:, 1] - lo[1]) * ncx + (ij[:, 0] - lo[0])
-        order = np.argsort(ids, kind="stable")  # by cell, each cell's vertices in order
-        start = np.searchsorted(ids[order], np.arange(ncx * ncy + 1)).astype(np.int32)
+        in a dense grid of cells (``native.cell_grid``)."""
+        g = _native.cell_grid(self.xy, self.cell)
         return _native.RouteGrid(
             n=len(self.xy),
             segs=np.array(self._segs, np.float64).reshape(-1, 5),
             seg_len=np.ascontiguousarray(self.seg_len, np.float64),
             arc=np.ascontiguousarray(self.arc, np.float64),
             half=self.half,
-            cell=cell,
-            cx0=int(lo[0]),
-            cy0=int(lo[1]),
-            ncx=ncx,
-            ncy=ncy,
-            cell_start=start,
-            cell_items=order.astype(np.int32),
+            cell=g.cell,
+            cx0=g.cx0,
+            cy0=g.cy0,
+            ncx=g.ncx,
+            ncy=g.ncy,
+            cell_start=g.start,
+            cell_items=g.items,
             xy=np.ascontiguousarray(self.xy, np.float64),
         )
 

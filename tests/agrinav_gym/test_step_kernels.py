@@ -1,6 +1,7 @@
 """The compiled per-step kernels against their Python twins: the tyre model (``tyre_forces``)
 and the route's (``route_track``, ``route_nearest``, ``route_points``) bit for bit, the EKF
-(``ekf_update``) to rounding, and their refusals (statuses)."""
+(``ekf_update``) to rounding, the GNSS sky's foliage loss (``sky_attenuation``) bit for bit or
+to a unit in the last place, and their refusals (statuses)."""
 
 from __future__ import annotations
 
@@ -10,11 +11,12 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from agrinav_gym.config import LocalisationConfig, RobotConfig, SoilConfig
+from agrinav_gym.config import GnssFixConfig, LocalisationConfig, RobotConfig, SoilConfig
 from agrinav_gym.estimation import ekf as ekf_module
 from agrinav_gym.metrics import RouteProjector
 from agrinav_gym.render import native
 from agrinav_gym.routes import RoutePath, Tracker, scenario_route
+from agrinav_gym.sensors.fixmode import GRID_CELL_M, Canopy, SkyModel
 from agrinav_gym.sim.tyres import TyreModel
 from agrinav_gym.sim.world import World
 from scenario_gen import Terrain, generate, preset
@@ -280,3 +282,80 @@ def test_route_observation_kernel_gives_the_python_twins_floats(
         snap = SimpleNamespace(estimate=(x, y, float(rng.uniform(-4.0, 4.0))), route=field_route)
         a, b = (models[k].encode(snap) for k in ("kernel", "twin"))  # type: ignore[arg-type]
         assert a.dtype == b.dtype == np.float32 and np.array_equal(a, b)
+
+
+def _sky_field(stage: int, rows: float) -> Canopy:
+    spec = preset(
+        "default",
+        layout={"row_spacing": rows},
+        crop={"stage": stage},
+        field={"width": 12.0, "length": 20.0},
+    )
+    return Canopy(generate(spec, 0))
+
+
+def _antennas(canopy: Canopy, n: int, seed: int) -> np.ndarray:
+    """Antennas over the field and past its edges, from the ground to above the canopy."""
+    rng = np.random.default_rng(seed)
+    lo, hi = canopy.xy.min(axis=0) - 6.0, canopy.xy.max(axis=0) + 6.0
+    xy = rng.uniform(lo, hi, (n, 2))
+    xy[::5] = canopy.xy[rng.integers(0, len(canopy), len(xy[::5]))]  # on a stalk
+    z = rng.uniform(float(canopy.bottom.min()) - 0.3, canopy.max_top + 0.3, n)
+    return np.column_stack([xy, z])
+
+
+@needs_kernels
+@pytest.mark.parametrize("stage,rows", [(5, 1.0), (5, 0.76), (3, 1.0)])
+@pytest.mark.parametrize("profile", ["uniform", "stalk"])
+def test_sky_kernel_gives_the_numpy_twins_loss(stage: int, rows: float, profile: str) -> None:
+    """The same plants in reach as cKDTree finds, summed in the same order: with uniform
+    foliage the same bits; with the stalk profile libm's pow against numpy's (a unit in the
+    last place), so the same sky fractions."""
+    canopy = _sky_field(stage, rows)
+    cfg = GnssFixConfig(foliage_profile=profile)
+    kernel, twin = SkyModel(cfg, canopy, native=True), SkyModel(cfg, canopy, native=False)
+    assert kernel._args is not None and twin._args is None
+    shaded = 0
+    for ant in _antennas(canopy, 150, stage):
+        a, b = kernel.attenuation(ant), twin.attenuation(ant)
+        reach = twin._reach(float(ant[2]))
+        if reach is not None:
+            assert kernel._args.n_found == len(canopy.tree.query_ball_point(ant[:2], reach))
+        if profile == "uniform":
+            assert np.array_equal(a, b)
+        else:
+            np.testing.assert_allclose(a, b, rtol=1e-13, atol=1e-12)
+        assert kernel.usable(ant) == twin.usable(ant)
+        shaded += bool(b.any())
+    assert shaded > 50  # most antennas see some canopy: the comparison is not of zeros
+
+
+@needs_kernels
+def test_sky_kernel_on_a_grid_coarsened_past_its_cell_limit() -> None:
+    """Plants kilometres apart make the grid's cells double (native.MAX_GRID_CELLS): the
+    search still finds what cKDTree finds."""
+    from scipy.spatial import cKDTree
+
+    canopy = _sky_field(5, 1.0)
+    far = canopy.xy[:40] + np.array([30_000.0, -20_000.0])
+    canopy.xy = np.ascontiguousarray(np.concatenate([canopy.xy, far]))
+    for name in ("radius", "bottom", "top", "share"):
+        v = getattr(canopy, name)
+        setattr(canopy, name, np.ascontiguousarray(np.concatenate([v, v[:40]])))
+    canopy.tree = cKDTree(canopy.xy)
+    assert canopy.grid.cell > GRID_CELL_M
+    cfg = GnssFixConfig()
+    kernel, twin = SkyModel(cfg, canopy, native=True), SkyModel(cfg, canopy, native=False)
+    for ant in [*_antennas(canopy, 30, 7)[:15], *(np.array([*p, 0.7]) for p in far[:15])]:
+        assert np.array_equal(kernel.attenuation(ant), twin.attenuation(ant))
+
+
+@needs_kernels
+def test_the_sky_kernel_refuses_an_antenna_it_cannot_place(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    sky = SkyModel(GnssFixConfig(), _sky_field(5, 1.0), native=True)
+    with pytest.raises(native.KernelError, match="sky_attenuation failed with status 4"):
+        sky.attenuation(np.array([math.nan, 0.0, 0.5]))
+    monkeypatch.setenv("AGRINAV_NATIVE", "0")
+    assert SkyModel(GnssFixConfig(), _sky_field(5, 1.0))._args is None

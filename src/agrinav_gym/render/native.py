@@ -1,7 +1,7 @@
 """The compiled kernels (``src/agrinav_gym/render/csrc``) through ctypes: the sensors', the tyre
 model's (``sim/tyres.py``), the filters' (``estimation/ekf.py``, ``robot_localization.py``) and
 the route's (``routes.py``, ``metrics.py``: the trackers, the route observation, the metrics'
-nearest segment).
+nearest segment) and the GNSS sky model's foliage loss (``sensors/fixmode.py``).
 
 The kernels are plain C functions in the optional extension ``agrinav_gym.render._native`` (built by
 ``pip install``/``make`` where a C compiler exists). ctypes releases the GIL during each call,
@@ -30,10 +30,12 @@ import hashlib
 import importlib.util
 import os
 import warnings
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, ClassVar
 
 import numpy as np
+from numpy.typing import NDArray
 
 _LIB: Any = None
 _FUNCS: dict[str, Any] = {}
@@ -247,6 +249,45 @@ def grid_geometry(heights: np.ndarray, x0: float, y0: float, spacing: float) -> 
         proto_clusters=None, cluster=0, heights=heights, nx=nx, ny=ny, x0=x0, y0=y0,
         spacing=spacing,
     )  # fmt: skip
+
+
+@dataclass(frozen=True)
+class CellGrid:
+    """Points by square cell, as the kernels' grid searches read them: cell (i, j) of an
+    ``ncx`` × ``ncy`` grid whose first cell is (``cx0``, ``cy0``) in units of ``cell`` lists
+    ``items[start[c]:start[c + 1]]``, c = j·ncx + i, each cell's points in index order."""
+
+    cell: float
+    cx0: int
+    cy0: int
+    ncx: int
+    ncy: int
+    start: NDArray[np.int32]
+    items: NDArray[np.int32]
+
+
+#: the most cells a grid gets: past it the cell doubles (fewer, larger cells; the candidates a
+#: search reads are a superset, its answer the same)
+MAX_GRID_CELLS = 1 << 20
+
+
+def cell_grid(xy: np.ndarray, cell: float) -> CellGrid:
+    """The points ``xy`` (n, 2) by cells of side ``cell`` (doubled while the points' box
+    would need more than ``MAX_GRID_CELLS``)."""
+    pts = np.asarray(xy, np.float64).reshape(-1, 2)
+    if len(pts) == 0:
+        return CellGrid(cell, 0, 0, 1, 1, np.zeros(2, np.int32), np.zeros(0, np.int32))
+    while True:
+        ij = np.floor(pts / cell).astype(np.int64)
+        lo = ij.min(axis=0)
+        ncx, ncy = (ij.max(axis=0) - lo + 1).tolist()
+        if ncx * ncy <= MAX_GRID_CELLS:
+            break
+        cell *= 2.0
+    ids = (ij[:, 1] - lo[1]) * ncx + (ij[:, 0] - lo[0])
+    order = np.argsort(ids, kind="stable")  # by cell, each cell's points in order
+    start = np.searchsorted(ids[order], np.arange(ncx * ncy + 1)).astype(np.int32)
+    return CellGrid(cell, int(lo[0]), int(lo[1]), ncx, ncy, start, order.astype(np.int32))
 
 
 class ProxyScene(Struct, c="proxy_scene_t"):
@@ -705,6 +746,46 @@ class RouteNearestArgs(Args, kernel="route_nearest"):
         ("d", f64),
         ("s", f64),
         ("k", i32),
+    ]
+
+
+class Sky(Struct, c="sky_t"):
+    """The GNSS sky model's canopy and cells (sensors/fixmode.py)."""
+
+    _fields_ = [
+        ("n", i32),
+        ("xy", F64),
+        ("radius", F64),
+        ("bottom", F64),
+        ("top", F64),
+        ("share", F64),
+        ("n_az", i32),
+        ("n_el", i32),
+        ("cos_az", F64),
+        ("sin_az", F64),
+        ("tan_el", F64),
+        ("sec_el", F64),
+        ("stalk", i32),
+        ("db_per_m", f64),
+        ("cell", f64),
+        ("cx0", i32),
+        ("cy0", i32),
+        ("ncx", i32),
+        ("ncy", i32),
+        ("cell_start", I32),
+        ("cell_items", I32),
+    ]
+
+
+class SkyAttenuationArgs(Args, kernel="sky_attenuation"):
+    _fields_ = [
+        ("sky", block(Sky)),
+        ("x", f64),
+        ("y", f64),
+        ("z", f64),
+        ("reach", f64),
+        ("out", F64),
+        ("n_found", i32),
     ]
 
 

@@ -28,7 +28,9 @@ the rng passed in: same seed, same modes. Multipath jumps and false fixes are
 
 from __future__ import annotations
 
+import ctypes
 import math
+from functools import cached_property
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -39,6 +41,7 @@ from scenario_gen.crops import scaled_by_height
 
 from ..config import GnssFixConfig
 from ..interface import FIX_LEVELS
+from ..render import native as _native
 
 LEVELS = FIX_LEVELS  # the chain's states, worst to best
 #: the lower stalk bears no green leaves (as the proxy camera's leaf band starts above it)
@@ -46,6 +49,8 @@ LEAF_BASE = 0.2
 #: canopy farther than this from the antenna is ignored: a low ray that crossed this much
 #: foliage is far past every tracking threshold anyway
 MAX_RANGE_M = 8.0
+#: the kernel's plant grid: a reach of 8 m reads 9 × 9 cells (a few plants each in rows)
+GRID_CELL_M = 2.0
 
 
 class Canopy:
@@ -57,7 +62,7 @@ class Canopy:
             p.species, p.stage, p.height, lambda sp, g: 0.5 * sp.canopy_width(g)
         )
         self.xy = np.column_stack([p.x, p.y]).astype(np.float64)
-        self.radius = radius
+        self.radius = np.ascontiguousarray(radius, np.float64)
         self.bottom = np.asarray(p.z + LEAF_BASE * p.height, np.float64)
         self.top = np.asarray(p.z + p.height, np.float64)
         self.tree = cKDTree(self.xy if len(self.xy) else np.zeros((1, 2)))
@@ -73,14 +78,23 @@ class Canopy:
         #: unit vector across the rows (ENU): ``across_row_update_m`` measures moves along it
         self.across = np.asarray(scn.rows.n, np.float64)
 
+    @cached_property
+    def grid(self) -> _native.CellGrid:
+        """The plants by cells of a few metres, as the kernel's search reads them."""
+        return _native.cell_grid(self.xy, GRID_CELL_M)
+
     def __len__(self) -> int:
         return len(self.radius)
 
 
 class SkyModel:
-    """Usable-sky fractions for carrier and code tracking at an antenna position."""
+    """Usable-sky fractions for carrier and code tracking at an antenna position.
 
-    def __init__(self, cfg: GnssFixConfig, canopy: Canopy) -> None:
+    The foliage loss runs in the compiled kernel ``sky_attenuation`` where the extension is
+    built (``native`` None: when available), else in numpy (``attenuation_numpy``, the
+    reference): the same loss to a few units in a double's last place."""
+
+    def __init__(self, cfg: GnssFixConfig, canopy: Canopy, native: bool | None = None) -> None:
         self.cfg = cfg
         self.canopy = canopy
         az = (np.arange(cfg.azimuth_cells) + 0.5) * (2 * math.pi / cfg.azimuth_cells)
@@ -93,16 +107,72 @@ class SkyModel:
         band = np.sin(edges[1:]) - np.sin(edges[:-1])
         self.weight = np.broadcast_to(band / band.sum() / len(az), (len(az), len(el)))
         self.mask_tan = math.tan(mask)
+        self._args: _native.SkyAttenuationArgs | None = None
+        if _native.available() if native is None else native:
+            grid = canopy.grid
+            sky = _native.Sky(
+                n=len(canopy),
+                xy=canopy.xy,
+                radius=canopy.radius,
+                bottom=canopy.bottom,
+                top=canopy.top,
+                share=canopy.share,
+                n_az=len(az),
+                n_el=len(el),
+                cos_az=self.cos_az,
+                sin_az=self.sin_az,
+                tan_el=self.tan_el,
+                sec_el=self.sec_el,
+                stalk=int(cfg.foliage_profile == "stalk"),
+                db_per_m=float(cfg.foliage_db_per_m),
+                cell=grid.cell,
+                cx0=grid.cx0,
+                cy0=grid.cy0,
+                ncx=grid.ncx,
+                ncy=grid.ncy,
+                cell_start=grid.start,
+                cell_items=grid.items,
+            )
+            self._out = np.zeros((len(az), len(el)))
+            self._args = _native.SkyAttenuationArgs(
+                sky=sky, x=0.0, y=0.0, z=0.0, reach=0.0, out=self._out, n_found=0
+            )
+            self._call = _native.kernel("sky_attenuation")
+            self._ref = ctypes.byref(self._args)
+
+    def _reach(self, z: float) -> float | None:
+        """How far from the antenna at height ``z`` a plant can shade a ray above the mask
+        (None: no canopy rises above the antenna)."""
+        c = self.canopy
+        above = c.max_top - z
+        if len(c) == 0 or above <= 0.0:
+            return None
+        return min(MAX_RANGE_M, above / self.mask_tan + c.max_radius)
 
     def attenuation(self, antenna: FloatArray) -> FloatArray:
         """Foliage loss in dB of every (azimuth, elevation) cell's ray from ``antenna``."""
+        if self._args is None:
+            return self.attenuation_numpy(antenna)
+        x, y, z = antenna.tolist()
+        reach = self._reach(z)
+        if reach is None:
+            return np.zeros(self.weight.shape)
+        a = self._args
+        a.x, a.y, a.z, a.reach = x, y, z, reach  # floats: the checked ``set`` is not needed
+        status = self._call(self._ref)
+        if status:
+            raise _native.failed("sky_attenuation", status)
+        return self._out.copy()
+
+    def attenuation_numpy(self, antenna: FloatArray) -> FloatArray:
+        """``attenuation`` in numpy: the kernel's reference and twin."""
         c = self.canopy
         out = np.zeros(self.weight.shape)
-        above = c.max_top - antenna[2]
-        if len(c) == 0 or above <= 0.0:
+        reach = self._reach(float(antenna[2]))
+        if reach is None:
             return out
-        reach = min(MAX_RANGE_M, above / self.mask_tan + c.max_radius)
-        idx = np.asarray(c.tree.query_ball_point(antenna[:2], reach), dtype=np.intp)
+        # summed in index order (the tree returns one point's neighbours in its own order)
+        idx = np.sort(np.asarray(c.tree.query_ball_point(antenna[:2], reach), dtype=np.intp))
         if len(idx) == 0:
             return out
         idx = idx[c.top[idx] > antenna[2]]

@@ -213,6 +213,17 @@ static const layout_t LAYOUT[] = {
     SIZE(route_nearest_args_t), AT(route_nearest_args_t, grid), AT(route_nearest_args_t, x),
     AT(route_nearest_args_t, y), AT(route_nearest_args_t, bound), AT(route_nearest_args_t, d),
     AT(route_nearest_args_t, s), AT(route_nearest_args_t, k),
+
+    SIZE(sky_t), AT(sky_t, n), AT(sky_t, xy), AT(sky_t, radius), AT(sky_t, bottom),
+    AT(sky_t, top), AT(sky_t, share), AT(sky_t, n_az), AT(sky_t, n_el), AT(sky_t, cos_az),
+    AT(sky_t, sin_az), AT(sky_t, tan_el), AT(sky_t, sec_el), AT(sky_t, stalk),
+    AT(sky_t, db_per_m), AT(sky_t, cell), AT(sky_t, cx0), AT(sky_t, cy0), AT(sky_t, ncx),
+    AT(sky_t, ncy), AT(sky_t, cell_start), AT(sky_t, cell_items),
+
+    SIZE(sky_attenuation_args_t), AT(sky_attenuation_args_t, sky),
+    AT(sky_attenuation_args_t, x), AT(sky_attenuation_args_t, y),
+    AT(sky_attenuation_args_t, z), AT(sky_attenuation_args_t, reach),
+    AT(sky_attenuation_args_t, out), AT(sky_attenuation_args_t, n_found),
 };
 
 /* the offset of ``field`` in struct ``type`` (field "": its size); -1 where there is none */

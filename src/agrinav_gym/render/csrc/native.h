@@ -488,6 +488,41 @@ typedef struct {
 } route_nearest_args_t;
 EXPORT int route_nearest(route_nearest_args_t *a);
 
+/* The GNSS sky model's canopy (sensors/fixmode.py, Canopy and SkyModel): n plants, each a
+ * cylinder at xy[2i], xy[2i+1] of radius[i] from bottom[i] to top[i] (ENU heights) holding
+ * share[i] of the row's foliage; the sky's n_az azimuth cells (their cosines and sines) and
+ * n_el elevation cells (tangents and secants); the foliage profile (0 uniform, 1 stalk) and
+ * its loss in dB per metre. */
+typedef struct {
+    int32_t n;
+    const double *xy; /* (n, 2) */
+    const double *radius, *bottom, *top, *share; /* (n,) */
+    int32_t n_az, n_el;
+    const double *cos_az, *sin_az; /* (n_az,) */
+    const double *tan_el, *sec_el; /* (n_el,) */
+    int32_t stalk;
+    double db_per_m;
+    /* the plants by square cell of side ``cell`` of an ncx x ncy grid whose first cell is
+     * (cx0, cy0) in cell units: cell (i, j) lists cell_items[cell_start[c] .. cell_start[c + 1])
+     * in index order, c = j ncx + i */
+    double cell;
+    int32_t cx0, cy0, ncx, ncy;
+    const int32_t *cell_start; /* (ncx ncy + 1,) */
+    const int32_t *cell_items; /* (n,) */
+} sky_t;
+
+/* sky.c: SkyModel.attenuation, the foliage loss (dB) of every cell's ray from the antenna at
+ * (x, y, z) through the plants within ``reach`` of it horizontally (summed in index order):
+ * out[j n_el + k] for azimuth j and elevation k; n_found (out) is how many plants were in
+ * reach. */
+typedef struct {
+    const sky_t *sky;
+    double x, y, z, reach;
+    double *out; /* (n_az, n_el) */
+    int32_t n_found;
+} sky_attenuation_args_t;
+EXPORT int sky_attenuation(sky_attenuation_args_t *a);
+
 /* ------------------------------------------------------------------ inside the kernels */
 /* what a visibility-buffer pixel holds besides an instance slot (>= 0) */
 #define VB_NONE (-1)
