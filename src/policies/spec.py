@@ -12,6 +12,12 @@ from typing import NamedTuple
 SEPARATOR = ":"
 #: the shipped checkpoint for the env's id (``ppo:shipped``)
 SHIPPED_ARG = "shipped"
+#: every form a policy spec takes, as the command line's help lists them
+FORMS = (
+    "dwb (= dwb:furrow), dwb:nav2, dwb:tuned, dwb:PATH.yaml; rpp and stanley, each also "
+    ":tuned or :PATH.yaml (a parameter file, as agrinav tune writes); depth; blind (a constant "
+    "command, no sensors); ppo:PATH (a checkpoint folder) or ppo:shipped"
+)
 
 
 class PolicySpec(NamedTuple):

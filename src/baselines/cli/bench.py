@@ -6,6 +6,8 @@ import argparse
 from pathlib import Path
 from typing import Any
 
+from policies.spec import FORMS
+
 from .args import episodes_type, int_at_least, seed_type, separated
 
 
@@ -13,16 +15,24 @@ def add(sub: Any) -> None:
     ru = sub.add_parser(
         "run", help="run a policy for some episodes: metrics.json + trajectory plots"
     )
-    ru.add_argument("--env", default="AgriNav/FieldRoute-v3")
     ru.add_argument(
-        "--policy",
-        required=True,
-        help="dwb (= dwb:furrow), dwb:nav2, dwb:PATH.yaml, rpp, depth or ppo:PATH",
+        "--env", default="AgriNav/FieldRoute-v3", help="a registered env id (default: %(default)s)"
     )
-    ru.add_argument("--seed", type=seed_type, default=1_000_000_000)
-    ru.add_argument("--episodes", type=episodes_type, default=1)
+    ru.add_argument("--policy", required=True, help=f"one of: {FORMS}")
+    ru.add_argument(
+        "--seed",
+        type=seed_type,
+        default=1_000_000_000,
+        help="the first episode's reset seed; the next episodes take the following ones "
+        "(default: %(default)s, the benchmarks' first evaluation seed)",
+    )
+    ru.add_argument(
+        "--episodes", type=episodes_type, default=1, help="how many (default: %(default)s)"
+    )
     ru.add_argument("--scenario", help="a scenario directory or preset (default: the env's)")
-    ru.add_argument("--out", required=True)
+    ru.add_argument(
+        "--out", required=True, help="the folder to write: metrics.json, plots, the video"
+    )
     ru.add_argument("--video", action="store_true", help="write a WebM video of the first episode")
     ru.add_argument(
         "--max-steps",
@@ -51,7 +61,7 @@ def add(sub: Any) -> None:
         "--policies",
         required=True,
         type=separated(",", "policies"),
-        help="comma list, e.g. dwb:nav2,dwb:furrow,rpp,depth,ppo:PATH",
+        help=f"a comma list (e.g. dwb:nav2,dwb,rpp:tuned,ppo:shipped) of: {FORMS}",
     )
     be.add_argument("--seeds", type=episodes_type, default=3)
     be.add_argument("--out", required=True)

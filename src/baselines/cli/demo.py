@@ -14,8 +14,17 @@ def add(sub: Any) -> None:
         help="DWB, shipped PPO and the blind reference on the paper suite's fields (saved "
         "and printed first)",
     )
-    de.add_argument("--out", default="runs/demo")
-    de.add_argument("--seeds", type=episodes_type, default=2)
+    de.add_argument(
+        "--out",
+        default="runs/demo",
+        help="the folder to write: the fields, benchmark.md, figures (default: %(default)s)",
+    )
+    de.add_argument(
+        "--seeds",
+        type=episodes_type,
+        default=2,
+        help="held-out seeds per field and policy (default: %(default)s)",
+    )
     de.set_defaults(func=run)
 
 

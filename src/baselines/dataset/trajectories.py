@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from tqdm import tqdm
 
 from scenario_gen.atomic import check_output_dir, output_dir
 from scenario_gen.errors import InputError
@@ -105,7 +106,7 @@ def record(
         try:
             pi = make_policy(policy, collector)
             returns = []
-            for k in range(episodes):
+            for k in tqdm(range(episodes), unit="episode", desc=f"recording {policy}"):
                 obs, _ = collector.reset(seed=seed + k)
                 pi.reset()
                 total = 0.0
@@ -140,7 +141,7 @@ def random_return(env_id: str, seed: int, episodes: int) -> float:
     try:
         env.action_space.seed(seed)
         returns = []
-        for k in range(episodes):
+        for k in tqdm(range(episodes), unit="episode", desc="random actions (reference score)"):
             env.reset(seed=seed + k)
             total, done = 0.0, False
             while not done:
