@@ -196,19 +196,11 @@ def check_lod(spec: ScenarioSpec, lat_deg: float, field: BaseGeometry | None = N
     )
 
 
-def check_budget(spec: ScenarioSpec, field: BaseGeometry, spacing: float) -> None:
-    """Refuse a field whose plants, weeds, terrain or route would exceed the memory bounds."""
+def check_plants(spec: ScenarioSpec, field: BaseGeometry) -> float:
+    """About how many plants the field holds, or an error where its plants and weeds would
+    exceed ``MAX_PLANTS``. Checked before the terrain's LoD: what a smaller field mends first
+    (a field too large for both is told about its plants, not a LoD that cannot help)."""
     lay = spec.layout
-    xmin, ymin, xmax, ymax = field.bounds
-    samples = terrain_samples(spec, field, spacing)
-    if samples > MAX_TERRAIN_SAMPLES:  # check_lod with the field has said so with the rest
-        raise InputError(
-            "terrain.lod",
-            spec.terrain.lod,
-            f"gives {samples:,} terrain samples ({spacing:.3g} m over the field and "
-            f"terrain.margin); allowed: at most {MAX_TERRAIN_SAMPLES:,} (lower the LoD, the "
-            "margin or the field)",
-        )
     area = float(field.area)
     plants = area / (lay.row_spacing * lay.plant_spacing)
     if plants > MAX_PLANTS:
@@ -226,6 +218,24 @@ def check_budget(spec: ScenarioSpec, field: BaseGeometry, spacing: float) -> Non
             f"would add about {weeds:,.0f} weeds to {plants:,.0f} plants; allowed: at most "
             f"{MAX_PLANTS:,} plants and weeds in all",
         )
+    return plants
+
+
+def check_budget(spec: ScenarioSpec, field: BaseGeometry, spacing: float) -> None:
+    """Refuse a field whose plants, weeds, terrain or route would exceed the memory bounds."""
+    lay = spec.layout
+    xmin, ymin, xmax, ymax = field.bounds
+    samples = terrain_samples(spec, field, spacing)
+    if samples > MAX_TERRAIN_SAMPLES:  # check_lod with the field has said so with the rest
+        raise InputError(
+            "terrain.lod",
+            spec.terrain.lod,
+            f"gives {samples:,} terrain samples ({spacing:.3g} m over the field and "
+            f"terrain.margin); allowed: at most {MAX_TERRAIN_SAMPLES:,} (lower the LoD, the "
+            "margin or the field)",
+        )
+    area = float(field.area)
+    plants = check_plants(spec, field)
     o = spec.obstacles
     for key, count in (
         ("stone_density", o.stone_density * area),

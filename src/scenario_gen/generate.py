@@ -17,7 +17,7 @@ from shapely.geometry.base import BaseGeometry
 
 from . import crops
 from .arrays import FloatArray
-from .bounds import MAX_PLANE_RADIUS_M, check_budget, check_lod
+from .bounds import MAX_PLANE_RADIUS_M, check_budget, check_lod, check_plants
 from .crops import scaled_by_height
 from .drift import apply_drift, drift_phases
 from .errors import InputError
@@ -243,6 +243,7 @@ def plan_field(
         default_angle = spec.field.angle_deg
     if spec.terrain.source == "plane":
         check_on_plane(poly, spec.terrain, site.geo)
+    check_plants(spec, poly)
     spacing = check_lod(spec, site.geo.lat, poly)
     check_budget(spec, poly, spacing)
     angle = math.radians(

@@ -297,12 +297,21 @@ def zigzag(
     lane_of, spans = lane_segments(rows, field)
     drivable = np.unique(lane_of)
     n_lanes = len(drivable)
+    if n_lanes == 0:
+        # no lane at all: the field, not the lane count, is what to change
+        raise InputError(
+            "field",
+            f"{len(rows.offsets)} crop row(s) at layout.row_spacing {rows.spacing:g} m",
+            "a lane needs a crop row on each side along its length; allowed: a field at least "
+            "two rows wide across them (a wider field, narrower row spacing, or "
+            "layout.row_angle_deg along its long side)",
+        )
     if n_lanes < spec.lanes:
         raise InputError(
             "route.lanes",
             spec.lanes,
             f"the field has {n_lanes} lane(s) with crop on both sides between its "
-            f"{len(rows.offsets)} rows",
+            f"{len(rows.offsets)} rows; allowed: at most {n_lanes} (or a wider field)",
         )
     first = (n_lanes - spec.lanes) // 2 if spec.first_lane is None else spec.first_lane
     if first + spec.lanes > n_lanes:

@@ -303,7 +303,11 @@ def _sparse_20k(d: Path) -> Path:
             ],
             "route.lanes/spacing",
         ),
-        (["--set", "field.width=1000", "--set", "field.length=1000"], "terrain samples"),
+        (
+            ["--set", "field.width=1000", "--set", "field.length=1000",
+             "--set", "layout.plant_spacing=2"],
+            "terrain samples",
+        ),
         ("SPARSE", "400,000,000 pixels"),
     ],
     ids=["40M plants", "weeds", "1e8 waypoints", "80M terrain samples", "20k DEM"],

@@ -50,8 +50,8 @@ FLAT = {"enabled": False, "roughness": 0.0}
             "route.lanes/spacing",
             f"{MAX_ROUTE_WAYPOINTS:,}",
         ),
-        (  # a square kilometre at 0.11 m: 80 million samples
-            {"field": {"width": 1000.0, "length": 1000.0}},
+        (  # a square kilometre at 0.11 m: 80 million samples (sparse plants: within bounds)
+            {"field": {"width": 1000.0, "length": 1000.0}, "layout": {"plant_spacing": 2.0}},
             "terrain.lod",
             f"{MAX_TERRAIN_SAMPLES:,}",
         ),

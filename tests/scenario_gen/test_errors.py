@@ -51,6 +51,8 @@ def test_unknown_preset_lists_the_allowed_ones() -> None:
         ({"route": {"first_lane": 400}}, "route.first_lane"),
         ({"layout": {"headland": 20.0}}, "layout.headland/edge_margin"),
         ({"field": {"width": 0.5, "length": 0.5}}, "field"),
+        ({"field": {"width": 1.2, "length": 30.0}}, "field"),  # one row: no lane at all
+        ({"field": {"width": 2000.0, "length": 2500.0}}, "layout.plant_spacing/row_spacing"),
         ({"terrain": {"site": "latlon"}}, "terrain.lat/lon"),
         ({"terrain": {"source": "dem"}}, "terrain.path"),
         ({"terrain": {"source": "dem", "path": "/nonexistent.tif"}}, "terrain.path"),
