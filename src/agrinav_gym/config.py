@@ -615,6 +615,23 @@ class EnvConfig:
                 self.gnss.latency_s,
                 f"allowed: at most localisation.history_s ({self.localisation.history_s} s)",
             )
+        fix = self.gnss.fix
+        # the chain tests fixed before float and carrier before code: an order the other way
+        # round would leave a threshold without effect
+        if fix.float_sky > fix.fixed_sky:
+            raise InputError(
+                "config.gnss.fix.float_sky",
+                fix.float_sky,
+                f"allowed: at most fixed_sky ({fix.fixed_sky:g}): RTK float needs no more sky "
+                "than fixed",
+            )
+        if fix.carrier_db > fix.code_db:
+            raise InputError(
+                "config.gnss.fix.carrier_db",
+                fix.carrier_db,
+                f"allowed: at most code_db ({fix.code_db:g}): carrier phase is lost before the "
+                "code",
+            )
         if self.camera.min_range >= self.camera.max_range:
             raise InputError(
                 "config.camera.min_range", self.camera.min_range, "allowed: below max_range"

@@ -647,9 +647,15 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
 
 
 def _check_observations(obs: Any, default: tuple[str, ...]) -> tuple[str, ...]:
+    allowed = f"allowed: a name or a non-empty list of names from {', '.join(OBSERVATION_MODELS)}"
     if isinstance(obs, str):  # one name, not its letters
         obs = (obs,)
+    if obs is not None and not isinstance(obs, (list, tuple, set, frozenset)):
+        # a dict would give its keys whatever its values say: refused with the rest
+        raise InputError("observations", obs, allowed)
     names = tuple(obs) if obs is not None else default
+    if not all(isinstance(o, str) for o in names):
+        raise InputError("observations", list(names), allowed)
     bad = [o for o in names if o not in OBSERVATION_MODELS]
     if bad or not names or len(set(names)) != len(names):
         raise InputError(

@@ -154,8 +154,12 @@ def build_reward_terms(data: Any) -> dict[str, RewardTerm]:
             data[unknown[0]],
             f"unknown reward term; allowed: {', '.join(REWARD_TERMS)}",
         )
+    # only an absent or null term takes the defaults: 0, False or [] is a mistake to name (a
+    # term is switched off by {weight: 0}), not a silent weight of 1
     return {
-        name: from_mapping(cls, data.get(name) or {}, f"config.reward.{name}.")
+        name: from_mapping(
+            cls, {} if data.get(name) is None else data[name], f"config.reward.{name}."
+        )
         for name, cls in REWARD_TERMS.items()
     }
 

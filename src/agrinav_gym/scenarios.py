@@ -65,6 +65,12 @@ class Draw:
     choices: tuple[Any, ...] | None = None
     integer: bool = False
 
+    def given(self) -> str:
+        """The distribution as the user wrote it: [lo, hi] or {choices: [...]}."""
+        if self.choices is not None:
+            return f"{{choices: {list(self.choices)}}}"
+        return f"[{self.lo}, {self.hi}]"
+
     def sample(self, rng: np.random.Generator) -> Any:
         if self.choices is not None:
             return self.choices[int(rng.integers(len(self.choices)))]
@@ -258,7 +264,15 @@ class Bank:
     ``bank.yaml`` lists (a folder without one: every subfolder holding scenario.json)."""
 
     def __init__(self, directory: str | Path, cache: int = 8) -> None:
+        if not isinstance(directory, (str, Path)) or not str(directory):
+            raise InputError("bank", directory, "allowed: the path of a bank folder")
         root = Path(directory)
+        if not root.is_dir():
+            raise InputError(
+                "bank",
+                str(directory),
+                "is not a folder; allowed: a folder of scenarios (agrinav scenario --count N)",
+            )
         listing = root / "bank.yaml"
         if listing.is_file():
             data = load_yaml(listing, "bank.yaml")  # its size is checked before it is read
@@ -273,11 +287,7 @@ class Bank:
             if missing:
                 raise InputError("bank", missing[0], "is listed in bank.yaml but missing")
         else:
-            self.dirs = (
-                sorted(d for d in root.iterdir() if (d / "scenario.json").is_file())
-                if root.is_dir()
-                else []
-            )
+            self.dirs = sorted(d for d in root.iterdir() if (d / "scenario.json").is_file())
         if not self.dirs:
             raise InputError(
                 "bank", str(directory), "holds no scenario directories (with scenario.json)"
@@ -397,11 +407,22 @@ class ScenarioSource:
                     # a combination the generator refuses for this terrain (contour rows on a
                     # window too flat for them): draw again from the same stream
                     if attempt == MAX_REDRAWS:
+                        # name what the user gave: the refused field's range where it is one
+                        # of theirs, else every randomized scenario key's
+                        mine = [d for d in self.randomization.draws if d.key == exc.field]
+                        if not mine:
+                            keys = set(self.randomization.scenario_keys)
+                            mine = [d for d in self.randomization.draws if d.key in keys]
+                        if len(mine) == 1:
+                            field, given = f"randomize.{mine[0].key}", mine[0].given()
+                        else:
+                            field = "randomize"
+                            given = "; ".join(f"{d.key} {d.given()}" for d in mine)
                         raise InputError(
-                            "randomize",
-                            exc.value,
+                            field,
+                            given,
                             f"{MAX_REDRAWS + 1} draws in a row were refused, the last: "
-                            f"{exc.field}: {exc.allowed}",
+                            f"{exc.field}: got {exc.value!r}; {exc.allowed} (narrow the range)",
                         ) from None
                     self.redraws += 1
                     if self.redraws == 1:
@@ -461,11 +482,9 @@ def _is_fixed(scenario: Any) -> bool:
         return True
     if scenario is None:
         return False
-    if not isinstance(scenario, (str, Path)):
+    if not isinstance(scenario, (str, Path)) or not str(scenario):
         raise InputError(
-            "scenario",
-            type(scenario).__name__,
-            "allowed: a Scenario, a scenario directory or a preset name",
+            "scenario", scenario, "allowed: a Scenario, a scenario directory or a preset name"
         )
     if (Path(scenario) / "scenario.json").is_file():
         return True

@@ -297,7 +297,7 @@ def zigzag(
     lane_of, spans = lane_segments(rows, field)
     drivable = np.unique(lane_of)
     n_lanes = len(drivable)
-    if n_lanes == 0:
+    if n_lanes == 0 and len(rows.offsets) < 2:
         # no lane at all: the field, not the lane count, is what to change
         raise InputError(
             "field",
@@ -305,6 +305,14 @@ def zigzag(
             "a lane needs a crop row on each side along its length; allowed: a field at least "
             "two rows wide across them (a wider field, narrower row spacing, or "
             "layout.row_angle_deg along its long side)",
+        )
+    if n_lanes == 0:
+        raise InputError(
+            "layout",
+            f"{len(rows.offsets)} crop rows with no stretch planted on both sides of a lane",
+            "a lane needs crop on each side along its length; allowed: rows planted along "
+            "each other (layout.plant_spacing well below the rows' length, gaps and "
+            "missing plants that leave crop on both sides)",
         )
     if n_lanes < spec.lanes:
         raise InputError(

@@ -64,6 +64,7 @@ def merge(base: dict[str, Any], overrides: dict[str, Any]) -> dict[str, Any]:
     """Deep-merge ``overrides`` (nested dicts and/or dotted keys) into a copy of ``base``."""
     if not isinstance(overrides, dict):
         raise InputError("overrides", overrides, "allowed: a mapping of keys to values")
+    _given_once(overrides)
     out = _plain(base)
     for key, value in overrides.items():
         if not isinstance(key, str) or not key:
@@ -83,6 +84,26 @@ def merge(base: dict[str, Any], overrides: dict[str, Any]) -> dict[str, Any]:
         else:
             node[last] = _plain(value)
     return out
+
+
+def _given_once(overrides: dict[str, Any]) -> None:
+    """Refuse a field that one mapping sets twice, dotted and nested (``{"robot.v_max": 1.2,
+    "robot": {"v_max": 0.5}}``): which wins would depend on the keys' order."""
+    seen: set[str] = set()
+
+    def walk(prefix: str, node: dict[Any, Any]) -> None:
+        for key, value in node.items():
+            if not isinstance(key, str) or not key:
+                continue  # merge names it
+            path = f"{prefix}{key}"
+            if isinstance(value, dict) and value:
+                walk(f"{path}.", value)
+            elif path in seen:
+                raise InputError(path, value, "is given twice (dotted and nested); give it once")
+            else:
+                seen.add(path)
+
+    walk("", overrides)
 
 
 def from_mapping(cls: type, data: Any, prefix: str = "") -> Any:

@@ -51,6 +51,20 @@ ID = "AgriNav/FurrowFollow-v3"
         ({"bank": "/no/such/bank"}, "bank"),
         ({"scenario": "/no/such/folder"}, "scenario"),
         ({"nosuch": 1}, "env kwargs"),  # a typo in a kwargs file: not a TypeError traceback
+        # a reward term given as 0 / False / [] is a slip, not the default weight of 1
+        ({"config": {"reward": {"cte": 0}}}, "config.reward.cte"),
+        ({"config": {"reward": {"cte": False}}}, "config.reward.cte"),
+        ({"config": {"reward": {"cte": []}}}, "config.reward.cte"),
+        # one field set twice, dotted and nested: which wins would be the keys' order
+        ({"config": {"robot.v_max": 1.2, "robot": {"v_max": 0.5}}}, "robot.v_max"),
+        # thresholds the fix-mode chain would leave without effect
+        ({"config": {"gnss": {"fix": {"float_sky": 0.9, "fixed_sky": 0.1}}}}, "config.gnss"),
+        ({"config": {"gnss": {"fix": {"carrier_db": 50.0, "code_db": 1.0}}}}, "config.gnss"),
+        ({"bank": 5}, "bank"),
+        ({"observations": 5}, "observations"),
+        ({"observations": [["gps"]]}, "observations"),
+        ({"observations": {"gps": False}}, "observations"),  # its keys would have been taken
+        ({"scenario": ""}, "scenario"),
     ],
 )
 def test_bad_constructor_arguments(kwargs: dict[str, Any], field: str) -> None:

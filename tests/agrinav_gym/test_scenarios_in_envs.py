@@ -292,5 +292,7 @@ def test_ranges_the_generator_always_refuses_fail_naming_the_last_reason() -> No
     with pytest.warns(RefusedDrawWarning), pytest.raises(ScenarioError) as e:
         src.sample(np.random.default_rng(0), src.first)
     msg = str(e.value)
-    assert msg.startswith("randomize:") and f"{MAX_REDRAWS + 1} draws in a row" in msg
+    # it names the range the user gave (the only randomized key), not a drawn value
+    assert e.value.field == "randomize.terrain.max_slope_deg" and e.value.value == "[0.1, 0.2]"
+    assert f"{MAX_REDRAWS + 1} draws in a row" in msg
     assert "were refused, the last: terrain." in msg or "the last: layout." in msg

@@ -52,6 +52,7 @@ def test_unknown_preset_lists_the_allowed_ones() -> None:
         ({"layout": {"headland": 20.0}}, "layout.headland/edge_margin"),
         ({"field": {"width": 0.5, "length": 0.5}}, "field"),
         ({"field": {"width": 1.2, "length": 30.0}}, "field"),  # one row: no lane at all
+        ({"layout": {"plant_spacing": 50.0}}, "layout"),  # rows, but no crop along a lane
         ({"field": {"width": 2000.0, "length": 2500.0}}, "layout.plant_spacing/row_spacing"),
         ({"terrain": {"site": "latlon"}}, "terrain.lat/lon"),
         ({"terrain": {"source": "dem"}}, "terrain.path"),
