@@ -688,6 +688,7 @@ def env_creator(cls: type[AgriNavEnv]) -> Any:
         return cls(**kwargs)
 
     make.metadata = {**cls.metadata, "render_modes": ["rgb_array", "human"]}  # type: ignore[attr-defined]
+    make.allowed = tuple(allowed)  # type: ignore[attr-defined]  (registration checks against it)
     make.__name__ = make.__qualname__ = f"make_{cls.__name__}"
     return make
 

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from gymnasium.envs.registration import register, registry
+from gymnasium.envs.registration import load_env_creator, register, registry
 
 from scenario_gen import Scenario
 from scenario_gen.errors import InputError
@@ -95,13 +95,23 @@ def _user_id(name: Any, task: Any, kwargs: dict[str, Any]) -> tuple[str, EnvDef]
         )
     if task not in _BY_NAME:
         raise InputError("task", task, f"allowed: one of {', '.join(_BY_NAME)}")
+    d = _BY_NAME[task]
     try:
-        json.dumps(kwargs)
-    except TypeError as exc:
+        json.dumps(kwargs, allow_nan=False)  # NaN would write a spec that is not JSON
+    except (TypeError, ValueError) as exc:
         raise InputError(
             "kwargs", sorted(kwargs), f"must be JSON-serialisable for EnvSpec.to_json ({exc})"
         ) from None
-    return f"{NAMESPACE}/{name}-v{_BY_NAME[task].version}", _BY_NAME[task]
+    # what gym.make would refuse, refused now: unknown keywords and a bad config
+    allowed = getattr(load_env_creator(d.entry_point), "allowed", None)
+    unknown = sorted(k for k in kwargs if allowed is not None and k not in allowed)
+    if unknown:
+        raise InputError("kwargs", unknown, f"unknown; allowed: {', '.join(allowed or ())}")
+    if kwargs.get("config") is not None:
+        from .config import EnvConfig
+
+        EnvConfig.from_dict(kwargs["config"])
+    return f"{NAMESPACE}/{name}-v{d.version}", d
 
 
 def register_scenario(

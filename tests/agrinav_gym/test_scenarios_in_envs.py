@@ -45,6 +45,16 @@ def test_register_scenario_refuses_objects_bad_tasks_and_built_in_names(tmp_path
             agrinav_gym.register_scenario(name, tmp_path / "s")
     assert gym.spec("AgriNav/FurrowFollow-v3") is before
     assert gym.spec("AgriNav/FurrowFollow-v3").kwargs == {}
+    # what gym.make would refuse is refused at registration, nothing registered
+    for kwargs, field in (
+        ({"colour": "red"}, "kwargs"),
+        ({"config": {"robot": {"v_max": 99.0}}}, "config.robot.v_max"),
+        ({"config": {"robot": {"v_max": float("nan")}}}, "kwargs"),  # no NaN in the JSON spec
+    ):
+        with pytest.raises(ScenarioError) as info:
+            agrinav_gym.register_scenario("TinyBad", tmp_path / "s", **kwargs)
+        assert info.value.field == field, info.value
+        assert "AgriNav/TinyBad-v3" not in gym.registry
 
 
 @pytest.mark.parametrize("env_id", list(agrinav_gym.ENV_IDS))
