@@ -688,7 +688,8 @@ def env_creator(cls: type[AgriNavEnv]) -> Any:
         return cls(**kwargs)
 
     make.metadata = {**cls.metadata, "render_modes": ["rgb_array", "human"]}  # type: ignore[attr-defined]
-    make.allowed = tuple(allowed)  # type: ignore[attr-defined]  (registration checks against it)
+    # registration checks a user env's keywords against it
+    make.allowed = tuple(allowed)  # type: ignore[attr-defined]
     make.__name__ = make.__qualname__ = f"make_{cls.__name__}"
     return make
 
