@@ -54,6 +54,16 @@ def policy_labels(specs: Sequence[str]) -> list[str]:
             labels.append(f"{name}:{Path(path.rstrip('/')).name or path}")
         else:
             labels.append(name)
+    # files of one name in different folders (every tune writes best.yaml): the folders
+    # above them, as many as tell them apart
+    for depth in range(2, 8):
+        clash = {lab for lab in labels if labels.count(lab) > 1}
+        if not clash:
+            break
+        for i, ((name, path), lab) in enumerate(zip(parsed, labels, strict=True)):
+            if lab in clash and path and name != "dwb":
+                parts = Path(path.rstrip("/")).parts[-depth:]
+                labels[i] = f"{name}:{'/'.join(parts)}"
     if len(set(labels)) < len(labels):
         raise InputError("--policies", ",".join(specs), "allowed: each policy once")
     return labels

@@ -97,7 +97,10 @@ def training_env(policy: str = "rpp", extra: str = "", route_clock: bool = False
 
     _, setup = load(ENV_ID)
     kw = merge_env_kwargs(dict(setup.env_kwargs), json.loads(extra) if extra else {})
-    config = merge_env_kwargs(RTK_EKF, kw.pop("config", {}))
+    given = kw.pop("config", None)
+    if given is not None and not isinstance(given, dict):
+        raise InputError("--env-kwargs: config", given, "allowed: a mapping of config sections")
+    config = merge_env_kwargs(RTK_EKF, given or {})
     if route_clock:
         config["task"] = {**config["task"], **ROUTE_CLOCK}
         kw["max_episode_steps"] = ROUTE_CLOCK_BACKSTOP

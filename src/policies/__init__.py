@@ -112,11 +112,16 @@ def check_policy_spec(spec: Any) -> tuple[str, str]:
     elif name in TUNABLE:
         ok = path == TUNED_ARG or (path.endswith((".yaml", ".yml")) and Path(path).is_file())
         if path and not ok:
+            missing = path.lower().endswith((".yaml", ".yml")) and not Path(path).is_file()
             raise InputError(
                 "policy",
                 spec,
-                f"allowed: {name}, {name}:{TUNED_ARG} or {name}:PATH.yaml (a parameter file)",
+                ("no such file; " if missing else "")
+                + f"allowed: {name}, {name}:{TUNED_ARG} or {name}:PATH.yaml (a parameter file)",
             )
+        if path:  # its values, before any simulator starts
+            file = tuned_file(name) if path == TUNED_ARG else path
+            POLICIES[name].check_file_params(param_file(file, name))
     elif path:
         raise InputError("policy", spec, f"{name} takes no ':' argument")
     return name, path

@@ -13,6 +13,8 @@ from numpy.typing import NDArray
 from agrinav_gym.interface import RobotInterface
 from scenario_gen.errors import InputError
 
+from .params import Param, check_params
+
 Obs = dict[str, NDArray[np.float32]]
 
 
@@ -26,6 +28,23 @@ class Policy(ABC):
 
     name: ClassVar[str] = "policy"
     requires: ClassVar[tuple[str, ...]] = ()
+    #: the parameters a file may set and their ranges (controllers that take a file)
+    PARAMS: ClassVar[dict[str, Param]] = {}
+    #: pairs (a, b) of PARAMS whose a may not exceed b
+    ORDERED: ClassVar[tuple[tuple[str, str], ...]] = ()
+
+    @classmethod
+    def check_file_params(cls, values: dict[str, Any]) -> None:
+        """A parameter file's values, checked against PARAMS (and ORDERED, with the
+        constructor's defaults for what the file leaves out) before anything is built."""
+        import inspect
+
+        defaults = {
+            n: p.default
+            for n, p in inspect.signature(cls.__init__).parameters.items()
+            if n in cls.PARAMS
+        }
+        check_params(cls.name, cls.PARAMS, values, cls.ORDERED, defaults)
 
     def __init__(
         self,

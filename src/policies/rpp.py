@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from gymnasium import spaces
@@ -13,6 +13,7 @@ from agrinav_gym.interface import OBS_ODOM, OBS_ROUTE, RobotInterface, decode_od
 
 from .base import Obs, Policy
 from .geometry import local_plan, regulated_speed
+from .params import Param, check_params
 
 
 class RegulatedPurePursuit(Policy):
@@ -27,6 +28,20 @@ class RegulatedPurePursuit(Policy):
 
     name = "rpp"
     requires = (OBS_ROUTE,)
+    #: what each parameter may be (m, s, rad; policies.params)
+    PARAMS: ClassVar[dict[str, Param]] = {
+        "desired_linear_vel": Param(0.0, 5.0, lo_open=True),
+        "lookahead_time": Param(0.0, 20.0, lo_open=True),
+        "min_lookahead": Param(0.0, 20.0, lo_open=True),
+        "max_lookahead": Param(0.0, 20.0, lo_open=True),
+        "min_radius": Param(0.0, 100.0),
+        "rotate_to_heading_min_angle": Param(0.0, math.pi),
+        "rotate_to_heading_angular_vel": Param(0.0, 10.0, lo_open=True),
+        "approach_dist": Param(0.0, 20.0),
+        "min_approach_vel": Param(0.0, 5.0),
+        "allow_reversing": Param(flag=True),
+    }
+    ORDERED = (("min_lookahead", "max_lookahead"),)
 
     def __init__(
         self,
@@ -45,6 +60,8 @@ class RegulatedPurePursuit(Policy):
         allow_reversing: bool = False,
         **params: Any,
     ) -> None:
+        mine = {k: v for k, v in locals().items() if k in self.PARAMS}
+        check_params(self.name, self.PARAMS, mine, self.ORDERED)
         super().__init__(observation_space, action_space, robot, **params)
         self.v_des = min(desired_linear_vel, robot.v_max)
         self.t_look, self.l_min, self.l_max = lookahead_time, min_lookahead, max_lookahead

@@ -14,7 +14,7 @@ steering geometry). Farm autosteer adds integral action on ``e`` so that a stead
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from gymnasium import spaces
@@ -24,6 +24,7 @@ from agrinav_gym.interface import OBS_ROUTE, RobotInterface
 
 from .base import Obs, Policy
 from .geometry import local_plan, regulated_speed
+from .params import Param, check_params
 
 
 class Stanley(Policy):
@@ -31,6 +32,20 @@ class Stanley(Policy):
 
     name = "stanley"
     requires = (OBS_ROUTE,)
+    #: what each parameter may be (m/s, 1/s, s, m, rad; policies.params)
+    PARAMS: ClassVar[dict[str, Param]] = {
+        "desired_linear_vel": Param(0.0, 5.0, lo_open=True),
+        "k": Param(0.0, 100.0, lo_open=True),
+        "k_soft": Param(0.0, 10.0, lo_open=True),
+        "k_heading": Param(0.0, 100.0, lo_open=True),
+        "integral_time": Param(0.0, 1e4, lo_open=True, none_ok=True),
+        "integral_limit": Param(0.0, 10.0),
+        "integral_band": Param(0.0, 10.0),
+        "min_radius": Param(0.0, 100.0),
+        "rotate_to_heading_min_angle": Param(0.0, math.pi),
+        "approach_dist": Param(0.0, 20.0),
+        "min_approach_vel": Param(0.0, 5.0),
+    }
 
     def __init__(
         self,
@@ -50,6 +65,9 @@ class Stanley(Policy):
         min_approach_vel: float = 0.05,
         **params: Any,
     ) -> None:
+        check_params(
+            self.name, self.PARAMS, {k: v for k, v in locals().items() if k in self.PARAMS}
+        )
         super().__init__(observation_space, action_space, robot, **params)
         self.v_des = min(desired_linear_vel, robot.v_max)
         self.k, self.k_soft, self.k_heading = k, k_soft, k_heading

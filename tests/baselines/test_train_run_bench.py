@@ -371,6 +371,13 @@ def test_bench_labels_tell_ppo_checkpoints_apart() -> None:
     assert policy_labels(["rpp", "rpp:tuned"]) == ["rpp", "rpp:tuned"]
     with pytest.raises(ScenarioError, match="--policies"):
         policy_labels(["dwb", "dwb:furrow"])
+    # two searches' results (each tune writes best.yaml): told apart by their folders
+    assert policy_labels(["rpp:t1/best.yaml", "rpp:t2/best.yaml"]) == [
+        "rpp:t1/best.yaml",
+        "rpp:t2/best.yaml",
+    ]
+    with pytest.raises(ScenarioError, match="--policies"):
+        policy_labels(["rpp:t1/best.yaml", "rpp:t1/best.yaml"])
 
 
 @pytest.mark.parametrize(

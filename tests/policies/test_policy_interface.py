@@ -215,3 +215,78 @@ def test_every_shipped_controller_file_loads_as_its_controller(path: Path) -> No
         assert pol.describe()
     finally:
         env.close()
+
+
+@pytest.mark.parametrize("name", ["rpp", "stanley"])
+def test_every_searched_value_is_one_the_controller_accepts(name: str) -> None:
+    from baselines.tune import SEARCH
+
+    table = POLICIES[name].PARAMS
+    for key, (lo, hi) in SEARCH[name].items():
+        assert table[key].ok(lo) and table[key].ok(hi), key
+
+
+@pytest.mark.parametrize(
+    "name,text,needle",
+    [
+        ("rpp", "min_lookahead: -0.5\n", "min_lookahead: got -0.5"),
+        ("rpp", "desired_linear_vel: 0\n", "desired_linear_vel: got 0"),
+        ("rpp", "lookahead_time: null\n", "lookahead_time: got None"),
+        ("rpp", "desired_linear_vel: true\n", "desired_linear_vel: got True"),
+        ("rpp", "lookahead_time: " + "1" * 400 + "\n", "lookahead_time"),
+        ("rpp", "min_lookahead: 1.0\n", "at most max_lookahead (0.9)"),  # the default max
+        ("rpp", "robot: 1\n", "unknown parameters"),
+        ("rpp", "1.5: 2\n", "unknown parameters"),
+        ("rpp", "allow_reversing: 1\n", "allow_reversing: got 1"),
+        ("stanley", "integral_time: 0\n", "integral_time: got 0"),
+        ("stanley", "k: -2.5\n", "k: got -2.5"),
+        ("stanley", "k_soft: 0\n", "k_soft: got 0"),
+    ],
+)
+def test_a_parameter_file_outside_the_ranges_is_refused_before_any_env(
+    tmp_path: Path, name: str, text: str, needle: str
+) -> None:
+    from policies import check_policy_spec
+    from scenario_gen.errors import InputError
+
+    path = tmp_path / "p.yaml"
+    path.write_text(text)
+    with pytest.raises(InputError) as info:
+        check_policy_spec(f"{name}:{path}")
+    assert needle in str(info.value) and len(str(info.value).splitlines()) == 1
+
+
+def test_stanley_without_integral_action_takes_null() -> None:
+    from policies import POLICIES
+
+    assert POLICIES["stanley"].PARAMS["integral_time"].ok(None)
+
+
+def test_keywords_outside_the_ranges_are_refused_as_files_are() -> None:
+    from scenario_gen.errors import InputError
+
+    env = gym.make("AgriNav/FurrowFollow-v3", scenario_overrides=TINY)
+    try:
+        with pytest.raises(InputError, match="max_lookahead: got -1"):
+            make_policy("rpp", env, max_lookahead=-1.0)
+        with pytest.raises(InputError, match="min_lookahead"):
+            make_policy("rpp", env, min_lookahead=0.6, max_lookahead=0.4)
+    finally:
+        env.close()
+
+
+@pytest.mark.parametrize(
+    "follow,field",
+    [
+        ({"min_vel_x": 0.8, "max_vel_x": 0.3}, "dwb.FollowPath.min_vel_x"),
+        ({"max_vel_x": 0.0}, "dwb.FollowPath.max_vel_x"),
+        ({"acc_lim_x": 0.0}, "dwb.FollowPath.acc_lim_x"),
+    ],
+)
+def test_a_dwb_window_the_robot_cannot_move_in_is_refused(follow: dict, field: str) -> None:
+    from policies.dwb.params import DWBParams
+    from scenario_gen.errors import InputError
+
+    with pytest.raises(InputError) as info:
+        DWBParams.load({"FollowPath": follow})
+    assert info.value.field == field

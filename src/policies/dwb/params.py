@@ -332,6 +332,16 @@ class DWBParams:
             raise InputError("dwb.FollowPath.critics", fp.critics, "allowed: each critic once")
         if not fp.critics:
             raise InputError("dwb.FollowPath.critics", fp.critics, "allowed: at least one critic")
+        # a window the robot cannot move forward in: refused, not driven as a robot that stands
+        for key in ("max_vel_x", "acc_lim_x"):
+            if getattr(fp, key) == 0:
+                raise InputError(f"dwb.FollowPath.{key}", 0, "allowed: above 0 (or null)")
+        if fp.max_vel_x is not None and fp.min_vel_x > fp.max_vel_x:
+            raise InputError(
+                "dwb.FollowPath.min_vel_x",
+                fp.min_vel_x,
+                f"allowed: at most max_vel_x ({fp.max_vel_x:g} m/s)",
+            )
         cm = self.local_costmap
         fpn = cm.footprint
         if fpn is not None and (len(fpn) < 3 or any(len(p) != 2 for p in fpn)):
