@@ -13,6 +13,8 @@ included, under SB3's ``EvalCallback`` tags: ``EVAL_TAGS``). ``--device`` is che
 
 from __future__ import annotations
 
+import contextlib
+import functools
 import json
 import os
 import shlex
@@ -66,7 +68,9 @@ def merge_env_kwargs(base: dict[str, Any], path: Path) -> dict[str, Any]:
     (``hyperparams.merge_env_kwargs``)."""
     from scenario_gen.schema import load_yaml
 
-    return hpmod.merge_env_kwargs(base, load_yaml(path, "--env-kwargs"))
+    extra = load_yaml(path, "--env-kwargs")
+    hpmod.refuse_split_keys(extra)
+    return hpmod.merge_env_kwargs(base, extra)
 
 
 def _scenario_kwargs(env_kwargs: dict[str, Any], scenario: str | None) -> dict[str, Any]:
@@ -264,8 +268,32 @@ def train(run: TrainRun, argv: list[str] | None = None) -> Path:
     with lock_output(out.absolute(), "--out"):
         if out.exists() and (not out.is_dir() or any(out.iterdir())):
             raise InputError("--out", str(out), "allowed: a new or empty directory")
+        created = not out.exists()
         out.mkdir(parents=True, exist_ok=True)
-        return _train(run, argv, hp, setup, kwargs)
+        try:
+            cmd = argv if argv is not None else sys.argv  # first: a stopped run says so too
+            (out / "command.txt").write_text(" ".join(shlex.quote(a) for a in cmd) + "\n")
+            return _train(run, argv, hp, setup, kwargs)
+        except BaseException:
+            _stopped(out, created)
+            raise
+
+
+def _stopped(out: Path, created: bool) -> None:
+    """A run that ended early: the checkpoints it finished stay (resumable, and the folder's
+    command.txt says how it began); a run that finished none leaves nothing behind."""
+    kept = sorted((out / "checkpoints").glob("step_*")) if (out / "checkpoints").is_dir() else []
+    if kept:
+        print(
+            f"agrinav train: stopped; {len(kept)} checkpoint(s) kept in {out / 'checkpoints'} "
+            f"(go on: --resume {kept[-1]} --out NEW_FOLDER)",
+            file=sys.stderr,
+        )
+    elif created:
+        shutil.rmtree(out, ignore_errors=True)
+    else:  # the user's empty folder: emptied again
+        for child in out.iterdir():
+            shutil.rmtree(child, ignore_errors=True) if child.is_dir() else child.unlink()
 
 
 def _train(
@@ -282,8 +310,9 @@ def _train(
 
     out = run.out
     device = resolve_device(run.device)
+    env_id = f"agrinav_gym:{run.env_id}"
     venv: Any = make_vec_env(
-        f"agrinav_gym:{run.env_id}",
+        functools.partial(_worker_env, env_id) if hp.n_envs > 1 else env_id,
         n_envs=hp.n_envs,
         seed=run.seed,
         vec_env_cls=SubprocVecEnv if hp.n_envs > 1 else DummyVecEnv,
@@ -346,12 +375,30 @@ def _train(
             reset_num_timesteps=run.resume is None,
         )
         evaluation(model)  # the final policy's, logged like the others
-    finally:
-        venv.close()
+    except BaseException:
+        # an interrupt or error mid-run: closing the workers must not hide it behind an error
+        # of theirs (a pipe a dying worker closed)
+        with contextlib.suppress(Exception):
+            venv.close()
         model.logger.close()
-    saver.final(model, norm, history, argv)
+        raise
+    venv.close()
+    model.logger.close()
+    saver.final(model, norm, history)
     learning_curve(history, out / "learning_curve.png", run.env_id)
     return out
+
+
+def _worker_env(env_id: str, **kwargs: Any) -> Any:
+    """An env in a SubprocVecEnv worker, deaf to Ctrl-C: the terminal signals the whole process
+    group, and the main process, which handles it, closes the workers (each would otherwise
+    print a traceback of its own)."""
+    import signal
+
+    import gymnasium as gym
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    return gym.make(env_id, **kwargs)
 
 
 def _has_tensorboard() -> bool:
@@ -400,12 +447,21 @@ def _callback(
                 self.next_eval += run.eval_every
                 res = evaluation(self.model)
                 self.bar.set_postfix(rmse=f"{res['rmse']:.3f}", done=f"{res['completion']:.0f}%")
-            if run.checkpoint_every and self.num_timesteps >= self.next_save:
-                self.next_save += run.checkpoint_every
-                save(self.model)
             return True
 
+        def _checkpoint(self) -> None:
+            # between rollouts only: the weights and optimizer then hold every step counted
+            # (a save inside a rollout would label N steps weights trained on fewer)
+            if run.checkpoint_every and self.num_timesteps >= self.next_save:
+                while self.next_save <= self.num_timesteps:
+                    self.next_save += run.checkpoint_every
+                save(self.model)
+
+        def _on_rollout_start(self) -> None:  # the previous rollout's update is done
+            self._checkpoint()
+
         def _on_training_end(self) -> None:
+            self._checkpoint()
             self.bar.close()
 
     return Progress()
@@ -453,9 +509,7 @@ class _Saver:
         (self.out / "checkpoints").mkdir(exist_ok=True)
         self.write(self.out / "checkpoints" / f"step_{int(model.num_timesteps):010d}", model, norm)
 
-    def final(
-        self, model: Any, norm: Any, history: list[dict[str, float]], argv: list[str] | None
-    ) -> None:
+    def final(self, model: Any, norm: Any, history: list[dict[str, float]]) -> None:
         self.write(self.out / "final", model, norm)
         for f in (self.out / "final").iterdir():
             f.rename(self.out / f.name)
@@ -484,8 +538,6 @@ class _Saver:
             },
         }
         (self.out / "config.yml").write_text(yaml.safe_dump(config, sort_keys=False))
-        cmd = argv if argv is not None else sys.argv
-        (self.out / "command.txt").write_text(" ".join(shlex.quote(a) for a in cmd) + "\n")
 
 
 def restore(

@@ -209,7 +209,11 @@ def tune(
     if env_kwargs is not None:
         from scenario_gen.schema import load_yaml
 
-        extra = json.dumps(load_yaml(env_kwargs, "--env-kwargs"), sort_keys=True)
+        from .hyperparams import refuse_split_keys
+
+        given = load_yaml(env_kwargs, "--env-kwargs")
+        refuse_split_keys(given)
+        extra = json.dumps(given, sort_keys=True)
         training_env(policy, extra).close()  # a bad file is refused before anything runs
     space = SEARCH[policy]
     optuna.logging.set_verbosity(optuna.logging.WARNING)

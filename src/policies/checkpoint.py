@@ -128,15 +128,27 @@ def _policy_class(name: Any) -> type:
     return classes[name]
 
 
-def policy_kwargs_from_json(d: Any) -> dict[str, Any]:
-    """Only plain, known keyword arguments; class-valued ones come from a fixed list."""
+def policy_kwargs_from_json(d: Any, where: str = "checkpoint") -> dict[str, Any]:
+    """Only plain, known keyword arguments; class-valued ones come from a fixed list (a
+    checkpoint's, or ``hyperparams`` given to training: ``where`` names which)."""
     from torch import nn
 
     if not isinstance(d, dict) or set(d) - POLICY_KWARGS:
         raise InputError(
-            "checkpoint policy_kwargs", d, f"allowed keys: {', '.join(sorted(POLICY_KWARGS))}"
+            f"{where} policy_kwargs", d, f"allowed keys: {', '.join(sorted(POLICY_KWARGS))}"
         )
     out = dict(d)
+    for key in ("ortho_init", "share_features_extractor"):
+        if key in out and not isinstance(out[key], bool):
+            raise InputError(f"{where} {key}", out[key], "allowed: true or false")
+    std = out.get("log_std_init")
+    if std is not None and (
+        isinstance(std, bool) or not isinstance(std, (int, float)) or not -20 <= std <= 5
+    ):
+        raise InputError(f"{where} log_std_init", std, "allowed: a number in [-20, 5]")
+    extractor = out.get("features_extractor_kwargs")
+    if extractor is not None and not isinstance(extractor, dict):
+        raise InputError(f"{where} features_extractor_kwargs", extractor, "allowed: a mapping")
     arch = out.get("net_arch")
     if arch is not None:
         layers = list(arch.values()) if isinstance(arch, dict) else [arch]
@@ -145,12 +157,12 @@ def policy_kwargs_from_json(d: Any) -> dict[str, Any]:
             isinstance(n, int) and not isinstance(n, bool) and 1 <= n <= MAX_LAYER for n in sizes
         ):
             raise InputError(
-                "checkpoint net_arch", arch, f"allowed: layer sizes from 1 to {MAX_LAYER}"
+                f"{where} net_arch", arch, f"allowed: layer sizes from 1 to {MAX_LAYER}"
             )
     if "activation_fn" in out:
         if out["activation_fn"] not in ACTIVATIONS:
             raise InputError(
-                "checkpoint activation_fn",
+                f"{where} activation_fn",
                 out["activation_fn"],
                 f"allowed: {', '.join(ACTIVATIONS)}",
             )
@@ -160,8 +172,8 @@ def policy_kwargs_from_json(d: Any) -> dict[str, Any]:
 
 def policy_kwargs_to_json(kwargs: dict[str, Any]) -> dict[str, Any]:
     out = {k: v for k, v in kwargs.items() if k in POLICY_KWARGS}
-    if "activation_fn" in out:
-        out["activation_fn"] = out["activation_fn"].__name__
+    if "activation_fn" in out and not isinstance(out["activation_fn"], str):
+        out["activation_fn"] = out["activation_fn"].__name__  # a class; a name stays a name
     return json.loads(json.dumps(out))
 
 

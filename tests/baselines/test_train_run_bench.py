@@ -60,6 +60,15 @@ def test_training_saves_safe_checkpoints_logs_and_resumes(
         "step_0000000128",
         "step_0000000256",
     ]
+    # a checkpoint holds the weights of every step it counts: the last one is the final model
+    import numpy as np
+
+    with (
+        np.load(out / "policy.npz") as final,
+        np.load(out / "checkpoints" / "step_0000000256" / "policy.npz") as last,
+    ):
+        assert sorted(final.files) == sorted(last.files)
+        assert all(np.array_equal(final[k], last[k]) for k in final.files)
     config = yaml.safe_load((out / "config.yml").read_text())
     assert config["hyperparams"]["n_steps"] == 64 and config["hyperparams"]["n_envs"] == 1
     assert config["env_kwargs"]["scenario"] == str(tiny_scenario.resolve())
@@ -157,12 +166,55 @@ def test_a_run_starts_from_another_checkpoint_and_refuses_one_that_does_not_fit(
         assert proc.returncode == 2 and "--init-from" in proc.stderr and not bad.exists()
 
 
+def test_ctrl_c_with_worker_processes_is_one_line_and_keeps_the_checkpoints(
+    tmp_path: Path, tiny_scenario: Path
+) -> None:
+    """A terminal's Ctrl-C signals the whole process group, the SubprocVecEnv workers too:
+    one line, status 130, the finished checkpoints kept with the command that made them."""
+    import os
+    import signal
+    import time
+
+    out = tmp_path / "run"
+    cmd = [sys.executable, "-m", "baselines.cli", "train", "--env", "AgriNav/FurrowFollow-v3"]
+    cmd += ["--scenario", str(tiny_scenario), "--n-envs", "2", "--eval-episodes", "1"]
+    cmd += ["--timesteps", "100000", "--checkpoint-every", "64", "--out", str(out)]
+    cmd += ["--hyperparams", "n_steps=32", "batch_size=32", "n_epochs=1"]
+    proc = subprocess.Popen(
+        cmd,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+        # a job started in the background inherits SIGINT ignored; a terminal's is not
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
+    try:
+        deadline = time.monotonic() + 120
+        while not list(out.glob("checkpoints/step_*")) and time.monotonic() < deadline:
+            time.sleep(0.2)
+        os.killpg(proc.pid, signal.SIGINT)
+        _, err = proc.communicate(timeout=120)
+    finally:
+        proc.kill()
+    assert proc.returncode == 130, err[-2000:]
+    assert "Traceback" not in err and "agrinav: interrupted" in err, err[-2000:]
+    assert list(out.glob("checkpoints/step_*")) and (out / "command.txt").is_file()
+
+
 @pytest.mark.parametrize(
     "args,needle",
     [
         (["--hyperparams", "n_stepz=3"], "hyperparams.n_stepz"),
         (["--hyperparams", "batch_size=99999"], "hyperparams.batch_size"),
         (["--hyperparams", "learning_rate=fast"], "hyperparams.learning_rate"),
+        (["--hyperparams", "learning_rate=lin_-1"], "hyperparams.learning_rate"),
+        (["--hyperparams", "clip_range=lin_-0.2"], "hyperparams.clip_range"),
+        (["--hyperparams", "batch_size=1"], "hyperparams.batch_size"),
+        (["--hyperparams", "policy_kwargs={net_arch: [64], bogus: 1}"], "policy_kwargs"),
+        (["--hyperparams", "policy_kwargs={activation_fn: Foo}"], "activation_fn"),
+        (["--hyperparams", "policy_kwargs={net_arch: [0]}"], "net_arch"),
+        (["--hyperparams", "policy_kwargs={log_std_init: high}"], "log_std_init"),
         (["--device", "tpu"], "--device"),
         (["--scenario", "/no/such/place"], "--scenario"),
         (["--resume", "/no/such/checkpoint"], "checkpoint"),
@@ -636,3 +688,16 @@ def test_bench_config_moves_one_value_on_the_suites_fields(tmp_path: Path) -> No
     assert "`soil.contact_width=0.15`, `soil.friction=0.4`" in md
     code = main([*argv, str(tmp_path / "c"), "--config", "soil.bogus=1"])
     assert code == 2 and not (tmp_path / "c").exists()
+
+
+def test_an_env_kwargs_file_may_not_move_the_splits(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = tmp_path / "seeds.yml"
+    path.write_text("scenario_seeds: [0, 10]\n")
+    for cmd in (["train", "--env", "AgriNav/FurrowFollow-v3"], ["tune", "--policy", "rpp"]):
+        out = tmp_path / cmd[0]
+        assert main([*cmd, "--env-kwargs", str(path), "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert "--env-kwargs scenario_seeds" in err and len(err.strip().splitlines()) == 1
+        assert not out.exists()

@@ -3,7 +3,8 @@
 Each subcommand lives in its own module with ``add(subparsers)``; this module only parses and
 dispatches. Bad input anywhere (``InputError``) prints one line naming the field, the value and
 what is allowed, and exits 2; SIGTERM unwinds like an exception, so no command leaves a
-half-written output folder behind.
+half-written output folder behind (a stopped training run keeps the checkpoints it finished,
+as it says).
 """
 
 from __future__ import annotations

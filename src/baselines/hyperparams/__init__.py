@@ -10,6 +10,7 @@ Every PPO argument is forwarded, so none vanishes silently; unknown keys are err
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from importlib import resources
 from typing import Any
@@ -56,6 +57,10 @@ class PPOHyperparams:
         for key in ("learning_rate", "clip_range"):
             if isinstance(out[key], str):
                 out[key] = get_linear_fn(_lin(out[key], key), 0.0, 1.0)
+        from policies.checkpoint import policy_kwargs_from_json
+
+        # checked as a checkpoint's are, an activation named ("ReLU") made the class
+        out["policy_kwargs"] = policy_kwargs_from_json(out["policy_kwargs"], "hyperparams")
         if self.policy != "MultiInputPolicy":
             from policies.extractors import DepthMultiInputPolicy
 
@@ -71,11 +76,14 @@ class PPOHyperparams:
 def _lin(text: str, key: str) -> float:
     kind, _, value = text.partition("_")
     try:
-        if kind == "lin":
-            return float(value)
+        x = float(value) if kind == "lin" else math.nan
     except ValueError:
-        pass
-    raise InputError(f"hyperparams.{key}", text, "allowed: a number or 'lin_<initial value>'")
+        x = math.nan
+    if not (math.isfinite(x) and x > 0):  # the schedule starts where a plain value would
+        raise InputError(
+            f"hyperparams.{key}", text, "allowed: a positive number or 'lin_<positive number>'"
+        )
+    return x
 
 
 @dataclass(frozen=True)
@@ -134,6 +142,11 @@ def load(env_id: str, overrides: dict[str, Any] | None = None) -> tuple[PPOHyper
             _lin(value, key)
         elif value <= 0:
             raise InputError(f"hyperparams.{key}", value, "allowed: a positive number or 'lin_<x>'")
+    from policies.checkpoint import policy_kwargs_from_json
+
+    policy_kwargs_from_json(hp.policy_kwargs, "hyperparams")  # before any folder exists
+    if hp.batch_size < 2:  # SB3 normalises advantages over a minibatch: one sample is none
+        raise InputError("hyperparams.batch_size", hp.batch_size, "allowed: at least 2")
     if hp.batch_size > hp.n_steps * hp.n_envs:
         raise InputError(
             "hyperparams.batch_size",
@@ -170,6 +183,19 @@ def to_zoo(hp: PPOHyperparams) -> dict[str, Any]:
 
 
 __all__ = ["EnvSetup", "PPOHyperparams", "load", "to_zoo"]
+
+
+def refuse_split_keys(extra: dict[str, Any]) -> None:
+    """An ``--env-kwargs`` file may not set the seeds: the splits are envs.yml's (training seeds
+    for the episodes, validation for any choice); a file that set them would train or choose on
+    other fields than the run records."""
+    split = sorted(k for k in extra if k in ("scenario_seeds", "scenario_seed"))
+    if split:
+        raise InputError(
+            f"--env-kwargs {split[0]}",
+            extra[split[0]],
+            "is set by envs.yml's train/validation/test splits; allowed: any other env keyword",
+        )
 
 
 def merge_env_kwargs(base: dict[str, Any], extra: dict[str, Any]) -> dict[str, Any]:
