@@ -102,13 +102,44 @@ def _scenario_kwargs(env_kwargs: dict[str, Any], scenario: str | None) -> dict[s
     return kw
 
 
+#: what a resumed run cannot change: the network and what its inputs were scaled by
+RESUME_FIXED = ("policy", "policy_kwargs", "normalize")
+
+
+def _same(key: str, a: dict[str, Any], b: dict[str, Any]) -> bool:
+    """Whether two hyperparameter sets agree on ``key`` (``normalize``: on observations, in
+    either spelling — ``true`` or ``{norm_obs: true, ...}``)."""
+    if key != "normalize":
+        return bool(a[key] == b[key])
+
+    def on(v: Any) -> bool:
+        return bool(v.get("norm_obs", True)) if isinstance(v, dict) else bool(v)
+
+    return on(a[key]) == on(b[key])
+
+
 def prepare(run: TrainRun) -> tuple[hpmod.PPOHyperparams, hpmod.EnvSetup, dict[str, Any]]:
     overrides = dict(run.overrides)
     if run.n_envs is not None:
         overrides["n_envs"] = run.n_envs
     if run.timesteps is not None:
         overrides["n_timesteps"] = run.timesteps
-    hp, setup = hpmod.load(run.env_id, overrides)
+    saved: dict[str, Any] = {}
+    if run.resume is not None:
+        # a resumed run goes on with the hyperparameters it was trained with (the command's
+        # --hyperparams over them), not ppo.yml's: they may have been changed since
+        saved = checkpoint.read_meta(run.resume).get("hyperparams") or {}
+        if not isinstance(saved, dict):
+            raise InputError("--resume", str(run.resume), "its hyperparams are not a mapping")
+        for key in RESUME_FIXED:
+            if key in run.overrides and key in saved and not _same(key, run.overrides, saved):
+                raise InputError(
+                    f"hyperparams.{key}",
+                    run.overrides[key],
+                    f"the checkpoint was trained with {saved[key]!r}; allowed: that, to "
+                    "--resume (or --init-from for a new run from its weights)",
+                )
+    hp, setup = hpmod.load(run.env_id, {**saved, **overrides})
     if run.out.exists() and (not run.out.is_dir() or any(run.out.iterdir())):
         raise InputError("--out", str(run.out), "allowed: a new or empty directory")
     check_creatable(run.out, "--out")
@@ -137,6 +168,18 @@ def prepare(run: TrainRun) -> tuple[hpmod.PPOHyperparams, hpmod.EnvSetup, dict[s
     init = None
     if run.init_from is not None:
         init = checkpoint.load(run.init_from)
+        # the weights fit only the network they were trained in
+        ours = checkpoint.policy_kwargs_to_json(hp.policy_kwargs)
+        theirs_kw = init.meta.get("policy_kwargs") or {}
+        for key in ("net_arch", "activation_fn"):
+            if ours.get(key) != theirs_kw.get(key):
+                raise InputError(
+                    "--init-from",
+                    str(run.init_from),
+                    f"its network has {key} {theirs_kw.get(key)!r} where this run's "
+                    f"hyperparameters have {ours.get(key)!r}; allowed: the same network "
+                    f"(--hyperparams policy_kwargs=...)",
+                )
         theirs = init.meta.get("normalization") is not None
         if theirs != hp.normalize_obs:  # the weights expect inputs scaled as in training
             on = {True: "on", False: "off"}

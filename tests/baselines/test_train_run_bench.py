@@ -115,6 +115,21 @@ def test_training_saves_safe_checkpoints_logs_and_resumes(
     finally:
         env.close()
 
+    # resuming goes on with the checkpoint's hyperparameters (n_steps 64, not ppo.yml's), and
+    # refuses a change of what its weights were trained with
+    quiet = tmp_path / "quiet"
+    step128 = str(out / "checkpoints" / "step_0000000128")
+    proc = _train([*common, "--timesteps", "192", "--out", str(quiet), "--resume", step128])
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert yaml.safe_load((quiet / "config.yml").read_text())["hyperparams"]["n_steps"] == 64
+    assert json.loads((quiet / "checkpoint.json").read_text())["num_timesteps"] == 192
+    for change, key in (("normalize=false", "normalize"), ("policy_kwargs={net_arch: [8]}", "")):
+        bad = tmp_path / "changed"
+        args = ["--timesteps", "384", "--out", str(bad), "--resume", step128]
+        proc = _train([*common, *args, "--hyperparams", change])
+        assert proc.returncode == 2 and "the checkpoint was trained with" in proc.stderr
+        assert f"hyperparams.{key or 'policy_kwargs'}" in proc.stderr and not bad.exists()
+
     # a truncated optimizer state is refused before the new run's folder exists
     import shutil
 
