@@ -611,6 +611,6 @@ def restore(
         for k, rms in norm.obs_rms.items():
             rms.mean = np.asarray(n["mean"][k], np.float64)
             rms.var = np.asarray(n["var"][k], np.float64)
-            rms.count = float(n["count"][k])
+            rms.count = float((n.get("count") or {}).get(k, rms.count))  # checked on load
     model.num_timesteps = int(meta.get("num_timesteps", 0))
     model._num_timesteps_at_start = model.num_timesteps

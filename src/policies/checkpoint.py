@@ -38,6 +38,7 @@ META = "checkpoint.json"
 WEIGHTS = "policy.npz"
 OPTIMIZER = "optimizer.npz"
 MAX_META_BYTES = 1 << 20
+MAX_TIMESTEPS = 10**12  # a step count past this is a corrupt file, not a training run
 MAX_LAYER = 4096  # units in one hidden layer: 160 GB networks are typos, not checkpoints
 ACTIVATIONS = ("Tanh", "ReLU", "ELU", "LeakyReLU")
 POLICY_KWARGS = {
@@ -297,6 +298,11 @@ def read_meta(folder: Path) -> dict[str, Any]:
     meta = parse_json(path.read_bytes(), "checkpoint", str(path))
     if not isinstance(meta, dict) or meta.get("format") != FORMAT or meta.get("version") != VERSION:
         raise InputError("checkpoint", str(path), f"allowed: format {FORMAT!r} version {VERSION}")
+    steps = meta.get("num_timesteps", 0)
+    if isinstance(steps, bool) or not isinstance(steps, int) or not 0 <= steps <= MAX_TIMESTEPS:
+        raise InputError(
+            f"{path} num_timesteps", steps, f"allowed: an integer in [0, {MAX_TIMESTEPS:,}]"
+        )
     return meta
 
 
@@ -369,6 +375,22 @@ def _normalizer(meta: dict[str, Any], obs_space: spaces.Dict, folder: Path) -> N
         )
     if any(not np.isfinite(m).all() for m in mean.values()):
         raise InputError("checkpoint normalization", str(folder), "means must be finite")
+    counts = n.get("count")
+    if counts is not None and not (
+        isinstance(counts, dict)
+        and all(
+            isinstance(counts.get(k), (int, float))
+            and not isinstance(counts.get(k), bool)
+            and math.isfinite(counts[k])
+            and counts[k] >= 0
+            for k in obs_space.spaces
+        )
+    ):
+        raise InputError(
+            "checkpoint normalization count",
+            str(folder),
+            "allowed: a finite count >= 0 per observation",
+        )
     if not (math.isfinite(clip) and clip > 0 and math.isfinite(eps) and eps > 0):
         # clip <= 0 made every observation 0: a blind policy that still "ran"
         raise InputError(

@@ -226,3 +226,32 @@ def test_weights_are_checked_before_anything_is_read(tmp_path: Path, make, needl
     make(path)
     with pytest.raises(InputError, match=needle):
         read_npz(path, "checkpoint")
+
+
+@pytest.mark.parametrize(
+    "change,needle",
+    [
+        ({"num_timesteps": "lots"}, "num_timesteps"),
+        ({"num_timesteps": -5}, "num_timesteps"),
+        ({"num_timesteps": 1e300}, "num_timesteps"),
+    ],
+)
+def test_a_corrupt_step_count_is_refused_naming_it(
+    tmp_path: Path, change: dict, needle: str
+) -> None:
+    folder = tmp_path / "ck"
+    shutil.copytree(shipped_model("AgriNav/FurrowFollow-v3"), folder)
+    meta = json.loads((folder / "checkpoint.json").read_text())
+    (folder / "checkpoint.json").write_text(json.dumps({**meta, **change}))
+    with pytest.raises(InputError, match=needle):
+        checkpoint.read_meta(folder)
+
+
+def test_a_corrupt_normalisation_count_is_refused(tmp_path: Path) -> None:
+    folder = tmp_path / "ck"
+    shutil.copytree(shipped_model("AgriNav/FurrowFollow-v3"), folder)
+    meta = json.loads((folder / "checkpoint.json").read_text())
+    meta["normalization"]["count"] = {k: "x" for k in meta["normalization"]["count"]}
+    (folder / "checkpoint.json").write_text(json.dumps(meta))
+    with pytest.raises(InputError, match="count"):
+        checkpoint.load(folder)
