@@ -72,7 +72,7 @@ def test_the_device_used_is_recorded_in_checkpoint_and_config(
     hp, setup = hyperparams.load(FF)
     run = TrainRun(env_id=FF, out=tmp_path, device=requested)
     saver = _Saver(tmp_path, run, hp, setup, {}, device_record(device))
-    saver.final(model, None, [], ["agrinav", "train", "--device", requested])
+    saver.final(model, None, [])
     meta = json.loads((tmp_path / "checkpoint.json").read_text())
     config = yaml.safe_load((tmp_path / "config.yml").read_text())
     for record in (meta, config):

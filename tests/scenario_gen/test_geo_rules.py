@@ -134,7 +134,12 @@ def test_every_broken_lod_rule_is_named_at_once() -> None:
 
 def test_an_lod_between_the_grid_rules_and_the_terrain_size_is_named_or_refused() -> None:
     """Too coarse for the ridges and, at the LoD they need, too many samples: both at once."""
-    spec = plane(field={"width": 1000.0, "length": 1000.0}, terrain={"lod": 15}, furrows=RIDGED)
+    spec = plane(
+        field={"width": 1000.0, "length": 1000.0},
+        layout={"plant_spacing": 2.0},  # within the plant bound: the terrain is what is tested
+        terrain={"lod": 15},
+        furrows=RIDGED,
+    )
     with pytest.raises(ScenarioError) as info:
         generate(spec, seed=0)
     assert "need LoD >= 19, the terrain's size LoD <= 18" in str(info.value), str(info.value)
