@@ -105,13 +105,7 @@ class RouteProjector:
             seg_len=np.ascontiguousarray(self.seg_len, np.float64),
             arc=np.ascontiguousarray(self.arc, np.float64),
             half=self.half,
-            cell=g.cell,
-            cx0=g.cx0,
-            cy0=g.cy0,
-            ncx=g.ncx,
-            ncy=g.ncy,
-            cell_start=g.start,
-            cell_items=g.items,
+            **g.fields(),
             xy=np.ascontiguousarray(self.xy, np.float64),
         )
 

@@ -265,6 +265,18 @@ class CellGrid:
     start: NDArray[np.int32]
     items: NDArray[np.int32]
 
+    def fields(self) -> dict[str, Any]:
+        """The grid as a kernel struct's fields (``cell`` … ``cell_items``) take it."""
+        return {
+            "cell": self.cell,
+            "cx0": self.cx0,
+            "cy0": self.cy0,
+            "ncx": self.ncx,
+            "ncy": self.ncy,
+            "cell_start": self.start,
+            "cell_items": self.items,
+        }
+
 
 #: the most cells a grid gets: past it the cell doubles (fewer, larger cells; the candidates a
 #: search reads are a superset, its answer the same)

@@ -109,7 +109,6 @@ class SkyModel:
         self.mask_tan = math.tan(mask)
         self._args: _native.SkyAttenuationArgs | None = None
         if _native.available() if native is None else native:
-            grid = canopy.grid
             sky = _native.Sky(
                 n=len(canopy),
                 xy=canopy.xy,
@@ -125,13 +124,7 @@ class SkyModel:
                 sec_el=self.sec_el,
                 stalk=int(cfg.foliage_profile == "stalk"),
                 db_per_m=float(cfg.foliage_db_per_m),
-                cell=grid.cell,
-                cx0=grid.cx0,
-                cy0=grid.cy0,
-                ncx=grid.ncx,
-                ncy=grid.ncy,
-                cell_start=grid.start,
-                cell_items=grid.items,
+                **canopy.grid.fields(),
             )
             self._out = np.zeros((len(az), len(el)))
             self._args = _native.SkyAttenuationArgs(
