@@ -230,6 +230,8 @@ def test_ctrl_c_with_worker_processes_is_one_line_and_keeps_the_checkpoints(
         (["--hyperparams", "policy_kwargs={activation_fn: Foo}"], "activation_fn"),
         (["--hyperparams", "policy_kwargs={net_arch: [0]}"], "net_arch"),
         (["--hyperparams", "policy_kwargs={log_std_init: high}"], "log_std_init"),
+        (["--hyperparams", "normalize={norm_obs: true, bogus: 3}"], "hyperparams.normalize"),
+        (["--hyperparams", "normalize={norm_reward: true}"], "normalize.norm_reward"),
         (["--device", "tpu"], "--device"),
         (["--scenario", "/no/such/place"], "--scenario"),
         (["--resume", "/no/such/checkpoint"], "checkpoint"),

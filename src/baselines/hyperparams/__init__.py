@@ -28,7 +28,9 @@ class PPOHyperparams:
     n_envs: int = param(4, "parallel envs (SubprocVecEnv when > 1)", 1, 256)
     n_timesteps: int = param(500_000, "environment steps to train for", 1, 10**10)
     normalize: bool | dict[str, Any] = param(
-        False, "VecNormalize the observations (true, or zoo's {norm_obs, norm_reward})"
+        False,
+        "VecNormalize the observations (true, or zoo's {norm_obs, norm_reward}; rewards are "
+        "not normalised: norm_reward false)",
     )
     policy: str = param("MultiInputPolicy", "policy class", choices=POLICIES)
     learning_rate: float | str = param(3e-4, "Adam step size, or 'lin_<x>' (linear decay)")
@@ -145,6 +147,16 @@ def load(env_id: str, overrides: dict[str, Any] | None = None) -> tuple[PPOHyper
     from policies.checkpoint import policy_kwargs_from_json
 
     policy_kwargs_from_json(hp.policy_kwargs, "hyperparams")  # before any folder exists
+    if isinstance(hp.normalize, dict):
+        n = hp.normalize
+        if set(n) - {"norm_obs", "norm_reward"} or not all(isinstance(v, bool) for v in n.values()):
+            raise InputError(
+                "hyperparams.normalize", n, "allowed: true/false or {norm_obs: true/false}"
+            )
+        if n.get("norm_reward"):  # training keeps the reward parts as the env reports them
+            raise InputError(
+                "hyperparams.normalize.norm_reward", True, "allowed: false (not supported)"
+            )
     if hp.batch_size < 2:  # SB3 normalises advantages over a minibatch: one sample is none
         raise InputError("hyperparams.batch_size", hp.batch_size, "allowed: at least 2")
     if hp.batch_size > hp.n_steps * hp.n_envs:
