@@ -277,10 +277,19 @@ def actor_graph(loaded: Loaded, properties: dict[str, str] | None = None) -> byt
 def torch_actions(loaded: Loaded, obs: dict[str, NDArray[Any]]) -> NDArray[np.float32]:
     """The torch policy's deterministic actions for a batch of raw observations (what
     ``PPOPolicy.act`` returns for each)."""
+    import torch
+
     o = {k: np.asarray(obs[k], np.float32) for k in sorted(loaded.policy.observation_space.spaces)}
     if loaded.normalizer is not None:
         o = loaded.normalizer(o)
-    action, _ = loaded.policy.predict(o, deterministic=True)
+    # one thread: a threaded float32 GEMM may split its sums by the threads free at the moment,
+    # so the reference would move with the machine's load (measured: 4e-5 on an extreme input)
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        action, _ = loaded.policy.predict(o, deterministic=True)
+    finally:
+        torch.set_num_threads(threads)
     space = loaded.policy.action_space
     return np.clip(np.asarray(action, np.float64), space.low, space.high).astype(np.float32)
 
@@ -291,6 +300,7 @@ def onnx_actions(model: bytes, obs: dict[str, NDArray[Any]]) -> NDArray[np.float
 
     opts = ort.SessionOptions()
     opts.log_severity_level = 3
+    opts.intra_op_num_threads = 1  # the same sums whatever the load (see torch_actions)
     sess = ort.InferenceSession(model, opts, providers=["CPUExecutionProvider"])
     feeds = {i.name: np.asarray(obs[i.name], np.float32) for i in sess.get_inputs()}
     return np.asarray(sess.run([OUTPUT], feeds)[0], np.float32)
