@@ -336,7 +336,10 @@ def _stopped(out: Path, created: bool) -> None:
         shutil.rmtree(out, ignore_errors=True)
     else:  # the user's empty folder: emptied again
         for child in out.iterdir():
-            shutil.rmtree(child, ignore_errors=True) if child.is_dir() else child.unlink()
+            if child.is_dir():
+                shutil.rmtree(child, ignore_errors=True)
+            else:
+                child.unlink()
 
 
 def _train(

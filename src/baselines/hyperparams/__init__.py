@@ -194,7 +194,7 @@ def to_zoo(hp: PPOHyperparams) -> dict[str, Any]:
     return {k: v for k, v in to_mapping(hp).items() if v is not None}
 
 
-__all__ = ["EnvSetup", "PPOHyperparams", "load", "to_zoo"]
+__all__ = ["EnvSetup", "PPOHyperparams", "load", "refuse_split_keys", "to_zoo"]
 
 
 def refuse_split_keys(extra: dict[str, Any]) -> None:
