@@ -127,6 +127,12 @@ def test_depth_pixel_reads_the_true_distance_to_the_ground(kernels: str) -> None
     assert (frame.depth[30:] > 0).all()
 
 
+# The reference path draws the same noise bits as the kernels
+# (test_native.test_the_proxy_camera_draws_the_same_frame_without_the_kernels), and its 3,000
+# frames cost ≈ 40 s: the law is checked on it in the full suite only.
+@pytest.mark.parametrize(
+    "kernels", ["compiled", pytest.param("reference", marks=pytest.mark.slow)], indirect=True
+)
 def test_depth_noise_follows_the_stereo_error_law(kernels: str) -> None:
     cam = make_camera({"camera_pitch_deg": 5.0}, {"width": 32, "height": 24})
     plants = _wall_plant(distance=4.0, radius=0.5, height=3.0)
