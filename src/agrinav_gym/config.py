@@ -125,10 +125,11 @@ class CameraConfig:
         1280, "proxy: sensor width whose focal length sets the noise (mesh: the image's)", 64, 4096
     )
     rate_hz: int = _f(20, "update rate, Hz (a divisor of control_hz)", 1, 200)
-    rgb: bool = _f(False, "also produce an RGB image (info['rgb'])")
+    rgb: bool = _f(False, "also produce an RGB image (info['rgb']); needs the depth observation")
     segmentation: bool = _f(
         False,
-        "also produce a mask 0 other, 1 soil, 2 crop, 3 weed, 4 robot, 5 obstacle "
+        "also produce a mask (needs the depth observation) 0 other, 1 soil, 2 crop, 3 weed, "
+        "4 robot, 5 obstacle "
         "(info['segmentation']); mesh: and instance ids, rows of plants.csv on crop and weed "
         "pixels, of obstacles.csv on obstacle pixels, -1 elsewhere (info['instance'])",
     )

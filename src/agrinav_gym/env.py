@@ -121,6 +121,16 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
                 "hands the route over in the route observation, which this env does not "
                 f"observe ({', '.join(self.observation_names)}); allowed: false here",
             )
+        cam = self.cfg.camera
+        for name, on in (("rgb", cam.rgb), ("segmentation", cam.segmentation)):
+            if on and OBS_DEPTH not in self.observation_names:  # the depth camera draws them
+                raise InputError(
+                    f"config.camera.{name}",
+                    True,
+                    f"comes with the depth camera's frames (info['{name}']), which this env "
+                    f"does not observe ({', '.join(self.observation_names)}); allowed: false "
+                    f"here, or add '{OBS_DEPTH}' to observations",
+                )
         t = self.cfg.task
         if not t.stop_on_failure and not (t.waypoint_goals and t.recoveries):
             raise InputError(

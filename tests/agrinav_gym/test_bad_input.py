@@ -65,6 +65,9 @@ ID = "AgriNav/FurrowFollow-v3"
         ({"observations": [["gps"]]}, "observations"),
         ({"observations": {"gps": False}}, "observations"),  # its keys would have been taken
         ({"scenario": ""}, "scenario"),
+        # the depth camera draws them: without it they would silently never appear in info
+        ({"config": {"camera": {"rgb": True}}}, "config.camera.rgb"),
+        ({"config": {"camera": {"segmentation": True}}}, "config.camera.segmentation"),
     ],
 )
 def test_bad_constructor_arguments(kwargs: dict[str, Any], field: str) -> None:
