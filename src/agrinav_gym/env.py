@@ -207,7 +207,7 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
                 f"{self.route.length:.2f} m",
                 f"allowed: a route of at least {shortest:g} m (success tolerance + 1 m)",
             )
-        self.start = self.task.start_pose(self.route, rng, self._clearance())
+        self.start = self.task.start_pose(self.route, rng, self._clearance(), self.scenario)
         self.world.place_robot(*self.start, self.scenario.terrain)
         self.world.settle()  # at rest on the ground before the first reading
         self.tracker = Tracker(self.route)

@@ -27,6 +27,22 @@ def test_default_scenario_starts_clear_of_the_crop(env_id: str) -> None:
         env.close()
 
 
+def test_a_corridor_narrower_than_the_lane_holds_the_start_inside_it() -> None:
+    """A start offset drawn wider than a user's narrow corridor would end every episode at its
+    first step: the offset is held to half the corridor as it is to half the lane's room."""
+    corridor = 0.02
+    config = {"task": {"corridor": corridor, "start_lateral_std": 0.5}}
+    env = gym.make("AgriNav/FurrowFollow-v3", observations=["odom"], config=config)
+    try:
+        for seed in range(6):
+            env.reset(seed=seed)
+            _, _, term, _, info = env.step(np.zeros(2, np.float32))
+            assert not term, (seed, info.get("termination"))
+            assert abs(info["cte"]) <= 0.5 * corridor + 0.005, (seed, info["cte"])  # + settling
+    finally:
+        env.close()
+
+
 @pytest.mark.parametrize("env_id", ["AgriNav/FurrowFollow-v3", "AgriNav/FieldRoute-v3"])
 def test_pure_pursuit_drives_the_default_scenario_without_touching_a_crop(env_id: str) -> None:
     from policies import make_policy

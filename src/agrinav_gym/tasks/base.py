@@ -99,20 +99,25 @@ class Task(ABC):
         return t.corridor if t.corridor is not None else 0.5 * scn.rows.spacing
 
     def start_pose(
-        self, route: RoutePath, rng: np.random.Generator, clearance: float
+        self, route: RoutePath, rng: np.random.Generator, clearance: float, scn: Scenario
     ) -> tuple[float, float, float]:
         """At rest a little along the route, offset sideways and turned, never in the crop.
 
         The perturbation is drawn from N(0, start_lateral_std) and N(0, start_heading_std) and
         clipped so the wheels and chassis stay inside the lane: half the ``clearance`` (room
         each side of the lane centre before the robot touches a stalk) for the lateral offset,
-        and the heading whose swing of the footprint's front corner uses the other half.
+        and the heading whose swing of the footprint's front corner uses the other half. A
+        corridor narrower than the clearance takes its place (a start outside it would end the
+        episode at its first step).
         """
         t = self.cfg
         s0 = min(0.3, 0.1 * route.length)
         ((x, y),) = route.sample(np.array([s0]))
         h = float(np.interp(s0, route.arc, np.unwrap(route.heading)))
-        room = 0.5 * max(clearance, 0.0)
+        k = min(
+            max(int(np.searchsorted(route.arc, s0, side="right")) - 1, 0), len(route.furrow) - 1
+        )
+        room = 0.5 * max(min(clearance, self.corridor(scn, bool(route.furrow[k]))), 0.0)
         lat = float(np.clip(rng.normal(0.0, t.start_lateral_std), -room, room))
         max_dh = math.degrees(math.atan2(room, 0.5 * self.robot.footprint[0]))
         dh = float(np.clip(rng.normal(0.0, t.start_heading_std_deg), -max_dh, max_dh))
