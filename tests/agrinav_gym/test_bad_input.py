@@ -231,3 +231,20 @@ def test_one_observation_name_is_one_observation() -> None:
         assert list(obs) == ["gps"]
     finally:
         env.close()
+
+
+def test_a_physics_rate_too_low_for_the_soil_names_the_rate_it_needs() -> None:
+    # the default stiffness is what refuses a low physics_hz: the message says what would pass
+    config = {"robot": {"physics_hz": 40, "control_hz": 10}, "camera": {"rate_hz": 10}}
+    with pytest.raises(InputError) as info:
+        gym.make(ID, config=config).close()
+    assert info.value.field == "config.soil.vertical_stiffness"
+    assert "robot.physics_hz 40" in str(info.value) and "physics_hz >= 97" in str(info.value)
+    # above it the corner damping is what refuses, and names the rate it needs in turn
+    config["robot"]["physics_hz"] = 100
+    with pytest.raises(InputError) as info:
+        gym.make(ID, config=config).close()
+    assert info.value.field == "config.soil.damping_ratio"
+    assert "robot.physics_hz 100" in str(info.value) and "physics_hz >= 148" in str(info.value)
+    config["robot"]["physics_hz"] = 150  # what the messages asked for (a multiple of 10)
+    gym.make(ID, config=config, scenario_overrides=TINY).close()

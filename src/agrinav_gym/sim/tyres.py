@@ -73,14 +73,22 @@ def check_corner_stability(soil: SoilConfig, corner_mass: float, dt: float) -> N
     """Refuse soil values whose vertical spring-damper the physics step cannot integrate."""
     from scenario_gen.errors import InputError
 
-    r = math.sqrt(soil.vertical_stiffness / corner_mass) * dt
+    omega = math.sqrt(soil.vertical_stiffness / corner_mass)
+    r = omega * dt
     lo, hi = MIN_DAMPING_PER_OMEGA_DT * r, MAX_DAMPING_OMEGA_DT / r
-    if not lo <= soil.damping_ratio <= hi:
+    zeta = soil.damping_ratio
+    if not lo <= zeta <= hi:
+        # both bounds narrow as dt grows: a faster physics rate is the other way out
+        rate = ""
+        if zeta > 0:
+            need = omega * max(MIN_DAMPING_PER_OMEGA_DT / zeta, zeta / MAX_DAMPING_OMEGA_DT)
+            rate = f"; this damping and stiffness need robot.physics_hz >= {math.ceil(need)}"
         raise InputError(
             "config.soil.damping_ratio",
-            soil.damping_ratio,
-            f"allowed with vertical_stiffness {soil.vertical_stiffness:g} N/m at this physics "
-            f"rate: {lo:.2f}..{hi:.2f} (outside it the robot rocks itself over standing still)",
+            zeta,
+            f"allowed with vertical_stiffness {soil.vertical_stiffness:g} N/m at robot."
+            f"physics_hz {round(1.0 / dt)}: {lo:.2f}..{hi:.2f} (outside it the robot rocks "
+            f"itself over standing still){rate}",
         )
 
 
