@@ -153,6 +153,8 @@ def test_reset_options_switch_scenario_and_lane() -> None:
         other = sg.generate(sg.preset("mature-corn", **TINY), seed=1)
         env.reset(seed=0, options={"scenario": other})
         assert env.unwrapped.scenario is other
+        env.reset(seed=1)  # a fixed field env keeps the switched scenario (its docstring)
+        assert env.unwrapped.scenario is other
         with pytest.raises(ScenarioError, match="options"):
             env.reset(options={"lanes": 1})
         with pytest.raises(ScenarioError, match="options.lane"):

@@ -71,7 +71,12 @@ class FurrowFollowEnv(AgriNavEnv):
     ``bank`` (a directory of saved scenarios sampled each reset), ``observations``,
     ``config`` (nested overrides of ``EnvConfig``; unknown keys are errors), ``render_mode``
     (``rgb_array`` chase view, ``human`` GUI).
-    ``reset(options={"scenario": ..., "lane": i})`` switches scenario or lane.
+    ``reset(options={"scenario": ..., "lane": i})`` switches scenario or lane. The scenario
+    option is a Scenario, a folder or a preset name; a name is generated as the preset itself
+    (seed 0, without this env's ``scenario_overrides``, ``scenario_seed`` or ``randomize``:
+    pass a Scenario, e.g. ``scenario_gen.generate(spec, seed)``, for anything else). A fixed
+    field env keeps the new scenario for later resets; a bank or a randomized scenario key
+    draws again at the next reset without the option.
 
     ## Version History
     * v3: at reset the robot settles on its tyres, wheels held, before the first observation
