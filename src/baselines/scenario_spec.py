@@ -66,6 +66,8 @@ def parse_set(
         key, sep, raw = item.partition("=")
         if not sep or not key.strip():
             raise InputError(flag, item, f"allowed: key=value, e.g. {example}")
+        if key.strip() in out:  # which of the two values wins would be the order on the line
+            raise InputError(f"{flag} {key.strip()}", item, "given twice; allowed: once")
         try:
             out[key.strip()] = parse_yaml(raw, f"{flag} {key}") if raw.strip() else None
         except yaml.YAMLError:  # pragma: no cover  (parse_yaml reports YAML errors itself)

@@ -412,6 +412,19 @@ def test_episode_seconds_leave_the_video_out(monkeypatch: pytest.MonkeyPatch) ->
             ["bench", "--suite", "smoke", "--policies", "rpp", "--cases", "a;", "--out", "x"],
             "no empty entry",
         ),
+        # a doubled entry or key is a slip: refused, not silently merged or the last one kept
+        (
+            ["bench", "--suite", "smoke", "--policies", "rpp", "--cases", "a;a", "--out", "x"],
+            "'a' given twice",
+        ),
+        (["bench", "--suite", "smoke", "--policies", "rpp,rpp", "--out", "x"], "given twice"),
+        (
+            [
+                *("bench", "--suite", "smoke", "--policies", "rpp", "--out", "x"),
+                *("--config", "soil.friction=0.4", "--config", "soil.friction=0.8"),
+            ],
+            "--config soil.friction",
+        ),
         (["train", "--env", "AgriNav/Nope-v0", "--timesteps", "10", "--out", "x"], "--env"),
     ],
 )

@@ -30,14 +30,21 @@ episodes_type = int_at_least(1, MAX_EPISODES)
 
 
 def separated(sep: str, what: str) -> Callable[[str], list[str]]:
-    """A ``sep``-separated list of non-empty entries: ``"a,,b"`` or a trailing ``sep`` is
-    refused (a lost entry is more often a slip than an intent), spaces around entries dropped."""
+    """A ``sep``-separated list of distinct non-empty entries: ``"a,,b"``, a trailing ``sep``
+    or ``"a,a"`` is refused (a lost or doubled entry is more often a slip than an intent),
+    spaces around entries dropped."""
 
     def parse(text: str) -> list[str]:
         items = [part.strip() for part in text.split(sep)]
         if not text.strip() or any(not item for item in items):
             raise argparse.ArgumentTypeError(
                 f"got {text!r}; allowed: a {sep!r}-separated list of {what} with no empty entry"
+            )
+        twice = sorted({item for item in items if items.count(item) > 1})
+        if twice:
+            raise argparse.ArgumentTypeError(
+                f"got {text!r}: {', '.join(map(repr, twice))} given twice; allowed: each of "
+                f"the {what} once"
             )
         return items
 
