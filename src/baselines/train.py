@@ -208,6 +208,18 @@ def prepare(run: TrainRun) -> tuple[hpmod.PPOHyperparams, hpmod.EnvSetup, dict[s
             _check_spaces(init, probe, run.init_from)
     finally:
         probe.close()
+    # SB3 collects whole rollouts: asked for less than one, a run would train a whole one
+    done = int(checkpoint.read_meta(run.resume).get("num_timesteps", 0)) if run.resume else 0
+    rollout = hp.n_steps * hp.n_envs
+    if hp.n_timesteps - done < rollout:
+        raise InputError(
+            "--timesteps",
+            hp.n_timesteps,
+            f"is less than one rollout{f' past the {done} steps done' if done else ''} "
+            f"(n_steps {hp.n_steps} × n_envs {hp.n_envs} = {rollout} steps, which PPO "
+            f"collects whole); allowed: at least {done + rollout}, or a smaller "
+            "--hyperparams n_steps or --n-envs",
+        )
     return hp, setup, kwargs
 
 

@@ -426,6 +426,11 @@ def test_episode_seconds_leave_the_video_out(monkeypatch: pytest.MonkeyPatch) ->
             "--config soil.friction",
         ),
         (["train", "--env", "AgriNav/Nope-v0", "--timesteps", "10", "--out", "x"], "--env"),
+        # PPO collects whole rollouts: 100 steps would have trained 512 × 4
+        (
+            ["train", "--env", "AgriNav/FurrowFollow-v3", "--timesteps", "100", "--out", "x"],
+            "less than one rollout (n_steps 512 × n_envs 4 = 2048 steps",
+        ),
     ],
 )
 def test_bad_experiment_arguments_exit_2(
@@ -621,7 +626,7 @@ def test_a_second_train_on_the_same_out_is_refused(
 
     out = tmp_path / "ppo"
     with lock_output(out.absolute(), "--out"):  # what a running `agrinav train` holds
-        argv = ["train", "--env", "AgriNav/FurrowFollow-v3", "--timesteps", "64"]
+        argv = ["train", "--env", "AgriNav/FurrowFollow-v3", "--timesteps", "4096"]
         assert main([*argv, "--out", str(out)]) == 2
     assert "being written by another run" in capsys.readouterr().err
     assert not out.exists()
