@@ -37,9 +37,10 @@ BOOTSTRAP = 2000  # resamples of the per-episode values for a 95 % percentile in
 
 def policy_labels(specs: Sequence[str]) -> list[str]:
     """Row labels: the policy name, ``dwb:CONFIG`` (nav2, furrow, tuned or the YAML file's
-    stem) for DWB, ``NAME:tuned`` for the shipped tuned parameters, or ``NAME:FILE`` /
-    ``ppo:FOLDER`` when several of one controller compete."""
-    from policies import TUNED_ARG
+    stem) for DWB, ``NAME:tuned`` for the shipped tuned parameters, ``NAME:FILE`` /
+    ``ppo:FOLDER`` for a user's parameters or checkpoint (even alone: a row labelled plain
+    ``rpp`` or ``ppo`` is the defaults or the shipped model), ``ppo:shipped`` beside others."""
+    from policies import SHIPPED_ARG, TUNED_ARG
     from policies.dwb import config_label
 
     parsed = [PolicySpec.parse(spec) for spec in specs]
@@ -50,8 +51,10 @@ def policy_labels(specs: Sequence[str]) -> list[str]:
             labels.append(f"dwb:{config_label(path or None)}")
         elif path == TUNED_ARG:
             labels.append(f"{name}:{TUNED_ARG}")
-        elif names.count(name) > 1 and path:
+        elif path and path != SHIPPED_ARG:
             labels.append(f"{name}:{Path(path.rstrip('/')).name or path}")
+        elif names.count(name) > 1 and path:
+            labels.append(f"{name}:{path}")
         else:
             labels.append(name)
     # files of one name in different folders (every tune writes best.yaml): the folders

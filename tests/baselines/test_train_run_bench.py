@@ -483,6 +483,10 @@ def test_bench_labels_tell_ppo_checkpoints_apart() -> None:
     ]
     with pytest.raises(ScenarioError, match="--policies"):
         policy_labels(["rpp:t1/best.yaml", "rpp:t1/best.yaml"])
+    # a user's parameters or checkpoint alone is not the defaults or the shipped model
+    assert policy_labels(["rpp:runs/mine.yaml", "dwb"]) == ["rpp:mine.yaml", "dwb:furrow"]
+    assert policy_labels(["ppo:runs/depth_ppo"]) == ["ppo:depth_ppo"]
+    assert policy_labels(["ppo:shipped"]) == ["ppo"]
 
 
 @pytest.mark.parametrize(
