@@ -184,7 +184,12 @@ def lock_output(out: Path, what: str) -> Iterator[None]:
     retries with the new one — so two runs can never both hold ``out``."""
     lock_path = out.parent / f".{out.name}{LOCK_TAG}"
     while True:
-        fd = os.open(lock_path, os.O_RDWR | os.O_CREAT, 0o666)
+        try:
+            fd = os.open(lock_path, os.O_RDWR | os.O_CREAT, 0o666)
+        except OSError as exc:  # a folder that refuses files though it looks writable (/proc)
+            raise InputError(
+                what, str(out), f"cannot be created: {out.parent} takes no files ({exc.strerror})"
+            ) from None
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:

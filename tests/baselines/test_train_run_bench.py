@@ -530,6 +530,27 @@ def test_an_out_under_a_file_is_one_line(
     assert code == 2 and "is not a directory" in err and "Errno" not in err, err
 
 
+@pytest.mark.skipif(not Path("/proc/self").is_dir(), reason="Linux's /proc")
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["train", "--env", "AgriNav/FurrowFollow-v3", "--timesteps", "4096"],
+        ["bench", "--suite", "smoke", "--policies", "rpp"],
+        ["scenario"],
+    ],
+)
+def test_an_out_in_a_folder_that_takes_no_files_is_one_line(
+    args: list[str], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """/proc looks writable to root but creates nothing: not a bare errno line (as another
+    user, /proc is refused as not writable before any file is tried)."""
+    code = main([*args, "--out", "/proc/agrinav-out"])
+    err = capsys.readouterr().err
+    assert code == 2 and "/proc/agrinav-out" in err, err
+    assert "takes no files" in err or "is not writable" in err, err
+    assert "Errno" not in err and len(err.strip().splitlines()) == 1, err
+
+
 def test_env_kwargs_with_an_unknown_key_is_one_line(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
