@@ -17,7 +17,14 @@ from shapely.geometry.base import BaseGeometry
 
 from . import crops
 from .arrays import FloatArray
-from .bounds import MAX_PLANE_RADIUS_M, check_budget, check_lod, check_plants
+from .bounds import (
+    MAX_PLANE_RADIUS_M,
+    MAX_PLANT_HEIGHT_M,
+    MIN_PLANT_HEIGHT_M,
+    check_budget,
+    check_lod,
+    check_plants,
+)
 from .crops import scaled_by_height
 from .drift import apply_drift, drift_phases
 from .errors import InputError
@@ -91,6 +98,20 @@ def place_plants(
         stage,
         lay.row,
     )
+
+
+def _check_native_height(height: float, height_std: float) -> None:
+    """A model kept at its own size makes plants of its height (± 3 height_std): within what a
+    scenario may hold, or the folder written would not load."""
+    lo, hi = MIN_PLANT_HEIGHT_M / (1 - 3 * height_std), MAX_PLANT_HEIGHT_M / (1 + 3 * height_std)
+    if not lo <= height <= hi:
+        raise InputError(
+            "crop.model",
+            f"{height:.4g} m tall as read",
+            f"with crop.model_scale native (and height_std {height_std:g}) allowed: a model "
+            f"{lo:.3g}..{hi:.3g} m tall (a file in millimetres or centimetres? "
+            "crop.model_scale stage scales it to the growth stage's height)",
+        )
 
 
 #: The fields ``check_spec`` relates to one another (keep in step with it): a randomization is
@@ -274,6 +295,8 @@ def generate(spec: ScenarioSpec, seed: int) -> Scenario:
         if spec.crop.model is not None
         else None
     )
+    if user_model is not None and user_model.scale == "native":
+        _check_native_height(user_model.size[2], spec.crop.height_std)
     field_ll = read_field(spec.field.geojson, spec.field.layer) if spec.field.geojson else None
     plan = plan_field(spec, field_ll)
     site, poly = plan.site, plan.poly

@@ -176,7 +176,13 @@ class CropSpec:
     species: str = _f("corn", "crop species", choices=CROP_SPECIES)
     stage: int = _f(3, "growth stage, 1 (early) .. the species' last stage", 1, 10)
     growth: float | None = _f(None, "continuous growth 0..1 (overrides stage)", 0, 1)
-    height_std: float = _f(0.08, "relative std of plant height between plants", 0, 0.5)
+    height_std: float = _f(
+        0.08,
+        "relative std of plant height between plants (drawn within 3 std: at most 0.3 keeps "
+        "every plant above a tenth of the nominal height)",
+        0,
+        0.3,
+    )
     model: str | None = _f(
         None,
         "user plant model: a mesh file (COLLADA, glTF/GLB, OBJ, PLY, STL) with the files it "

@@ -241,6 +241,31 @@ def test_model_scale_native_keeps_the_files_size(scale: str) -> None:
     assert scn.crop_model.to_dict()["model_scale"] == scale
 
 
+@pytest.mark.parametrize("height", [1500.0, 1e-7])
+def test_a_native_size_no_plant_has_is_refused_before_anything_is_written(
+    tmp_path: Path, height: float
+) -> None:
+    """A model in millimetres kept at its size wrote a scenario its own loader refused."""
+    w = 0.1 * height
+    model = tmp_path / "mm.obj"
+    model.write_text(
+        f"v 0 0 0\nv {w} 0 0\nv 0 {w} 0\nv 0 0 {height}\nf 1 2 3\nf 1 2 4\nf 1 3 4\nf 2 3 4\n"
+    )
+    spec = small(crop={"model": str(model), "model_scale": "native"})
+    with pytest.raises(ScenarioError, match="crop.model") as info:
+        generate(spec, 0)
+    assert "model_scale stage" in str(info.value)
+    generate(small(crop={"model": str(model), "model_scale": "stage"}), 0)  # scaled: fine
+
+
+def test_plant_heights_stay_positive_over_the_whole_height_spread() -> None:
+    """Heights are drawn within 3 std: a std above 1/3 wrote negative heights."""
+    with pytest.raises(ScenarioError, match="crop.height_std"):
+        small(crop={"height_std": 0.5})
+    scn = generate(small(crop={"height_std": 0.3}), 0)
+    assert scn.plants.height.min() > 0
+
+
 def test_flat_or_empty_models_are_refused(tmp_path: Path) -> None:
     flat = tmp_path / "flat.obj"
     flat.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
