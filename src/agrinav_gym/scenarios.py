@@ -24,7 +24,7 @@ import numpy as np
 import scenario_gen as sg
 from scenario_gen import Scenario
 from scenario_gen.errors import InputError
-from scenario_gen.generate import COUPLED_FIELDS, check_spec
+from scenario_gen.generate import COUPLED_FIELDS, check_fields_used, check_spec
 from scenario_gen.schema import coerce, field_info, is_integer_field, load_yaml, plain, to_mapping
 from scenario_gen.spec import ScenarioSpec
 
@@ -360,6 +360,8 @@ class ScenarioSource:
         self.preset = str(scenario or "default") if self.kind == "preset" else None
         self.overrides = dict(overrides or {})
         base = sg.preset(self.preset, **self.overrides) if self.preset else None
+        if base is not None and self.overrides:  # the user's fixed values (not the draws)
+            check_fields_used(base)
         self.randomization = Randomization(randomize, base)
         if self.randomization.scenario_keys and self.kind != "preset":
             raise InputError(

@@ -91,7 +91,7 @@ def spec_from_args(args: argparse.Namespace) -> Any:
     import dataclasses
 
     from scenario_gen import preset
-    from scenario_gen.generate import PATH_KEYS, check_spec, resolve_paths
+    from scenario_gen.generate import PATH_KEYS, check_fields_used, check_spec, resolve_paths
     from scenario_gen.presets import source_name
     from scenario_gen.schema import load_yaml, merge
     from scenario_gen.spec import ScenarioSpec
@@ -131,6 +131,7 @@ def spec_from_args(args: argparse.Namespace) -> Any:
         files = [args.config] if args.config else []
         spec = dataclasses.replace(spec, name=source_name(args.preset, spec, files))
     check_spec(spec)
+    check_fields_used(spec)
     return resolve_paths(spec)  # absolute input paths in scenario.json and bank.yaml
 
 

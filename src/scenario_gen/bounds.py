@@ -33,7 +33,7 @@ from dataclasses import dataclass
 from shapely.geometry.base import BaseGeometry
 
 from .errors import InputError
-from .geodesy import GSD_Z0, ground_sample_distance
+from .geodesy import GSD_Z0, MAX_LOCAL_M, ground_sample_distance
 from .schema import field_info
 from .spec import ScenarioSpec
 
@@ -51,7 +51,7 @@ MAX_GROUND_SPACING = 10.0  # m: Bullet's triangle-size guidance
 #: of the datum (a field is local: the ENU tangent plane is ~0.8 m off the ellipsoid there),
 #: heights within 10 km of the datum, and plants under 30 m (the catalog's tallest is 2.5 m).
 MIN_GROUND_SPACING = 0.001
-MAX_ENU_OFFSET_M = 100_000.0
+MAX_ENU_OFFSET_M = MAX_LOCAL_M
 MAX_ENU_HEIGHT_M = 10_000.0
 MAX_PLANT_HEIGHT_M = 30.0
 MIN_PLANT_HEIGHT_M = 0.01  # plants.csv keeps heights to 0.1 mm: a plant is taller than that

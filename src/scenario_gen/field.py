@@ -57,9 +57,11 @@ def geometries(data: Any, where: str) -> list[dict[str, Any]]:
     return out
 
 
-def lonlat_to_enu(geom: BaseGeometry, geo: GeoFrame) -> BaseGeometry:
+def lonlat_to_enu(
+    geom: BaseGeometry, geo: GeoFrame, what: str = "field.geojson vertex"
+) -> BaseGeometry:
     def tx(coords: np.ndarray) -> np.ndarray:
-        x, y, _ = geo.geodetic_to_enu(coords[:, 1], coords[:, 0], 0.0)
+        x, y = geo.local_enu(coords[:, 1], coords[:, 0], 0.0, what)
         return np.column_stack([x, y])
 
     return shapely.transform(geom, tx)

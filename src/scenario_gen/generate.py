@@ -186,6 +186,45 @@ def check_spec(spec: ScenarioSpec) -> None:
         )
 
 
+def check_fields_used(spec: ScenarioSpec) -> None:
+    """Refuse a terrain field the spec's source or site does not read (a user who set it
+    expects it to move the terrain). For the spec a user gives, not for a randomization's
+    draws: drawing ``terrain.site`` and ``terrain.max_slope_deg`` together is a valid range
+    even where a draw's site does not read the slope."""
+    t, field_file = spec.terrain, spec.field.geojson is not None
+    default = TerrainSpec()
+    dem = t.source in ("embedded", "dem")
+    unused: list[tuple[str, str]] = []
+    if t.site != default.site and not dem:
+        why = f"is a DEM's site search; with terrain.source={t.source} terrain.datum places it"
+        unused.append(("site", why))
+    elif t.site != default.site and field_file:
+        unused.append(("site", "is a DEM's site search; a field file fixes the site"))
+    for name in ("lat", "lon"):
+        if getattr(t, name) is not None and (t.site != "latlon" or not dem):
+            where = "terrain.datum" if not dem else "terrain.site=latlon"
+            unused.append((name, f"is read with terrain.site=latlon on a DEM only; set {where}"))
+    if t.max_slope_deg != default.max_slope_deg and (t.site != "steepest" or not dem):
+        unused.append(("max_slope_deg", "bounds terrain.site=steepest on a DEM only"))
+    if t.path is not None and t.source not in ("dem", "mesh"):
+        unused.append(("path", "is the DEM or mesh file of terrain.source dem or mesh"))
+    for name in ("slope_deg", "aspect_deg"):
+        if getattr(t, name) != getattr(default, name) and t.source != "plane":
+            unused.append((name, "shapes terrain.source=plane only"))
+    if t.up_axis != default.up_axis and t.source != "mesh":
+        unused.append(("up_axis", "is a terrain mesh's (terrain.source=mesh)"))
+    if t.fill_max_pixels != default.fill_max_pixels and t.source != "dem":
+        unused.append(("fill_max_pixels", "fills a GeoTIFF DEM's holes (terrain.source=dem)"))
+    if unused:
+        name, why = unused[0]
+        raise InputError(
+            f"terrain.{name}",
+            getattr(t, name),
+            f"is not used with terrain.source={t.source}, site={t.site}: it {why}; allowed: "
+            "its default here",
+        )
+
+
 #: the spec's fields that name input files (dotted: section, field)
 PATH_KEYS = ("terrain.path", "field.geojson", "crop.model", "route.waypoints")
 
@@ -257,13 +296,13 @@ def plan_field(
     diag = math.hypot(spec.field.width, spec.field.length) + 2 * m
     site = opener(spec.terrain, field_ll, diag, m)
     if field_ll is not None:
+        if spec.terrain.source == "plane":  # before the field is drawn on it
+            check_on_plane(field_ll, spec.terrain, site.geo)
         poly = check_field(lonlat_to_enu(field_ll, site.geo), "field.geojson")
         default_angle = long_axis_deg(poly)
     else:
         poly = check_field(rectangle(spec.field, site.centre), "field")
         default_angle = spec.field.angle_deg
-    if spec.terrain.source == "plane":
-        check_on_plane(poly, spec.terrain, site.geo)
     check_plants(spec, poly)
     spacing = check_lod(spec, site.geo.lat, poly)
     check_budget(spec, poly, spacing)
@@ -325,6 +364,7 @@ def generate(spec: ScenarioSpec, seed: int) -> Scenario:
             lay.rows,
             lay.planting_area,
             "route.waypoints",
+            spec.terrain.source,
         )
     else:
         crops = np.column_stack([lay.x, lay.y])[~lay.is_weed]
@@ -444,10 +484,13 @@ def _without(plants: Plants, drop: np.ndarray) -> Plants:
     return Plants(**{k: v[keep] for k, v in plants.arrays().items()})
 
 
-def check_on_plane(poly: BaseGeometry, terrain: TerrainSpec, geo: GeoFrame) -> None:
-    """A plane is the tangent plane at its datum: the field must lie near it (bounds.py)."""
-    xy = shapely.get_coordinates(poly)
-    reach = float(np.hypot(xy[:, 0], xy[:, 1]).max()) + terrain.margin
+def check_on_plane(field_ll: BaseGeometry, terrain: TerrainSpec, geo: GeoFrame) -> None:
+    """A plane is the tangent plane at its datum: a field file's field (lon/lat) must lie near
+    it (bounds.py), measured straight-line (east and north alone would fold the far side of the
+    Earth back onto the plane)."""
+    lonlat = shapely.get_coordinates(field_ll)
+    x, y, z = geo.geodetic_to_enu(lonlat[:, 1], lonlat[:, 0], geo.alt)
+    reach = float(np.sqrt(x * x + y * y + z * z).max()) + terrain.margin
     if reach > MAX_PLANE_RADIUS_M:
         raise InputError(
             "terrain.datum",

@@ -26,6 +26,10 @@ from pyproj.transformer import AreaOfInterest
 from .arrays import FloatArray
 from .errors import InputError
 
+#: How far from its datum a field's points may lie (straight-line, m): what a loaded scenario
+#: may hold (bounds.MAX_ENU_OFFSET_M, which imports this module).
+MAX_LOCAL_M = 100_000.0
+
 #: Web-Mercator ground sample distance at zoom 0 and the equator, metres per 256-px tile pixel.
 GSD_Z0 = 156543.03392
 
@@ -164,6 +168,27 @@ class GeoFrame:
         d = np.stack([np.asarray(X), np.asarray(Y), np.asarray(Z)], axis=-1) - self._origin
         enu = d @ self._rot.T
         return enu[..., 0], enu[..., 1], enu[..., 2]
+
+    def local_enu(
+        self, lat: ArrayLike, lon: ArrayLike, alt: ArrayLike, what: str
+    ) -> tuple[FloatArray, FloatArray]:
+        """East and north (m) of points a field may hold: each within ``MAX_LOCAL_M`` of the
+        datum, straight-line, else refused naming ``what[k]``. The tangent plane's east and
+        north alone would put a point on the far side of the Earth back near the datum."""
+        x, y, z = self.geodetic_to_enu(lat, lon, alt)
+        far = np.sqrt(x * x + y * y + z * z) > MAX_LOCAL_M
+        if np.any(far):
+            k = int(np.flatnonzero(far.ravel())[0])
+            la, lo = np.broadcast_arrays(np.asarray(lat, float), np.asarray(lon, float))
+            dist = float(np.sqrt(x * x + y * y + z * z).ravel()[k])
+            raise InputError(
+                f"{what}[{k}]",
+                [float(la.ravel()[k]), float(lo.ravel()[k])],
+                f"is {dist / 1000:,.0f} km from the datum ({self.lat:.6f}, {self.lon:.6f}); "
+                f"allowed: points within {MAX_LOCAL_M / 1000:g} km of it (a field's local "
+                "frame reaches no further)",
+            )
+        return x, y
 
     def enu_to_geodetic(
         self, x: ArrayLike, y: ArrayLike, z: ArrayLike = 0.0

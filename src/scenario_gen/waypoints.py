@@ -101,6 +101,7 @@ def waypoint_route(
     rows: Any = None,
     field: Any = None,
     what: str = "--waypoints",
+    terrain_source: str = "embedded",
 ) -> tuple[Route, list[int]]:
     """The straight-leg plan through ``wps`` (read by ``read_gps_waypoints``) in ENU, on the
     terrain, every ``spacing`` metres, and the indices of its points at the waypoints (the
@@ -113,28 +114,30 @@ def waypoint_route(
     rows)."""
     # Nav2's GPS waypoints carry no altitude: take the datum's, not 0 (a point hundreds of
     # metres below the tangent plane lies millimetres off sideways at tens of metres).
-    x, y, _ = geo.geodetic_to_enu(wps[:, 0], wps[:, 1], geo.alt)
+    swapped = (
+        "; every waypoint lies on the terrain with latitude and longitude swapped: check which "
+        "the file gives first"
+        if _on_terrain_swapped(wps, geo, terrain)
+        else ""
+    )
+    try:
+        x, y = geo.local_enu(wps[:, 0], wps[:, 1], geo.alt, f"{what} waypoints")
+    except InputError as exc:
+        advice = f"; {_site_advice(wps, terrain_source)}"
+        raise InputError(
+            exc.field, exc.value, "off the terrain: " + exc.allowed + advice + swapped
+        ) from None
     xy = np.column_stack([x, y])
     inside = terrain.contains(xy[:, 0], xy[:, 1])
     if not np.all(inside):
         k = int(np.flatnonzero(~np.asarray(inside))[0])
-        # the terrain is the field's site and margin, which the waypoints do not move: say
-        # where a site would have to be for them (the centre of their box, through the datum)
-        mid = (xy.min(axis=0) + xy.max(axis=0)) / 2.0
-        lat, lon, _ = geo.enu_to_geodetic(mid[0], mid[1], 0.0)
-        hint = ""
-        if _on_terrain_swapped(wps, geo, terrain):
-            hint = (
-                "; every waypoint lies on the terrain with latitude and longitude swapped: "
-                "check which the file gives first"
-            )
         raise InputError(
             f"{what} waypoints[{k}]",
             [float(wps[k, 0]), float(wps[k, 1])],
             f"is {float(np.hypot(*xy[k])):.1f} m from the datum, off the terrain (the field's "
-            "site and its margin); allowed: waypoints on the scenario's terrain — to centre the "
-            f"site on them set terrain.site=latlon, terrain.lat={float(lat):.7f}, "
-            f"terrain.lon={float(lon):.7f}, and a field and terrain.margin that reach them" + hint,
+            "site and its margin); allowed: waypoints on the scenario's terrain — "
+            + _site_advice(wps, terrain_source)
+            + swapped,
         )
     legs = np.diff(xy, axis=0)
     length = np.hypot(legs[:, 0], legs[:, 1])
@@ -166,12 +169,35 @@ def waypoint_route(
     return Route(np.column_stack([p, z]), seg, np.full(len(p), -1, np.int64)), goals
 
 
+def _site_advice(wps: FloatArray, source: str) -> str:
+    """Where the terrain would have to be for the waypoints, in the fields ``source`` reads:
+    the centre of the waypoints' own latitude/longitude box (across the antimeridian where
+    they straddle it)."""
+    lat = float(wps[:, 0].min() + wps[:, 0].max()) / 2.0
+    lon0 = float(wps[0, 1])
+    d = (wps[:, 1] - lon0 + 180.0) % 360.0 - 180.0  # east of the first, in (-180, 180]
+    lon = (lon0 + float(d.min() + d.max()) / 2.0 + 180.0) % 360.0 - 180.0
+    reach = "and a field and terrain.margin that reach them"
+    if source in ("embedded", "dem"):
+        cover = "" if source == "embedded" else " (on a DEM that covers them)"
+        return (
+            f"to centre the site on them set terrain.site=latlon, terrain.lat={lat:.7f}, "
+            f"terrain.lon={lon:.7f}{cover}, {reach}"
+        )
+    if source == "plane":
+        return f"to put the plane under them set terrain.datum=[{lat:.7f}, {lon:.7f}, ALT], {reach}"
+    return f"a terrain mesh and --datum that cover them (their centre: {lat:.7f}, {lon:.7f})"
+
+
 def _on_terrain_swapped(wps: FloatArray, geo: GeoFrame, terrain: Any) -> bool:
     """Whether the waypoints, latitude and longitude exchanged, would all lie on the terrain
     (the commonest slip in a hand-written file: GeoJSON and many GIS tools give lon first)."""
     if not np.all(np.abs(wps[:, 1]) <= 90.0):
         return False
-    x, y, _ = geo.geodetic_to_enu(wps[:, 1], wps[:, 0], geo.alt)
+    try:
+        x, y = geo.local_enu(wps[:, 1], wps[:, 0], geo.alt, "waypoints")
+    except InputError:  # far away that way round too
+        return False
     return bool(np.all(terrain.contains(np.asarray(x), np.asarray(y))))
 
 

@@ -1,4 +1,5 @@
 from pathlib import Path
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -200,13 +201,47 @@ def test_randomization_is_checked_where_two_ranges_meet(ranges: dict, field: str
     from scenario_gen.errors import InputError
 
     base = sg.ScenarioSpec().replace({"layout.row_spacing": 1.2, "crop.species": "corn"})
-    extra = {"layout.weed_density": [0.0, 2.0], "terrain.max_slope_deg": [1.0, 8.0]}
+    extra = {"layout.weed_density": [0.0, 2.0], "terrain.margin": [6.0, 10.0]}
     with pytest.raises(InputError) as exc:
         Randomization({**ranges, **extra}, base)
     assert exc.value.field.startswith(f"randomize.{field}")
     # each range alone is fine
     for key, value in ranges.items():
         Randomization({key: value, **extra}, base)
+
+
+@pytest.mark.parametrize(
+    ("over", "field"),
+    [
+        ({"terrain.source": "plane", "terrain.site": "latlon"}, "site"),
+        ({"terrain.site": "flattest", "terrain.lat": 36.5}, "lat"),
+        ({"terrain.site": "flattest", "terrain.max_slope_deg": 5.0}, "max_slope_deg"),
+        ({"terrain.source": "embedded", "terrain.path": "x.tif"}, "path"),
+        ({"terrain.source": "embedded", "terrain.slope_deg": 5.0}, "slope_deg"),
+        ({"terrain.source": "embedded", "terrain.aspect_deg": 5.0}, "aspect_deg"),
+        ({"terrain.source": "plane", "terrain.up_axis": "y"}, "up_axis"),
+        ({"terrain.source": "embedded", "terrain.fill_max_pixels": 3}, "fill_max_pixels"),
+        ({"terrain.site": "steepest", "field.geojson": "field.geojson"}, "site"),
+    ],
+)
+def test_a_terrain_field_its_source_does_not_read_is_refused(
+    over: dict[str, Any], field: str
+) -> None:
+    """Set and silently ignored (the site moved nowhere), now refused in the user's spec;
+    a randomization may still draw a site and a slope bound together."""
+    from scenario_gen.errors import InputError
+    from scenario_gen.generate import check_fields_used
+
+    with pytest.raises(InputError) as exc:
+        check_fields_used(sg.ScenarioSpec().replace(over))
+    assert exc.value.field == f"terrain.{field}"
+    if "field.geojson" not in over:  # the env refuses the same overrides
+        section = {k.split(".")[1]: v for k, v in over.items()}
+        with pytest.raises(InputError) as exc:
+            make(scenario_overrides={"terrain": section})
+        assert exc.value.field == f"terrain.{field}"
+    rand = {"terrain.site": {"choices": ["flattest", "steepest"]}, "terrain.max_slope_deg": [2, 8]}
+    make(randomize=rand).close()
 
 
 def test_coupled_fields_cover_every_cross_field_check() -> None:

@@ -99,6 +99,17 @@ def test_plane_far_from_its_datum_is_refused(tmp_path: Path) -> None:
     assert "km from the plane's datum" in str(info.value) and "within 5 km" in str(info.value)
 
 
+def test_a_field_on_the_far_side_of_the_earth_is_not_folded_onto_the_plane(
+    tmp_path: Path,
+) -> None:
+    """The datum's vertical leaves the Earth again at its antipode: east and north alone put
+    that field inside 5 km of the datum."""
+    gj = _square(tmp_path, -42.03, -93.6 + 180.0)
+    with pytest.raises(ScenarioError) as info:
+        generate(plane(field={"geojson": str(gj)}, terrain={"datum": [42.03, -93.6, 0.0]}), 0)
+    assert info.value.field == "terrain.datum" and "12,7" in str(info.value), str(info.value)
+
+
 def test_plane_datum_near_the_field_is_honoured(tmp_path: Path) -> None:
     gj = _square(tmp_path, 42.03, -93.6)
     datum = [42.03 + 1000 / 111_000, -93.6, 250.0]  # 1 km north of the field, at 250 m

@@ -92,6 +92,33 @@ def test_a_waypoint_off_the_terrain_is_refused_by_number(field, tmp_path: Path) 
     assert lon == pytest.approx((min(lons) + max(lons)) / 2, abs=1e-6)
 
 
+def test_waypoints_on_the_far_side_of_the_earth_are_refused_not_folded_in(
+    field,
+    tmp_path: Path,  # type: ignore[no-untyped-def]
+) -> None:
+    """East and north alone put a point where the datum's vertical leaves the far side of the
+    Earth back inside the field: its distance is measured in three dimensions."""
+    wps = _corners(field)
+    anti = [{"latitude": -w["latitude"], "longitude": w["longitude"] + 180.0} for w in wps]
+    path = _write(tmp_path / "anti.yaml", anti)
+    with pytest.raises(InputError) as e:
+        generate(small(route={"waypoints": str(path)}), seed=0)
+    assert e.value.field == "route.waypoints waypoints[0]" and "12,7" in str(e.value)
+    assert "within 100 km" in str(e.value)
+
+
+def test_a_plane_gets_datum_advice_for_waypoints_far_from_it(field, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    """terrain.site/lat/lon place a DEM's site: a plane is placed by its datum."""
+    path = _write(tmp_path / "w.yaml", _corners(field))
+    with pytest.raises(InputError) as e:
+        generate(small(terrain={"source": "plane"}, route={"waypoints": str(path)}), seed=0)
+    found = re.search(r"terrain\.datum=\[([-\d.]+), ([-\d.]+), ALT\]", str(e.value))
+    assert found is not None and "terrain.site" not in str(e.value), str(e.value)
+    lat, lon = (float(v) for v in found.groups())
+    datum = [lat, lon, field.geo.alt]
+    generate(small(terrain={"source": "plane", "datum": datum}, route={"waypoints": str(path)}), 0)
+
+
 def test_waypoints_with_latitude_and_longitude_swapped_get_a_hint(field, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
     wps = _corners(field)
     swapped = [{"latitude": w["longitude"], "longitude": w["latitude"]} for w in wps]
