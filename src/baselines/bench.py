@@ -142,6 +142,13 @@ def _make_env(
         return gym.make(env_id, **kw)
 
 
+def _policy_files(specs: Sequence[str]) -> list[Path]:
+    """The parameter files and checkpoint folders the policies read (an --out replaced with
+    --force must not hold them)."""
+    paths = (PolicySpec.parse(spec).arg for spec in specs)
+    return [Path(p) for p in paths if p and Path(p).exists()]
+
+
 def _policy(spec: str, env: Any, trust: bool) -> Any:
     from policies import make_policy
 
@@ -169,14 +176,14 @@ def run(
     check_policy_spec(policy)
     if video:
         check_video()
-    check_output_dir(out, force, kind="run")
+    check_output_dir(out, force, kind="run", inputs=_policy_files([policy]))
     # everything is checked before --out exists
     env = _make_env(env_id, scenario, render=video, max_steps=max_steps)
     records = []
     try:
         pi = _policy(policy, env, trust_checkpoint)
         name = scenario_label(env, scenario)
-        with output_dir(out, force, kind="run") as tmp:
+        with output_dir(out, force, kind="run", inputs=_policy_files([policy])) as tmp:
             for k in tqdm(range(episodes), desc=f"{policy} on {env_id}", unit="ep"):
                 if video and k == 0:
                     ep = _video_episode(env, pi, seed, policy, tmp / "episode_000.webm")
@@ -262,7 +269,7 @@ def bench(
     for spec in policies:
         check_policy_spec(spec)
     check_spread(workers, ray)
-    check_output_dir(out, force, kind="bench")
+    check_output_dir(out, force, kind="bench", inputs=_policy_files(policies))
     for ci in chosen:  # every policy must fit every case before any episode runs
         env = _make_env(cases[ci])
         try:
@@ -287,7 +294,7 @@ def bench(
         "version": _version(),
     }
     journal = Journal(out, identity)
-    with output_dir(out, force, kind="bench") as tmp:
+    with output_dir(out, force, kind="bench", inputs=_policy_files(policies)) as tmp:
         done = journal.open(force)  # refused before a progress bar is drawn
         with (
             tqdm(total=len(jobs), desc=f"bench {suite_name}", unit="ep") as bar,

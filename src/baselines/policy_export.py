@@ -51,6 +51,7 @@ class Source:
     folder: Path | None  # the AgriNav checkpoint folder; None for a (trusted) SB3 model
     env_id: str | None
     label: str  # as the user named it
+    path: Path  # the file or folder read (which an --out replaced with --force must not hold)
 
 
 def resolve_source(text: str, trust: bool = False) -> Source:
@@ -79,7 +80,7 @@ def resolve_source(text: str, trust: bool = False) -> Source:
         raise InputError(FIELD, text, f"does not exist; allowed: {FORMS}")
     loaded = checkpoint.load_policy(path, trust, text)
     safe = (path / checkpoint.META).is_file()
-    return Source(loaded, path if safe else None, env_id or loaded.meta.get("env_id"), text)
+    return Source(loaded, path if safe else None, env_id or loaded.meta.get("env_id"), text, path)
 
 
 def export_policy(
@@ -100,6 +101,7 @@ def export_policy(
         require_onnx()
     check_output_dir(out, force, "--out", "policy export")
     src = resolve_source(source, trust)
+    check_output_dir(out, force, "--out", "policy export", inputs=[src.path])
     command = " ".join(shlex.quote(a) for a in (argv or ["agrinav", "export-policy", source]))
     if to == "onnx":
         return _export_onnx(src, Path(out), force, command)
@@ -147,7 +149,7 @@ def _export_onnx(src: Source, out: Path, force: bool, command: str) -> dict[str,
         )
     layout = input_layout(src.loaded.policy.observation_space)
     space = src.loaded.policy.action_space
-    with output_dir(out, force, "--out", "policy export") as tmp:
+    with output_dir(out, force, "--out", "policy export", inputs=[src.path]) as tmp:
         (tmp / ONNX_FILE).write_bytes(model)
         (tmp / "README.md").write_text(
             _onnx_readme(src, layout, space, diff, command, OPSET, OUTPUT)
@@ -350,7 +352,7 @@ def _export_sb3(src: Source, out: Path, force: bool, command: str) -> dict[str, 
         )
     )
     obs = sample_observations(src.loaded, SAMPLES)
-    with output_dir(out, force, "--out", "policy export") as tmp:
+    with output_dir(out, force, "--out", "policy export", inputs=[src.path]) as tmp:
         run = tmp / ZOO_ALGO / f"{name}_1"
         params = run / name
         params.mkdir(parents=True)

@@ -25,7 +25,7 @@ import os
 import re
 import shutil
 import tempfile
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import TypeVar
 
@@ -41,14 +41,19 @@ _AT_FDCWD = -100
 
 
 def check_output_dir(
-    directory: str | Path, overwrite: bool, what: str = "out", kind: str | None = None
+    directory: str | Path,
+    overwrite: bool,
+    what: str = "out",
+    kind: str | None = None,
+    inputs: Sequence[str | Path | None] = (),
 ) -> Path:
     """Refuse an unusable output path before any work is done (and before anything is made).
 
     Overwriting replaces only a folder agrinav wrote (it holds ``MARKER``) — with ``kind``,
     only one of that kind (a policy export must not replace a scenario) — and never the
     current folder, one above it, the home folder or ``/``: ``--out . --force`` must not
-    delete a user's files."""
+    delete a user's files. Nor one that holds any of the command's ``inputs`` (files or
+    folders it reads): replacing it would delete them."""
     out = Path(os.path.abspath(directory))  # "." and ".." resolved: out.name is a real name
     if out.exists() and not out.is_dir():
         raise InputError(what, str(out), "exists and is not a directory")
@@ -59,6 +64,18 @@ def check_output_dir(
             "already exists; choose another directory or allow overwriting (--force)",
         )
     if out.exists():
+        real = out.resolve()
+        for given in inputs:
+            if given is None:
+                continue
+            source = Path(given).expanduser().resolve()
+            if source == real or real in source.parents:
+                raise InputError(
+                    what,
+                    str(out),
+                    f"holds this command's input {given}, which replacing it would delete; "
+                    "choose another folder",
+                )
         check_replaceable(out, what, kind)
     check_creatable(out, what)
     return out
@@ -233,20 +250,24 @@ def _remove_empty(folders: list[Path]) -> None:
 
 @contextlib.contextmanager
 def output_dir(
-    directory: str | Path, overwrite: bool = False, what: str = "out", kind: str | None = None
+    directory: str | Path,
+    overwrite: bool = False,
+    what: str = "out",
+    kind: str | None = None,
+    inputs: Sequence[str | Path | None] = (),
 ) -> Iterator[Path]:
     """Yield a temporary folder that becomes ``directory`` when the block succeeds (marked as
-    agrinav's output of ``kind``).
+    agrinav's output of ``kind``); ``inputs`` as ``check_output_dir`` takes them.
 
     On failure nothing is left: not the temporary folder, not a parent folder this call made.
     """
-    out = check_output_dir(directory, overwrite, what, kind)
+    out = check_output_dir(directory, overwrite, what, kind, inputs)
     made: list[Path] = []
     try:
         made = _make_parents(out)
         with lock_output(out, what):
             clean_stale(out)
-            check_output_dir(out, overwrite, what, kind)  # again, under the lock
+            check_output_dir(out, overwrite, what, kind, inputs)  # again, under the lock
             try:
                 tmp = Path(
                     tempfile.mkdtemp(prefix=f".{out.name}{TMP_TAG}{os.getpid()}-", dir=out.parent)

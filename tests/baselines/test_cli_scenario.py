@@ -147,3 +147,17 @@ def test_a_config_files_relative_paths_are_its_folders(tmp_path: Path, monkeypat
     assert spec.route.waypoints == str((cfg / "gps.yaml").resolve())
     spec = spec_from_argv(["--config", str(cfg / "c.yaml"), "--waypoints", "gps.yaml"])
     assert spec.route.waypoints == str((tmp_path / "gps.yaml").resolve())
+
+
+def test_a_bank_member_that_fails_names_its_seed(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Seed 4's curve radius leaves the keyhole room, seed 5's does not: the error says which
+    member (the first, seed 4, generated before the bank folder exists)."""
+    argv = ["scenario", "--seed", "4", "--count", "2", "--no-preview", "--out", str(tmp_path / "b")]
+    sets = ["layout.row_geometry=curved", "layout.curve_radius=[15,200]", "route.turn=keyhole"]
+    sets.append("layout.headland=4.0")
+    assert main([*argv, *(a for s in sets for a in ("--set", s))]) == 2
+    err = capsys.readouterr().err
+    assert "route.turn" in err and "(bank member seed 5)" in err, err
+    assert not (tmp_path / "b").exists()

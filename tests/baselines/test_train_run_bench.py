@@ -426,6 +426,11 @@ def test_episode_seconds_leave_the_video_out(monkeypatch: pytest.MonkeyPatch) ->
             "--config soil.friction",
         ),
         (["train", "--env", "AgriNav/Nope-v0", "--timesteps", "10", "--out", "x"], "--env"),
+        # Optuna's sampler takes 32-bit seeds: a larger one was a traceback, exit 1
+        (
+            ["tune", "--policy", "rpp", "--trials", "1", "--seed", str(2**32), "--out", "x"],
+            f"--seed: got {2**32}",
+        ),
         # PPO collects whole rollouts: 100 steps would have trained 512 × 4
         (
             ["train", "--env", "AgriNav/FurrowFollow-v3", "--timesteps", "100", "--out", "x"],

@@ -40,6 +40,7 @@ def run(args: argparse.Namespace) -> int:
 
     from scenario_gen import generate, save
     from scenario_gen.atomic import check_output_dir, output_dir
+    from scenario_gen.generate import PATH_KEYS
 
     spec = spec_from_args(args)
     if args.seed + args.count - 1 > MAX_SEED:
@@ -49,7 +50,12 @@ def run(args: argparse.Namespace) -> int:
             f"allowed: seeds up to {MAX_SEED} (seed + count - 1)",
         )
     out = Path(args.out)
-    check_output_dir(out, args.force, kind="scenario")
+    # the files it reads (an --out replaced with --force must not hold them)
+    inputs = [
+        args.config,
+        *(getattr(getattr(spec, k.split(".")[0]), k.split(".")[1]) for k in PATH_KEYS),
+    ]
+    check_output_dir(out, args.force, kind="scenario", inputs=inputs)
     if args.count == 1:
         t0 = time.perf_counter()
         scn = generate(spec, args.seed)
@@ -72,11 +78,16 @@ def run(args: argparse.Namespace) -> int:
     seeds = range(args.seed, args.seed + args.count)
     names = [f"seed-{seed:06d}" for seed in seeds]
     first = generate(spec, seeds.start)  # bad input is reported before the bank folder exists
-    with output_dir(out, args.force, kind="scenario") as tmp:
+    with output_dir(out, args.force, kind="scenario", inputs=inputs) as tmp:
         for seed, name in tqdm(
             zip(seeds, names, strict=True), total=len(names), desc="scenarios", unit="scn"
         ):
-            scn = first if seed == seeds.start else generate(spec, seed)
+            try:
+                scn = first if seed == seeds.start else generate(spec, seed)
+            except InputError as exc:  # one seed's draw: say which (the others generated)
+                raise InputError(
+                    exc.field, exc.value, f"{exc.allowed} (bank member seed {seed})"
+                ) from None
             save(scn, tmp / name, preview=not args.no_preview)
         (tmp / "bank.yaml").write_text(
             yaml.safe_dump(

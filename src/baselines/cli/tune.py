@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from .args import episodes_type, int_at_least, seed_type
+from .args import episodes_type, int_at_least
 
 
 def add(sub: Any) -> None:
@@ -24,7 +24,12 @@ def add(sub: Any) -> None:
     tu.add_argument("--policy", required=True, choices=sorted(SEARCH))
     tu.add_argument("--trials", type=int_at_least(1, 10_000), default=40)
     tu.add_argument("--episodes", type=episodes_type, default=8, help="training fields a trial")
-    tu.add_argument("--seed", type=seed_type, default=0)
+    tu.add_argument(
+        "--seed",
+        type=int_at_least(0, 2**32 - 1),  # Optuna's TPE sampler (numpy's legacy seeding)
+        default=0,
+        help="the search's seed and the first reset seed (0 to 2^32 - 1)",
+    )
     tu.add_argument("--out", required=True)
     tu.add_argument("--force", action="store_true", help="replace an earlier tune's --out")
     tu.add_argument(

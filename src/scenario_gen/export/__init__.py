@@ -39,7 +39,7 @@ def export(
     # with --force, the plainer reason before the marker's kind; without, "already exists"
     if overwrite and Path(out).resolve() == src.resolve():
         raise InputError("out", str(out), "is the scenario folder itself; choose another")
-    check_output_dir(out, overwrite, kind="export")
+    check_output_dir(out, overwrite, kind="export", inputs=[src])
     try:
         scn = load(src)
     except InputError:
