@@ -229,7 +229,7 @@ def lock_output(out: Path, what: str) -> Iterator[None]:
         os.close(fd)
 
 
-def _make_parents(out: Path) -> list[Path]:
+def make_parents(out: Path) -> list[Path]:
     """Create ``out``'s missing parent folders; the ones created, outermost first."""
     made: list[Path] = []
     q = out.absolute().parent
@@ -242,7 +242,7 @@ def _make_parents(out: Path) -> list[Path]:
     return made
 
 
-def _remove_empty(folders: list[Path]) -> None:
+def remove_empty(folders: list[Path]) -> None:
     for p in reversed(folders):
         with contextlib.suppress(OSError):
             p.rmdir()
@@ -264,7 +264,7 @@ def output_dir(
     out = check_output_dir(directory, overwrite, what, kind, inputs)
     made: list[Path] = []
     try:
-        made = _make_parents(out)
+        made = make_parents(out)
         with lock_output(out, what):
             clean_stale(out)
             check_output_dir(out, overwrite, what, kind, inputs)  # again, under the lock
@@ -285,7 +285,7 @@ def output_dir(
                 shutil.rmtree(tmp, ignore_errors=True)
                 raise
     except BaseException:
-        _remove_empty(made)
+        remove_empty(made)
         raise
 
 

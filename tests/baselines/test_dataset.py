@@ -171,16 +171,35 @@ def test_a_folder_of_another_dataset_is_refused(dataset: Path, tmp_path: Path) -
         (["--set", "randomize={crop.stage: [1, 60]}"], "crop.stage"),
         (["--ray", "not an address"], "--ray: got 'not an address'"),
         (["--ray", "local", "--workers", "2"], "--workers: got 2"),
+        (["--frames", str(10**20)], "--frames: got 100000000000000000000"),
     ],
 )
 def test_bad_specs_exit_2_and_write_nothing(
     tmp_path: Path, args: list[str], needle: str, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    out = tmp_path / "out"
+    out = tmp_path / "new" / "parent" / "out"  # nor the parent folders it would have made
     assert main(["dataset", "perception", "--out", str(out), "--frames", "2", *args]) == 2
     err = capsys.readouterr().err
     assert needle in err and len(err.strip().splitlines()) == 1
-    assert not out.exists()
+    assert not (tmp_path / "new").exists()
+
+
+def test_a_run_that_fails_in_an_empty_folder_leaves_it_empty(tmp_path: Path) -> None:
+    """The policy is built against the env only in the workers: a depth policy trained on
+    64 × 48 frames refuses these 48 × 32 ones after the manifest is written. It went with the
+    folder only where the run had made it; in the user's empty folder it blocked the next
+    command as "another dataset"."""
+    from policies import shipped_model
+
+    out = tmp_path / "mine"
+    out.mkdir()
+    spec = load_spec(
+        None, {**TINY, "policy": f"ppo:{shipped_model('AgriNav/FurrowFollowDepth-v3')}"}
+    )
+    with pytest.raises(InputError):
+        generate(spec, out, seed=7, frames=2)
+    assert out.is_dir() and list(out.iterdir()) == []
+    assert generate(load_spec(None, TINY), out, seed=7, frames=2) == 2  # the corrected command
 
 
 def test_trajectories_are_a_minari_dataset_that_recovers_its_env(tmp_path: Path) -> None:

@@ -16,7 +16,8 @@ def add(sub: Any) -> None:
     pe.add_argument("--spec", help="YAML file of spec fields (docs/datasets.md); default: defaults")
     pe.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="spec field")
     pe.add_argument("--out", required=True)
-    pe.add_argument("--frames", type=int_at_least(1), default=256)
+    # a bound, as --episodes has: a typo such as 10^20 must be an error, not an endless run
+    pe.add_argument("--frames", type=int_at_least(1, 10_000_000), default=256)
     pe.add_argument("--workers", type=int_at_least(1), default=1)
     pe.add_argument("--seed", type=seed_type, default=0)
     pe.add_argument(

@@ -12,7 +12,7 @@ from typing import Any
 
 from tqdm import tqdm
 
-from scenario_gen.atomic import check_creatable, lock_output
+from scenario_gen.atomic import check_creatable, lock_output, make_parents, remove_empty
 from scenario_gen.errors import InputError
 from scenario_gen.schema import parse_json, to_mapping
 
@@ -111,11 +111,15 @@ def generate(
     check_spread(workers, ray)
     out = Path(out)
     check_creatable(out.absolute(), "--out")
-    out.absolute().parent.mkdir(parents=True, exist_ok=True)
-    # A second run on the same --out is refused while this one holds it (two used to race
-    # and both fail, advising to "free the space").
-    with lock_output(out.absolute(), "--out"):
-        return _generate(spec, out, seed, frames, workers, card, ray)
+    made = make_parents(out.absolute())
+    try:
+        # A second run on the same --out is refused while this one holds it (two used to race
+        # and both fail, advising to "free the space").
+        with lock_output(out.absolute(), "--out"):
+            return _generate(spec, out, seed, frames, workers, card, ray)
+    except BaseException:
+        remove_empty(made)  # the parent folders this run made, when nothing was kept in them
+        raise
 
 
 def _generate(
@@ -127,14 +131,15 @@ def _generate(
     card: Callable[[Path], None] | None,
     ray: str | None,
 ) -> int:
-    fresh = not out.exists()
-    shards, todo = prepare(spec, out, seed, frames)
-    procs = max(1, min(workers, len(todo)))
-    # a core the workers leave idle encodes each frame while the next one renders
-    overlap = procs < (os.cpu_count() or 1)
-    jobs = [(spec, seed, i, str(out), overlap) for i in todo]
-    written = 0
+    existed = out.exists()
+    fresh = not existed or (out.is_dir() and not any(out.iterdir()))
+    written = shards = 0
     try:
+        shards, todo = prepare(spec, out, seed, frames)
+        procs = max(1, min(workers, len(todo)))
+        # a core the workers leave idle encodes each frame while the next one renders
+        overlap = procs < (os.cpu_count() or 1)
+        jobs = [(spec, seed, i, str(out), overlap) for i in todo]
         with (
             tqdm(total=len(todo) * spec.frames_per_shard, unit="frame", desc="dataset") as bar,
             Tasks(procs if ray is None else 1, ray) as tasks,
@@ -153,7 +158,7 @@ def _generate(
         if card is not None:
             card(out)
     except BaseException as exc:  # a full disk, a lost cluster, Ctrl-C: leave no partial file
-        done = _clean_up(out, fresh)
+        done = _clean_up(out, fresh, existed)
         if not isinstance(exc, OSError):
             raise
         raise OSError(
@@ -169,15 +174,19 @@ def _generate(
     return written
 
 
-def _clean_up(out: Path, fresh: bool) -> int:
+def _clean_up(out: Path, fresh: bool, existed: bool) -> int:
     """After a failed run: remove the partial shards and card files (the pool's workers were
-    stopped mid-write) and, when no shard is whole and the run made the folder, the folder.
-    Returns the number of whole shards kept."""
+    stopped mid-write) and, when no shard is whole and the folder was new or empty, what the
+    run wrote in it (the manifest) and the folder if the run made it. Returns the number of
+    whole shards kept."""
+    if not out.is_dir():
+        return 0
     for part in out.glob(".*.tmp-*"):  # shards and card files (``atomic_write``)
         part.unlink(missing_ok=True)
     done = len(list(out.glob("shard-*.tar")))
     if done == 0 and fresh:
         for f in out.iterdir():
             f.unlink(missing_ok=True)
-        out.rmdir()
+        if not existed:
+            out.rmdir()
     return done
