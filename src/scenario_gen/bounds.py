@@ -175,7 +175,9 @@ def check_lod(spec: ScenarioSpec, lat_deg: float, field: BaseGeometry | None = N
     if not broken:
         return spacing
     if need > 22:
-        fix = "no LoD up to 22 is that fine here: widen the rows or disable furrows"
+        fix = "no LoD is that fine: change a value " + (
+            "the rule names" if len(broken) == 1 else "each rule names"
+        )
     elif top is not None and need > top:
         fix = (
             f"no LoD meets both: the spacing rules need LoD >= {need}, the terrain's size "
