@@ -58,6 +58,7 @@ def test_bad_inputs_write_nothing(scenario: Path, tmp_path: Path, capsys) -> Non
         (["export", str(scenario), "--to", "mesh", "--formats", "fbx"], "formats[0]: got 'fbx'"),
         (["export", str(scenario), "--to", "gis", "--formats", "obj"], "only with --to mesh"),
         (["export", str(scenario), "--to", "mesh", "--formats", "glb,,obj"], "no empty entry"),
+        (["export", str(scenario), "--to", "nav2", "--dwb", ""], "--dwb: got ''"),
         (["export", str(scenario), "--to", "gazebo", "--tile-plants", "0"], "tile_plants: got 0"),
         (["export", str(scenario), "--to", "gis", "--heightmap"], "--heightmap: got 'gis'"),
         (["export", str(scenario), "--to", "mesh", "--plants", "tiles"], "--plants: got 'mesh'"),

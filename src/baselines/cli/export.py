@@ -86,6 +86,8 @@ def run(args: argparse.Namespace) -> int:
     if args.to == "nav2":
         from ..nav2_robot import nav2_options
 
+        if args.dwb is not None and not args.dwb.strip():  # not silently the default
+            raise InputError("--dwb", args.dwb, "allowed: furrow, nav2, tuned or a YAML file")
         data = nav2_options(dwb=args.dwb or "furrow", **data)
     elif args.dwb is not None:
         raise InputError("--dwb", args.to, "allowed only with --to nav2")
