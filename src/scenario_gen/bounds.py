@@ -54,7 +54,9 @@ MIN_GROUND_SPACING = 0.001
 MAX_ENU_OFFSET_M = MAX_LOCAL_M
 MAX_ENU_HEIGHT_M = 10_000.0
 MAX_PLANT_HEIGHT_M = 30.0
-MIN_PLANT_HEIGHT_M = 0.01  # plants.csv keeps heights to 0.1 mm: a plant is taller than that
+#: plants.csv keeps heights to 0.1 mm, which a model kept at a sub-millimetre native size
+#: rounds to 0: a plant is at least a centimetre tall
+MIN_PLANT_HEIGHT_M = 0.01
 RIDGE_SAMPLES = 4  # per row period: worst-case ridge kept cos(pi/4) = 71 %
 #: A plane is the tangent plane at its datum; at distance d it lies d²/2R above the ellipsoid
 #: (2.0 m at 5 km) and its vertical is tilted by d/R (0.045° at 5 km). Rectangles reach 3.6 km.

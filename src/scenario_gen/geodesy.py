@@ -176,11 +176,11 @@ class GeoFrame:
         datum, straight-line, else refused naming ``what[k]``. The tangent plane's east and
         north alone would put a point on the far side of the Earth back near the datum."""
         x, y, z = self.geodetic_to_enu(lat, lon, alt)
-        far = np.sqrt(x * x + y * y + z * z) > MAX_LOCAL_M
-        if np.any(far):
-            k = int(np.flatnonzero(far.ravel())[0])
+        reach = np.sqrt(x * x + y * y + z * z)
+        if np.any(reach > MAX_LOCAL_M):
+            k = int(np.flatnonzero(reach.ravel() > MAX_LOCAL_M)[0])
             la, lo = np.broadcast_arrays(np.asarray(lat, float), np.asarray(lon, float))
-            dist = float(np.sqrt(x * x + y * y + z * z).ravel()[k])
+            dist = float(reach.ravel()[k])
             raise InputError(
                 f"{what}[{k}]",
                 [float(la.ravel()[k]), float(lo.ravel()[k])],

@@ -112,20 +112,23 @@ def waypoint_route(
     the rows there: within ``FURROW_ALIGN_DEG`` of the row direction at that point
     (``rows.direction_at``: one angle for straight rows, the local tangent of curved or contour
     rows)."""
+
+    def swapped() -> str:  # asked only once a waypoint is refused
+        if not _on_terrain_swapped(wps, geo, terrain):
+            return ""
+        return (
+            "; every waypoint lies on the terrain with latitude and longitude swapped: check "
+            "which the file gives first"
+        )
+
     # Nav2's GPS waypoints carry no altitude: take the datum's, not 0 (a point hundreds of
     # metres below the tangent plane lies millimetres off sideways at tens of metres).
-    swapped = (
-        "; every waypoint lies on the terrain with latitude and longitude swapped: check which "
-        "the file gives first"
-        if _on_terrain_swapped(wps, geo, terrain)
-        else ""
-    )
     try:
         x, y = geo.local_enu(wps[:, 0], wps[:, 1], geo.alt, f"{what} waypoints")
     except InputError as exc:
         advice = f"; {_site_advice(wps, terrain_source)}"
         raise InputError(
-            exc.field, exc.value, "off the terrain: " + exc.allowed + advice + swapped
+            exc.field, exc.value, "off the terrain: " + exc.allowed + advice + swapped()
         ) from None
     xy = np.column_stack([x, y])
     inside = terrain.contains(xy[:, 0], xy[:, 1])
@@ -137,7 +140,7 @@ def waypoint_route(
             f"is {float(np.hypot(*xy[k])):.1f} m from the datum, off the terrain (the field's "
             "site and its margin); allowed: waypoints on the scenario's terrain — "
             + _site_advice(wps, terrain_source)
-            + swapped,
+            + swapped(),
         )
     legs = np.diff(xy, axis=0)
     length = np.hypot(legs[:, 0], legs[:, 1])

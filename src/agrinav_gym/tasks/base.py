@@ -114,10 +114,8 @@ class Task(ABC):
         s0 = min(0.3, 0.1 * route.length)
         ((x, y),) = route.sample(np.array([s0]))
         h = float(np.interp(s0, route.arc, np.unwrap(route.heading)))
-        k = min(
-            max(int(np.searchsorted(route.arc, s0, side="right")) - 1, 0), len(route.furrow) - 1
-        )
-        room = 0.5 * max(min(clearance, self.corridor(scn, bool(route.furrow[k]))), 0.0)
+        furrow = bool(route.lookup(np.array([s0]))[1][0])
+        room = 0.5 * max(min(clearance, self.corridor(scn, furrow)), 0.0)
         lat = float(np.clip(rng.normal(0.0, t.start_lateral_std), -room, room))
         max_dh = math.degrees(math.atan2(room, 0.5 * self.robot.footprint[0]))
         dh = float(np.clip(rng.normal(0.0, t.start_heading_std_deg), -max_dh, max_dh))
