@@ -229,20 +229,28 @@ def check_fields_used(spec: ScenarioSpec) -> None:
 PATH_KEYS = ("terrain.path", "field.geojson", "crop.model", "route.waypoints")
 
 
-def resolve_paths(spec: ScenarioSpec) -> ScenarioSpec:
-    """The spec with its input files as absolute, resolved paths (so that scenario.json
-    regenerates the scenario from any working directory)."""
-    over: dict[str, str] = {}
+def input_files(spec: ScenarioSpec) -> dict[str, str]:
+    """The input files the spec names (``PATH_KEYS`` that are set), by key."""
+    out = {}
     for key in PATH_KEYS:
         section, name = key.split(".")
         value = getattr(getattr(spec, section), name)
         if value is not None:
-            try:
-                resolved = str(Path(value).expanduser().resolve())
-            except (OSError, RuntimeError) as exc:  # a symlink loop, an unreadable parent
-                raise InputError(key, value, f"cannot be resolved ({exc})") from None
-            if resolved != value:
-                over[key] = resolved
+            out[key] = value
+    return out
+
+
+def resolve_paths(spec: ScenarioSpec) -> ScenarioSpec:
+    """The spec with its input files as absolute, resolved paths (so that scenario.json
+    regenerates the scenario from any working directory)."""
+    over: dict[str, str] = {}
+    for key, value in input_files(spec).items():
+        try:
+            resolved = str(Path(value).expanduser().resolve())
+        except (OSError, RuntimeError) as exc:  # a symlink loop, an unreadable parent
+            raise InputError(key, value, f"cannot be resolved ({exc})") from None
+        if resolved != value:
+            over[key] = resolved
     return spec.replace(over) if over else spec
 
 

@@ -40,7 +40,7 @@ def run(args: argparse.Namespace) -> int:
 
     from scenario_gen import generate, save
     from scenario_gen.atomic import check_output_dir, output_dir
-    from scenario_gen.generate import PATH_KEYS
+    from scenario_gen.generate import input_files
 
     spec = spec_from_args(args)
     if args.seed + args.count - 1 > MAX_SEED:
@@ -51,10 +51,7 @@ def run(args: argparse.Namespace) -> int:
         )
     out = Path(args.out)
     # the files it reads (an --out replaced with --force must not hold them)
-    inputs = [
-        args.config,
-        *(getattr(getattr(spec, k.split(".")[0]), k.split(".")[1]) for k in PATH_KEYS),
-    ]
+    inputs = [args.config, *input_files(spec).values()]
     check_output_dir(out, args.force, kind="scenario", inputs=inputs)
     if args.count == 1:
         t0 = time.perf_counter()
