@@ -34,6 +34,11 @@ from .errors import InputError
 TMP_TAG = ".tmp-"
 OLD_TAG = ".old-"
 LOCK_TAG = ".lock"
+#: bytes a temporary sibling's name adds to the output's: ".", TMP_TAG, a pid (≤ 7 digits on
+#: Linux: pid_max ≤ 2^22), "-" and mkdtemp's 8 characters
+TMP_RESERVE = 1 + len(TMP_TAG) + 7 + 1 + 8
+#: Linux's limit on a path's bytes, its final NUL included (limits.h)
+PATH_MAX = 4096
 #: The file that marks a folder as agrinav's output, the only kind ``--force`` replaces.
 MARKER = ".agrinav-output"
 _RENAME_EXCHANGE = 2
@@ -55,6 +60,7 @@ def check_output_dir(
     delete a user's files. Nor one that holds any of the command's ``inputs`` (files or
     folders it reads): replacing it would delete them."""
     out = Path(os.path.abspath(directory))  # "." and ".." resolved: out.name is a real name
+    check_name_lengths(out, what)
     if out.exists() and not out.is_dir():
         raise InputError(what, str(out), "exists and is not a directory")
     if out.exists() and not overwrite:
@@ -82,13 +88,52 @@ def check_output_dir(
 
 
 def check_creatable(out: Path, what: str = "out") -> None:
-    """Refuse a folder that cannot be made: a file where a parent folder should be, or a
-    parent that is not writable (not errno's "File exists" from deep inside a mkdir)."""
+    """Refuse a folder that cannot be made: a file where a parent folder should be, a parent
+    that is not writable, or a name the file system cannot hold (not errno's "File exists" or
+    "File name too long" from deep inside a mkdir)."""
     parent = _existing_parent(out)
     if not parent.is_dir():
         raise InputError(what, str(out), f"its parent {parent} is not a directory")
     if not os.access(parent, os.W_OK | os.X_OK):
         raise InputError(what, str(out), f"cannot be created: {parent} is not writable")
+
+
+def check_name_lengths(out: Path, what: str = "out") -> None:
+    """Refuse names longer than the file system holds (before any ``stat``, which would raise
+    errno's "File name too long"): each folder still to be made, and ``out``'s own with room
+    for its temporary sibling's tags (``.NAME.tmp-PID-XXXXXXXX``)."""
+    parts = out.absolute().parts
+    size = len(os.fsencode(str(out.absolute()))) + TMP_RESERVE
+    if size >= PATH_MAX:
+        raise InputError(
+            what, str(out), f"the path is {size} bytes long with its temporary tags; "
+            f"at most {PATH_MAX - 1} are allowed (the file system's limit)"
+        )  # fmt: skip
+    known = Path(parts[0])
+    for i, name in enumerate(parts[1:], 1):
+        try:
+            name_max = os.pathconf(known, "PC_NAME_MAX")
+        except (OSError, ValueError):
+            name_max = 255
+        last = i == len(parts) - 1
+        allowed = name_max - TMP_RESERVE if last else name_max
+        size = len(os.fsencode(name))
+        if size > allowed:
+            reason = (
+                f"the file system takes {name_max}; the temporary folder the output is "
+                f"written in adds {TMP_RESERVE}"
+                if last
+                else "the file system's limit for a folder's name"
+            )
+            raise InputError(
+                what,
+                str(out),
+                f"the name {name[:24]}… is {size} bytes long; at most {allowed} are allowed "
+                f"here ({reason})",
+            )
+        with contextlib.suppress(OSError):
+            if known.is_dir():
+                known = known / name
 
 
 def check_replaceable(out: Path, what: str = "out", kind: str | None = None) -> None:

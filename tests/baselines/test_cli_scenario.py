@@ -161,3 +161,39 @@ def test_a_bank_member_that_fails_names_its_seed(
     err = capsys.readouterr().err
     assert "route.turn" in err and "(bank member seed 5)" in err, err
     assert not (tmp_path / "b").exists()
+
+
+def test_a_full_disk_is_one_line_naming_the_output_and_what_to_do(
+    tmp_path: Path, monkeypatch, capsys
+) -> None:
+    """The machine's error (here ENOSPC raised with no file name, as numpy's writers do) is
+    exit 1 and one line: where, why and what to do, not ``[Errno 28]``; nothing is left."""
+    import errno
+
+    import numpy as np
+
+    def full(*_a: object, **_k: object) -> None:
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(np, "savez_compressed", full)
+    out = tmp_path / "made" / "scn"
+    assert main(["scenario", "--out", str(out)]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err == (
+        f"agrinav scenario: error: writing {out}: No space left on device; "
+        "free space on that disk or write elsewhere (--out)"
+    )
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_an_os_error_with_a_file_names_that_file() -> None:
+    import errno
+
+    from baselines.cli import os_error
+
+    exc = PermissionError(errno.EACCES, "Permission denied", "/data/x.csv")
+    assert os_error(exc, "out") == (
+        "/data/x.csv: Permission denied; no permission there: write elsewhere (--out) or fix "
+        "the folder's permissions"
+    )
+    assert os_error(OSError(errno.EIO, "Input/output error")) == "Input/output error"

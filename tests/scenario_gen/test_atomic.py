@@ -209,3 +209,25 @@ def test_force_never_replaces_the_current_home_or_root_folder(
     ):
         pass
     assert (cwd / "notes.txt").read_text() == "mine"
+
+
+def test_names_the_file_system_cannot_hold_are_refused_before_anything_is_made(
+    tmp_path: Path,
+) -> None:
+    """A name past NAME_MAX (with the temporary folder's tags) or a path past PATH_MAX is one
+    InputError naming the limit, not errno 36 from a stat or a mkdir."""
+    name_max = os.pathconf(tmp_path, "PC_NAME_MAX")
+    longest = name_max - atomic.TMP_RESERVE
+    with output_dir(tmp_path / ("a" * longest)) as tmp:  # the longest name that fits
+        (tmp / "f").write_text("x")
+    assert (tmp_path / ("a" * longest) / "f").is_file()
+    too_long = [
+        (tmp_path / ("b" * (longest + 1)), f"at most {longest} are allowed"),
+        (tmp_path / ("c" * (name_max + 1)) / "x", f"at most {name_max} are allowed"),
+        (tmp_path.joinpath(*["d" * 200] * 21), "at most 4095 are allowed"),
+    ]
+    for out, limit in too_long:
+        with pytest.raises(InputError) as info, output_dir(out):
+            pass
+        assert info.value.field == "out" and limit in str(info.value)
+    assert [p.name for p in tmp_path.iterdir()] == ["a" * longest]

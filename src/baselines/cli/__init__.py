@@ -10,6 +10,7 @@ as it says).
 from __future__ import annotations
 
 import argparse
+import errno
 import signal
 import sys
 import warnings
@@ -59,6 +60,27 @@ def _notes(command: str, show: Any) -> Any:
     return showwarning
 
 
+#: what to do about the machine's errors a user can act on
+_OS_ADVICE = {
+    errno.ENOSPC: "free space on that disk or write elsewhere (--out)",
+    errno.EDQUOT: "your disk quota is used up: free space or write elsewhere (--out)",
+    errno.EROFS: "the file system is read-only: write elsewhere (--out)",
+    errno.EACCES: "no permission there: write elsewhere (--out) or fix the folder's permissions",
+}
+
+
+def os_error(exc: OSError, out: object = None) -> str:
+    """The path (else the command's ``out``) and the machine's reason, and what to do where
+    there is something to do (not Python's ``[Errno 28] ...``)."""
+    if exc.filename:
+        where = f"{exc.filename}: "
+    else:
+        where = f"writing {out}: " if out else ""
+    text = f"{where}{exc.strerror or exc}"
+    advice = _OS_ADVICE.get(exc.errno or 0)
+    return f"{text}; {advice}" if advice else text
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     try:
@@ -75,7 +97,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"agrinav {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except OSError as exc:  # full disk, permissions: the machine's problem, said in one line
-        print(f"agrinav {args.command}: error: {exc}", file=sys.stderr)
+        text = os_error(exc, getattr(args, "out", None))
+        print(f"agrinav {args.command}: error: {text}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print("agrinav: interrupted", file=sys.stderr)
