@@ -21,6 +21,7 @@ otherwise the file is refused with the grid named, rather than placed approximat
 from __future__ import annotations
 
 import re
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -344,9 +345,13 @@ def _read_layer(
     field to name), or returned empty when None."""
     where = f"{p.name}, layer {layer!r}"
     try:
-        meta, _, wkb, _ = pyogrio.raw.read(
-            str(p), layer=layer, columns=[], force_2d=True, max_features=MAX_FIELD_FEATURES + 1
-        )
+        with warnings.catch_warnings():
+            # GDAL passes an unclosed ring on with this warning; it is closed below, as a
+            # GeoJSON's is (shapely's ``shape``)
+            warnings.filterwarnings("ignore", "Non closed ring detected", RuntimeWarning)
+            meta, _, wkb, _ = pyogrio.raw.read(
+                str(p), layer=layer, columns=[], force_2d=True, max_features=MAX_FIELD_FEATURES + 1
+            )
     except errors as exc:
         raise InputError(PATH_FIELD, where, f"cannot be read ({exc})") from None
     if wkb is None:
@@ -356,7 +361,9 @@ def _read_layer(
             PATH_FIELD, where, f"holds over {MAX_FIELD_FEATURES:,} features; allowed: at most that"
         )
     try:
-        geoms = shapely.from_wkb(np.asarray([g for g in wkb if g is not None], dtype=object))
+        geoms = shapely.from_wkb(
+            np.asarray([g for g in wkb if g is not None], dtype=object), on_invalid="fix"
+        )
     except Exception as exc:  # shapely.errors.GEOSException: curves, corrupt WKB
         raise InputError(
             PATH_FIELD,

@@ -254,3 +254,33 @@ def test_a_transformation_without_its_grid_is_refused(tmp_path) -> None:
     p.write_text(json.dumps({"type": "Polygon", "crs": name, "coordinates": [ring]}))
     with pytest.raises(InputError, match="grid .* is not installed"):
         read_field(p)
+
+
+def test_unclosed_rings_are_closed_alike_in_kml_and_geojson(source, tmp_path) -> None:
+    """A ring whose last point does not repeat its first (both specs ask for it; some tools
+    omit it) is closed, in KML as in GeoJSON, and GDAL's warning about it is not passed on."""
+    import re
+    import warnings
+
+    _pyogrio()
+    data = json.loads(source.read_text())
+    rings = data["features"][0]["geometry"]["coordinates"]
+    for ring in rings:
+        ring.pop()  # the repeated first point
+    geojson = tmp_path / "open.geojson"
+    geojson.write_text(json.dumps(data))
+    kml = tmp_path / "open.kml"
+    _ogr("-f", "KML", str(kml), str(source))
+
+    def drop_last(m: re.Match[str]) -> str:
+        points = m.group(2).split()
+        assert points[0] == points[-1]
+        return m.group(1) + " ".join(points[:-1]) + m.group(3)
+
+    text, n = re.subn(r"(<coordinates>)(.*?)(</coordinates>)", drop_last, kml.read_text())
+    assert n == 2  # the outer ring and the hole
+    kml.write_text(text)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for path in (geojson, kml):
+            _same(read_field(path), read_field(source))
