@@ -197,3 +197,6 @@ def test_an_os_error_with_a_file_names_that_file() -> None:
         "the folder's permissions"
     )
     assert os_error(OSError(errno.EIO, "Input/output error")) == "Input/output error"
+    # a message a command wrote (a dataset's "3 of 20 shards are kept ...") is passed on as is
+    own = OSError(errno.ENOSPC, "writing the dataset in ds failed (No space left on device)")
+    assert os_error(own, "ds") == "writing the dataset in ds failed (No space left on device)"

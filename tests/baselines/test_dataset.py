@@ -14,7 +14,7 @@ import pytest
 from agrinav_gym.render.classes import CROP, WEED
 from baselines.cli import main
 from baselines.dataset import PerceptionDataset, generate, load_spec
-from baselines.dataset.perception import shard_frames, write_shard
+from baselines.dataset.perception import check, shard_frames, write_shard
 from baselines.dataset.run import shard_name
 from scenario_gen.errors import InputError
 
@@ -172,6 +172,8 @@ def test_a_folder_of_another_dataset_is_refused(dataset: Path, tmp_path: Path) -
         (["--ray", "not an address"], "--ray: got 'not an address'"),
         (["--ray", "local", "--workers", "2"], "--workers: got 2"),
         (["--frames", str(10**20)], "--frames: got 100000000000000000000"),
+        # a field too short for its headlands: the rule's field and the spec's
+        (["--set", "field_length=8"], "8 m long (spec.field_length)"),
     ],
 )
 def test_bad_specs_exit_2_and_write_nothing(
@@ -185,10 +187,9 @@ def test_bad_specs_exit_2_and_write_nothing(
 
 
 def test_a_run_that_fails_in_an_empty_folder_leaves_it_empty(tmp_path: Path) -> None:
-    """The policy is built against the env only in the workers: a depth policy trained on
-    64 × 48 frames refuses these 48 × 32 ones after the manifest is written. It went with the
-    folder only where the run had made it; in the user's empty folder it blocked the next
-    command as "another dataset"."""
+    """A depth policy trained on 64 × 48 frames refuses these 48 × 32 ones, in the up-front
+    check (the policy is built against the spec's first field before the manifest is
+    written): the user's empty folder stays empty, not blocked as "another dataset"."""
     from policies import shipped_model
 
     out = tmp_path / "mine"
@@ -196,6 +197,8 @@ def test_a_run_that_fails_in_an_empty_folder_leaves_it_empty(tmp_path: Path) -> 
     spec = load_spec(
         None, {**TINY, "policy": f"ppo:{shipped_model('AgriNav/FurrowFollowDepth-v3')}"}
     )
+    with pytest.raises(InputError):
+        check(spec)
     with pytest.raises(InputError):
         generate(spec, out, seed=7, frames=2)
     assert out.is_dir() and list(out.iterdir()) == []

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import errno
+import os
 import signal
 import sys
 import warnings
@@ -72,6 +73,8 @@ _OS_ADVICE = {
 def os_error(exc: OSError, out: object = None) -> str:
     """The path (else the command's ``out``) and the machine's reason, and what to do where
     there is something to do (not Python's ``[Errno 28] ...``)."""
+    if exc.errno and exc.strerror and exc.strerror != os.strerror(exc.errno):
+        return str(exc.strerror)  # written by the command: it already says where and what to do
     if exc.filename:
         where = f"{exc.filename}: "
     else:

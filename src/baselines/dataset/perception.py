@@ -10,6 +10,7 @@ byte-identical shards.
 
 from __future__ import annotations
 
+import contextlib
 import io
 import json
 import math
@@ -96,18 +97,43 @@ def make_env(
     )
 
 
+@contextlib.contextmanager
+def field_rules(spec: PerceptionSpec) -> Iterator[None]:
+    """A field the spec cannot lay out names the rule it broke and the spec's fields that
+    shape every field (the rule's own field, e.g. ``layout.headland``, is the env's)."""
+    try:
+        yield
+    except InputError as exc:
+        if exc.field.startswith("spec."):
+            raise
+        raise InputError(
+            exc.field,
+            exc.value,
+            f"{exc.allowed} (in the dataset's fields: spec.preset {spec.preset!r} "
+            f"{spec.field_length:g} m long (spec.field_length), drawn from spec.randomize)",
+        ) from None
+
+
 def check(spec: PerceptionSpec) -> None:
-    """Build (and close) one env with the spec's randomization: every range is checked by the
-    env's own ``Randomization`` before a file is written."""
-    from policies import check_policy_spec
+    """Build one env with the spec's randomization (every range is checked by the env's own
+    ``Randomization``), generate its first field and build the policy against it, before a
+    file is written: a field the spec cannot lay out, or a checkpoint made for other
+    observations, is refused here, not in a worker mid-run."""
+    from policies import check_policy_spec, make_policy
 
     check_policy_spec(spec.policy)
     if 20 % spec.frame_every:
         raise InputError(
             "spec.frame_every", spec.frame_every, "allowed: a divisor of the 20 Hz control rate"
         )
-    env = make_env(spec, spec.camera_height[0], spec.camera_pitch_deg[0])
-    env.close()
+    with field_rules(spec):
+        env = make_env(spec, spec.camera_height[0], spec.camera_pitch_deg[0])
+    try:
+        with field_rules(spec):
+            env.reset(seed=0)
+        make_policy(spec.policy, env)
+    finally:
+        env.close()
 
 
 def shard_frames(spec: PerceptionSpec, seed: int, index: int) -> Iterator[Frame]:
@@ -120,7 +146,8 @@ def shard_frames(spec: PerceptionSpec, seed: int, index: int) -> Iterator[Frame]
     cam_h = float(rng.uniform(*spec.camera_height))
     pitch = float(rng.uniform(*spec.camera_pitch_deg))
     split = split_of(index)
-    env = make_env(spec, cam_h, pitch, split)
+    with field_rules(spec):
+        env = make_env(spec, cam_h, pitch, split)
     try:
         u = env.unwrapped
         depth_cam = u.interface.camera
@@ -131,7 +158,8 @@ def shard_frames(spec: PerceptionSpec, seed: int, index: int) -> Iterator[Frame]
         made, episode = 0, 0
         while made < spec.frames_per_shard:
             reset_seed = int(rng.integers(2**31))
-            obs, info = env.reset(seed=reset_seed)
+            with field_rules(spec):
+                obs, info = env.reset(seed=reset_seed)
             pi.reset()
             noise, step = 0.0, 0
             while made < spec.frames_per_shard:
