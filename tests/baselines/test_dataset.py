@@ -152,6 +152,41 @@ def test_a_killed_run_resumes_and_a_finished_one_is_a_no_op(dataset: Path, tmp_p
     assert generate(spec, out, seed=7, frames=4) == 0
 
 
+@pytest.mark.parametrize("stop", [KeyboardInterrupt(), SystemExit(143)])
+def test_a_stopped_run_says_how_many_shards_it_kept(
+    dataset: Path,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+    stop: BaseException,
+) -> None:
+    """Ctrl-C or SIGTERM (the CLI turns it into SystemExit) while shard 1 is written: the
+    whole shard 0 stays, and the run says so and how to resume (it used to say nothing)."""
+    from baselines.dataset import run
+
+    out = tmp_path / "copy"
+    shutil.copytree(dataset, out)
+    for i in (0, 1):
+        (out / shard_name(i)).unlink()
+    work = run._work
+
+    def stopped_at_shard_1(args: tuple) -> tuple[int, int, float]:
+        if args[2] == 1:
+            (out / f".{shard_name(1)}.tmp-123").write_bytes(b"partial")
+            raise stop
+        return work(args)
+
+    monkeypatch.setattr(run, "_work", stopped_at_shard_1)
+    with pytest.raises(type(stop)):
+        generate(load_spec(None, TINY), out, seed=7, frames=4)
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert err == (
+        f"dataset: stopped; 1 of 2 shards are complete and kept in {out}: rerun the same "
+        "command to resume"
+    )
+    assert sorted(p.name for p in out.iterdir()) == ["dataset.json", shard_name(0)]
+
+
 def test_a_folder_of_another_dataset_is_refused(dataset: Path, tmp_path: Path) -> None:
     out = tmp_path / "copy"
     shutil.copytree(dataset, out)

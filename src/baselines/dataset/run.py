@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -159,19 +160,26 @@ def _generate(
             card(out)
     except BaseException as exc:  # a full disk, a lost cluster, Ctrl-C: leave no partial file
         done = _clean_up(out, fresh, existed)
+        if isinstance(exc, (KeyboardInterrupt, SystemExit)):  # Ctrl-C, SIGTERM: say what stays
+            print(f"dataset: stopped; {_kept(out, done, shards)}", file=sys.stderr)
         if not isinstance(exc, OSError):
             raise
         raise OSError(
             exc.errno,
             f"writing the dataset in {out} failed ({exc.strerror or exc}); "
-            + (
-                f"{done} of {shards} shards are complete and kept: free the space and rerun "
-                "the same command to resume"
-                if done
-                else "nothing was kept"
-            ),
+            + ("free the space; " if done else "")
+            + _kept(out, done, shards),
         ) from None
     return written
+
+
+def _kept(out: Path, done: int, shards: int) -> str:
+    if not done:
+        return "nothing was kept"
+    return (
+        f"{done} of {shards} shards are complete and kept in {out}: rerun the same command to "
+        "resume"
+    )
 
 
 def _clean_up(out: Path, fresh: bool, existed: bool) -> int:
