@@ -131,6 +131,14 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
                     f"does not observe ({', '.join(self.observation_names)}); allowed: false "
                     f"here, or add '{OBS_DEPTH}' to observations",
                 )
+        control_hz = self.cfg.robot.control_hz
+        if OBS_DEPTH in self.observation_names and control_hz % cam.rate_hz:
+            raise InputError(
+                "config.camera.rate_hz",
+                cam.rate_hz,
+                f"allowed: a divisor of robot.control_hz ({control_hz}): the camera's frame "
+                "comes every few control steps",
+            )
         t = self.cfg.task
         if not t.stop_on_failure and not (t.waypoint_goals and t.recoveries):
             raise InputError(

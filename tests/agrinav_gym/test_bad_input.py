@@ -11,6 +11,7 @@ from agrinav_gym import InputError
 from .helpers import TINY
 
 ID = "AgriNav/FurrowFollow-v3"
+ID_DEPTH = "AgriNav/FurrowFollowDepth-v3"
 
 
 @pytest.mark.parametrize(
@@ -235,7 +236,7 @@ def test_one_observation_name_is_one_observation() -> None:
 
 def test_a_physics_rate_too_low_for_the_soil_names_the_rate_it_needs() -> None:
     # the default stiffness is what refuses a low physics_hz: the message says what would pass
-    config = {"robot": {"physics_hz": 40, "control_hz": 10}, "camera": {"rate_hz": 10}}
+    config = {"robot": {"physics_hz": 40, "control_hz": 10}}
     with pytest.raises(InputError) as info:
         gym.make(ID, config=config).close()
     assert info.value.field == "config.soil.vertical_stiffness"
@@ -248,3 +249,17 @@ def test_a_physics_rate_too_low_for_the_soil_names_the_rate_it_needs() -> None:
     assert "robot.physics_hz 100" in str(info.value) and "physics_hz >= 148" in str(info.value)
     config["robot"]["physics_hz"] = 150  # what the messages asked for (a multiple of 10)
     gym.make(ID, config=config, scenario_overrides=TINY).close()
+
+
+def test_the_camera_rate_is_checked_only_where_there_is_a_camera() -> None:
+    """At a 10 Hz control rate the default 20 Hz camera cannot be: refused where the env
+    observes depth, not where it has no camera (it used to be, in every env)."""
+    config = {"robot": {"physics_hz": 240, "control_hz": 10}}
+    gym.make(ID, config=config, scenario_overrides=TINY).close()
+    with pytest.raises(InputError) as info:
+        gym.make(ID_DEPTH, config=config, scenario_overrides=TINY).close()
+    assert info.value.field == "config.camera.rate_hz" and "robot.control_hz (10)" in str(
+        info.value
+    )
+    config["camera"] = {"rate_hz": 5}
+    gym.make(ID_DEPTH, config=config, scenario_overrides=TINY).close()
