@@ -152,6 +152,7 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
             scenario, scenario_overrides, scenario_seed, scenario_seeds, bank, randomize
         )
         self.scenario = self.source.first
+        self._check_ground(self.scenario)
         fixed = self.source.fixed_field()
         if fixed is not None:  # a notice once per env, not per reset, at the caller's line
             msg = f"{type(self).__name__}: {fixed}"
@@ -205,6 +206,7 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         opts = self._check_options(options)
         rng = self.np_random
         self.scenario, env_values = self.source.sample(rng, self.scenario, opts.get("scenario"))
+        self._check_ground(self.scenario)
         self._apply_env_values(env_values)
         self._build_world()
         self.route = self.task.make_route(self.scenario, rng, opts)
@@ -611,6 +613,22 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         )
         for model in self.obs_models.values():
             model.set_lighting(*self._lighting)
+
+    def _check_ground(self, scn: Scenario) -> None:
+        """A plane steeper than the tyres hold the robot on (tan θ ≥ μ: from a standstill it
+        slides down, tens of metres while it settles) gives no episode to drive: refused, as
+        a DEM's steep spot is not (its slope under the start is not a setting)."""
+        t = scn.spec.terrain
+        mu = self.cfg.soil.friction
+        limit = math.degrees(math.atan(mu))
+        if t.source == "plane" and t.slope_deg >= limit:
+            raise InputError(
+                "terrain.slope_deg",
+                t.slope_deg,
+                f"allowed: below {limit:.1f}°, the steepest slope the tyres hold the robot on "
+                f'at config.soil.friction {mu:g} (tan θ < μ, docs/physics.md "Traction on '
+                'slopes"), or a higher soil.friction',
+            )
 
     def _check_open(self, what: str) -> None:
         if self._closed:

@@ -177,14 +177,14 @@ def run(
     if video:
         check_video()
     reads = _policy_files([policy])
-    check_output_dir(out, force, kind="run", inputs=reads)
+    check_output_dir(out, force, "--out", kind="run", inputs=reads)
     # everything is checked before --out exists
     env = _make_env(env_id, scenario, render=video, max_steps=max_steps)
     records = []
     try:
         pi = _policy(policy, env, trust_checkpoint)
         name = scenario_label(env, scenario)
-        with output_dir(out, force, kind="run", inputs=reads) as tmp:
+        with output_dir(out, force, "--out", kind="run", inputs=reads) as tmp:
             for k in tqdm(range(episodes), desc=f"{policy} on {env_id}", unit="ep"):
                 if video and k == 0:
                     ep = _video_episode(env, pi, seed, policy, tmp / "episode_000.webm")
@@ -271,7 +271,7 @@ def bench(
         check_policy_spec(spec)
     check_spread(workers, ray)
     reads = _policy_files(policies)
-    check_output_dir(out, force, kind="bench", inputs=reads)
+    check_output_dir(out, force, "--out", kind="bench", inputs=reads)
     for ci in chosen:  # every policy must fit every case before any episode runs
         env = _make_env(cases[ci])
         try:
@@ -296,7 +296,7 @@ def bench(
         "version": _version(),
     }
     journal = Journal(out, identity)
-    with output_dir(out, force, kind="bench", inputs=reads) as tmp:
+    with output_dir(out, force, "--out", kind="bench", inputs=reads) as tmp:
         done = journal.open(force)  # refused before a progress bar is drawn
         with (
             tqdm(total=len(jobs), desc=f"bench {suite_name}", unit="ep") as bar,

@@ -31,7 +31,7 @@ def demo(out: str | Path, seeds: int = 2) -> Path:
     if seeds < 1:
         raise InputError("--seeds", seeds, "allowed: an integer >= 1")
     # re-running the demo replaces its own results
-    check_output_dir(out, overwrite=True, kind="demo")
+    check_output_dir(out, overwrite=True, what="--out", kind="demo")
     out.mkdir(parents=True, exist_ok=True)
     mark_output(out, "demo")
     print(

@@ -86,10 +86,15 @@ def versions() -> dict[str, str]:
 
 
 def save(
-    scn: Scenario, directory: str | Path, overwrite: bool = False, preview: bool = True
+    scn: Scenario,
+    directory: str | Path,
+    overwrite: bool = False,
+    preview: bool = True,
+    what: str = "out",
 ) -> Path:
-    """Write ``scn`` to ``directory`` (atomically: the folder appears complete or not at all)."""
-    with output_dir(directory, overwrite, kind="scenario") as tmp:
+    """Write ``scn`` to ``directory`` (atomically: the folder appears complete or not at all);
+    ``what`` names it in errors (the CLI: ``--out``)."""
+    with output_dir(directory, overwrite, what, kind="scenario") as tmp:
         _write_all(scn, tmp, preview)
     return Path(directory)
 

@@ -55,7 +55,12 @@ class TerrainSpec:
         22,
     )
     margin: float = _f(8.0, "terrain kept around the field, metres", 0, 1000)
-    slope_deg: float = _f(0.0, "plane: slope, degrees", 0, 60)
+    slope_deg: float = _f(
+        0.0,
+        "plane: slope, degrees (the env takes less than atan(soil.friction): 31° at 0.6)",
+        0,
+        60,
+    )
     aspect_deg: float = _f(
         0.0, "plane: downhill direction, degrees clockwise from north", -360, 360
     )

@@ -263,3 +263,27 @@ def test_the_camera_rate_is_checked_only_where_there_is_a_camera() -> None:
     )
     config["camera"] = {"rate_hz": 5}
     gym.make(ID_DEPTH, config=config, scenario_overrides=TINY).close()
+
+
+def test_a_plane_too_steep_for_the_tyres_to_hold_the_robot_is_refused() -> None:
+    """Past atan(μ) (31.0° at the default μ 0.6) the robot slides down from a standstill
+    (tens of metres while it settles): no episode, so one error naming the slope and the
+    friction; a grippier soil holds it."""
+    plane = {**TINY, "terrain": {"source": "plane", "slope_deg": 31.0}}
+    with pytest.raises(InputError) as info:
+        gym.make(ID, scenario_overrides=plane)
+    assert info.value.field == "terrain.slope_deg"
+    assert "below 31.0°" in str(info.value) and "soil.friction 0.6" in str(info.value)
+    gym.make(ID, scenario_overrides=plane, config={"soil": {"friction": 0.7}}).close()
+    # a drawn slope is checked where it is drawn
+    env = gym.make(
+        ID,
+        scenario_overrides={**TINY, "terrain": {"source": "plane"}},
+        randomize={"terrain.slope_deg": [0.0, 60.0]},
+    )
+    try:
+        with pytest.raises(InputError, match="terrain.slope_deg"):
+            for seed in range(40):
+                env.reset(seed=seed)
+    finally:
+        env.close()

@@ -52,12 +52,12 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     # the files it reads (an --out replaced with --force must not hold them)
     inputs = [args.config, *input_files(spec).values()]
-    check_output_dir(out, args.force, kind="scenario", inputs=inputs)
+    check_output_dir(out, args.force, "--out", kind="scenario", inputs=inputs)
     if args.count == 1:
         t0 = time.perf_counter()
         scn = generate(spec, args.seed)
         t_gen = time.perf_counter() - t0
-        save(scn, out, overwrite=args.force, preview=not args.no_preview)
+        save(scn, out, overwrite=args.force, preview=not args.no_preview, what="--out")
         rows = {
             **scn.summary(),
             "generate_s": round(t_gen, 3),
@@ -75,7 +75,7 @@ def run(args: argparse.Namespace) -> int:
     seeds = range(args.seed, args.seed + args.count)
     names = [f"seed-{seed:06d}" for seed in seeds]
     first = generate(spec, seeds.start)  # bad input is reported before the bank folder exists
-    with output_dir(out, args.force, kind="scenario", inputs=inputs) as tmp:
+    with output_dir(out, args.force, "--out", kind="scenario", inputs=inputs) as tmp:
         for seed, name in tqdm(
             zip(seeds, names, strict=True), total=len(names), desc="scenarios", unit="scn"
         ):

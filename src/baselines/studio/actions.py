@@ -115,7 +115,7 @@ def export(scenario: str, fmt: str, out: str, overwrite: bool = False) -> dict[s
         raise InputError("scenario", scenario, "generate and save the scenario first")
     data: dict[str, Any] = nav2_options() if fmt == "nav2" else {}
     info: dict[str, Any] = export_to(
-        scenario, fmt, out, ExportOptions.from_dict(data), overwrite=overwrite
+        scenario, fmt, out, ExportOptions.from_dict(data), overwrite=overwrite, what="out"
     )
     return info
 

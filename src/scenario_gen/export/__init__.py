@@ -29,8 +29,10 @@ def export(
     out: str | Path,
     opts: ExportOptions | None = None,
     overwrite: bool = False,
+    what: str = "--out",
 ) -> dict[str, Any]:
-    """Export the scenario folder ``directory`` as ``to`` into the new folder ``out``."""
+    """Export the scenario folder ``directory`` as ``to`` into the new folder ``out`` (named
+    ``what`` in errors: the CLI's flag by default)."""
     if to not in TARGETS:
         raise InputError("--to", to, f"allowed: one of {', '.join(TARGETS)}")
     src = Path(directory)
@@ -38,8 +40,8 @@ def export(
         raise InputError("scenario", str(src), "allowed: a scenario folder (agrinav scenario)")
     # with --force, the plainer reason before the marker's kind; without, "already exists"
     if overwrite and Path(out).resolve() == src.resolve():
-        raise InputError("out", str(out), "is the scenario folder itself; choose another")
-    check_output_dir(out, overwrite, kind="export", inputs=[src])
+        raise InputError(what, str(out), "is the scenario folder itself; choose another")
+    check_output_dir(out, overwrite, what, kind="export", inputs=[src])
     try:
         scn = load(src)
     except InputError:
@@ -50,22 +52,28 @@ def export(
             str(src),
             f"cannot be read as a scenario folder ({type(exc).__name__}: {exc})",
         ) from None
-    return export_scenario(scn, to, out, opts or ExportOptions(), overwrite)
+    return export_scenario(scn, to, out, opts or ExportOptions(), overwrite, what)
 
 
 def export_scenario(
-    scn: Scenario, to: str, out: str | Path, opts: ExportOptions, overwrite: bool = False
+    scn: Scenario,
+    to: str,
+    out: str | Path,
+    opts: ExportOptions,
+    overwrite: bool = False,
+    what: str = "--out",
 ) -> dict[str, Any]:
-    """Export an in-memory scenario; every input is checked before ``out`` is created."""
+    """Export an in-memory scenario; every input is checked before ``out`` (named ``what``
+    in errors) is created."""
     if to not in TARGETS:
         raise InputError("--to", to, f"allowed: one of {', '.join(TARGETS)}")
-    check_output_dir(out, overwrite, kind="export")
+    check_output_dir(out, overwrite, what, kind="export")
     if to in ("gazebo", "nav2") or (to == "mesh" and opts.mesh_plants):
         user_model_path(scn)
     if to == "nav2":
         _check_robot(opts.robot_urdf)
         _check_nav2_robot(opts.nav2_robot)
-    with output_dir(out, overwrite, kind="export") as tmp:
+    with output_dir(out, overwrite, what, kind="export") as tmp:
         if to == "gazebo":
             from .gazebo import export_gazebo
             from .readme import gazebo_readme
