@@ -287,3 +287,11 @@ def test_a_plane_too_steep_for_the_tyres_to_hold_the_robot_is_refused() -> None:
                 env.reset(seed=seed)
     finally:
         env.close()
+
+
+def test_a_scenario_override_may_name_the_field() -> None:
+    env = gym.make(ID, scenario_overrides={**TINY, "name": "north-block"})
+    try:
+        assert env.unwrapped.scenario.spec.name == "north-block"
+    finally:
+        env.close()

@@ -245,6 +245,8 @@ def test_a_preset_with_files_is_named_after_them() -> None:
     both = preset("default", **dem, field={"geojson": "/x/north.geojson"})
     assert both.name == "default+farm+north"
     assert preset("default", **dem).replace({"name": "mine"}).name == "mine"
+    # a name given is the name (it was a TypeError: preset's own first parameter)
+    assert preset("default", **dem, name="mine").name == "mine"
     assert preset("default", terrain={"source": "plane"}).name == "default"  # no file
     odd = source_name("default", preset("default"), ["/x/a\nb---c.yaml"])
     assert odd == "default+a_b-c"

@@ -21,7 +21,7 @@ def preset_names() -> list[str]:
     return sorted(p.name[:-5] for p in files if p.name.endswith(".yaml"))
 
 
-def preset(name: str, **overrides: Any) -> ScenarioSpec:
+def preset(name: str, /, **overrides: Any) -> ScenarioSpec:
     """A shipped preset, with overrides as nested dicts or dotted keys; named after the preset
     and the files the overrides bring in (``source_name``) unless they set ``name``.
 
