@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import multiprocessing as mp
 import os
+import pickle
 import traceback
 from collections.abc import Callable, Sequence
 from multiprocessing.connection import Connection
@@ -71,6 +72,15 @@ def make_vec(
     for i, w in enumerate(wrappers):
         if not callable(w):
             raise InputError(f"wrappers[{i}]", w, "allowed: a callable taking and returning an env")
+        try:
+            pickle.dumps(w)
+        except Exception:  # lambdas, local functions: a worker process cannot receive them
+            raise InputError(
+                f"wrappers[{i}]",
+                w,
+                "allowed: a picklable callable (a class or a module-level function): each "
+                "worker process receives it pickled",
+            ) from None
     return BatchedVectorEnv(env_id, num_envs, workers, kwargs, context, mode, wrappers, pin_workers)
 
 
@@ -118,7 +128,7 @@ class BatchedVectorEnv(VectorEnv):
             self._processes.append(proc)
         try:
             first = self._gather()[0]
-        except RuntimeError:
+        except Exception:  # a worker's error, or its env's refusal of the kwargs
             self.close()  # no process outlives a failed start
             raise
         self.single_observation_space, self.single_action_space = first["spaces"]
@@ -140,14 +150,21 @@ class BatchedVectorEnv(VectorEnv):
     ) -> tuple[Any, dict[str, Any]]:
         """As ``SyncVectorEnv.reset``: an int seeds env ``i`` with ``seed + i``; a
         ``reset_mask`` in ``options`` is split between the workers."""
+        self._check_open("reset")
+        allowed = f"allowed: None, an integer >= 0 or a list of {self.num_envs} of them"
         if seed is None:
             seeds: list[int | None] = [None] * self.num_envs
-        elif isinstance(seed, int):
-            seeds = [seed + i for i in range(self.num_envs)]
+        elif isinstance(seed, bool | float | str | bytes):
+            raise InputError("seed", seed, allowed)
+        elif isinstance(seed, int | np.integer):
+            seeds = [int(seed) + i for i in range(self.num_envs)]
         else:
-            seeds = list(seed)
+            try:
+                seeds = list(seed)
+            except TypeError:
+                raise InputError("seed", seed, allowed) from None
             if len(seeds) != self.num_envs:
-                raise InputError("seed", seed, f"allowed: an int, None or {self.num_envs} seeds")
+                raise InputError("seed", seed, allowed)
         for i, remote in enumerate(self._remotes):
             a, b = self._bounds[i], self._bounds[i + 1]
             opts = options
@@ -158,6 +175,19 @@ class BatchedVectorEnv(VectorEnv):
         return _join([p[0] for p in parts]), self._infos([p[1] for p in parts])
 
     def step(self, actions: Any) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        self._check_open("step")
+        if isinstance(self.action_space, gym.spaces.Box):
+            # every env's row or none: a batch sliced short would step some envs only
+            try:
+                shape = np.shape(actions)
+            except ValueError:  # ragged nested lists
+                shape = None
+            if shape != self.action_space.shape:
+                raise InputError(
+                    "actions",
+                    actions if shape is None else f"shape {shape}",
+                    f"allowed: shape {self.action_space.shape} (one action per env)",
+                )
         for i, remote in enumerate(self._remotes):
             remote.send(("step", _slice(actions, self._bounds[i], self._bounds[i + 1])))
         parts = self._gather()
@@ -223,7 +253,12 @@ class BatchedVectorEnv(VectorEnv):
                 proc.join()
             remote.close()
 
+    def _check_open(self, what: str) -> None:
+        if self.closed:
+            raise InputError(what, "called after close()", "allowed: make a new vector env")
+
     def _each(self, cmd: str, data: Any) -> tuple[Any, ...]:
+        self._check_open(cmd)
         for remote in self._remotes:
             remote.send((cmd, data))
         return tuple(x for part in self._gather() for x in part)
@@ -232,6 +267,7 @@ class BatchedVectorEnv(VectorEnv):
         """Every worker's reply, in worker order; any failure raised once all have replied (so
         the pipes stay in step)."""
         out, errors = [], []
+        refused: list[InputError] = []
         any_bad_input = False
         for i, remote in enumerate(self._remotes):
             try:
@@ -239,11 +275,16 @@ class BatchedVectorEnv(VectorEnv):
             except EOFError:
                 ok, value = False, "the process exited"
             if not ok:
+                if isinstance(value, InputError):
+                    refused.append(value)
+                    value = (True, str(value))
                 bad_input = isinstance(value, tuple) and value[0]
                 errors.append(f"worker {i}: {value[1] if isinstance(value, tuple) else value}")
                 any_bad_input = any_bad_input or bad_input
             out.append(value)
         if errors:
+            if len(refused) == len(errors):  # bad input, as one env would refuse it: one line
+                raise refused[0]
             kind = WorkerInputError if any_bad_input else WorkerError
             raise kind("\n".join(errors))
         return out
@@ -381,8 +422,15 @@ class WorkerInputError(WorkerError, ValueError):
     action or a bad config): a ValueError here too, as the same call raises in one process."""
 
 
-def _failure(exc: Exception) -> tuple[bool, str]:
-    """What a worker sends for an exception: whether it was bad input, and its text."""
+def _failure(exc: Exception) -> InputError | tuple[bool, str]:
+    """What a worker sends for an exception: an ``InputError`` itself (raised again in the main
+    process, one line as in one process), else whether it was bad input, and its text."""
+    if isinstance(exc, InputError):
+        try:
+            pickle.dumps(exc)
+            return exc
+        except Exception:  # a value that does not pickle: its text instead
+            return InputError(exc.field, str(exc.value), exc.allowed)
     return isinstance(exc, ValueError), f"{type(exc).__name__}: {exc}\n{traceback.format_exc()}"
 
 

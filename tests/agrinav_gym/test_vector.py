@@ -116,10 +116,41 @@ def test_bad_arguments_are_refused_before_any_process_starts(
 def test_a_worker_that_cannot_build_its_env_names_itself_and_leaves_no_process() -> None:
     import multiprocessing as mp
 
-    # bad input in a worker is a ValueError here, as in one process (and still a RuntimeError)
-    with pytest.raises(ValueError, match="worker 0: InputError: observations"):
+    # bad input in a worker is the InputError one process raises: one line, not a traceback
+    # per worker
+    with pytest.raises(agrinav_gym.InputError) as info:
         agrinav_gym.make_vec(ENV, 2, workers=2, observations=["sonar"], **KW)
+    assert info.value.field == "observations" and "\n" not in str(info.value)
     assert not [p for p in mp.active_children() if p.name.startswith("AgriNavBatched")]
+
+
+def test_bad_calls_are_refused_before_any_worker_steps() -> None:
+    """A batch of the wrong size (a longer one used to lose its extra rows silently, a
+    shorter one stepped some envs only), odd seeds, calls after close and wrappers a worker
+    cannot receive: one InputError each, and the envs stay in step."""
+    with pytest.raises(agrinav_gym.InputError, match=r"wrappers\[0\]"):
+        agrinav_gym.make_vec(ENV, 2, workers=2, wrappers=[lambda e: e], **KW)
+    venv = agrinav_gym.make_vec(ENV, 4, workers=2, **KW)
+    try:
+        venv.reset(seed=np.int64(3))  # numpy's integers are integers
+        for bad in (np.zeros((5, 2)), np.zeros((3, 2)), None, [[0, 0]] * 3 + [[0]]):
+            with pytest.raises(agrinav_gym.InputError) as info:
+                venv.step(bad)
+            assert info.value.field == "actions" and "(4, 2)" in str(info.value)
+        assert venv.get_attr("_steps") == (0, 0, 0, 0)
+        venv.step(np.zeros((4, 2), np.float32))
+        assert venv.get_attr("_steps") == (1, 1, 1, 1)
+        for seed in (True, 1.0, "3", [1, 2]):
+            with pytest.raises(agrinav_gym.InputError, match="seed"):
+                venv.reset(seed=seed)
+        with pytest.raises(agrinav_gym.InputError) as info:  # a worker's env refuses it
+            venv.reset(seed=-1)
+        assert info.value.field == "seed" and "\n" not in str(info.value)
+    finally:
+        venv.close()
+    for call in (lambda: venv.step(np.zeros((4, 2))), lambda: venv.reset(), venv.render):
+        with pytest.raises(agrinav_gym.InputError, match="after close"):
+            call()
 
 
 def test_an_id_registered_in_this_process_runs_in_the_workers(tmp_path: Any) -> None:
