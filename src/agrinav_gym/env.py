@@ -313,16 +313,19 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
     @property
     def trajectory(self) -> NDArray[np.float64]:
         """Ground-truth base positions (N, 2) of this episode: for evaluation, never policies."""
+        self._check_reset("trajectory")
         return self.metrics.trajectory
 
     @property
     def crops_hit_ids(self) -> frozenset[int]:
         """Plant indices (rows of plants.csv) of the crops touched this episode."""
+        self._check_reset("crops_hit_ids")
         return frozenset(self._hit)
 
     @property
     def obstacles_hit_ids(self) -> frozenset[int]:
         """Indices (rows of obstacles.csv) of the obstacles touched this episode."""
+        self._check_reset("obstacles_hit_ids")
         return frozenset(self._obstacles_hit)
 
     def conditions(self) -> dict[str, str]:
@@ -362,6 +365,7 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
     @property
     def arc(self) -> float:
         """How far along the route the robot is (m, ground truth: evaluation only)."""
+        self._check_reset("arc")
         return float(self._s)
 
     def resume_on_route(self, ahead: float = 0.5) -> tuple[Obs, dict[str, Any]]:
@@ -405,6 +409,7 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         return self._observe(snap), self._info(None, {})
 
     def episode_metrics(self) -> dict[str, Any]:
+        self._check_reset("episode_metrics")
         kinds = self.scenario.obstacles.kind
         out = self.metrics.result(len(self._hit), [str(kinds[i]) for i in self._obstacles_hit])
         if self._goal_model is not None:
@@ -613,6 +618,11 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
         )
         for model in self.obs_models.values():
             model.set_lighting(*self._lighting)
+
+    def _check_reset(self, what: str) -> None:
+        """An episode's numbers exist once an episode has begun."""
+        if self.route is None:
+            raise InputError(what, "before reset()", "allowed: call reset() first")
 
     def _check_ground(self, scn: Scenario) -> None:
         """A plane steeper than the tyres hold the robot on (tan θ ≥ μ: from a standstill it

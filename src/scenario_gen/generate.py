@@ -127,6 +127,13 @@ COUPLED_FIELDS: tuple[frozenset[str], ...] = (
 def check_spec(spec: ScenarioSpec) -> None:
     """Cross-field checks that need no terrain or files (each field alone was checked when the
     spec was built): an env validates randomization ranges with this before any reset."""
+    if not isinstance(spec, ScenarioSpec):
+        raise InputError(
+            "spec",
+            spec,
+            "allowed: a ScenarioSpec (scenario_gen.preset(NAME) for a preset, "
+            "ScenarioSpec.from_dict for a mapping)",
+        )
     name = spec.name
     if not (0 < len(name) <= 100 and name.isprintable() and "--" not in name):
         # the name goes into XML comments (where "--" is illegal), YAML comments and file

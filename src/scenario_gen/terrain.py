@@ -92,18 +92,23 @@ class Terrain:
 
     # ------------------------------------------------------------------ bilinear surface
     def height_at(self, x: ArrayLike, y: ArrayLike) -> FloatArray:
-        """Bilinear height at (x, y), vectorized; points off the grid take the edge height."""
+        """Bilinear height at (x, y), vectorized; points off the grid take the edge height, a
+        NaN coordinate gives NaN."""
         xa, ya = np.broadcast_arrays(np.asarray(x, np.float64), np.asarray(y, np.float64))
         ny, nx = self.shape
         u = np.clip((xa - self.x0) / self.spacing, 0.0, nx - 1.0)
         v = np.clip((ya - self.y0) / self.spacing, 0.0, ny - 1.0)
+        unknown = np.isnan(u) | np.isnan(v)
+        if unknown.any():  # NaN would index the grid at -2^63
+            u, v = np.where(unknown, 0.0, u), np.where(unknown, 0.0, v)
         j = np.minimum(u.astype(np.intp), nx - 2)
         i = np.minimum(v.astype(np.intp), ny - 2)
         fu, fv = u - j, v - i
         h = self.heights
         z0 = h[i, j] * (1 - fu) + h[i, j + 1] * fu
         z1 = h[i + 1, j] * (1 - fu) + h[i + 1, j + 1] * fu
-        return z0 * (1 - fv) + z1 * fv
+        z = z0 * (1 - fv) + z1 * fv
+        return np.where(unknown, np.nan, z) if unknown.any() else z
 
     def normal_at(self, x: ArrayLike, y: ArrayLike) -> FloatArray:
         """Unit surface normal of the bilinear surface, shape (..., 3)."""

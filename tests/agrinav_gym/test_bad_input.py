@@ -295,3 +295,18 @@ def test_a_scenario_override_may_name_the_field() -> None:
         assert env.unwrapped.scenario.spec.name == "north-block"
     finally:
         env.close()
+
+
+def test_an_episodes_numbers_before_reset_are_one_error() -> None:
+    env = gym.make(ID, scenario_overrides=TINY)
+    u = env.unwrapped
+    try:
+        for name in ("trajectory", "crops_hit_ids", "obstacles_hit_ids", "arc"):
+            with pytest.raises(InputError, match="reset"):
+                getattr(u, name)
+        with pytest.raises(InputError, match="reset"):
+            u.episode_metrics()
+        env.reset(seed=0)
+        assert u.trajectory.shape == (1, 2) and u.crops_hit_ids == frozenset()
+    finally:
+        env.close()

@@ -252,3 +252,18 @@ def test_a_preset_with_files_is_named_after_them() -> None:
     assert odd == "default+a_b-c"
     long = source_name("default", preset("default"), ["/x/" + "a" * 300 + ".yaml"])
     assert len(long) == 100 and long.isprintable()
+
+
+def test_generate_takes_a_spec_not_a_preset_name() -> None:
+    with pytest.raises(ScenarioError) as info:
+        generate("default", 1)  # type: ignore[arg-type]
+    assert info.value.field == "spec" and "scenario_gen.preset(NAME)" in str(info.value)
+
+
+def test_a_nan_coordinate_has_no_height() -> None:
+    import numpy as np
+
+    terrain = generate(small(), 0).terrain
+    cx, cy = (np.asarray(terrain.bounds[:2]) + terrain.bounds[2:]) / 2
+    z = terrain.height_at([np.nan, cx, cx], [0.0, np.nan, cy])
+    assert np.isnan(z[:2]).all() and z[2] == terrain.height_at(cx, cy)
