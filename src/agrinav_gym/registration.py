@@ -96,6 +96,10 @@ def _user_id(name: Any, task: Any, kwargs: dict[str, Any]) -> tuple[str, EnvDef]
     if task not in _BY_NAME:
         raise InputError("task", task, f"allowed: one of {', '.join(_BY_NAME)}")
     d = _BY_NAME[task]
+    if isinstance(kwargs.get("config"), dict):  # first: its own errors name the field
+        from .config import EnvConfig
+
+        EnvConfig.from_dict(kwargs["config"])
     try:
         json.dumps(kwargs, allow_nan=False)  # NaN would write a spec that is not JSON
     except (TypeError, ValueError) as exc:
@@ -115,10 +119,12 @@ def _user_id(name: Any, task: Any, kwargs: dict[str, Any]) -> tuple[str, EnvDef]
 
 
 def register_scenario(
-    name: str, scenario: str | Path, task: str = "FurrowFollow", **kwargs: Any
+    name: str, scenario: str | Path, /, task: str = "FurrowFollow", **kwargs: Any
 ) -> str:
     """Register ``AgriNav/<name>-v<N>`` (the task's version): ``task`` on the scenario saved in
-    ``scenario``."""
+    ``scenario``. The env is built once here, so kwargs ``gym.make`` would refuse are refused
+    now (and nothing is registered)."""
+    _given_once("scenario", kwargs)
     if isinstance(scenario, Scenario):
         raise InputError(
             "scenario",
@@ -130,17 +136,41 @@ def register_scenario(
         raise InputError("scenario", str(scenario), "allowed: a directory holding scenario.json")
     kwargs = {"scenario": str(Path(scenario).resolve()), **kwargs}
     env_id, d = _user_id(name, task, kwargs)
-    return _register(env_id, d, kwargs)
+    return _register_checked(env_id, d, kwargs)
 
 
 def register_scenario_bank(
-    name: str, directory: str | Path, task: str = "FurrowFollow", **kwargs: Any
+    name: str, directory: str | Path, /, task: str = "FurrowFollow", **kwargs: Any
 ) -> str:
     """Register ``AgriNav/<name>-v<N>`` sampling a scenario of the bank ``directory`` each
-    reset."""
+    reset (checked as ``register_scenario`` checks)."""
     from .scenarios import Bank
 
+    _given_once("bank", kwargs)
     Bank(directory)  # refuse an empty or missing bank now
     kwargs = {"bank": str(Path(directory).resolve()), **kwargs}
     env_id, d = _user_id(name, task, kwargs)
-    return _register(env_id, d, kwargs)
+    return _register_checked(env_id, d, kwargs)
+
+
+def _given_once(key: str, kwargs: dict[str, Any]) -> None:
+    if key in kwargs:
+        raise InputError(
+            f"kwargs.{key}", kwargs[key], f"given twice; allowed: the {key} argument only"
+        )
+
+
+def _register_checked(env_id: str, d: EnvDef, kwargs: dict[str, Any]) -> str:
+    """Register, build the env once and close it; on any refusal the registry is as it was."""
+    import gymnasium as gym
+
+    before = registry.get(env_id)
+    _register(env_id, d, kwargs)
+    try:
+        gym.make(env_id).close()
+    except BaseException:
+        del registry[env_id]
+        if before is not None:
+            registry[env_id] = before
+        raise
+    return env_id

@@ -50,12 +50,23 @@ def test_register_scenario_refuses_objects_bad_tasks_and_built_in_names(tmp_path
     for kwargs, field in (
         ({"colour": "red"}, "kwargs"),
         ({"config": {"robot": {"v_max": 99.0}}}, "config.robot.v_max"),
-        ({"config": {"robot": {"v_max": float("nan")}}}, "kwargs"),  # no NaN in the JSON spec
+        ({"config": {"robot": {"v_max": float("nan")}}}, "config.robot.v_max"),
+        ({"scenario_seeds": [float("nan")]}, "kwargs"),  # no NaN in the JSON spec
+        # refused only once an env is built: it is, once, at registration
+        ({"observations": ["lidar"]}, "observations"),
+        ({"render_mode": "foo"}, "render_mode"),
+        ({"scenario": "default"}, "kwargs.scenario"),
     ):
         with pytest.raises(ScenarioError) as info:
             agrinav_gym.register_scenario("TinyBad", tmp_path / "s", **kwargs)
         assert info.value.field == field, info.value
         assert "AgriNav/TinyBad-v3" not in gym.registry
+    # a refused re-registration leaves the earlier one in place
+    good = agrinav_gym.register_scenario("TinyKept", tmp_path / "s")
+    kept = gym.spec(good)
+    with pytest.raises(ScenarioError):
+        agrinav_gym.register_scenario("TinyKept", tmp_path / "s", observations=["lidar"])
+    assert gym.spec(good) is kept
 
 
 @pytest.mark.parametrize("env_id", list(agrinav_gym.ENV_IDS))
