@@ -24,7 +24,7 @@ import numpy as np
 import scenario_gen as sg
 from scenario_gen import Scenario
 from scenario_gen.errors import InputError
-from scenario_gen.generate import COUPLED_FIELDS, check_fields_used, check_spec
+from scenario_gen.generate import COUPLED_FIELDS, PATH_KEYS, check_fields_used, check_spec
 from scenario_gen.schema import coerce, field_info, is_integer_field, load_yaml, plain, to_mapping
 from scenario_gen.spec import ScenarioSpec
 
@@ -136,6 +136,7 @@ class Randomization:
             self.draws.append(draw)
         self.scenario_keys = tuple(d.key for d in scenario_draws)
         if scenario_draws and base is not None:
+            _check_inputs(scenario_draws, base)
             _check_combinations(scenario_draws, base, ranges)
         if memo is not None:
             _VALIDATED[memo] = (tuple(self.draws), self.scenario_keys)
@@ -230,6 +231,41 @@ def _scenario_draw(
     return Draw(
         key, int(lo) if integer else float(lo), int(hi) if integer else float(hi), None, integer
     )
+
+
+#: terrain sources that read ``terrain.path``, and what it must be
+_PATH_SOURCES = {"dem": "a GeoTIFF", "mesh": "a mesh file"}
+
+
+def _check_inputs(draws: list[Draw], base: ScenarioSpec) -> None:
+    """Choices the generator refuses whatever else is drawn — a file that is not there, a
+    terrain source without its file — refused now, not redrawn (with a warning) at resets."""
+    drawn = {d.key: d for d in draws}
+    for d in draws:
+        if d.choices is None:
+            continue
+        if d.key in PATH_KEYS:
+            for c in d.choices:
+                path = Path(str(c)).expanduser() if c is not None else None
+                if path is not None and not path.is_file():
+                    here = "" if path.is_absolute() else f" (from {Path.cwd()})"
+                    raise InputError(
+                        f"randomize.{d.key}",
+                        c,
+                        f"is not a file{here}; allowed: choices of existing files, or null",
+                    )
+        if d.key == "terrain.source":
+            t = drawn.get("terrain.path")
+            paths = t.choices if t is not None and t.choices else (base.terrain.path,)
+            for c in d.choices:
+                if c in _PATH_SOURCES and None in paths:
+                    raise InputError(
+                        f"randomize.{d.key}",
+                        c,
+                        f"reads terrain.path ({_PATH_SOURCES[c]}), which is not set"
+                        f"{' in every choice' if t is not None else ''}; allowed: set it, or "
+                        "choose among sources without a file",
+                    )
 
 
 def _check_combinations(draws: list[Draw], base: ScenarioSpec, ranges: dict[str, Any]) -> None:

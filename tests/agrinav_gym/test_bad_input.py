@@ -24,6 +24,9 @@ ID_DEPTH = "AgriNav/FurrowFollowDepth-v3"
         ({"config": {"reward": {"cte": {"weight": "big"}}}}, "config.reward.cte.weight"),
         ({"randomize": "crop.stage"}, "randomize"),
         ({"randomize": {"crop.stage": [3, 1]}}, "randomize.crop.stage"),
+        # choices the generator refuses whatever else is drawn: refused, not redrawn
+        ({"randomize": {"terrain.source": {"choices": ["mesh", "embedded"]}}}, "randomize.terrain"),
+        ({"randomize": {"crop.model": {"choices": [None, "no/such.dae"]}}}, "randomize.crop"),
         ({"randomize": {"crop.stage": [1, 6]}}, "randomize.crop.stage"),
         ({"randomize": {"crop.stage": [1.5, 3]}}, "randomize.crop.stage"),
         ({"randomize": {"crop": [1, 2]}}, "randomize.crop"),
