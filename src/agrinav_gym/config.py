@@ -581,7 +581,7 @@ class EnvConfig:
             data = {}
         if not isinstance(data, dict):
             raise InputError("config", data, "allowed: a mapping of config sections (or None)")
-        data = merge({}, data)
+        data = merge({}, data, "config")
         terms = build_reward_terms(data.pop("reward", None))
         cfg: EnvConfig = from_mapping(cls, data, "config.")
         cfg = dataclasses.replace(cfg, reward=terms)

@@ -546,8 +546,19 @@ def _is_fixed(scenario: Any) -> bool:
 
 
 def _load_option(option: Any) -> Scenario:
-    if not _is_fixed(option):
-        return sg.generate(sg.preset(str(option)), 0)
+    """``reset(options={"scenario": ...})``'s scenario; bad ones named as that option."""
+    try:
+        if not _is_fixed(option):
+            return sg.generate(sg.preset(str(option)), 0)
+    except InputError as exc:
+        if exc.field not in ("scenario", "preset"):
+            raise
+        raise InputError(
+            "options.scenario",
+            option,
+            "allowed: a Scenario, a scenario folder or a preset name "
+            f"({', '.join(sg.preset_names())})",
+        ) from None
     return sg.load(Path(option))
 
 

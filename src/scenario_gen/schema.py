@@ -60,15 +60,18 @@ def _plain(obj: Any, depth: int = 0) -> Any:
     return obj
 
 
-def merge(base: dict[str, Any], overrides: dict[str, Any]) -> dict[str, Any]:
-    """Deep-merge ``overrides`` (nested dicts and/or dotted keys) into a copy of ``base``."""
+def merge(
+    base: dict[str, Any], overrides: dict[str, Any], what: str = "overrides"
+) -> dict[str, Any]:
+    """Deep-merge ``overrides`` (nested dicts and/or dotted keys; named ``what`` in errors)
+    into a copy of ``base``."""
     if not isinstance(overrides, dict):
-        raise InputError("overrides", overrides, "allowed: a mapping of keys to values")
+        raise InputError(what, overrides, "allowed: a mapping of keys to values")
     _given_once(overrides)
     out = _plain(base)
     for key, value in overrides.items():
         if not isinstance(key, str) or not key:
-            raise InputError("overrides", key, "allowed: non-empty string keys")
+            raise InputError(what, key, "allowed: non-empty string keys")
         parts = key.split(".")
         node = out
         for i, part in enumerate(parts[:-1]):
@@ -80,7 +83,7 @@ def merge(base: dict[str, Any], overrides: dict[str, Any]) -> dict[str, Any]:
             node = nxt
         last = parts[-1]
         if isinstance(value, dict) and isinstance(node.get(last), dict):
-            node[last] = merge(node[last], value)
+            node[last] = merge(node[last], value, what)
         else:
             node[last] = _plain(value)
     return out

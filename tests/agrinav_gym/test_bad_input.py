@@ -19,6 +19,7 @@ ID_DEPTH = "AgriNav/FurrowFollowDepth-v3"
     [
         ({"config": "fast"}, "config"),
         ({"config": ["robot"]}, "config"),
+        ({"config": {1: {}}}, "config"),
         ({"config": {"robot": "fast"}}, "config.robot"),
         ({"config": {"reward": {"speed": {"weight": 1}}}}, "config.reward.speed"),
         ({"config": {"reward": {"cte": {"weight": "big"}}}}, "config.reward.cte.weight"),
@@ -166,8 +167,9 @@ def test_step_after_the_envs_own_truncation_needs_a_reset() -> None:
         ({"lane": "2"}, "options.lane"),
         ({"lane": 99}, "options.lane"),
         ({"lanes": 2}, "options"),
-        ({"scenario": 3.14}, "scenario"),
-        ({"scenario": "/no/such/scenario"}, "scenario"),
+        ({"scenario": 3.14}, "options.scenario"),
+        ({"scenario": "/no/such/scenario"}, "options.scenario"),
+        ({"scenario": "nope"}, "options.scenario"),
     ],
 )
 def test_bad_reset_options(env: Any, options: Any, field: str) -> None:
