@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import sys
 import warnings
 from collections import Counter
 from collections.abc import Sequence
@@ -26,7 +27,7 @@ from .episodes import (
     run_with_interventions,
     trajectory_figure,
 )
-from .journal import Journal
+from .journal import Journal, input_digest
 from .parallel import Tasks, check_spread
 from .report import METRICS, bar_chart, command_line, policy_labels, table
 from .suites import EVAL_SEED, Case, suite
@@ -295,6 +296,10 @@ def bench(
         "trust_checkpoint": trust_checkpoint,
         "version": _version(),
     }
+    if reads:  # absent otherwise: a journal from before the field still resumes
+        # the files' bytes: an edited parameter file or a retrained checkpoint under the same
+        # name must not be averaged with the episodes run before the edit
+        identity["inputs"] = [input_digest(p) for p in reads]
     journal = Journal(out, identity)
     with output_dir(out, force, "--out", kind="bench", inputs=reads) as tmp:
         done = journal.open(force)  # refused before a progress bar is drawn
@@ -311,6 +316,18 @@ def bench(
                     done[key] = json.loads(json.dumps(record))  # as a resumed run reads it
                     bar.update(1)
                     bar.set_postfix(case=record["scenario"], policy=record["policy"])
+            except (KeyboardInterrupt, SystemExit):  # Ctrl-C, SIGTERM: say what stays
+                bar.close()
+                if done:
+                    print(
+                        f"bench: stopped; {len(done)} of {len(jobs)} episodes are kept in "
+                        f"{journal.path}: rerun the same command to resume",
+                        file=sys.stderr,
+                    )
+                else:  # nothing to resume: no journal to block another command's --out
+                    journal.remove()
+                    print("bench: stopped; no episode had finished", file=sys.stderr)
+                raise
             finally:
                 release_episode_envs()
         records = [done[j.key] for j in jobs]

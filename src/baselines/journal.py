@@ -5,12 +5,13 @@
 to ``.<out>.partial/`` next to it, each file whole or absent (write, then rename). The same
 command run again on the same ``--out`` reads those back and runs only the tasks that are
 missing; the folder goes once the output is in place. It belongs to one command: a run whose
-arguments (or package version) differ is refused while it exists, unless ``--force``, which
-discards it.
+arguments (or package version, or the bytes of the files it read: ``input_digest``) differ is
+refused while it exists, unless ``--force``, which discards it.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 import re
 import shutil
@@ -23,6 +24,20 @@ from scenario_gen.errors import InputError
 
 RUN = "run.json"
 KEY = re.compile(r"^[A-Za-z0-9_.-]+$")
+
+
+def input_digest(path: Path) -> dict[str, str]:
+    """What a command read from ``path`` (a file, or a folder's files: a checkpoint), for its
+    journal's identity: a resumed run must read the same bytes, not only the same names."""
+    h = hashlib.sha256()
+    real = path.resolve()
+    files = [real] if real.is_file() else sorted(p for p in real.iterdir() if p.is_file())
+    for f in files:
+        h.update(f.name.encode() + b"\0")
+        with f.open("rb") as fh:
+            for chunk in iter(partial(fh.read, 1 << 20), b""):
+                h.update(chunk)
+    return {"path": str(real), "sha256": h.hexdigest()}
 
 
 class Journal:
@@ -97,4 +112,12 @@ def _differs(have: Any, want: dict[str, Any]) -> str:
     def shown(d: dict[str, Any], k: str) -> str:
         return repr(d[k]) if k in d else "not set"
 
-    return ", ".join(f"{k} {shown(have, k)} there, {shown(want, k)} now" for k in keys[:3])
+    def said(k: str) -> str:
+        if k == "inputs" and isinstance(have.get(k), list):  # digests say nothing to a reader
+            old = {d.get("path"): d.get("sha256") for d in have[k] if isinstance(d, dict)}
+            new = {d["path"]: d["sha256"] for d in want.get(k) or []}
+            changed = sorted(p for p in set(old) | set(new) if old.get(p) != new.get(p))
+            return f"the files read changed since ({', '.join(map(str, changed))})"
+        return f"{k} {shown(have, k)} there, {shown(want, k)} now"
+
+    return ", ".join(said(k) for k in keys[:3])

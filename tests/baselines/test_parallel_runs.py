@@ -48,7 +48,10 @@ def test_bench_with_two_workers_writes_the_serial_runs_records(
 
 
 def test_a_bench_interrupted_mid_run_resumes_without_running_its_episodes_again(
-    serial: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+    serial: Path,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
 ) -> None:
     out = tmp_path / "bench"
     real = bench_module.episode_task
@@ -63,6 +66,10 @@ def test_a_bench_interrupted_mid_run_resumes_without_running_its_episodes_again(
     monkeypatch.setattr(bench_module, "episode_task", dies_after_two)
     assert main([*SMOKE, "--out", str(out)]) == 130  # interrupted
     assert not out.exists()
+    assert (
+        f"bench: stopped; 2 of 4 episodes are kept in {tmp_path / '.bench.partial'}: rerun the "
+        "same command to resume"
+    ) in capsys.readouterr().err
     kept = {
         f.stem: json.loads(f.read_text()) for f in (tmp_path / ".bench.partial").glob("c*.json")
     }
@@ -80,6 +87,43 @@ def test_a_bench_interrupted_mid_run_resumes_without_running_its_episodes_again(
     with_seconds = _records(out, seconds=True)
     for k, record in kept.items():  # the kept episodes as they were (their own wall time)
         assert record in with_seconds, k
+    assert not (tmp_path / ".bench.partial").exists()
+
+
+def test_a_resume_reads_the_same_files_or_is_refused(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A parameter file edited between the interrupted run and its rerun: the rerun is
+    refused, naming the file (it used to average episodes of both settings in one cell). A
+    run stopped before any episode finished keeps no journal to block another command."""
+    params = tmp_path / "slow.yaml"
+    params.write_text("desired_linear_vel: 0.3\n")
+    out = tmp_path / "bench"
+    argv = ["bench", "--suite", "smoke", "--policies", f"rpp:{params}", "--seeds", "2"]
+    argv += ["--out", str(out)]
+    real = bench_module.episode_task
+    ran: list[str] = []
+
+    def dies_after_one(job: Any) -> Any:
+        if ran:
+            raise KeyboardInterrupt
+        ran.append(job.key)
+        return real(job)
+
+    monkeypatch.setattr(bench_module, "episode_task", dies_after_one)
+    assert main(argv) == 130
+    params.write_text("desired_linear_vel: 0.9\n")
+    capsys.readouterr()
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert f"the files read changed since ({params.resolve()})" in err and not out.exists()
+
+    def dies_at_once(job: Any) -> Any:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(bench_module, "episode_task", dies_at_once)
+    assert main([*argv, "--force"]) == 130
+    assert "bench: stopped; no episode had finished" in capsys.readouterr().err
     assert not (tmp_path / ".bench.partial").exists()
 
 
