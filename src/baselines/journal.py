@@ -114,10 +114,10 @@ def _differs(have: Any, want: dict[str, Any]) -> str:
 
     def said(k: str) -> str:
         if k == "inputs" and isinstance(have.get(k), list):  # digests say nothing to a reader
-            old = {d.get("path"): d.get("sha256") for d in have[k] if isinstance(d, dict)}
-            new = {d["path"]: d["sha256"] for d in want.get(k) or []}
+            old = {str(d.get("path")): d.get("sha256") for d in have[k] if isinstance(d, dict)}
+            new = {str(d["path"]): d["sha256"] for d in want.get(k) or []}
             changed = sorted(p for p in set(old) | set(new) if old.get(p) != new.get(p))
-            return f"the files read changed since ({', '.join(map(str, changed))})"
+            return f"the files read changed since ({', '.join(changed)})"
         return f"{k} {shown(have, k)} there, {shown(want, k)} now"
 
     return ", ".join(said(k) for k in keys[:3])
