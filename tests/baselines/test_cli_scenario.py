@@ -200,3 +200,17 @@ def test_an_os_error_with_a_file_names_that_file() -> None:
     # a message a command wrote (a dataset's "3 of 20 shards are kept ...") is passed on as is
     own = OSError(errno.ENOSPC, "writing the dataset in ds failed (No space left on device)")
     assert os_error(own, "ds") == "writing the dataset in ds failed (No space left on device)"
+
+
+def test_a_flag_given_twice_is_refused(tmp_path: Path, capsys) -> None:
+    """``--out a --out b`` used to write b only, ``--suite smoke --suite paper`` run paper:
+    the last silently won. Lists (``--set``) still repeat."""
+    a, b = tmp_path / "a", tmp_path / "b"
+    assert main(["scenario", "--out", str(a), "--out", str(b)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("agrinav scenario: error: argument --out: given twice; allowed: once")
+    assert not a.exists() and not b.exists()
+    assert main(["bench", "--suite", "smoke", "--suite", "paper", "--out", str(a)]) == 2
+    assert "argument --suite: given twice" in capsys.readouterr().err
+    sets = ["--set", "layout.rows=4", "--set", "layout.plant_spacing=0.2"]
+    assert main(["scenario", *sets, "--no-preview", "--out", str(a)]) == 0

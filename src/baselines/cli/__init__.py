@@ -22,12 +22,19 @@ from typing import Any, NoReturn
 from scenario_gen.errors import InputError
 
 from . import bench, dataset, demo, export, export_policy, scenario, studio, train, tune
+from .args import StoreOnce
 
 COMMANDS = (scenario, export, train, export_policy, tune, bench, demo, studio, dataset)
 
 
 class Parser(argparse.ArgumentParser):
-    """argparse that reports a bad flag as one line (exit 2), like every other bad input."""
+    """argparse that reports a bad flag as one line (exit 2), like every other bad input, and
+    refuses a flag given twice."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.register("action", None, StoreOnce)
+        self.register("action", "store", StoreOnce)
 
     def error(self, message: str) -> NoReturn:
         sys.stderr.write(f"{self.prog}: error: {message} (see {self.prog} --help)\n")

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import argparse
-from collections.abc import Callable
+import weakref
+from collections.abc import Callable, Sequence
+from typing import Any
 
 MAX_SEED = 2**63 - 1
 
@@ -49,3 +51,26 @@ def separated(sep: str, what: str) -> Callable[[str], list[str]]:
         return items
 
     return parse
+
+
+class StoreOnce(argparse._StoreAction):
+    """argparse's ``store`` that refuses a flag given twice (``--suite smoke --suite paper``
+    would run the last silently: more often a slip than an intent)."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        # the namespaces this flag was given in (argparse's Namespace is unhashable)
+        self._seen: list[weakref.ref[argparse.Namespace]] = []
+
+    def __call__(
+        self,
+        parser: argparse.ArgumentParser,
+        namespace: argparse.Namespace,
+        values: str | Sequence[Any] | None,
+        option_string: str | None = None,
+    ) -> None:
+        self._seen = [r for r in self._seen if r() is not None]
+        if self.option_strings and any(r() is namespace for r in self._seen):
+            parser.error(f"argument {'/'.join(self.option_strings)}: given twice; allowed: once")
+        self._seen.append(weakref.ref(namespace))
+        super().__call__(parser, namespace, values, option_string)
