@@ -39,6 +39,12 @@ def run(args: argparse.Namespace) -> int:
 
     if args.dem and args.mesh:
         raise InputError("--dem/--mesh", (args.dem, args.mesh), "allowed: one terrain source")
+    workspace = Path(args.workspace)
+    if workspace.exists() and not workspace.is_dir():
+        raise InputError(
+            "--workspace", str(workspace), "is not a folder; allowed: a folder (made if missing)"
+        )
+    check_port(args.port)
     terrain = Terrain(dem=args.dem, mesh=args.mesh, datum=args.datum)
     session = Session(preset=args.preset, terrain=terrain)
     spec = session.spec()  # the CLI's own checks, before a server starts
@@ -48,5 +54,20 @@ def run(args: argparse.Namespace) -> int:
     from baselines.studio.app import serve
     from baselines.studio.shared import Studio
 
-    serve(Studio(args.preset, terrain, Path(args.workspace)), args.port)
+    serve(Studio(args.preset, terrain, workspace), args.port)
     return 0
+
+
+def check_port(port: int, host: str = "127.0.0.1") -> None:
+    """Refuse a port another program listens on before the studio prints its address (the
+    server would fail after it, with its own exit status)."""
+    import socket
+
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as sock:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # as uvicorn binds
+        try:
+            sock.bind((host, port))
+        except OSError as exc:
+            raise InputError(
+                "--port", port, f"cannot be served on {host} ({exc.strerror}); allowed: a free port"
+            ) from None

@@ -91,3 +91,25 @@ def test_a_range_field_is_edited_as_text_and_read_as_a_list() -> None:
     s = Session()
     s.set("layout.curve_radius", value)
     assert list(s.spec().layout.curve_radius) == [20.0, 40.0]
+
+
+def test_a_busy_port_or_a_file_as_workspace_is_refused_before_the_server_starts(
+    tmp_path, capsys
+) -> None:
+    """Both used to start (or half-start: the address printed, then uvicorn's error and exit
+    3); now one line, exit 2, no address printed."""
+    import socket
+
+    from baselines.cli import main
+
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        assert main(["studio", "--port", str(port), "--workspace", str(tmp_path)]) == 2
+    out, err = capsys.readouterr()
+    assert "--port" in err and "free port" in err and "studio on http" not in out
+    afile = tmp_path / "afile.txt"
+    afile.write_text("x")
+    assert main(["studio", "--workspace", str(afile)]) == 2
+    assert "--workspace" in capsys.readouterr().err
