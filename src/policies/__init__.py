@@ -77,6 +77,15 @@ def param_file(path: str | Path, name: str) -> dict[str, Any]:
     from scenario_gen.schema import load_yaml
 
     data = load_yaml(path, f"policy {name}")
+    if not data:
+        raise InputError(
+            f"policy {name}",
+            str(path),
+            f"holds no parameters; allowed: at least one (the defaults are plain {name!r})",
+        )
+    cls = POLICIES.get(name)
+    if cls is not None and getattr(cls, "PARAMS", None):  # names first, then each one's range
+        cls.check_file_params(data)
     for k, v in data.items():
         ok = v is None or isinstance(v, (int, float))
         if not ok or (isinstance(v, float) and not math.isfinite(v)):

@@ -324,8 +324,9 @@ _NoAliasLoader.add_implicit_resolver(
 )
 
 
-def parse_yaml(text: str, what: str) -> Any:
-    """YAML text to plain data: size-bounded, aliases refused, depth-bounded."""
+def parse_yaml(text: str, what: str, source: str | None = None) -> Any:
+    """YAML text to plain data: size-bounded, aliases refused, depth-bounded; errors name
+    ``source`` (the file) where given, else the text's start."""
     if len(text) > MAX_YAML_BYTES:
         raise InputError(what, f"{len(text)} bytes", f"allowed: at most {MAX_YAML_BYTES} bytes")
     try:
@@ -334,7 +335,11 @@ def parse_yaml(text: str, what: str) -> Any:
         reason = str(exc).splitlines()[0] if str(exc) else exc.__class__.__name__
         if "aliases" in str(exc):
             reason = "aliases (*name) are not allowed: they can expand exponentially"
-        raise InputError(what, _head(text), f"is not valid YAML ({reason})") from None
+        mark = getattr(exc, "problem_mark", None)
+        if mark is not None:
+            reason += f", line {mark.line + 1} column {mark.column + 1}"
+        where = source if source is not None else _head(text)
+        raise InputError(what, where, f"is not valid YAML ({reason})") from None
     except RecursionError:
         raise InputError(
             what, "<nested>", f"allowed: at most {MAX_DEPTH} levels of nesting"
@@ -363,7 +368,7 @@ def load_yaml(path: str | Path, what: str = "--config") -> dict[str, Any]:
         raise InputError(what, str(path), "is not a UTF-8 text file (binary?)") from None
     if "\x00" in text:
         raise InputError(what, str(path), "is not a text file (it holds NUL bytes)")
-    data = parse_yaml(text, what)
+    data = parse_yaml(text, what, str(path))
     if data is None:
         return {}
     if not isinstance(data, dict):

@@ -241,6 +241,12 @@ def test_every_searched_value_is_one_the_controller_accepts(name: str) -> None:
         ("stanley", "integral_time: 0\n", "integral_time: got 0"),
         ("stanley", "k: -2.5\n", "k: got -2.5"),
         ("stanley", "k_soft: 0\n", "k_soft: got 0"),
+        # the parameter's own range, not a generic "number, true/false or null" it refuses
+        ("rpp", "desired_linear_vel: fast\n", "desired_linear_vel: got 'fast'; allowed: a number"),
+        # another controller's file: its names are unknown here (not "a number" for a section)
+        ("stanley", "FollowPath: {PathAlign: {scale: 32}}\n", "unknown parameters"),
+        ("rpp", "", "holds no parameters"),
+        ("rpp", "desired_linear_vel: [1\n", "p.yaml'; is not valid YAML"),  # the file, not its text
     ],
 )
 def test_a_parameter_file_outside_the_ranges_is_refused_before_any_env(
