@@ -528,11 +528,26 @@ def _is_fixed(scenario: Any) -> bool:
         return True
     if str(scenario) in sg.preset_names():
         return False
-    if Path(scenario).is_dir():
+    path = Path(scenario)
+    if (path / "bank.yaml").is_file():
+        members = sorted(p.name for p in path.iterdir() if (p / "scenario.json").is_file())
+        example = f" (e.g. {path / members[0]})" if members else ""
         raise InputError(
             "scenario",
             str(scenario),
-            "is a folder without scenario.json; allowed: a folder `agrinav scenario` wrote",
+            f"is a bank of scenarios (bank.yaml); allowed: one of its members{example}, or "
+            "the whole bank as the env's bank=FOLDER",
+        )
+    if path.is_dir():
+        raise InputError(
+            "scenario",
+            str(scenario),
+            "is a folder without scenario.json; allowed: a scenario folder (one that "
+            "`agrinav scenario` wrote)",
+        )
+    if path.exists():
+        raise InputError(
+            "scenario", str(scenario), "is a file; allowed: a scenario folder or a preset name"
         )
     if isinstance(scenario, Path) or "/" in str(scenario) or "\\" in str(scenario):
         raise InputError(

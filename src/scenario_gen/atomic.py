@@ -150,7 +150,7 @@ def check_replaceable(out: Path, what: str = "out", kind: str | None = None) -> 
         raise InputError(
             what,
             str(out),
-            f"was not written by agrinav (no {MARKER} in it), so --force will not replace it; "
+            f"was not written by agrinav (no {MARKER} in it), so it is never replaced; "
             "choose another folder or remove it yourself",
         )
     found = marked_kind(out)
@@ -158,7 +158,7 @@ def check_replaceable(out: Path, what: str = "out", kind: str | None = None) -> 
         raise InputError(
             what,
             str(out),
-            f"holds agrinav's {found} output; --force here replaces only {kind} output "
+            f"holds agrinav's {found} output; this command replaces only {kind} output "
             "(choose another folder)",
         )
 

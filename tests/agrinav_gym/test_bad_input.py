@@ -315,3 +315,19 @@ def test_an_episodes_numbers_before_reset_are_one_error() -> None:
         assert u.trajectory.shape == (1, 2) and u.crops_hit_ids == frozenset()
     finally:
         env.close()
+
+
+def test_a_bank_or_a_file_as_the_scenario_says_what_it_is(tmp_path: Any) -> None:
+    import scenario_gen as sg
+
+    bank = tmp_path / "bank"
+    bank.mkdir()
+    sg.save(sg.generate(sg.preset("default", **TINY), 0), bank / "seed-000000", preview=False)
+    (bank / "bank.yaml").write_text("members: [seed-000000]\n")
+    with pytest.raises(InputError, match="is a bank of scenarios") as info:
+        gym.make(ID, scenario=str(bank))
+    assert str(bank / "seed-000000") in str(info.value)
+    afile = tmp_path / "field.yaml"
+    afile.write_text("x: 1\n")
+    with pytest.raises(InputError, match="is a file"):
+        gym.make(ID, scenario=str(afile))
