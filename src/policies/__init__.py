@@ -115,11 +115,13 @@ def check_policy_spec(spec: Any) -> tuple[str, str]:
                 "allowed: a checkpoint folder holding checkpoint.json, or ppo:shipped",
             )
     elif name == "dwb":
-        if path and path not in DWB_SHIPPED and not path.endswith((".yaml", ".yml")):
+        if path and path not in DWB_SHIPPED and not path.lower().endswith((".yaml", ".yml")):
             shipped = ", ".join(f"dwb:{n}" for n in DWB_SHIPPED)
             raise InputError("policy", spec, f"allowed: dwb, {shipped}, dwb:PATH.yaml")
     elif name in TUNABLE:
-        ok = path == TUNED_ARG or (path.endswith((".yaml", ".yml")) and Path(path).is_file())
+        ok = path == TUNED_ARG or (
+            path.lower().endswith((".yaml", ".yml")) and Path(path).is_file()
+        )
         if path and not ok:
             missing = path.lower().endswith((".yaml", ".yml")) and not Path(path).is_file()
             raise InputError(

@@ -59,6 +59,8 @@ def check_output_dir(
     current folder, one above it, the home folder or ``/``: ``--out . --force`` must not
     delete a user's files. Nor one that holds any of the command's ``inputs`` (files or
     folders it reads): replacing it would delete them."""
+    if not str(directory).strip():  # Path("") is the current folder
+        raise InputError(what, str(directory), "allowed: a folder path (it is empty)")
     out = Path(os.path.abspath(directory))  # "." and ".." resolved: out.name is a real name
     check_name_lengths(out, what)
     if out.exists() and not out.is_dir():

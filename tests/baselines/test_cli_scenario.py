@@ -214,3 +214,30 @@ def test_a_flag_given_twice_is_refused(tmp_path: Path, capsys) -> None:
     assert "argument --suite: given twice" in capsys.readouterr().err
     sets = ["--set", "layout.rows=4", "--set", "layout.plant_spacing=0.2"]
     assert main(["scenario", *sets, "--no-preview", "--out", str(a)]) == 0
+
+
+def test_an_empty_out_is_refused_not_taken_for_the_current_folder(capsys) -> None:
+    assert main(["scenario", "--out", ""]) == 2
+    assert capsys.readouterr().err.strip() == (
+        "agrinav scenario: error: --out: got ''; allowed: a folder path"
+    )
+
+
+def test_a_closed_stdout_pipe_ends_the_command_as_sigpipe_does(monkeypatch, capsys) -> None:
+    """``agrinav run ... | head``: the reader went away; not "writing OUT: Broken pipe" (the
+    output folder was whole) but SIGPIPE's status, silently."""
+    import os
+
+    from baselines.cli import scenario as scenario_cli
+
+    def reader_gone(args: object) -> int:
+        raise BrokenPipeError(32, "Broken pipe")
+
+    monkeypatch.setattr(scenario_cli, "run", reader_gone)
+    stdout = os.dup(1)
+    try:
+        assert main(["scenario", "--out", "x"]) == 141
+    finally:
+        os.dup2(stdout, 1)  # the handler points stdout at /dev/null
+        os.close(stdout)
+    assert capsys.readouterr().err == ""

@@ -296,3 +296,11 @@ def test_a_dwb_window_the_robot_cannot_move_in_is_refused(follow: dict, field: s
     with pytest.raises(InputError) as info:
         DWBParams.load({"FollowPath": follow})
     assert info.value.field == field
+
+
+def test_a_parameter_files_suffix_is_read_in_any_case(tmp_path: Path) -> None:
+    from policies import check_policy_spec
+
+    path = tmp_path / "BEST.YAML"
+    path.write_text("desired_linear_vel: 0.4\n")
+    assert check_policy_spec(f"rpp:{path}") == ("rpp", str(path))

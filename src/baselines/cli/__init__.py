@@ -10,6 +10,7 @@ as it says).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import errno
 import os
 import signal
@@ -97,6 +98,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # --help, or a bad flag already reported in one line
         return int(exc.code or 0)
+    out = getattr(args, "out", None)
+    if isinstance(out, str) and not out.strip():  # Path("") would be the current folder
+        print(
+            f"agrinav {args.command}: error: --out: got {out!r}; allowed: a folder path",
+            file=sys.stderr,
+        )
+        return 2
     args.argv = ["agrinav", *(argv if argv is not None else sys.argv[1:])]  # for "reproduce"
     previous = signal.signal(signal.SIGTERM, _terminate)
     try:
@@ -106,6 +114,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     except InputError as exc:
         print(f"agrinav {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except BrokenPipeError as exc:
+        if exc.filename is not None:  # a pipe the command wrote to as a file
+            print(f"agrinav {args.command}: error: {os_error(exc)}", file=sys.stderr)
+            return 1
+        # the reader of stdout went away (``| head``): what was written stays; exit as a
+        # command killed by SIGPIPE does, without a word (nothing more can be printed there)
+        with contextlib.suppress(OSError):
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 128 + signal.SIGPIPE
     except OSError as exc:  # full disk, permissions: the machine's problem, said in one line
         text = os_error(exc, getattr(args, "out", None))
         print(f"agrinav {args.command}: error: {text}", file=sys.stderr)
