@@ -16,6 +16,7 @@ import contextlib
 import importlib.util
 import logging
 import multiprocessing as mp
+import os
 import re
 import socket
 from collections.abc import Callable, Iterable, Iterator
@@ -56,10 +57,23 @@ def check_address(address: str) -> None:
             ) from None
 
 
+#: worker processes a command may start per core: beyond this they only queue for the cores
+OVERSUBSCRIBE = 4
+
+
 def check_spread(workers: int, ray: str | None) -> None:
     """The ``--workers`` and ``--ray`` of a command, checked before anything runs."""
     if workers < 1:
         raise InputError("--workers", workers, "allowed: an integer >= 1")
+    cores = os.cpu_count() or 1
+    if workers > OVERSUBSCRIBE * cores:
+        raise InputError(
+            "--workers",
+            workers,
+            f"allowed: at most {OVERSUBSCRIBE * cores} ({OVERSUBSCRIBE} per core of this "
+            f"machine's {cores}): more only share the cores, each holding its own simulator "
+            "(≈ 0.2 GB); --ray spreads past one machine",
+        )
     if ray is not None and workers != 1:
         raise InputError(
             "--workers", workers, "allowed: 1 with --ray (the cluster's CPUs set the parallelism)"

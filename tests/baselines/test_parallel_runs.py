@@ -224,3 +224,14 @@ def test_tune_with_two_workers_and_after_an_interruption_makes_the_same_search(
     for out in (spread, resumed):
         for name in ("trials.csv", "best.yaml"):
             assert (out / name).read_text() == (serial / name).read_text(), (out, name)
+
+
+def test_workers_far_beyond_the_cores_are_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import os
+
+    monkeypatch.setattr(os, "cpu_count", lambda: 2)
+    assert main([*SMOKE, "--workers", "9", "--out", str(tmp_path / "b")]) == 2
+    assert "allowed: at most 8 (4 per core of this machine's 2)" in capsys.readouterr().err
+    assert not (tmp_path / "b").exists()
