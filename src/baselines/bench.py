@@ -20,6 +20,7 @@ from policies.spec import PolicySpec
 from scenario_gen.atomic import atomic_write_text, check_output_dir, output_dir
 from scenario_gen.errors import InputError
 
+from .cli.args import MAX_SEED
 from .episodes import (
     Episode,
     VideoWriter,
@@ -174,6 +175,12 @@ def run(
     ``render_seconds``, not part of ``seconds``)."""
     if episodes < 1:
         raise InputError("--episodes", episodes, "allowed: an integer >= 1")
+    if seed + episodes - 1 > MAX_SEED:  # episode k resets with seed + k
+        raise InputError(
+            "--seed/--episodes",
+            (seed, episodes),
+            f"allowed: reset seeds up to {MAX_SEED} (seed + episodes - 1)",
+        )
     check_policy_spec(policy)
     if video:
         check_video()

@@ -578,6 +578,15 @@ def test_run_refuses_to_overwrite_without_force(
     assert "--force" in capsys.readouterr().err and (out / "keep.txt").read_text() == "mine"
 
 
+def test_run_refuses_reset_seeds_past_the_range(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--seed is bounded, but episode k resets with seed + k: the last must be in range too."""
+    argv = ["run", "--policy", "rpp", "--seed", str(2**63 - 1), "--episodes", "2"]
+    assert main([*argv, "--out", str(tmp_path / "o")]) == 2
+    assert "--seed/--episodes" in capsys.readouterr().err and not (tmp_path / "o").exists()
+
+
 @pytest.mark.parametrize("sig", ["SIGTERM", "SIGKILL"])
 def test_a_killed_run_leaves_nothing_stale(tmp_path: Path, sig: str) -> None:
     import signal
