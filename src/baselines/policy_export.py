@@ -57,6 +57,15 @@ class Source:
 def resolve_source(text: str, trust: bool = False) -> Source:
     """The policy ``text`` names: a checkpoint folder, ``ppo:PATH``, ``shipped:ENV_ID`` — or,
     with ``trust`` (``--trust-checkpoint``), a Stable-Baselines3 model or zoo run folder."""
+    path, env_id = _source_path(text)
+    loaded = checkpoint.load_policy(path, trust, text)
+    safe = (path / checkpoint.META).is_file()
+    return Source(loaded, path if safe else None, env_id or loaded.meta.get("env_id"), text, path)
+
+
+def _source_path(text: str) -> tuple[Path, str | None]:
+    """Where the policy ``text`` names lies (checked to exist), and its env id where the name
+    says it (``shipped:ENV_ID``); nothing is read yet."""
     if not isinstance(text, str) or not text:
         raise InputError(FIELD, text, f"allowed: {FORMS}")
     name, arg = PolicySpec.parse(text)
@@ -78,9 +87,7 @@ def resolve_source(text: str, trust: bool = False) -> Source:
         path = Path(text)
     if not path.exists():
         raise InputError(FIELD, text, f"does not exist; allowed: {FORMS}")
-    loaded = checkpoint.load_policy(path, trust, text)
-    safe = (path / checkpoint.META).is_file()
-    return Source(loaded, path if safe else None, env_id or loaded.meta.get("env_id"), text, path)
+    return path, env_id
 
 
 def export_policy(
@@ -100,6 +107,9 @@ def export_policy(
 
         require_onnx()
     check_output_dir(out, force, "--out", "policy export")
+    if to == "sb3" and not (_source_path(source)[0] / checkpoint.META).is_file():
+        # refused before a (trusted) pickle is loaded only to be refused
+        raise InputError(FIELD, source, f"is not an AgriNav checkpoint; allowed for sb3: {FORMS}")
     src = resolve_source(source, trust)
     check_output_dir(out, force, "--out", "policy export", inputs=[src.path])
     command = " ".join(shlex.quote(a) for a in (argv or ["agrinav", "export-policy", source]))

@@ -147,6 +147,12 @@ def test_a_trusted_zoo_run_exports_to_onnx_with_its_normalisation(
     out = tmp_path / "onnx"
     argv = ["export-policy", str(run), "--to", "onnx", "--out", str(out)]
     assert main(argv) == 2 and "trust-checkpoint" in capsys.readouterr().err
+    # to sb3 again: refused before the trusted pickle is loaded (no warning about loading it)
+    sb3 = ["export-policy", str(run), "--to", "sb3", "--out", str(tmp_path / "again")]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert main([*sb3, "--trust-checkpoint"]) == 2
+    assert "is not an AgriNav checkpoint" in capsys.readouterr().err
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         assert main([*argv, "--trust-checkpoint"]) == 0
