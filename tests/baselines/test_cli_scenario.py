@@ -241,3 +241,24 @@ def test_a_closed_stdout_pipe_ends_the_command_as_sigpipe_does(monkeypatch, caps
         os.dup2(stdout, 1)  # the handler points stdout at /dev/null
         os.close(stdout)
     assert capsys.readouterr().err == ""
+
+
+def test_ctrl_c_while_the_command_line_loads_is_one_line() -> None:
+    """The console script imports the simulator's packages (≈ 1–2 s) inside its own Ctrl-C
+    handler: an interrupt then was an 18-frame traceback."""
+    import signal
+    import time
+
+    script = Path(sys.executable).parent / "agrinav"
+    proc = subprocess.Popen(
+        [str(script), "scenario", "--help"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+        # a job started in the background inherits SIGINT ignored; a terminal's is not
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
+    time.sleep(0.3)  # python is up, the packages are still loading
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130 and err.strip() == "agrinav: interrupted", err

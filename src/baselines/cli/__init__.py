@@ -93,11 +93,13 @@ def os_error(exc: OSError, out: object = None) -> str:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = build_parser()
     try:
-        args = parser.parse_args(argv)
+        args = build_parser().parse_args(argv)
     except SystemExit as exc:  # --help, or a bad flag already reported in one line
         return int(exc.code or 0)
+    except KeyboardInterrupt:
+        print("agrinav: interrupted", file=sys.stderr)
+        return 130
     out = getattr(args, "out", None)
     if isinstance(out, str) and not out.strip():  # Path("") would be the current folder
         print(
