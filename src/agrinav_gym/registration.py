@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import re
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -164,10 +165,14 @@ def _register_checked(env_id: str, d: EnvDef, kwargs: dict[str, Any]) -> str:
     """Register, build the env once and close it; on any refusal the registry is as it was."""
     import gymnasium as gym
 
+    from .scenarios import FixedFieldWarning
+
     before = registry.get(env_id)
     _register(env_id, d, kwargs)
     try:
-        gym.make(env_id).close()
+        with warnings.catch_warnings():  # the notice is for the user's own envs, not this one
+            warnings.simplefilter("ignore", FixedFieldWarning)
+            gym.make(env_id).close()
     except BaseException:
         del registry[env_id]
         if before is not None:
