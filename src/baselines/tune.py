@@ -275,6 +275,10 @@ def tune(
                             "crops_hit": sum(int(r["crops_hit"]) for r in records),
                         }
                     )
+            except BaseException:
+                if not done:  # nothing to resume: no journal to block another search's --out
+                    journal.remove()
+                raise
             finally:
                 release_training_env()
         best = min(rows, key=lambda r: (r["score"], r["trial"]))

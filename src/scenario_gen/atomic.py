@@ -63,6 +63,13 @@ def check_output_dir(
         raise InputError(what, str(directory), "allowed: a folder path (it is empty)")
     out = Path(os.path.abspath(directory))  # "." and ".." resolved: out.name is a real name
     check_name_lengths(out, what)
+    if out.is_symlink():  # replacing it would swap the link itself for a folder
+        raise InputError(
+            what,
+            str(out),
+            f"is a symbolic link (to {os.readlink(out)}); allowed: a real folder path, e.g. "
+            "the folder it points to",
+        )
     if out.exists() and not out.is_dir():
         raise InputError(what, str(out), "exists and is not a directory")
     if out.exists() and not overwrite:
@@ -93,6 +100,7 @@ def check_creatable(out: Path, what: str = "out") -> None:
     """Refuse a folder that cannot be made: a file where a parent folder should be, a parent
     that is not writable, or a name the file system cannot hold (not errno's "File exists" or
     "File name too long" from deep inside a mkdir)."""
+    check_name_lengths(out, what)
     parent = _existing_parent(out)
     if not parent.is_dir():
         raise InputError(what, str(out), f"its parent {parent} is not a directory")

@@ -239,6 +239,7 @@ def test_ctrl_c_with_worker_processes_is_one_line_and_keeps_the_checkpoints(
     "args,needle",
     [
         (["--hyperparams", "n_stepz=3"], "hyperparams.n_stepz"),
+        (["--seed", str(2**32)], "--seed"),  # numpy's legacy seeding, which SB3 uses
         (["--hyperparams", "batch_size=99999"], "hyperparams.batch_size"),
         (["--hyperparams", "learning_rate=fast"], "hyperparams.learning_rate"),
         (["--hyperparams", "learning_rate=lin_-1"], "hyperparams.learning_rate"),

@@ -181,3 +181,20 @@ def test_the_route_clock_times_the_trials_as_the_test_suites_are(tmp_path: Path)
     argv = ["tune", "--policy", "stanley", "--trials", "1", "--episodes", "1", "--out", str(out)]
     assert main([*argv, "--route-clock"]) == 0
     assert "route clock" in (out / "best.yaml").read_text()
+
+
+def test_a_search_that_fails_before_any_episode_keeps_no_journal(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """An unreachable cluster (here: the first episode failing) used to leave the journal's
+    run.json, which then refused another search on the same --out as an unfinished one."""
+    import baselines.tune as tune_module
+
+    def unreachable(job: object) -> object:
+        raise ConnectionError("no cluster")
+
+    monkeypatch.setattr(tune_module, "trial_episode", unreachable)
+    out = tmp_path / "t"
+    argv = ["tune", "--policy", "rpp", "--trials", "1", "--episodes", "1", "--out", str(out)]
+    assert main(argv) == 1  # the machine's error, in one line
+    assert list(tmp_path.iterdir()) == []

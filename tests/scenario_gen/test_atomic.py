@@ -231,3 +231,18 @@ def test_names_the_file_system_cannot_hold_are_refused_before_anything_is_made(
             pass
         assert info.value.field == "out" and limit in str(info.value)
     assert [p.name for p in tmp_path.iterdir()] == ["a" * longest]
+
+
+def test_a_symbolic_link_as_out_is_refused(tmp_path: Path) -> None:
+    """Replacing it swapped the link itself for a folder and left a temporary link behind."""
+    target = tmp_path / "target"
+    with output_dir(target) as tmp:
+        (tmp / "f").write_text("x")
+    link = tmp_path / "link"
+    link.symlink_to(target)
+    (tmp_path / "dangling").symlink_to(tmp_path / "nowhere")
+    for out in (link, tmp_path / "dangling"):
+        with pytest.raises(InputError, match="symbolic link"), output_dir(out, overwrite=True):
+            pass
+    assert link.is_symlink() and (target / "f").is_file()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["dangling", "link", "target"]

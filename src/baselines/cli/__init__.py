@@ -23,7 +23,7 @@ from typing import Any, NoReturn
 from scenario_gen.errors import InputError
 
 from . import bench, dataset, demo, export, export_policy, scenario, studio, train, tune
-from .args import StoreOnce
+from .args import StoreOnce, StoreTrueOnce
 
 COMMANDS = (scenario, export, train, export_policy, tune, bench, demo, studio, dataset)
 
@@ -36,6 +36,7 @@ class Parser(argparse.ArgumentParser):
         super().__init__(*args, **kwargs)
         self.register("action", None, StoreOnce)
         self.register("action", "store", StoreOnce)
+        self.register("action", "store_true", StoreTrueOnce)
 
     def error(self, message: str) -> NoReturn:
         sys.stderr.write(f"{self.prog}: error: {message} (see {self.prog} --help)\n")

@@ -53,14 +53,25 @@ def separated(sep: str, what: str) -> Callable[[str], list[str]]:
     return parse
 
 
-class StoreOnce(argparse._StoreAction):
-    """argparse's ``store`` that refuses a flag given twice (``--suite smoke --suite paper``
-    would run the last silently: more often a slip than an intent)."""
+class _Once:
+    """A flag refused when given twice (``--suite smoke --suite paper`` would run the last
+    silently: more often a slip than an intent)."""
 
-    def __init__(self, *args: Any, **kwargs: Any) -> None:
-        super().__init__(*args, **kwargs)
+    option_strings: Sequence[str]
+
+    def _once(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace) -> None:
         # the namespaces this flag was given in (argparse's Namespace is unhashable)
-        self._seen: list[weakref.ref[argparse.Namespace]] = []
+        seen: list[weakref.ref[argparse.Namespace]] = [
+            r for r in getattr(self, "_seen", []) if r() is not None
+        ]
+        if self.option_strings and any(r() is namespace for r in seen):
+            parser.error(f"argument {'/'.join(self.option_strings)}: given twice; allowed: once")
+        seen.append(weakref.ref(namespace))
+        self._seen = seen
+
+
+class StoreOnce(_Once, argparse._StoreAction):
+    """argparse's ``store``, once."""
 
     def __call__(
         self,
@@ -69,8 +80,19 @@ class StoreOnce(argparse._StoreAction):
         values: str | Sequence[Any] | None,
         option_string: str | None = None,
     ) -> None:
-        self._seen = [r for r in self._seen if r() is not None]
-        if self.option_strings and any(r() is namespace for r in self._seen):
-            parser.error(f"argument {'/'.join(self.option_strings)}: given twice; allowed: once")
-        self._seen.append(weakref.ref(namespace))
+        self._once(parser, namespace)
+        super().__call__(parser, namespace, values, option_string)
+
+
+class StoreTrueOnce(_Once, argparse._StoreTrueAction):
+    """argparse's ``store_true``, once."""
+
+    def __call__(
+        self,
+        parser: argparse.ArgumentParser,
+        namespace: argparse.Namespace,
+        values: str | Sequence[Any] | None,
+        option_string: str | None = None,
+    ) -> None:
+        self._once(parser, namespace)
         super().__call__(parser, namespace, values, option_string)

@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from ..scenario_spec import parse_set
-from .args import int_at_least, seed_type
+from .args import int_at_least
 
 
 def add(sub: Any) -> None:
@@ -20,7 +20,12 @@ def add(sub: Any) -> None:
     tr.add_argument("--env", required=True, help="env id, e.g. AgriNav/FurrowFollow-v3")
     tr.add_argument("--algo", default="ppo", choices=["ppo"])
     tr.add_argument("--timesteps", type=int_at_least(1), help="total steps (default: the file's)")
-    tr.add_argument("--seed", type=seed_type, default=0)
+    tr.add_argument(
+        "--seed",
+        type=int_at_least(0, 2**32 - 1),  # numpy's legacy seeding, which SB3 uses
+        default=0,
+        help="the run's seed (0 to 2^32 - 1)",
+    )
     tr.add_argument("--out", required=True, help="run folder (new or empty)")
     tr.add_argument("--n-envs", type=int_at_least(1, 256), help="parallel envs (default: file's)")
     tr.add_argument(
