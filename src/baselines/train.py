@@ -70,7 +70,22 @@ def merge_env_kwargs(base: dict[str, Any], path: Path) -> dict[str, Any]:
 
     extra = load_yaml(path, "--env-kwargs")
     hpmod.refuse_split_keys(extra)
+    _check_make_keywords(extra)
     return hpmod.merge_env_kwargs(base, extra)
+
+
+def _check_make_keywords(kwargs: dict[str, Any]) -> None:
+    """``gym.make``'s own keywords, which reach Gymnasium unchecked by the env (a negative step
+    limit was a traceback from inside it, a number as a switch taken silently)."""
+    steps = kwargs.get("max_episode_steps")
+    if "max_episode_steps" in kwargs and steps is not None:
+        if isinstance(steps, bool) or not isinstance(steps, int) or steps < 1:
+            raise InputError(
+                "--env-kwargs: max_episode_steps", steps, "allowed: an integer >= 1, or null"
+            )
+    checker = kwargs.get("disable_env_checker")
+    if "disable_env_checker" in kwargs and not isinstance(checker, bool):
+        raise InputError("--env-kwargs: disable_env_checker", checker, "allowed: true or false")
 
 
 def _scenario_kwargs(env_kwargs: dict[str, Any], scenario: str | None) -> dict[str, Any]:

@@ -55,6 +55,9 @@ def test_the_shipped_geometry_file_names_only_valid_ranges() -> None:
         (None, "--env-kwargs"),
         ("- a list\n", "--env-kwargs"),
         ("randomize:\n  layout.no_such_key: [0, 1]\n", "layout.no_such_key"),
+        # gym.make's own keywords: a traceback from Gymnasium, or taken silently
+        ("max_episode_steps: -5\n", "max_episode_steps: got -5"),
+        ("disable_env_checker: 5\n", "disable_env_checker: got 5"),
     ],
 )
 def test_a_bad_env_kwargs_file_exits_2_before_writing(
