@@ -70,11 +70,11 @@ def merge_env_kwargs(base: dict[str, Any], path: Path) -> dict[str, Any]:
 
     extra = load_yaml(path, "--env-kwargs")
     hpmod.refuse_split_keys(extra)
-    _check_make_keywords(extra)
+    check_make_keywords(extra)
     return hpmod.merge_env_kwargs(base, extra)
 
 
-def _check_make_keywords(kwargs: dict[str, Any]) -> None:
+def check_make_keywords(kwargs: dict[str, Any]) -> None:
     """``gym.make``'s own keywords, which reach Gymnasium unchecked by the env (a negative step
     limit was a traceback from inside it, a number as a switch taken silently)."""
     steps = kwargs.get("max_episode_steps")

@@ -211,8 +211,18 @@ def tune(
 
         from .hyperparams import refuse_split_keys
 
+        from .train import check_make_keywords
+
         given = load_yaml(env_kwargs, "--env-kwargs")
         refuse_split_keys(given)
+        check_make_keywords(given)
+        if "observations" in given:  # each controller's own (training_env): not the file's
+            raise InputError(
+                "--env-kwargs: observations",
+                given["observations"],
+                f"are the controller's own in a search ({', '.join(observations(policy))} for "
+                f"{policy}); allowed: leave it out",
+            )
         extra = json.dumps(given, sort_keys=True)
         training_env(policy, extra).close()  # a bad file is refused before anything runs
     space = SEARCH[policy]

@@ -50,7 +50,7 @@ def test_a_failed_route_scores_worse_than_any_finished_one() -> None:
 
 
 @pytest.mark.parametrize(
-    "content,needle", [("k: fast\n", "allowed: a finite number"), ("kk: 1\n", "unknown")]
+    "content,needle", [("k: fast\n", "k: got .fast.; allowed: a number"), ("kk: 1\n", "unknown")]
 )
 def test_a_bad_parameter_file_is_one_clear_error(tmp_path: Path, content: str, needle: str) -> None:
     p = tmp_path / "p.yaml"
@@ -198,3 +198,20 @@ def test_a_search_that_fails_before_any_episode_keeps_no_journal(
     argv = ["tune", "--policy", "rpp", "--trials", "1", "--episodes", "1", "--out", str(out)]
     assert main(argv) == 1  # the machine's error, in one line
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(
+    "content,needle",
+    [
+        ("observations: [gps, foo]\n", "--env-kwargs: observations"),  # ignored before
+        ("max_episode_steps: -5\n", "max_episode_steps: got -5"),  # Gymnasium's traceback
+    ],
+)
+def test_env_kwargs_a_search_cannot_take_are_refused(
+    tmp_path: Path, content: str, needle: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    f = tmp_path / "kw.yaml"
+    f.write_text(content)
+    argv = ["tune", "--policy", "rpp", "--trials", "1", "--episodes", "1"]
+    assert main([*argv, "--env-kwargs", str(f), "--out", str(tmp_path / "t")]) == 2
+    assert needle in capsys.readouterr().err and not (tmp_path / "t").exists()
