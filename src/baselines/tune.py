@@ -210,7 +210,6 @@ def tune(
         from scenario_gen.schema import load_yaml
 
         from .hyperparams import refuse_split_keys
-
         from .train import check_make_keywords
 
         given = load_yaml(env_kwargs, "--env-kwargs")
