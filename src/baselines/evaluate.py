@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable
 from typing import Any
 
@@ -44,11 +45,14 @@ def evaluate(
             succ.append(float(info.get("is_success", False)))
     finally:
         env.close()
+    with warnings.catch_warnings():  # all NaN (no episode measured it): NaN, not a warning
+        warnings.simplefilter("ignore", RuntimeWarning)
+        rmse_mean, furrow_mean = float(np.nanmean(rmse)), float(np.nanmean(furrow))
     return {
         "return": float(np.mean(rets)),
         "length": float(np.mean(lengths)),
-        "rmse": float(np.nanmean(rmse)),
-        "in_furrow_rmse": float(np.nanmean(furrow)),
+        "rmse": rmse_mean,
+        "in_furrow_rmse": furrow_mean,
         "completion": float(np.mean(comp)),
         "success": float(np.mean(succ)),
         "crops_hit": float(np.mean(crops)),

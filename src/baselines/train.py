@@ -322,6 +322,13 @@ EVAL_TAGS = {
 }
 
 
+def evaluations_json(history: list[dict[str, float]]) -> str:
+    """The evaluations as strict JSON: null where no episode measured a value (NaN: routes
+    that never reached a furrow step), which ``json.dumps`` would write as bare ``NaN``."""
+    known = [{k: None if v != v else v for k, v in h.items()} for h in history]
+    return json.dumps(known, indent=1, allow_nan=False)
+
+
 def log_evaluation(logger: Any, res: dict[str, float], step: int) -> None:
     """One evaluation into SB3's logger, written at ``step``."""
     for key, tag in EVAL_TAGS.items():
@@ -415,7 +422,7 @@ def _train(
         )
         res.update(timesteps=int(m.num_timesteps), minutes=(time.perf_counter() - t_start) / 60)
         history.append(res)
-        (out / "evaluations.json").write_text(json.dumps(history, indent=1))
+        (out / "evaluations.json").write_text(evaluations_json(history))
         log_evaluation(m.logger, res, int(m.num_timesteps))
         return res
 

@@ -794,3 +794,13 @@ def test_an_env_kwargs_file_may_not_move_the_splits(
         err = capsys.readouterr().err
         assert "--env-kwargs scenario_seeds" in err and len(err.strip().splitlines()) == 1
         assert not out.exists()
+
+
+def test_evaluations_are_strict_json_with_null_for_what_was_not_measured() -> None:
+    import math
+
+    from baselines.train import evaluations_json
+
+    text = evaluations_json([{"rmse": 0.05, "in_furrow_rmse": math.nan, "timesteps": 64}])
+    assert "NaN" not in text
+    assert json.loads(text) == [{"rmse": 0.05, "in_furrow_rmse": None, "timesteps": 64}]
