@@ -178,7 +178,7 @@ def test_force_replaces_only_output_of_the_same_kind(tmp_path: Path) -> None:
     with output_dir(scn, kind="scenario") as tmp:
         _write(tmp, "plants")
     assert atomic.marked_kind(scn) == "scenario"
-    with pytest.raises(InputError, match="holds agrinav's scenario output; --force here "
+    with pytest.raises(InputError, match="holds agrinav's scenario output; this command "
                        "replaces only policy export output"):  # fmt: skip
         with output_dir(scn, True, kind="policy export"):
             pass
