@@ -55,11 +55,17 @@ def separated(sep: str, what: str) -> Callable[[str], list[str]]:
 
 class _Once:
     """A flag refused when given twice (``--suite smoke --suite paper`` would run the last
-    silently: more often a slip than an intent)."""
+    silently: more often a slip than an intent); mixed in before argparse's action."""
 
     option_strings: Sequence[str]
 
-    def _once(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace) -> None:
+    def __call__(
+        self,
+        parser: argparse.ArgumentParser,
+        namespace: argparse.Namespace,
+        values: str | Sequence[Any] | None,
+        option_string: str | None = None,
+    ) -> None:
         # the namespaces this flag was given in (argparse's Namespace is unhashable)
         seen: list[weakref.ref[argparse.Namespace]] = [
             r for r in getattr(self, "_seen", []) if r() is not None
@@ -68,31 +74,12 @@ class _Once:
             parser.error(f"argument {'/'.join(self.option_strings)}: given twice; allowed: once")
         seen.append(weakref.ref(namespace))
         self._seen = seen
+        super().__call__(parser, namespace, values, option_string)  # type: ignore[misc]
 
 
 class StoreOnce(_Once, argparse._StoreAction):
     """argparse's ``store``, once."""
 
-    def __call__(
-        self,
-        parser: argparse.ArgumentParser,
-        namespace: argparse.Namespace,
-        values: str | Sequence[Any] | None,
-        option_string: str | None = None,
-    ) -> None:
-        self._once(parser, namespace)
-        super().__call__(parser, namespace, values, option_string)
-
 
 class StoreTrueOnce(_Once, argparse._StoreTrueAction):
     """argparse's ``store_true``, once."""
-
-    def __call__(
-        self,
-        parser: argparse.ArgumentParser,
-        namespace: argparse.Namespace,
-        values: str | Sequence[Any] | None,
-        option_string: str | None = None,
-    ) -> None:
-        self._once(parser, namespace)
-        super().__call__(parser, namespace, values, option_string)
