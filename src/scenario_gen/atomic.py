@@ -92,7 +92,7 @@ def check_output_dir(
                     "choose another folder",
                 )
         check_replaceable(out, what, kind)
-    check_creatable(out, what)
+    _check_parent(out, what)  # the names were checked above
     return out
 
 
@@ -101,6 +101,10 @@ def check_creatable(out: Path, what: str = "out") -> None:
     that is not writable, or a name the file system cannot hold (not errno's "File exists" or
     "File name too long" from deep inside a mkdir)."""
     check_name_lengths(out, what)
+    _check_parent(out, what)
+
+
+def _check_parent(out: Path, what: str) -> None:
     parent = _existing_parent(out)
     if not parent.is_dir():
         raise InputError(what, str(out), f"its parent {parent} is not a directory")
