@@ -8,11 +8,9 @@ bilinear surface); the heightfield window is the ground the chassis would hit. O
 
 from __future__ import annotations
 
-import contextlib
 import math
 import os
 import sys
-from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
@@ -30,6 +28,7 @@ from .obstacle_bodies import (
     ObstacleBodies,
     ShapeKey,
 )
+from .quiet import quiet
 from .tyres import TyreModel, check_bearing, check_corner_stability, in_place_turn_ratio
 
 WHEEL_JOINTS = (
@@ -38,24 +37,6 @@ WHEEL_JOINTS = (
     "back_left_wheel_joint",
     "back_right_wheel_joint",
 )
-
-
-@contextlib.contextmanager
-def _quiet_stdout() -> Iterator[None]:
-    try:
-        fd = sys.stdout.fileno()
-    except (AttributeError, OSError, ValueError):  # captured or replaced stdout
-        yield
-        return
-    sys.stdout.flush()
-    saved = os.dup(fd)
-    with open(os.devnull, "w") as null:
-        os.dup2(null.fileno(), fd)
-        try:
-            yield
-        finally:
-            os.dup2(saved, fd)
-            os.close(saved)
 
 
 #: When ``World.settle`` calls the robot at rest (m/s, rad/s, consecutive physics steps) and
@@ -237,7 +218,7 @@ class World:
         cid = self.client
         if self.robot >= 0:
             p.removeBody(self.robot, physicsClientId=cid)
-        with _quiet_stdout():  # the URDF merger prints a line per link from C
+        with quiet():  # the URDF merger prints a line per link from C
             self.robot = p.loadURDF(
                 urdf_path(), pos, quat, flags=p.URDF_MERGE_FIXED_LINKS, physicsClientId=cid
             )
