@@ -455,18 +455,36 @@ def _train(
             reset_num_timesteps=run.resume is None,
         )
         evaluation(model)  # the final policy's, logged like the others
-    except BaseException:
+    except BaseException as exc:
         # an interrupt or error mid-run: closing the workers must not hide it behind an error
         # of theirs (a pipe a dying worker closed)
+        bar = getattr(callback, "bar", None)
+        if bar is not None:  # before the error's line, not after it
+            bar.close()
         with contextlib.suppress(Exception):
             venv.close()
         model.logger.close()
+        if _diverged(exc):
+            raise InputError(
+                "hyperparams.learning_rate",
+                hp.learning_rate,
+                f"training diverged by step {int(model.num_timesteps)} (the policy's outputs "
+                "are no longer finite); allowed: a smaller step size (ppo.yml's for this env: "
+                f"{hpmod.load(run.env_id)[0].learning_rate}) or a tighter max_grad_norm "
+                f"(now {hp.max_grad_norm:g})",
+            ) from exc
         raise
     venv.close()
     model.logger.close()
     saver.final(model, norm, history)
     learning_curve(history, out / "learning_curve.png", run.env_id)
     return out
+
+
+def _diverged(exc: BaseException) -> bool:
+    """torch's distributions refuse NaN or infinite parameters: the network's weights blew up."""
+    text = str(exc)
+    return isinstance(exc, ValueError) and "Expected parameter" in text and "invalid" in text
 
 
 def _worker_env(env_id: str, **kwargs: Any) -> Any:

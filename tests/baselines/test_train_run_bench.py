@@ -245,6 +245,7 @@ def test_ctrl_c_with_worker_processes_is_one_line_and_keeps_the_checkpoints(
         (["--hyperparams", "learning_rate=lin_-1"], "hyperparams.learning_rate"),
         (["--hyperparams", "clip_range=lin_-0.2"], "hyperparams.clip_range"),
         (["--hyperparams", "batch_size=1"], "hyperparams.batch_size"),
+        (["--hyperparams", "max_grad_norm=0"], "hyperparams.max_grad_norm"),
         (["--hyperparams", "policy_kwargs={net_arch: [64], bogus: 1}"], "policy_kwargs"),
         (["--hyperparams", "policy_kwargs={activation_fn: Foo}"], "activation_fn"),
         (["--hyperparams", "policy_kwargs={net_arch: [0]}"], "net_arch"),
@@ -670,6 +671,27 @@ def test_a_second_train_on_the_same_out_is_refused(
         assert main([*argv, "--out", str(out)]) == 2
     assert "being written by another run" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_a_run_that_diverges_is_one_line_naming_the_step_size(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """An Adam step of 10^6 makes the policy's weights infinite in the first update: torch's
+    distribution refuses them; the user gets the setting to lower, not torch's traceback."""
+    out = tmp_path / "run"
+    code = main(
+        [
+            *("train", "--env", "AgriNav/FurrowFollow-v3", "--out", str(out)),
+            *("--timesteps", "256", "--n-envs", "1", "--no-warm-start", "--eval-episodes", "1"),
+            *("--hyperparams", "learning_rate=1e6", "n_steps=64", "batch_size=32"),
+        ]
+    )
+    err = capsys.readouterr().err
+    assert code == 2, err[-2000:]
+    line = [t for t in err.splitlines() if "error:" in t]
+    assert len(line) == 1 and "Traceback" not in err
+    assert "hyperparams.learning_rate" in line[0] and "diverged by step 64" in line[0]
+    assert not out.exists()  # no checkpoint was finished
 
 
 def test_a_checkpoint_that_cannot_be_written_leaves_nothing(

@@ -157,6 +157,8 @@ def load(env_id: str, overrides: dict[str, Any] | None = None) -> tuple[PPOHyper
             raise InputError(
                 "hyperparams.normalize.norm_reward", True, "allowed: false (not supported)"
             )
+    if hp.max_grad_norm <= 0:  # SB3 scales every gradient by max_grad_norm / norm: 0 learns nothing
+        raise InputError("hyperparams.max_grad_norm", hp.max_grad_norm, "allowed: above 0")
     if hp.batch_size < 2:  # SB3 normalises advantages over a minibatch: one sample is none
         raise InputError("hyperparams.batch_size", hp.batch_size, "allowed: at least 2")
     if hp.batch_size > hp.n_steps * hp.n_envs:
