@@ -133,7 +133,39 @@ def _same(key: str, a: dict[str, Any], b: dict[str, Any]) -> bool:
     return on(a[key]) == on(b[key])
 
 
+#: flags that say what a --hyperparams key says (a run given both took the flag's silently)
+FLAG_KEYS = (("--n-envs", "n_envs", "n_envs"), ("--timesteps", "timesteps", "n_timesteps"))
+#: env kwargs that --scenario replaces
+SCENARIO_KEYS = ("scenario", "scenario_overrides", "bank")
+
+
+def _refuse_both(run: TrainRun) -> None:
+    """A setting given twice, two ways, differently: refused, as a flag given twice is."""
+    for flag, attribute, key in FLAG_KEYS:
+        value = getattr(run, attribute)
+        if value is not None and key in run.overrides and run.overrides[key] != value:
+            raise InputError(
+                flag,
+                value,
+                f"--hyperparams {key}={run.overrides[key]!r} says otherwise; allowed: one of "
+                "the two",
+            )
+    if run.scenario is not None and run.env_kwargs is not None:
+        from scenario_gen.schema import load_yaml
+
+        given = load_yaml(run.env_kwargs, "--env-kwargs")
+        keys = [k for k in SCENARIO_KEYS if isinstance(given, dict) and k in given]
+        if keys:
+            raise InputError(
+                "--scenario",
+                run.scenario,
+                f"--env-kwargs {run.env_kwargs} sets {', '.join(keys)} too, which --scenario "
+                "replaces; allowed: one of the two",
+            )
+
+
 def prepare(run: TrainRun) -> tuple[hpmod.PPOHyperparams, hpmod.EnvSetup, dict[str, Any]]:
+    _refuse_both(run)
     overrides = dict(run.overrides)
     if run.n_envs is not None:
         overrides["n_envs"] = run.n_envs

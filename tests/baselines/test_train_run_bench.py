@@ -246,6 +246,8 @@ def test_ctrl_c_with_worker_processes_is_one_line_and_keeps_the_checkpoints(
         (["--hyperparams", "clip_range=lin_-0.2"], "hyperparams.clip_range"),
         (["--hyperparams", "batch_size=1"], "hyperparams.batch_size"),
         (["--hyperparams", "max_grad_norm=0"], "hyperparams.max_grad_norm"),
+        (["--n-envs", "2", "--hyperparams", "n_envs=3"], "--n-envs"),
+        (["--timesteps", "5000", "--hyperparams", "n_timesteps=6000"], "--timesteps"),
         (["--hyperparams", "policy_kwargs={net_arch: [64], bogus: 1}"], "policy_kwargs"),
         (["--hyperparams", "policy_kwargs={activation_fn: Foo}"], "activation_fn"),
         (["--hyperparams", "policy_kwargs={net_arch: [0]}"], "net_arch"),
@@ -670,6 +672,20 @@ def test_a_second_train_on_the_same_out_is_refused(
         argv = ["train", "--env", "AgriNav/FurrowFollow-v3", "--timesteps", "4096"]
         assert main([*argv, "--out", str(out)]) == 2
     assert "being written by another run" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_scenario_and_an_env_kwargs_file_naming_one_are_refused_together(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--scenario replaced the file's scenario without a word: which field trained was a guess."""
+    extra = tmp_path / "extra.yaml"
+    extra.write_text("bank: /somewhere\n")
+    out = tmp_path / "run"
+    args = ["train", "--env", "AgriNav/FurrowFollow-v3", "--out", str(out)]
+    code = main([*args, "--scenario", "ridged", "--env-kwargs", str(extra)])
+    err = capsys.readouterr().err
+    assert code == 2 and "--scenario" in err and "sets bank" in err, err
     assert not out.exists()
 
 
