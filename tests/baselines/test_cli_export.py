@@ -56,15 +56,43 @@ def test_bad_inputs_write_nothing(scenario: Path, tmp_path: Path, capsys) -> Non
         (["export", str(plain), "--to", "gis"], "scenario.json: got"),
         (["export", str(scenario), "--to", "unity"], "invalid choice: 'unity'"),
         (["export", str(scenario), "--to", "mesh", "--formats", "fbx"], "formats[0]: got 'fbx'"),
-        (["export", str(scenario), "--to", "gis", "--formats", "obj"], "only with --to mesh"),
+        (
+            ["export", str(scenario), "--to", "gis", "--formats", "obj"],
+            "--formats is for --to mesh only",
+        ),
         (["export", str(scenario), "--to", "mesh", "--formats", "glb,,obj"], "no empty entry"),
         (["export", str(scenario), "--to", "nav2", "--dwb", ""], "--dwb: got ''"),
+        (["export", str(scenario), "--to", "nav2", "--dwb", "bogus"], "--dwb: got 'bogus'"),
+        (["export", str(scenario), "--to", "gis", "--dwb", "tuned"], "--dwb is for --to nav2"),
+        (
+            [
+                "export",
+                str(scenario),
+                "--to",
+                "gazebo",
+                "--plants",
+                "include",
+                "--tile-plants",
+                "5",
+            ],
+            "--plants include merges no tiles",
+        ),
+        (
+            ["export", str(scenario), "--to", "nav2", "--plants", "tiles", "--include-limit", "5"],
+            "--include-limit: got 5; is auto's limit",
+        ),
         (["export", str(scenario), "--to", "gazebo", "--tile-plants", "0"], "tile_plants: got 0"),
-        (["export", str(scenario), "--to", "gis", "--heightmap"], "--heightmap: got 'gis'"),
-        (["export", str(scenario), "--to", "mesh", "--plants", "tiles"], "--plants: got 'mesh'"),
+        (
+            ["export", str(scenario), "--to", "gis", "--heightmap"],
+            "--to: got 'gis'; --heightmap is",
+        ),
+        (
+            ["export", str(scenario), "--to", "mesh", "--plants", "tiles"],
+            "--to: got 'mesh'; --plants is",
+        ),
         (
             ["export", str(scenario), "--to", "mesh", "--include-limit", "10", "--heightmap"],
-            "--include-limit/--heightmap: got 'mesh'; allowed only with --to gazebo or nav2",
+            "--to: got 'mesh'; --include-limit and --heightmap are for --to gazebo or nav2",
         ),
         (["export", str(scenario), "--to", "gis", "--out", str(scenario)], "already exists"),
         (

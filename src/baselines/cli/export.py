@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import time
+from pathlib import Path
 from typing import Any
 
 from scenario_gen.errors import InputError
@@ -84,25 +85,38 @@ def run(args: argparse.Namespace) -> int:
     if args.tile_plants is not None:
         data["tile_plants"] = args.tile_plants
     if args.to == "nav2":
+        from policies.dwb.params import SHIPPED
+
         from ..nav2_robot import nav2_options
 
-        if args.dwb is not None and not args.dwb.strip():  # not silently the default
-            raise InputError("--dwb", args.dwb, "allowed: furrow, nav2, tuned or a YAML file")
+        # an empty one is not silently the default
+        if args.dwb is not None and args.dwb not in SHIPPED and not Path(args.dwb).is_file():
+            allowed = f"allowed: {', '.join(SHIPPED)} or an existing YAML file"
+            raise InputError("--dwb", args.dwb, allowed)
         data = nav2_options(dwb=args.dwb or "furrow", **data)
     elif args.dwb is not None:
-        raise InputError("--dwb", args.to, "allowed only with --to nav2")
-    if args.to != "mesh" and (args.with_plants or args.formats != ["glb"]):
-        raise InputError("--formats/--with-plants", args.to, "allowed only with --to mesh")
+        raise InputError("--to", args.to, "--dwb is for --to nav2 only")
+    mesh_only = {"--formats": args.formats != ["glb"], "--with-plants": args.with_plants}
+    _only_with(args.to, ("mesh",), mesh_only, "mesh")
     world_only = {
         "--plants": args.plants != "auto",
         "--include-limit": args.include_limit is not None,
         "--tile-plants": args.tile_plants is not None,
         "--heightmap": args.heightmap,
     }
-    given = [flag for flag, used in world_only.items() if used]
-    if args.to not in ("gazebo", "nav2") and given:
+    _only_with(args.to, ("gazebo", "nav2"), world_only, "gazebo or nav2 (a Gazebo world)")
+    # each tile flag shapes one kind of world: given for the other, it changed nothing
+    if args.plants == "include" and args.tile_plants is not None:
         raise InputError(
-            "/".join(given), args.to, "allowed only with --to gazebo or nav2 (a Gazebo world)"
+            "--tile-plants",
+            args.tile_plants,
+            "--plants include merges no tiles; allowed with --plants auto or tiles",
+        )
+    if args.plants != "auto" and args.include_limit is not None:
+        raise InputError(
+            "--include-limit",
+            args.include_limit,
+            f"is auto's limit, and --plants is {args.plants}; allowed with --plants auto",
         )
     opts = ExportOptions.from_dict(data)
     t0 = time.perf_counter()
@@ -112,3 +126,15 @@ def run(args: argparse.Namespace) -> int:
     for k, v in info.items():
         print(f"{k:<{width}}  {v}")
     return 0
+
+
+def _only_with(to: str, targets: tuple[str, ...], flags: dict[str, bool], names: str) -> None:
+    given = [flag for flag, used in flags.items() if used]
+    if to not in targets and given:
+        raise InputError(
+            "--to",
+            to,
+            f"{' and '.join(given)} are for --to {names} only"
+            if len(given) > 1
+            else f"{given[0]} is for --to {names} only",
+        )

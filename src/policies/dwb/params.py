@@ -318,6 +318,10 @@ class DWBParams:
             changes = {}
         elif str(spec) in SHIPPED:
             changes = _shipped(str(spec))
+        elif not Path(spec).is_file():
+            raise InputError(
+                "dwb params", str(spec), f"allowed: {', '.join(SHIPPED)} or an existing YAML file"
+            )
         else:
             changes = load_yaml(spec, "dwb params")
         changes = _over_base(changes)
