@@ -134,22 +134,21 @@ def policy_kwargs_from_json(d: Any, where: str = "checkpoint") -> dict[str, Any]
     checkpoint's, or ``hyperparams`` given to training: ``where`` names which)."""
     from torch import nn
 
+    field = f"{where}.policy_kwargs"
     if not isinstance(d, dict) or set(d) - POLICY_KWARGS:
-        raise InputError(
-            f"{where} policy_kwargs", d, f"allowed keys: {', '.join(sorted(POLICY_KWARGS))}"
-        )
+        raise InputError(field, d, f"allowed keys: {', '.join(sorted(POLICY_KWARGS))}")
     out = dict(d)
     for key in ("ortho_init", "share_features_extractor"):
         if key in out and not isinstance(out[key], bool):
-            raise InputError(f"{where} {key}", out[key], "allowed: true or false")
+            raise InputError(f"{field}.{key}", out[key], "allowed: true or false")
     std = out.get("log_std_init")
     if std is not None and (
         isinstance(std, bool) or not isinstance(std, (int, float)) or not -20 <= std <= 5
     ):
-        raise InputError(f"{where} log_std_init", std, "allowed: a number in [-20, 5]")
+        raise InputError(f"{field}.log_std_init", std, "allowed: a number in [-20, 5]")
     extractor = out.get("features_extractor_kwargs")
     if extractor is not None and not isinstance(extractor, dict):
-        raise InputError(f"{where} features_extractor_kwargs", extractor, "allowed: a mapping")
+        raise InputError(f"{field}.features_extractor_kwargs", extractor, "allowed: a mapping")
     arch = out.get("net_arch")
     if arch is not None:
         layers = list(arch.values()) if isinstance(arch, dict) else [arch]
@@ -158,12 +157,12 @@ def policy_kwargs_from_json(d: Any, where: str = "checkpoint") -> dict[str, Any]
             isinstance(n, int) and not isinstance(n, bool) and 1 <= n <= MAX_LAYER for n in sizes
         ):
             raise InputError(
-                f"{where} net_arch", arch, f"allowed: layer sizes from 1 to {MAX_LAYER}"
+                f"{field}.net_arch", arch, f"allowed: layer sizes from 1 to {MAX_LAYER}"
             )
     if "activation_fn" in out:
         if out["activation_fn"] not in ACTIVATIONS:
             raise InputError(
-                f"{where} activation_fn",
+                f"{field}.activation_fn",
                 out["activation_fn"],
                 f"allowed: {', '.join(ACTIVATIONS)}",
             )

@@ -63,6 +63,28 @@ MAX_CSV_ROW_BYTES = 400  # a plants.csv line is about 150 bytes
 MAX_NPZ_BYTES = 16 * MAX_TERRAIN_SAMPLES
 
 
+def _check_format(meta: dict[str, Any], path: Path) -> int:
+    """The file's version, where it is of this format and a version this package reads."""
+    if "format" not in meta:
+        raise InputError(
+            "scenario.json",
+            str(path),
+            f"has no 'format' key; allowed: a scenario folder written by agrinav scenario "
+            f"(format {FORMAT!r})",
+        )
+    if meta["format"] != FORMAT:
+        raise InputError("scenario.json: format", meta["format"], f"allowed: {FORMAT!r}")
+    version = meta.get("format_version")
+    if type(version) is not int or version not in READABLE_VERSIONS:
+        raise InputError(
+            "scenario.json: format_version",
+            version,
+            f"allowed: {', '.join(map(str, READABLE_VERSIONS))} (a newer agrinav reads newer "
+            "versions)",
+        )
+    return int(version)
+
+
 def load(directory: str | Path) -> Scenario:
     """Read a scenario directory written by ``save``, checking every file."""
     d = Path(directory)
@@ -70,13 +92,7 @@ def load(directory: str | Path) -> Scenario:
         raise InputError("scenario", str(d), "is not a directory")
     meta_path = _member(d, "scenario.json", MAX_JSON_BYTES)
     meta = _json(meta_path)
-    version = meta.get("format_version")
-    if meta.get("format") != FORMAT or version not in READABLE_VERSIONS:
-        raise InputError(
-            "scenario.json: format",
-            (meta.get("format"), version),
-            f"allowed: format {FORMAT!r} version {' or '.join(map(str, READABLE_VERSIONS))}",
-        )
+    version = _check_format(meta, meta_path)
     spec = _spec(meta)
     seed = _get(meta, "seed", int)
     if not 0 <= seed < 2**63:

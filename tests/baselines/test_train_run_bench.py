@@ -249,7 +249,11 @@ def test_ctrl_c_with_worker_processes_is_one_line_and_keeps_the_checkpoints(
         (["--n-envs", "2", "--hyperparams", "n_envs=3"], "--n-envs"),
         (["--timesteps", "5000", "--hyperparams", "n_timesteps=6000"], "--timesteps"),
         (["--hyperparams", "policy_kwargs={net_arch: [64], bogus: 1}"], "policy_kwargs"),
-        (["--hyperparams", "policy_kwargs={activation_fn: Foo}"], "activation_fn"),
+        (
+            ["--hyperparams", "policy_kwargs={activation_fn: Foo}"],
+            "hyperparams.policy_kwargs.activation_fn: got 'Foo'",
+        ),
+        (["--hyperparams", "n_steps"], "key=value, e.g. learning_rate="),
         (["--hyperparams", "policy_kwargs={net_arch: [0]}"], "net_arch"),
         (["--hyperparams", "policy_kwargs={log_std_init: high}"], "log_std_init"),
         (["--hyperparams", "normalize={norm_obs: true, bogus: 3}"], "hyperparams.normalize"),

@@ -137,7 +137,14 @@ CASES: list[tuple[str, Callable[[Path], None], str]] = [
     ),
     ("no seed", _meta(lambda m: m.pop("seed")), "scenario.json: seed"),
     ("seed a string", _meta(lambda m: m.update(seed="7")), "scenario.json: seed"),
-    ("format 99", _meta(lambda m: m.update(format_version=99)), "scenario.json: format"),
+    ("format 99", _meta(lambda m: m.update(format_version=99)), "scenario.json: format_version"),
+    (
+        "format true",
+        _meta(lambda m: m.update(format_version=True)),
+        "scenario.json: format_version",
+    ),
+    ("no format", _meta(lambda m: m.pop("format")), "scenario.json"),
+    ("other format", _meta(lambda m: m.update(format="geojson")), "scenario.json: format"),
     (
         "bad spec value",
         _meta(lambda m: m["spec"]["layout"].update(row_spacing=-1)),
@@ -287,3 +294,13 @@ def test_save_under_a_file_or_onto_a_file_is_refused(good: Path, tmp_path: Path)
     with pytest.raises(InputError, match="exists and is not a directory"):
         save(scn, blocker, overwrite=True)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a_file"]
+
+
+def test_a_json_file_of_another_kind_is_named_as_such(tmp_path: Path) -> None:
+    """A folder whose scenario.json is some other JSON: the message says what is missing,
+    not "got (None, None)"."""
+    d = tmp_path / "other"
+    d.mkdir()
+    (d / "scenario.json").write_text('{"name": "x"}')
+    with pytest.raises(InputError, match="has no 'format' key; allowed: a scenario folder"):
+        load(d)

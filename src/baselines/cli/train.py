@@ -95,7 +95,7 @@ def run(args: argparse.Namespace) -> int:
             eval_episodes=args.eval_episodes,
             n_envs=args.n_envs,
             device=args.device,
-            overrides=parse_set(args.hyperparams, "--hyperparams"),
+            overrides=parse_set(args.hyperparams, "--hyperparams", "learning_rate=1e-4"),
             scenario=args.scenario,
             checkpoint_every=args.checkpoint_every,
             resume=Path(args.resume) if args.resume else None,
