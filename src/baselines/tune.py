@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import csv
 import json
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -245,8 +246,9 @@ def tune(
     with output_dir(out, force, "--out", "tune") as tmp:
         done = journal.open(force, "--out")
         with Tasks(workers, ray) as tasks:
+            bar = tqdm(range(trials), desc=f"tune {policy}", unit="trial")
             try:
-                for _ in tqdm(range(trials), desc=f"tune {policy}", unit="trial"):
+                for _ in bar:
                     trial = study.ask()
                     params = {n: trial.suggest_float(n, lo, hi) for n, (lo, hi) in space.items()}
                     if policy == "rpp" and params["min_lookahead"] > params["max_lookahead"]:
@@ -284,9 +286,18 @@ def tune(
                             "crops_hit": sum(int(r["crops_hit"]) for r in records),
                         }
                     )
-            except BaseException:
+            except BaseException as exc:
+                bar.close()
                 if not done:  # nothing to resume: no journal to block another search's --out
                     journal.remove()
+                if isinstance(exc, (KeyboardInterrupt, SystemExit)):  # Ctrl-C, SIGTERM
+                    print(
+                        f"tune: stopped; {len(done)} trial episodes are kept in {journal.path}: "
+                        "rerun the same command to resume"
+                        if done
+                        else "tune: stopped; no trial episode had finished",
+                        file=sys.stderr,
+                    )
                 raise
             finally:
                 release_training_env()

@@ -192,7 +192,7 @@ def test_workers_and_ray_are_checked_before_anything_runs(
 
 
 def test_tune_with_two_workers_and_after_an_interruption_makes_the_same_search(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
     pytest.importorskip("optuna")
     import baselines.tune as tune_module
@@ -211,7 +211,11 @@ def test_tune_with_two_workers_and_after_an_interruption_makes_the_same_search(
         return real(job)
 
     monkeypatch.setattr(tune_module, "trial_episode", dies_after_three)
+    capsys.readouterr()
     assert main([*argv, "--out", str(resumed)]) == 130  # interrupted
+    err = capsys.readouterr().err
+    assert "tune: stopped; 3 trial episodes are kept in" in err, err[-2000:]
+    assert "rerun the same command to resume" in err
 
     def counts(job: Any) -> Any:
         ran.append(job.key)
