@@ -404,3 +404,36 @@ def test_a_killed_trajectory_recording_leaves_nothing_outside_its_output(tmp_pat
     )
     assert done.returncode == 0, done.stderr[-500:]
     assert sorted(p.name for p in out.parent.iterdir()) == ["traj"]
+
+
+def test_a_stopped_trajectory_recording_says_nothing_was_kept(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Ctrl-C mid-recording: a Minari dataset is written whole, so the user is told that none
+    of it stayed (and how far it got), not left to look."""
+    pytest.importorskip("minari")
+    import policies
+
+    real = policies.make_policy
+
+    def stops_on_step_50(spec: str, env: object) -> object:
+        pi = real(spec, env)
+        act, steps = pi.act, [0]
+
+        def counted(obs: object) -> object:
+            steps[0] += 1
+            if steps[0] == 50:
+                raise KeyboardInterrupt
+            return act(obs)
+
+        pi.act = counted  # type: ignore[method-assign]
+        return pi
+
+    monkeypatch.setattr(policies, "make_policy", stops_on_step_50)
+    out = tmp_path / "traj"
+    argv = ["dataset", "trajectories", "--policy", "rpp", "--episodes", "3", "--out", str(out)]
+    assert main(argv) == 130
+    err = capsys.readouterr().err
+    assert "dataset: stopped after 0 of 3 episodes; nothing was kept" in err, err[-2000:]
+    assert "Traceback" not in err and not out.exists()
+    assert list(tmp_path.iterdir()) == []

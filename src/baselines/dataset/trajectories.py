@@ -11,6 +11,7 @@ from __future__ import annotations
 import contextlib
 import os
 import re
+import sys
 from collections.abc import Iterator
 from importlib.metadata import version
 from pathlib import Path
@@ -103,10 +104,11 @@ def record(
         # the collector's buffer folder goes inside the output's temporary folder, which the
         # next run on the same --out removes if this one is killed (it was ~/.minari/...)
         collector = minari.DataCollector(env, step_data_callback=FixedInfo, record_infos=True)
+        returns: list[float] = []
+        bar = tqdm(range(episodes), unit="episode", desc=f"recording {policy}")
         try:
             pi = make_policy(policy, collector)
-            returns = []
-            for k in tqdm(range(episodes), unit="episode", desc=f"recording {policy}"):
+            for k in bar:
                 obs, _ = collector.reset(seed=seed + k)
                 pi.reset()
                 total = 0.0
@@ -127,6 +129,14 @@ def record(
                 ref_min_score=random_return(env_id, seed, episodes),
                 ref_max_score=float(np.mean(returns)),
             )
+        except (KeyboardInterrupt, SystemExit):  # Ctrl-C, SIGTERM: say what stays
+            bar.close()
+            print(
+                f"dataset: stopped after {len(returns)} of {episodes} episodes; nothing was "
+                "kept (a Minari dataset is written whole: rerun to record it)",
+                file=sys.stderr,
+            )
+            raise
         finally:
             collector.close()
     return Path(out) / dataset_id
