@@ -151,6 +151,16 @@ def _policy_files(specs: Sequence[str]) -> list[Path]:
     return [Path(p) for p in paths if p and Path(p).exists()]
 
 
+def _check_trust(specs: Sequence[str], trust: bool, flag: str) -> None:
+    """--trust-checkpoint loads PPO's pickled SB3 files: with no PPO it changed nothing."""
+    if trust and not any(PolicySpec.parse(spec).name == "ppo" for spec in specs):
+        raise InputError(
+            "--trust-checkpoint",
+            ",".join(specs),
+            f"is given, but no policy in {flag} reads a checkpoint; allowed with a ppo policy",
+        )
+
+
 def _policy(spec: str, env: Any, trust: bool) -> Any:
     from policies import make_policy
 
@@ -182,6 +192,7 @@ def run(
             f"allowed: reset seeds up to {MAX_SEED} (seed + episodes - 1)",
         )
     check_policy_spec(policy)
+    _check_trust([policy], trust_checkpoint, "--policy")
     if video:
         check_video()
     reads = _policy_files([policy])
@@ -277,6 +288,7 @@ def bench(
     labels = policy_labels(policies)
     for spec in policies:
         check_policy_spec(spec)
+    _check_trust(policies, trust_checkpoint, "--policies")
     check_spread(workers, ray)
     reads = _policy_files(policies)
     check_output_dir(out, force, "--out", kind="bench", inputs=reads)

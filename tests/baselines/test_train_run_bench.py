@@ -439,6 +439,23 @@ def test_episode_seconds_leave_the_video_out(monkeypatch: pytest.MonkeyPatch) ->
             ["tune", "--policy", "rpp", "--trials", "1", "--seed", str(2**32), "--out", "x"],
             f"--seed: got {2**32}",
         ),
+        (
+            ["run", "--policy", "rpp", "--out", "x", "--trust-checkpoint"],
+            "--trust-checkpoint: got 'rpp'; is given, but no policy",
+        ),
+        (
+            [
+                "bench",
+                "--suite",
+                "smoke",
+                "--policies",
+                "rpp,dwb",
+                "--out",
+                "x",
+                "--trust-checkpoint",
+            ],
+            "no policy in --policies reads a checkpoint",
+        ),
         # PPO collects whole rollouts: 100 steps would have trained 512 × 4
         (
             ["train", "--env", "AgriNav/FurrowFollow-v3", "--timesteps", "100", "--out", "x"],
