@@ -62,7 +62,8 @@ def check_output_dir(
     if not str(directory).strip():  # Path("") is the current folder
         raise InputError(what, str(directory), "allowed: a folder path (it is empty)")
     out = Path(os.path.abspath(directory))  # "." and ".." resolved: out.name is a real name
-    check_name_lengths(out, what)
+    check_name_lengths(out, what)  # first: a stat of a name too long is errno 36
+    check_name_characters(out, what)
     if out.is_symlink():  # replacing it would swap the link itself for a folder
         raise InputError(
             what,
@@ -100,7 +101,8 @@ def check_creatable(out: Path, what: str = "out") -> None:
     """Refuse a folder that cannot be made: a file where a parent folder should be, a parent
     that is not writable, or a name the file system cannot hold (not errno's "File exists" or
     "File name too long" from deep inside a mkdir)."""
-    check_name_lengths(out, what)
+    check_name_lengths(out, what)  # first: a stat of a name too long is errno 36
+    check_name_characters(out, what)
     _check_parent(out, what)
 
 
@@ -110,6 +112,25 @@ def _check_parent(out: Path, what: str) -> None:
         raise InputError(what, str(out), f"its parent {parent} is not a directory")
     if not os.access(parent, os.W_OK | os.X_OK):
         raise InputError(what, str(out), f"cannot be created: {parent} is not writable")
+
+
+def check_name_characters(out: Path, what: str = "out") -> None:
+    """Refuse control characters (a newline, a tab, an escape) in the names still to be made:
+    the file system takes them, but every listing, shell and log line that shows the folder
+    breaks on them (a pasted path with a trailing newline made ``results\n``)."""
+    new = out.absolute()
+    while True:
+        bad = [c for c in new.name if ord(c) < 32 or ord(c) == 127]
+        if bad:
+            raise InputError(
+                what,
+                str(out),
+                f"the name {new.name!r} holds the control character {bad[0]!r}; allowed: "
+                "names without control characters",
+            )
+        if new.parent == new or new.parent.exists():
+            return
+        new = new.parent
 
 
 def check_name_lengths(out: Path, what: str = "out") -> None:

@@ -233,6 +233,26 @@ def test_names_the_file_system_cannot_hold_are_refused_before_anything_is_made(
     assert [p.name for p in tmp_path.iterdir()] == ["a" * longest]
 
 
+@pytest.mark.parametrize("name", ["results\n", "a\tb", "esc\x1b[31m", "del\x7f"])
+def test_control_characters_in_a_new_name_are_refused(tmp_path: Path, name: str) -> None:
+    """A pasted path with a trailing newline made a folder no listing shows as typed."""
+    for out in (tmp_path / name, tmp_path / name / "inner"):
+        for check in (
+            lambda: output_dir(out).__enter__(),
+            lambda: atomic.check_creatable(out, "--out"),
+        ):
+            with pytest.raises(InputError, match="control character"):
+                check()
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_control_characters_in_an_existing_parent_are_left_alone(tmp_path: Path) -> None:
+    """Only the names still to be made are checked: the user's folder is theirs."""
+    parent = tmp_path / "odd\tfolder"
+    parent.mkdir()
+    atomic.check_creatable(parent / "out", "--out")
+
+
 def test_a_symbolic_link_as_out_is_refused(tmp_path: Path) -> None:
     """Replacing it swapped the link itself for a folder and left a temporary link behind."""
     target = tmp_path / "target"
