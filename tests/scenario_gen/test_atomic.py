@@ -237,12 +237,10 @@ def test_names_the_file_system_cannot_hold_are_refused_before_anything_is_made(
 def test_control_characters_in_a_new_name_are_refused(tmp_path: Path, name: str) -> None:
     """A pasted path with a trailing newline made a folder no listing shows as typed."""
     for out in (tmp_path / name, tmp_path / name / "inner"):
-        for check in (
-            lambda: output_dir(out).__enter__(),
-            lambda: atomic.check_creatable(out, "--out"),
-        ):
-            with pytest.raises(InputError, match="control character"):
-                check()
+        with pytest.raises(InputError, match="control character"), output_dir(out):
+            pass
+        with pytest.raises(InputError, match="control character"):
+            atomic.check_creatable(out, "--out")
     assert list(tmp_path.iterdir()) == []
 
 
