@@ -437,3 +437,20 @@ def test_a_stopped_trajectory_recording_says_nothing_was_kept(
     assert "dataset: stopped after 0 of 3 episodes; nothing was kept" in err, err[-2000:]
     assert "Traceback" not in err and not out.exists()
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_trajectory_recording_says_each_note_once(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The command makes three envs (recording, random reference, Minari's spec check): the
+    one-field note came three times, with two Minari warnings about links it has no use for."""
+    import warnings
+
+    pytest.importorskip("minari")
+    argv = ["dataset", "trajectories", "--policy", "blind", "--episodes", "1"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("default")  # as outside the tests
+        assert main([*argv, "--out", str(tmp_path / "t")]) == 0
+    err = capsys.readouterr().err
+    assert err.count("every reset drives one field") == 1, err[-3000:]
+    assert "code_permalink" not in err and "author_email" not in err

@@ -59,11 +59,15 @@ def _notes(command: str, show: Any) -> Any:
     """``warnings.showwarning`` that prints agrinav_gym's notice (``FixedFieldWarning``) as
     one line ``agrinav COMMAND: note: ...`` and leaves every other warning to ``show``."""
 
+    said: set[str] = set()
+
     def showwarning(message: Any, category: Any, *args: Any, **kwargs: Any) -> None:
         # looked up, not imported: the CLI starts without loading the simulator
         scenarios = sys.modules.get("agrinav_gym.scenarios")
         if scenarios is not None and issubclass(category, scenarios.FixedFieldWarning):
-            print(f"agrinav {command}: note: {message}", file=sys.stderr)
+            if str(message) not in said:  # once a command, however many envs it makes
+                said.add(str(message))
+                print(f"agrinav {command}: note: {message}", file=sys.stderr)
         else:
             show(message, category, *args, **kwargs)
 

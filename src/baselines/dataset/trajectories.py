@@ -12,6 +12,7 @@ import contextlib
 import os
 import re
 import sys
+import warnings
 from collections.abc import Iterator
 from importlib.metadata import version
 from pathlib import Path
@@ -118,17 +119,23 @@ def record(
                     if term or trunc:
                         break
                 returns.append(total)
-            collector.create_dataset(
-                dataset_id,
-                eval_env=env.spec,
-                algorithm_name=f"agrinav {policy}",
-                description=f"{policy} on {env_id}, reset seeds {seed}..{seed + episodes - 1}",
-                author="AgriNav Gym developers",
-                requirements=[f"agrinav-gym=={version('agrinav-gym')}"],
-                # the D4RL convention: 0 = uniformly random actions, 1 = the recorded policy
-                ref_min_score=random_return(env_id, seed, episodes),
-                ref_max_score=float(np.mean(returns)),
-            )
+            reference = random_return(env_id, seed, episodes)
+            with warnings.catch_warnings():
+                # Minari asks for a code link and an e-mail: the dataset names the exact
+                # package version it was made with (requirements), which is what reproduces it
+                warnings.filterwarnings("ignore", "`code_permalink`", UserWarning)
+                warnings.filterwarnings("ignore", "`author_email`", UserWarning)
+                collector.create_dataset(
+                    dataset_id,
+                    eval_env=env.spec,
+                    algorithm_name=f"agrinav {policy}",
+                    description=f"{policy} on {env_id}, reset seeds {seed}..{seed + episodes - 1}",
+                    author="AgriNav Gym developers",
+                    requirements=[f"agrinav-gym=={version('agrinav-gym')}"],
+                    # the D4RL convention: 0 = uniformly random actions, 1 = the recorded policy
+                    ref_min_score=reference,
+                    ref_max_score=float(np.mean(returns)),
+                )
         except (KeyboardInterrupt, SystemExit):  # Ctrl-C, SIGTERM: say what stays
             bar.close()
             print(
