@@ -96,6 +96,10 @@ def spec_from_args(args: argparse.Namespace) -> Any:
     from scenario_gen.schema import load_yaml, merge
     from scenario_gen.spec import ScenarioSpec
 
+    for flag in ("config", "dem", "mesh", "field", "waypoints"):
+        given = getattr(args, flag)
+        if given is not None and not given.strip():  # an unset shell variable: not "absent"
+            raise InputError(f"--{flag}", given, "allowed: a file path (it is empty)")
     base = preset(args.preset).to_dict()
     config: dict[str, Any] = load_yaml(args.config) if args.config else {}
     if args.config:  # a file the config names is where the config's folder says it is

@@ -262,3 +262,15 @@ def test_ctrl_c_while_the_command_line_loads_is_one_line() -> None:
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 130 and err.strip() == "agrinav: interrupted", err
+
+
+@pytest.mark.parametrize("flag", ["--dem", "--mesh", "--field", "--waypoints", "--config"])
+def test_an_empty_file_flag_is_refused_not_taken_as_absent(
+    tmp_path: Path, flag: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--dem "$DEM"`` with the variable unset built the scenario on the embedded DEM."""
+    out = tmp_path / "never"
+    assert main(["scenario", flag, "", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert f"{flag}: got ''; allowed: a file path (it is empty)" in err, err
+    assert not out.exists()
