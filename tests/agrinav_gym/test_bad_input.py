@@ -294,6 +294,43 @@ def test_a_plane_too_steep_for_the_tyres_to_hold_the_robot_is_refused() -> None:
         env.close()
 
 
+def _tilted_dem(path: Any, slope_deg: float) -> str:
+    """A 4 m UTM GeoTIFF of a plain rising ``slope_deg`` eastward."""
+    import rasterio
+    from rasterio.transform import from_origin
+
+    n = 60
+    z = 300.0 + np.tan(np.radians(slope_deg)) * np.broadcast_to(np.arange(n) * 4.0, (n, n))
+    with rasterio.open(
+        path, "w", driver="GTiff", height=n, width=n, count=1, dtype="float32",
+        crs="EPSG:32616", transform=from_origin(500_000.0, 4_000_000.0, 4.0, 4.0),
+    ) as ds:  # fmt: skip
+        ds.write(z.astype(np.float32), 1)
+    return str(path)
+
+
+def test_a_dem_too_steep_under_the_start_is_refused_at_reset(tmp_path: Any) -> None:
+    """The plane's limit on a DEM: a 57° site picked by latitude and longitude slid the robot
+    73 m while it settled and gave a -21,586 reward on the first step. The ground under the
+    four wheels at the start is measured; a gentler DEM drives."""
+    for slope, refused in ((40.0, True), (8.0, False)):
+        terrain = {"source": "dem", "path": _tilted_dem(tmp_path / f"{slope}.tif", slope)}
+        env = gym.make(
+            ID, scenario_overrides={**TINY, "terrain": {**TINY.get("terrain", {}), **terrain}}
+        )
+        try:
+            if refused:
+                with pytest.raises(InputError) as info:
+                    env.reset(seed=0)
+                assert info.value.field == "terrain" and "under the start" in str(info.value)
+                assert "below 31.0°" in str(info.value)
+            else:
+                _, i = env.reset(seed=0)
+                assert abs(i["cte"]) < 0.1
+        finally:
+            env.close()
+
+
 def test_a_scenario_override_may_name_the_field() -> None:
     env = gym.make(ID, scenario_overrides={**TINY, "name": "north-block"})
     try:
