@@ -664,7 +664,7 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
                 "terrain",
                 f"{slope:.1f}° under the start at ({x:.1f}, {y:.1f}) m of {scn.spec.name!r}",
                 f"allowed: below {limit:.1f}°, the steepest ground the tyres hold the robot on "
-                f"at config.soil.friction {mu:g} (docs/physics.md \"Traction on slopes\"); "
+                f'at config.soil.friction {mu:g} (docs/physics.md "Traction on slopes"); '
                 "choose a flatter site (terrain.site) or a higher soil.friction",
             )
 

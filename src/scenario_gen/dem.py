@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 import re
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -158,8 +159,8 @@ class Dem:
             raise InputError(
                 what,
                 f"lat {float(lat.flat[i]):.5f}, lon {float(lon.flat[i]):.5f}",
-                f"is off the DEM {self.source} (field and margin must lie inside its "
-                f"{rows}x{cols}-pixel extent)",
+                f"is off the DEM {self.source} (the field and its terrain.margin must lie "
+                "inside the raster, away from its nodata border)",
             )
         holes = self.hole_mask
         if holes.any():
@@ -194,6 +195,12 @@ class Dem:
         from their nearest pixels."""
         return _nearest_fill(self.elevation) if self.hole_mask.any() else self.elevation
 
+    @property
+    def constant(self) -> bool:
+        """Every known pixel holds the same height (a synthetic flat surface)."""
+        known = self.elevation[np.isfinite(self.elevation)]
+        return bool(known.size) and float(known.min()) == float(known.max())
+
     def window_slopes(self, extent_m: float) -> tuple[FloatArray, NDArray[np.bool_]]:
         """Per pixel, the mean slope (degrees) of the window of ``extent_m`` metres centred on
         it — at least 3 pixels across — and whether that window is ruled out as a site."""
@@ -216,7 +223,9 @@ class Dem:
                 gx = gx * (dx / widths)[:, None]
         slope = np.degrees(np.arctan(np.hypot(gx, gy)))
         mean = ndimage.uniform_filter(slope, win, mode="nearest")
-        avoid = self.hole_mask | water_mask(filled)
+        # one level everywhere is a flat test surface, not a lake: there is nothing to tell
+        # water from land by
+        avoid = self.hole_mask if self.constant else self.hole_mask | water_mask(filled)
         bad = ndimage.maximum_filter(avoid.astype(np.uint8), win + 2) > 0
         half = win // 2 + 2
         bad[:half] = bad[-half:] = True
@@ -232,13 +241,15 @@ class Dem:
         exact elevation), a nodata hole or the raster edge are not candidates.
         """
         mean, bad = self.window_slopes(extent_m)
-        cols = self.shape[1]
+        rows, cols = self.shape
         if mode == "flattest":
             score = np.where(bad, np.inf, mean)
-            idx = int(np.argmin(score))
         else:
             score = np.where(bad | (mean > max_slope_deg), -np.inf, mean)
-            idx = int(np.argmax(score))
+        if self.constant and not bad[rows // 2, cols // 2]:
+            idx = rows // 2 * cols + cols // 2  # every window ties (0°): the middle one
+        else:
+            idx = int(np.argmin(score) if mode == "flattest" else np.argmax(score))
         if not np.isfinite(score.flat[idx]):
             raise InputError(
                 "terrain.site",
@@ -574,14 +585,25 @@ def load_geotiff(
     in metres (``height_unit``) after the band's scale and offset (GDAL's
     ``value · scale + offset``)."""
     import rasterio
-    from rasterio.errors import RasterioError
+    from rasterio.errors import NotGeoreferencedWarning, RasterioError
     from rasterio.windows import Window
 
     p = Path(path)
     if not p.is_file():
         raise InputError("terrain.path", str(path), "allowed: an existing GeoTIFF file")
     try:
-        with rasterio.open(p) as ds:
+        with warnings.catch_warnings():
+            # the georeference is checked below, in one line: not rasterio's two
+            warnings.simplefilter("ignore", NotGeoreferencedWarning)
+            ds = rasterio.open(p)
+        with ds:
+            if ds.crs is None and ds.gcps[0]:
+                raise InputError(
+                    "terrain.path",
+                    str(path),
+                    "is placed by ground control points only (no geotransform); allowed: a "
+                    "GeoTIFF with a geotransform, e.g. gdalwarp's output from it",
+                )
             if ds.crs is None:
                 raise InputError(
                     "terrain.path", str(path), "has no CRS; allowed: a georeferenced GeoTIFF"
@@ -601,6 +623,13 @@ def load_geotiff(
                     "terrain.path", str(path), f"holds {ds.dtypes[0]} values; allowed: real numbers"
                 )
             crs, vert, ellipsoidal = split_crs(CRS.from_wkt(ds.crs.to_wkt()))
+            if not (crs.is_geographic or crs.is_projected):
+                raise InputError(
+                    "terrain.path",
+                    str(path),
+                    f"has the local (engineering) CRS {crs.name!r}, which is tied to no place "
+                    "on Earth; allowed: a geographic or projected CRS",
+                )
             metres = height_unit(vert, ds.units[0] or "", crs, vertical_unit, str(path))
             linear = (float(ds.scales[0]), float(ds.offsets[0]))
             if not all(math.isfinite(v) for v in linear) or linear[0] == 0.0:

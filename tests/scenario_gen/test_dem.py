@@ -353,3 +353,62 @@ def test_nodata_under_a_latlon_site_is_named_for_what_it_is(tmp_path: Path) -> N
         with pytest.raises(ScenarioError, match="reaches beyond the window") as e:
             generate(small(terrain=site(100, 150, fill)), seed=0)
         assert "raise the fill limit" not in str(e.value)
+
+
+def test_a_dem_of_one_height_is_a_flat_test_surface_with_the_field_in_its_middle(
+    tmp_path: Path,
+) -> None:
+    """One level everywhere was all "water" to the site search, and no site was found; it is
+    a flat surface, and every window ties, so the field goes to the middle."""
+    n = 120
+    path = tmp_path / "flat.tif"
+    with rasterio.open(
+        path, "w", driver="GTiff", height=n, width=n, count=1, dtype="int16",
+        crs="EPSG:32616", transform=from_origin(500_000.0, 4_000_000.0, 10.0, 10.0),
+    ) as ds:  # fmt: skip
+        ds.write(np.full((n, n), 250, np.int16), 1)
+    from pyproj import Transformer
+
+    lon, lat = Transformer.from_crs("EPSG:32616", "EPSG:4326", always_xy=True).transform(
+        500_000.0 + 605.0,
+        4_000_000.0 - 605.0,  # the middle pixel's centre
+    )
+    for site in ("flattest", "steepest"):
+        scn = generate(small(terrain={"source": "dem", "path": str(path), "site": site}), seed=0)
+        assert (scn.geo.lat, scn.geo.lon) == pytest.approx((lat, lon), abs=1e-7)
+        assert scn.geo.alt == pytest.approx(250.0)
+
+
+def _raster(path: Path, crs: object, **extra: object) -> None:
+    with rasterio.open(
+        path, "w", driver="GTiff", height=30, width=30, count=1, dtype="float32", crs=crs,
+        **extra,
+    ) as ds:  # fmt: skip
+        ds.write(np.ones((30, 30), np.float32), 1)
+
+
+def test_a_local_crs_and_a_gcp_only_raster_are_named_for_what_they_are(
+    tmp_path: Path, recwarn: pytest.WarningsRecorder
+) -> None:
+    from rasterio.control import GroundControlPoint
+
+    local = tmp_path / "local.tif"
+    wkt = 'LOCAL_CS["site grid",UNIT["metre",1],AXIS["Easting",EAST],AXIS["Northing",NORTH]]'
+    _raster(local, rasterio.crs.CRS.from_wkt(wkt), transform=from_origin(0, 300, 10, 10))
+    gcps = tmp_path / "gcps.tif"
+    _raster(gcps, None)
+    with rasterio.open(gcps, "r+") as ds:
+        points = [GroundControlPoint(r, c, -84.1 + c * 1e-4, 36.5 - r * 1e-4) for r, c in
+                  ((0, 0), (0, 29), (29, 0))]  # fmt: skip
+        ds.gcps = (points, rasterio.crs.CRS.from_epsg(4326))
+    bare = tmp_path / "bare.tif"
+    _raster(bare, None)
+    recwarn.clear()  # writing them warns; reading them must not
+    with pytest.raises(ScenarioError, match="local \\(engineering\\) CRS 'site grid'"):
+        generate(small(terrain={"source": "dem", "path": str(local)}), seed=0)
+    with pytest.raises(ScenarioError, match="has no CRS"):
+        generate(small(terrain={"source": "dem", "path": str(bare)}), seed=0)
+    with pytest.raises(ScenarioError, match="ground control points only"):
+        generate(small(terrain={"source": "dem", "path": str(gcps)}), seed=0)
+    # the georeference is refused in one line, without rasterio's warning before it
+    assert not [w for w in recwarn if "geotransform" in str(w.message)]
