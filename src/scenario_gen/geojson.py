@@ -18,6 +18,7 @@ import itertools
 from typing import Any
 
 import numpy as np
+import shapely
 
 from .antimeridian import cut_geometry
 from .model import Scenario
@@ -60,7 +61,9 @@ def collection(name: str, features: list[dict[str, Any]]) -> dict[str, Any]:
 
 
 def field_features(scn: Scenario, decimals: int | None = 8) -> list[dict[str, Any]]:
-    geom = scn.field_lonlat.__geo_interface__
+    # RFC 7946 §3.1.6: exterior rings counter-clockwise, holes clockwise (a field file may
+    # come either way; tools that go by the ring's direction drew it inside out)
+    geom = shapely.orient_polygons(scn.field_lonlat).__geo_interface__
     return [
         {
             "type": "Feature",

@@ -153,3 +153,24 @@ def test_preview_draws_holes_and_every_part(holed, tmp_path: Path) -> None:
     two = generate(_spec(_geojson(tmp_path, MultiPolygon([a, b])), lanes=1), seed=0)
     outlines = [ln for ln in preview_figure(two).axes[0].lines if ln.get_color() == "white"]
     assert len([ln for ln in outlines if len(ln.get_xdata()) == 5]) == 2  # both parts
+
+
+def test_field_geojson_rings_run_as_rfc_7946_says_whichever_way_the_input_ran(
+    tmp_path: Path,
+) -> None:
+    """A clockwise shell (or a counter-clockwise hole) was written as given: tools that go by
+    the ring's direction got a negative area or drew the field inside out."""
+    from pyproj import Geod
+
+    from scenario_gen.geojson import field_features
+
+    outer = [(-15, -8), (-15, 8), (15, 8), (15, -8)]  # clockwise
+    hole = [(-2, -3), (2, -3), (2, 3), (-2, 3)]  # counter-clockwise, as a shell runs
+    scn = generate(_spec(_geojson(tmp_path, Polygon(outer, [hole])), lanes=2), seed=0)
+    (feature,) = field_features(scn)
+    ring, inner = feature["geometry"]["coordinates"]
+    assert shapely.is_ccw(LineString(ring)) and not shapely.is_ccw(LineString(inner))
+    area = Geod(ellps="WGS84").geometry_area_perimeter(shapely.geometry.shape(feature["geometry"]))[
+        0
+    ]
+    assert area == pytest.approx(30 * 16 - 4 * 6, rel=1e-3)
