@@ -89,7 +89,9 @@ def check_field(poly: BaseGeometry, where: str) -> Polygon | MultiPolygon:
         raise InputError(where, explain_validity(poly), "allowed: a valid simple polygon")
     if poly.area < MIN_FIELD_AREA:
         raise InputError(
-            where, f"{poly.area:.2f} m²", f"is too small; allowed: at least {MIN_FIELD_AREA} m²"
+            where,
+            f"{math.floor(poly.area * 1000) / 1000:g} m²",  # rounded down: 3.997 read "4.00"
+            f"is too small; allowed: at least {MIN_FIELD_AREA} m²",
         )
     return poly
 

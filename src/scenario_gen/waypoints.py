@@ -33,6 +33,9 @@ from .terrain import Terrain
 #: How far a leg's direction may turn from the rows' and still be a furrow leg.
 FURROW_ALIGN_DEG = 10.0
 MAX_WAYPOINTS = 10_000
+#: The shortest route the envs drive at their defaults (``task.success_tolerance`` 0.3 m +
+#: 1 m, agrinav_gym's reset rule): a shorter one made a scenario no env would reset on.
+MIN_ROUTE_M = 1.3
 
 
 def read_gps_waypoints(path: str | Path, what: str = "--waypoints") -> FloatArray:
@@ -147,10 +150,18 @@ def waypoint_route(
     if (length < 1e-6).any():
         k = int(np.flatnonzero(length < 1e-6)[0])
         raise InputError(f"{what} waypoints[{k + 1}]", "the same point twice", "allowed: distinct")
+    if length.sum() < MIN_ROUTE_M:
+        raise InputError(
+            what,
+            f"{length.sum():.2f} m of route",
+            f"allowed: at least {MIN_ROUTE_M:g} m (the envs' success tolerance 0.3 m + 1 m)",
+        )
     n_total = int(np.ceil(length / spacing).sum()) + 1
     if n_total > MAX_ROUTE_WAYPOINTS:
         raise InputError(
-            what, f"{length.sum():.0f} m of route", f"allowed: at most {MAX_ROUTE_WAYPOINTS} points"
+            what,
+            f"{length.sum():.0f} m of route",
+            f"is {n_total:,} points at {spacing:g} m; allowed: at most {MAX_ROUTE_WAYPOINTS:,}",
         )
     pts, heading = [xy[:1]], [math.atan2(legs[0, 1], legs[0, 0])]
     goals = [0]

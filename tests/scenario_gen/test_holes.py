@@ -174,3 +174,13 @@ def test_field_geojson_rings_run_as_rfc_7946_says_whichever_way_the_input_ran(
         0
     ]
     assert area == pytest.approx(30 * 16 - 4 * 6, rel=1e-3)
+
+
+def test_a_field_just_under_the_least_area_reads_under_it(tmp_path: Path) -> None:
+    """3.997 m² was refused as "got '4.00 m²'; allowed: at least 4.0 m²"."""
+    from scenario_gen.errors import InputError
+    from scenario_gen.field import MIN_FIELD_AREA, check_field
+
+    side = (MIN_FIELD_AREA - 0.003) ** 0.5
+    with pytest.raises(InputError, match=r"got '3\.997 m²'; is too small"):
+        check_field(shapely.box(0, 0, side, side), "field.geojson")

@@ -248,3 +248,21 @@ def test_yaw_null_is_no_yaw_and_a_huge_integer_is_refused(tmp_path: Path) -> Non
     big = [{"latitude": 10**400, "longitude": 0}, {"latitude": 0, "longitude": 0}]
     with pytest.raises(InputError, match=r"waypoints\[0\]\.latitude"):
         read_gps_waypoints(_write(tmp_path / "big.yaml", big))
+
+
+def test_a_route_too_short_for_any_env_is_refused_where_it_is_built(
+    field,
+    tmp_path: Path,  # type: ignore[no-untyped-def]
+) -> None:
+    """Waypoints 1 cm apart built a 0.02 m route that every env then refused at reset."""
+    x0, y0 = field.lanes[0][0]
+
+    def along(*east: float) -> str:
+        lat, lon, _ = field.geo.enu_to_geodetic(x0 + np.array(east), np.full(len(east), y0), 0.0)
+        wps = [{"latitude": float(a), "longitude": float(o)} for a, o in zip(lat, lon, strict=True)]
+        return str(_write(tmp_path / f"{east[-1]}.yaml", wps))
+
+    with pytest.raises(InputError, match="1.00 m of route'; allowed: at least 1.3 m"):
+        generate(small(route={"waypoints": along(0.0, 0.5, 1.0)}), seed=0)
+    scn = generate(small(route={"waypoints": along(0.0, 0.5, 1.5)}), seed=0)
+    assert scn.route.length == pytest.approx(1.5, abs=0.01)
