@@ -651,11 +651,20 @@ def load_geotiff(
             else:
                 win = lonlat_window(ds.transform, crs, shape, need)
                 if win is None:
+                    flipped = (need[1], need[0], need[3], need[2])
+                    swapped = (
+                        abs(need[1]) <= 180.0
+                        and max(abs(need[0]), abs(need[2])) <= 90.0
+                        and lonlat_window(ds.transform, crs, shape, flipped) is not None
+                    )
                     raise InputError(
                         "field",
                         f"lon {need[0]:.5f}..{need[2]:.5f}, lat {need[1]:.5f}..{need[3]:.5f}",
-                        f"is off the DEM {p.name}",
-                    )
+                        f"is off the DEM {p.name}"
+                        + ("; read as longitude for latitude it lies on the DEM: are the "
+                           "coordinates swapped? (GeoJSON and KML give longitude first)"
+                           if swapped else ""),
+                    )  # fmt: skip
                 r0, r1, c0, c1 = win
                 what, hint = "the DEM window around the field", "; a smaller field or margin"
             pixels = (r1 - r0) * (c1 - c0)

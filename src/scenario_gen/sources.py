@@ -84,6 +84,25 @@ def terrain_grid(
     return x0, y0, nx, ny, spacing
 
 
+#: said where a place is off the DEM but its coordinates read the other way round are on it
+SWAPPED = (
+    "; read as longitude for latitude it lies on the DEM: are the coordinates swapped? "
+    "(GeoJSON and KML give longitude first)"
+)
+
+
+def _on_raster(dem: Any, lon: float, lat: float) -> bool:
+    """Whether (lon, lat) — both valid as such — falls inside ``dem``'s raster."""
+    if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
+        return False
+    try:
+        col, row = dem.lonlat_to_pixel(np.array([lon]), np.array([lat]))
+    except Exception:  # pyproj: a point outside the CRS's area
+        return False
+    rows, cols = dem.shape
+    return bool(0 <= float(col[0]) <= cols and 0 <= float(row[0]) <= rows)
+
+
 def build_terrain(site: Site, bounds: tuple[float, float, float, float], lod: int) -> Terrain:
     x0, y0, nx, ny, spacing = terrain_grid(site, bounds, lod)
     gx, gy = np.meshgrid(x0 + spacing * np.arange(nx), y0 + spacing * np.arange(ny))
@@ -137,7 +156,13 @@ def _dem_site(
     if need is None:
         lat, lon = dem.pick_site(spec.site, extent_m, spec.max_slope_deg)
         how = f"{spec.site} window of {extent_m:.0f} m"
-    alt = float(dem.sample_lonlat(np.array([lon]), np.array([lat]), "terrain.site")[0])
+    what = "field.geojson" if field_ll is not None else "terrain.site"
+    try:
+        alt = float(dem.sample_lonlat(np.array([lon]), np.array([lat]), what)[0])
+    except InputError as exc:
+        if "off the DEM" in str(exc) and _on_raster(dem, lon=lat, lat=lon):
+            raise InputError(exc.field, exc.value, exc.allowed + SWAPPED) from None
+        raise
     geo = GeoFrame(lat, lon, alt)
     return Site(
         geo,

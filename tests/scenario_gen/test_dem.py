@@ -166,6 +166,24 @@ def test_field_off_the_dem_is_refused(tiffs: dict[str, Path]) -> None:
         )
 
 
+def test_a_field_file_with_its_coordinates_swapped_gets_a_hint(
+    tiffs: dict[str, Path], tmp_path: Path
+) -> None:
+    import json
+
+    lonlat = [[-84.1426, 36.5491], [-84.1422, 36.5491], [-84.1422, 36.5494], [-84.1426, 36.5491]]
+    for order, hinted in ((lambda c: [c[1], c[0]], True), (lambda c: [c[0] + 3, c[1]], False)):
+        path = tmp_path / "field.geojson"
+        path.write_text(
+            json.dumps({"type": "Polygon", "coordinates": [[order(c) for c in lonlat]]})
+        )
+        with pytest.raises(ScenarioError) as info:
+            generate(small(terrain={"source": "dem", "path": str(tiffs["geo"])},
+                           field={"geojson": str(path)}), seed=0)  # fmt: skip
+        assert "off the DEM" in str(info.value)
+        assert ("coordinates swapped" in str(info.value)) == hinted
+
+
 def test_site_selection_flattest_and_steepest() -> None:
     flat = generate(small(), seed=0)
     steep = generate(
