@@ -30,6 +30,8 @@ from .errors import InputError
 #: may hold (bounds.MAX_ENU_OFFSET_M, which imports this module).
 MAX_LOCAL_M = 100_000.0
 
+#: The latitude the Web-Mercator tile pyramid reaches (atan(sinh π)), degrees.
+MAX_SITE_LAT = 85.06
 #: Web-Mercator ground sample distance at zoom 0 and the equator, metres per 256-px tile pixel.
 GSD_Z0 = 156543.03392
 
@@ -38,8 +40,13 @@ def ground_sample_distance(lod: int, lat_deg: float) -> float:
     """Metres per pixel of the Web-Mercator tile pyramid at zoom ``lod`` and ``lat_deg``."""
     if not isinstance(lod, (int, np.integer)) or isinstance(lod, bool) or not 0 <= lod <= 22:
         raise InputError("terrain.lod", lod, "allowed: an integer zoom level 0..22")
-    if not -85.06 <= lat_deg <= 85.06:
-        raise InputError("latitude", lat_deg, "allowed: -85.06..85.06 (Web-Mercator range)")
+    if not -MAX_SITE_LAT <= lat_deg <= MAX_SITE_LAT:
+        raise InputError(
+            "the site's latitude",
+            lat_deg,
+            f"allowed: -{MAX_SITE_LAT}..{MAX_SITE_LAT} (the terrain grid's spacing is a "
+            "Web-Mercator zoom level, terrain.lod, which does not reach the poles)",
+        )
     return GSD_Z0 * math.cos(math.radians(lat_deg)) / 2**lod
 
 

@@ -25,7 +25,7 @@ from numpy.typing import NDArray
 from .arrays import FloatArray
 from .bounds import MAX_ROUTE_WAYPOINTS
 from .errors import InputError
-from .geodesy import GeoFrame
+from .geodesy import MAX_SITE_LAT, GeoFrame
 from .routes import FURROW, HEADLAND, Route
 from .schema import load_yaml
 from .terrain import Terrain
@@ -191,6 +191,11 @@ def _site_advice(wps: FloatArray, source: str) -> str:
     lon0 = float(wps[0, 1])
     d = (wps[:, 1] - lon0 + 180.0) % 360.0 - 180.0  # east of the first, in (-180, 180]
     lon = (lon0 + float(d.min() + d.max()) / 2.0 + 180.0) % 360.0 - 180.0
+    if abs(lat) > MAX_SITE_LAT:
+        return (
+            f"no site can hold them: they lie at latitude {lat:.4f}, beyond the ±{MAX_SITE_LAT}° "
+            "the terrain grid reaches (a Web-Mercator zoom level, terrain.lod)"
+        )
     reach = "and a field and terrain.margin that reach them"
     if source in ("embedded", "dem"):
         cover = "" if source == "embedded" else " (on a DEM that covers them)"

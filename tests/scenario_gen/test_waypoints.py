@@ -266,3 +266,12 @@ def test_a_route_too_short_for_any_env_is_refused_where_it_is_built(
         generate(small(route={"waypoints": along(0.0, 0.5, 1.0)}), seed=0)
     scn = generate(small(route={"waypoints": along(0.0, 0.5, 1.5)}), seed=0)
     assert scn.route.length == pytest.approx(1.5, abs=0.01)
+
+
+def test_waypoints_past_the_terrain_grids_latitudes_get_no_site_advice(
+    tmp_path: Path,
+) -> None:
+    """Near the pole the advice named a site that was then refused in turn."""
+    wps = [{"latitude": 89.9999, "longitude": 10.0}, {"latitude": 89.9999, "longitude": -170.0}]
+    with pytest.raises(InputError, match="no site can hold them: .* beyond the ±85.06°"):
+        generate(small(route={"waypoints": str(_write(tmp_path / "pole.yaml", wps))}), seed=0)
