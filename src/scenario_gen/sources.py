@@ -156,7 +156,7 @@ def _dem_site(
     if need is None:
         lat, lon = dem.pick_site(spec.site, extent_m, spec.max_slope_deg)
         how = f"{spec.site} window of {extent_m:.0f} m"
-    what = "field.geojson" if field_ll is not None else "terrain.site"
+    what = "field" if field_ll is not None else "terrain.site"
     try:
         alt = float(dem.sample_lonlat(np.array([lon]), np.array([lat]), what)[0])
     except InputError as exc:

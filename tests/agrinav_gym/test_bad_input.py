@@ -202,22 +202,26 @@ def test_use_after_close(env: Any) -> None:
 
 
 def test_a_route_too_short_to_drive_is_refused_not_a_success(tmp_path: Any) -> None:
-    """A degenerate route used to end at once as a success at 0 % completion."""
+    """A degenerate route used to end at once as a success at 0 % completion. (Scenarios
+    refuse routes shorter than the default's 1.3 m themselves: a 2 m one against a 1.5 m
+    success tolerance, which needs 2.5 m.)"""
     import yaml
 
     from scenario_gen import generate, preset
 
     scn = generate(preset("default", **TINY), 0)
     (a, _b) = scn.lanes[0]
-    lat, lon, _ = scn.geo.enu_to_geodetic([a[0], a[0] + 0.5], [a[1], a[1]], 0.0)
+    lat, lon, _ = scn.geo.enu_to_geodetic([a[0], a[0] + 2.0], [a[1], a[1]], 0.0)
     wps = [{"latitude": float(la), "longitude": float(lo)} for la, lo in zip(lat, lon, strict=True)]
     path = tmp_path / "w.yaml"
     path.write_text(yaml.safe_dump({"waypoints": wps}))
     env = gym.make(
-        "AgriNav/FieldRoute-v3", scenario_overrides={**TINY, "route": {"waypoints": str(path)}}
+        "AgriNav/FieldRoute-v3",
+        scenario_overrides={**TINY, "route": {"waypoints": str(path)}},
+        config={"task": {"success_tolerance": 1.5}},
     )
     try:
-        with pytest.raises(InputError, match="route of at least 1.3 m"):
+        with pytest.raises(InputError, match="route of at least 2.5 m"):
             env.reset(seed=0)
     finally:
         env.close()

@@ -156,7 +156,7 @@ def test_include_limit_help_and_docs_state_the_limit_the_code_uses(capsys) -> No
     assert f"plants per merged tile (default {ExportOptions().tile_plants:,})" in help_text
     doc = (Path(__file__).resolve().parents[2] / "docs" / "exports.md").read_text()
     doc = " ".join(doc.split())
-    assert f"`--include-limit N` (auto's switch, {INCLUDE_LIMIT:,})" in doc
+    assert f"`--include-limit N` (auto's switch, {INCLUDE_LIMIT:,};" in doc
     assert f"uses includes up to {INCLUDE_LIMIT:,} plants" in doc
 
 
@@ -245,7 +245,7 @@ def test_nav2_export_runs_the_dwb_config_asked_for(scenario: Path, tmp_path: Pat
     assert fp["max_vel_x"] == pytest.approx(0.4198)  # the tuned speed
     readme = (out / "README.md").read_text()
     assert "`dwb:dwb_tuned_shim`" in readme and "RotationShimController stands in front" in readme
-    assert "--dwb: got 'gis'" in _error(
+    assert "--to: got 'gis'; --dwb is for --to nav2 only" in _error(
         capsys,
         ["export", str(scenario), "--to", "gis", "--out", str(tmp_path / "g"), "--dwb", "tuned"],
     )

@@ -112,7 +112,7 @@ def _geojson(tmp_path: Path, coords: list, name: str = "f.geojson") -> str:
         ([[[-80.0, 36.5], [-79.99, 36.5], [-79.99, 36.51], [-80.0, 36.5]]], "off the DEM"),
         (  # latitude first: on the DEM the other way round
             [[[36.5491, -84.1426], [36.5491, -84.1422], [36.5494, -84.1422], [36.5491, -84.1426]]],
-            "^field.geojson: .*off the DEM.*are the coordinates swapped",
+            "^field: .*off the DEM.*are the coordinates swapped",
         ),
     ],
 )
