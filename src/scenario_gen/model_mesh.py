@@ -35,6 +35,9 @@ from .arrays import FloatArray
 MAX_ATLAS = 4096
 #: Repeats of an image per axis a part may span before its tiles are scaled down.
 MAX_TILES = 8
+#: Texels of a repeated texture built whole before it is shrunk (64 MB of RGBA); past it the
+#: shrunk texture is sampled directly
+MAX_TILED_TEXELS = 4096 * 4096
 ALPHA_CUT = 0.5
 CELL = 4  # texels per side of a flat colour's cell
 
@@ -202,9 +205,8 @@ def _atlas_mesh(parts: list[Any], looks: list[Any], unit: float) -> Any:
             lo = np.floor(lk.uv.min(axis=0) + 1e-6) if len(lk.uv) else np.zeros(2)
             hi = np.ceil(lk.uv.max(axis=0) - 1e-6) if len(lk.uv) else np.ones(2)
             reps = np.maximum(hi - lo, 1.0)
-            tile = np.tile(lk.rgba, (int(reps[1]), int(reps[0]), 1))
             scale = max(reps.max() / MAX_TILES, 1.0)
-            blocks.append(_shrink(tile, scale))
+            blocks.append(_tiled(lk.rgba, reps, scale))
             spans.append((lo, reps))
         else:
             colours.append(lk)
@@ -255,6 +257,23 @@ def _atlas_mesh(parts: list[Any], looks: list[Any], unit: float) -> Any:
         material=trimesh.visual.material.SimpleMaterial(image=Image.fromarray(atlas, "RGBA")),
     )
     return mesh
+
+
+def _tiled(rgba: NDArray[np.uint8], reps: FloatArray, factor: float) -> NDArray[np.uint8]:
+    """The image repeated ``reps`` (x, y) times, shrunk by ``factor``. Where the repeats would
+    be large (UVs spanning hundreds of tiles: 15 GB for a 64-texel image over UVs 0..1000)
+    each output texel is looked up in the one image instead, nearest to its centre, and the
+    result holds at most ``MAX_TILED_TEXELS`` (a 2048² texture over UVs 0..20 took 10 GB)."""
+    h, w = rgba.shape[:2]
+    rx, ry = int(reps[0]), int(reps[1])
+    if h * w * rx * ry <= MAX_TILED_TEXELS:
+        return _shrink(np.tile(rgba, (ry, rx, 1)), factor)
+    big_w, big_h = w * rx, h * ry
+    factor = max(factor, math.sqrt(big_w * big_h / MAX_TILED_TEXELS))  # the same texel budget
+    ow, oh = max(1, round(big_w / factor)), max(1, round(big_h / factor))
+    xs = np.minimum(((np.arange(ow) + 0.5) * (big_w / ow)).astype(np.int64), big_w - 1) % w
+    ys = np.minimum(((np.arange(oh) + 0.5) * (big_h / oh)).astype(np.int64), big_h - 1) % h
+    return np.ascontiguousarray(rgba[ys[:, None], xs[None, :]])
 
 
 def _shrink(img: NDArray[np.uint8], factor: float) -> NDArray[np.uint8]:

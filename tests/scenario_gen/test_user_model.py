@@ -444,3 +444,26 @@ def test_a_truncated_gltf_is_named_as_such(tmp_path: Path) -> None:
     with pytest.raises(ScenarioError, match="not valid glTF JSON: Unterminated string") as e:
         inspect_model(p)
     assert "model.gltf" not in str(e.value)
+
+
+def test_a_texture_repeated_over_a_huge_uv_span_stays_within_the_texel_budget() -> None:
+    """UVs 0..1000 on a 64-texel image tiled 15 GB before shrinking it; a 2048² image over
+    0..20 peaked at 10 GB. The repeated texture is sampled directly, within the budget, and
+    each texel is one of the image's at the right phase."""
+    import numpy as np
+
+    from scenario_gen import model_mesh as mm
+
+    rng = np.random.default_rng(0)
+    img = rng.integers(0, 256, (64, 64, 4), dtype=np.uint8)
+    reps = np.array([1000.0, 1000.0])
+    out = mm._tiled(img, reps, max(reps.max() / mm.MAX_TILES, 1.0))
+    assert out.shape[0] * out.shape[1] <= mm.MAX_TILED_TEXELS and out.shape[2] == 4
+    # the first output texel's centre falls in the first tile: nearest is image texel (y, x)
+    step = 64 * 1000 / out.shape[1]
+    assert (out[0, 0] == img[int(0.5 * step) % 64, int(0.5 * step) % 64]).all()
+    colours = {tuple(c) for c in img.reshape(-1, 4)}
+    assert all(tuple(c) in colours for c in out[::97, ::89].reshape(-1, 4))
+    # small repeats are built whole, as before
+    small = mm._tiled(img, np.array([3.0, 2.0]), 1.0)
+    assert small.shape == (128, 192, 4) and (small[64:, 128:] == img).all()
