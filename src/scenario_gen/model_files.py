@@ -119,6 +119,18 @@ def _obj_refs(path: Path) -> list[str]:
     return out
 
 
+def obj_mtl_folders(path: Path) -> list[str]:
+    """The folders (relative to the OBJ's, POSIX) of its material libraries other than its own:
+    the folders their maps are named from."""
+    out: list[str] = []
+    for ref in _obj_refs(path):
+        if ref.lower().endswith(".mtl"):
+            parent = str(PurePosixPath(ref.replace("\\", "/")).parent)
+            if parent != "." and parent not in out:
+                out.append(parent)
+    return out
+
+
 def _mtl_maps(mtl: Path) -> list[str]:
     """Image files of a material library: the last word of a map statement (options first),
     or the whole rest of the line where that names a file (names with spaces)."""
@@ -177,6 +189,28 @@ def _inside(p: Path, folder: Path, up: int) -> bool:
     return Path(os.path.normpath(p)).is_relative_to(base)
 
 
+#: Texture files by their suffix: each must open as an image (a loader that cannot read one
+#: leaves the texture out without a word, and the plants turn the material's grey)
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tga", ".bmp", ".tif", ".tiff", ".gif", ".webp")
+
+
+def _check_image(ref: str, path: Path, given: Path) -> None:
+    if path.suffix.lower() not in IMAGE_SUFFIXES:
+        return
+    from PIL import Image, UnidentifiedImageError
+
+    try:
+        with Image.open(path) as im:
+            im.verify()
+    except (UnidentifiedImageError, OSError, SyntaxError, ValueError) as exc:
+        raise InputError(
+            "crop.model",
+            str(given),
+            f"references {ref}, which is not an image that can be read ({exc}); allowed: "
+            "PNG, JPEG, TGA, BMP, TIFF, GIF or WebP textures",
+        ) from None
+
+
 def bundle(mesh: Path, given: Path | None = None, limit_root: Path | None = None) -> Bundle:
     """``mesh`` with every file it references, checked: each a relative path that exists as a
     regular file at most ``MAX_UP_LEVELS`` folders above the mesh (and inside ``limit_root``
@@ -212,7 +246,15 @@ def bundle(mesh: Path, given: Path | None = None, limit_root: Path | None = None
             f"references {', '.join(far[:3])} outside {where}; allowed: files beside the mesh "
             "or in folders near it (as Gazebo's meshes/ and materials/textures/)",
         )
-    missing = [r for r, p in zip(refs, paths, strict=True) if p.is_symlink() or not p.is_file()]
+    links = [r for r, p in zip(refs, paths, strict=True) if p.is_symlink()]
+    if links:  # a copy of the model would hold a link to a file that is not in it
+        raise InputError(
+            "crop.model",
+            str(given),
+            f"references {', '.join(links[:3])}, a symbolic link; allowed: the file itself "
+            "(copy it beside the mesh)",
+        )
+    missing = [r for r, p in zip(refs, paths, strict=True) if not p.is_file()]
     if missing:
         more = f" and {len(missing) - 3} more" if len(missing) > 3 else ""
         # inside an archive the folder is a temporary extraction: name the member's folder
@@ -235,6 +277,8 @@ def bundle(mesh: Path, given: Path | None = None, limit_root: Path | None = None
             str(given),
             f"references {total:,} bytes of files; allowed: at most {MAX_FILE_BYTES:,}",
         )
+    for r, p in zip(refs, paths, strict=True):
+        _check_image(r, p, given)
     root = Path(os.path.commonpath([folder, *(p.parent for p in paths)]))
     rel = tuple(sorted({PurePosixPath(p.relative_to(root).as_posix()) for p in paths}))
     mesh_rel = PurePosixPath((folder / mesh.name).relative_to(root).as_posix())

@@ -91,13 +91,22 @@ def read_scene(path: Path) -> Any:
     import trimesh
     from trimesh.resolvers import FilePathResolver
 
+    # an OBJ's material library names its maps relative to its own folder (where
+    # model_files.bundle found them), while trimesh looks in the OBJ's: both are tried
+    folders = [""]
+    if path.suffix.lower() == ".obj":
+        from .model_files import obj_mtl_folders
+
+        folders += [f for f in obj_mtl_folders(path) if f not in folders]
+
     class Resolver(FilePathResolver):
         def get(self, name: str) -> bytes:
-            for k in spellings(name):
-                try:
-                    return bytes(super().get(k))
-                except OSError:
-                    continue
+            for folder in folders:
+                for k in spellings(name):
+                    try:
+                        return bytes(super().get(f"{folder}/{k}" if folder else k))
+                    except OSError:
+                        continue
             return bytes(super().get(name))
 
     return trimesh.load(str(path), force="scene", resolver=Resolver(str(path), allow_anywhere=True))
@@ -148,7 +157,7 @@ def _look(g: Any, gltf: bool = False) -> _Image | NDArray[np.uint8]:
         if gltf and mode is None:
             mode = "OPAQUE"
         if image is not None and uv is not None and len(uv) == len(g.vertices):
-            rgba = np.asarray(image.convert("RGBA"), np.float64)
+            rgba = np.asarray(_eight_bit(image).convert("RGBA"), np.float64)
             rgba = rgba * factor[None, None, :]
             alpha = rgba[..., 3] / 255.0
             if mode == "OPAQUE":
@@ -164,6 +173,17 @@ def _look(g: Any, gltf: bool = False) -> _Image | NDArray[np.uint8]:
         return np.asarray(np.round(vc[np.asarray(g.faces)].mean(axis=1)), np.uint8)
     fc = np.asarray(visual.face_colors, np.uint8)
     return fc if fc.shape == (n, 4) else np.tile(np.array([128, 128, 128, 255], np.uint8), (n, 1))
+
+
+def _eight_bit(image: Any) -> Any:
+    """A 16- or 32-bit greyscale image (a 16-bit PNG reads as mode ``I;16`` or ``I``) as 8-bit:
+    Pillow's conversion clips it (a 60 % grey read as white)."""
+    if image.mode not in ("I", "I;16", "I;16B", "I;16L", "I;16N"):
+        return image
+    from PIL import Image
+
+    grey = np.asarray(image, np.float64) * (255.0 / 65535.0)
+    return Image.fromarray(np.clip(np.round(grey), 0, 255).astype(np.uint8), "L")
 
 
 def _material(mat: Any) -> tuple[Any, FloatArray, str | None, float]:

@@ -467,3 +467,45 @@ def test_a_texture_repeated_over_a_huge_uv_span_stays_within_the_texel_budget() 
     # small repeats are built whole, as before
     small = mm._tiled(img, np.array([3.0, 2.0]), 1.0)
     assert small.shape == (128, 192, 4) and (small[64:, 128:] == img).all()
+
+
+def test_a_material_library_in_a_subfolder_names_its_texture_from_there(tmp_path: Path) -> None:
+    """``mtllib mats/plant.mtl`` whose ``map_Kd plant.png`` lies in ``mats/``: found and
+    copied, but the loader looked beside the OBJ and drew the plants the material's grey."""
+    src = tmp_path / "obj"
+    shutil.copytree(DATA / "textured_obj", src)
+    (src / "mats").mkdir()
+    (src / "plant.mtl").rename(src / "mats" / "plant.mtl")
+    (src / "plant.png").rename(src / "mats" / "plant.png")
+    obj = src / "plant.obj"
+    obj.write_text(obj.read_text().replace("mtllib plant.mtl", "mtllib mats/plant.mtl"))
+    tex = np.asarray(load_model(str(obj), 1.0).visual.material.image.convert("RGB"))
+    assert (tex.reshape(-1, 3) == OBJ_RGB).all(axis=1).any()
+    out = save(generate(small(crop={"model": str(obj)}), 0), tmp_path / "s")
+    tex = np.asarray(load_model(load(out).crop_model_path, 1.0).visual.material.image)
+    assert (tex.reshape(-1, 4)[:, :3] == OBJ_RGB).all(axis=1).any()
+
+
+def test_a_texture_that_is_not_an_image_or_is_a_link_is_refused_naming_it(tmp_path: Path) -> None:
+    src = tmp_path / "obj"
+    shutil.copytree(DATA / "textured_obj", src)
+    (src / "plant.png").write_text("not a png")
+    with pytest.raises(ScenarioError, match="references plant.png, which is not an image"):
+        generate(small(crop={"model": str(src / "plant.obj")}), 0)
+    (src / "plant.png").unlink()
+    shutil.copy(DATA / "textured_obj" / "plant.png", tmp_path / "real.png")
+    (src / "plant.png").symlink_to(tmp_path / "real.png")
+    with pytest.raises(ScenarioError, match="references plant.png, a symbolic link"):
+        generate(small(crop={"model": str(src / "plant.obj")}), 0)
+
+
+def test_a_16_bit_grey_texture_keeps_its_grey(tmp_path: Path) -> None:
+    """Pillow's conversion of a 16-bit greyscale PNG clips it: 60 % grey read as white."""
+    from PIL import Image
+
+    src = tmp_path / "obj"
+    shutil.copytree(DATA / "textured_obj", src)
+    Image.fromarray(np.full((16, 16), 38550, np.uint16)).save(src / "plant.png")  # 150 / 255
+    tex = np.asarray(load_model(str(src / "plant.obj"), 1.0).visual.material.image.convert("RGB"))
+    assert (tex.reshape(-1, 3) == 150).all(axis=1).any()
+    assert not (tex.reshape(-1, 3) == 255).all(axis=1).any()
