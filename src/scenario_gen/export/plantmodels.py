@@ -9,7 +9,8 @@ off by at most half a step (1 %). Weeds grow continuously, so their growth is bi
 
 A user model (``crop.model``) in a format both Gazebos read — COLLADA that says ``Z_UP``, OBJ,
 STL — is exported as its own files, as the seed world's ``<include>``s reference their maize:
-copied byte for byte into the base model's ``user/`` folder in their own layout (a COLLADA
+copied into the base model's ``user/`` folder in their own layout, byte for byte but for
+references not every loader reads as written (``_literal_references``) (a COLLADA
 file's ``../materials/textures`` beside its ``meshes/``, an OBJ's material library and maps, an
 archive's members), the visual naming the mesh with the ``<scale>`` and ``<pose>`` that put
 its base centre on the plant and make it the plant's height. Other formats (glTF, GLB, PLY,
@@ -24,12 +25,14 @@ have none.
 from __future__ import annotations
 
 import math
+import os
 import re
 import shutil
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
 from typing import Any
+from urllib.parse import unquote
 from xml.sax.saxutils import escape
 
 import numpy as np
@@ -72,7 +75,8 @@ class UserFiles:
         return s, -s * centre
 
     def copy_into(self, folder: Path) -> None:
-        """The model's files, byte for byte, under ``folder``/user/ in their own layout."""
+        """The model's files under ``folder``/user/ in their own layout, byte for byte but for
+        references no loader may read as written (``_literal_references``)."""
         um = self.model
         dest = folder / USER_DIR
         if um.path.suffix.lower() == ".zip":
@@ -83,6 +87,9 @@ class UserFiles:
             for src, rel in pairs:
                 (dest / rel).parent.mkdir(parents=True, exist_ok=True)
                 shutil.copyfile(src, dest / rel)
+        # the mesh where it was copied (its own path is made URI-safe below)
+        copied = self.original or str(PurePosixPath(self.mesh).relative_to(USER_DIR))
+        _literal_references(dest / copied)
         if self.original is None:
             return
         # the folders and file on the mesh's own path take their URI-safe names (everything
@@ -100,6 +107,76 @@ class UserFiles:
                     )
                 (cur / o).rename(cur / n)
             cur = cur / n
+
+
+#: A file name every loader reads as written (gz-common's URI checks, COLLADA loaders that do
+#: not decode %-escapes, OBJ readers that split a line at its spaces).
+_LITERAL = re.compile(r"^[A-Za-z0-9._/-]+$")
+_INIT_FROM = re.compile(r"(<init_from>)([^<]+)(</init_from>)")
+_OBJ_MAPS = ("map_kd", "map_ka", "map_ks", "map_ns", "map_d", "map_bump", "bump", "disp", "norm")
+
+
+def _literal_references(mesh: Path) -> None:
+    """Rename the copied files a mesh names by a reference not every loader reads as written
+    (a space, a %-escape, a non-ASCII letter) and rewrite the reference to the new name: the
+    same file, found by Gazebo Classic, Gazebo Sim and the export's own checker alike."""
+    suffix = mesh.suffix.lower()
+    done: dict[Path, Path] = {}  # a file named twice is renamed once
+    if suffix == ".dae":
+        text = mesh.read_text(encoding="utf-8", errors="surrogateescape")
+
+        def swap(m: re.Match[str]) -> str:
+            return m[1] + _renamed(mesh.parent, m[2].strip(), True, done) + m[3]
+
+        new = _INIT_FROM.sub(swap, text)
+        if new != text:
+            mesh.write_text(new, encoding="utf-8", errors="surrogateescape")
+    elif suffix == ".obj":
+        for lib in _rewrite_lines(mesh, ("mtllib",), done):
+            _rewrite_lines(mesh.parent / lib, _OBJ_MAPS, done)
+
+
+def _rewrite_lines(path: Path, keys: tuple[str, ...], done: dict[Path, Path]) -> list[str]:
+    """In an OBJ or MTL file, the files its ``keys`` statements name (the rest of the line,
+    options first for maps) renamed to literal names; returns the names now written."""
+    if not path.is_file():
+        return []
+    lines = path.read_text(encoding="utf-8", errors="surrogateescape").split("\n")
+    named: list[str] = []
+    for i, line in enumerate(lines):
+        words = line.strip().split(None, 1)
+        if len(words) != 2 or words[0].lower() not in keys:
+            continue
+        rest = words[1].strip()
+        # the whole rest where it names a file (a name with spaces), else its last word
+        name = rest if (path.parent / rest.replace("\\", "/")).is_file() else rest.split()[-1]
+        new = _renamed(path.parent, name, False, done)
+        named.append(new)
+        if new != name:
+            lines[i] = line[: line.index(rest)] + rest[: len(rest) - len(name)] + new
+    path.write_text("\n".join(lines), encoding="utf-8", errors="surrogateescape")
+    return named
+
+
+def _renamed(folder: Path, ref: str, decode: bool, done: dict[Path, Path]) -> str:
+    """``ref``'s file (relative to ``folder``) under a literal name beside it; the new
+    reference (``ref`` itself where it is literal or names no copied file)."""
+    if _LITERAL.match(ref):
+        return ref
+    name = (unquote(ref) if decode else ref).replace("\\", "/")
+    old = Path(os.path.normpath(folder / name))
+    if old not in done:
+        if not old.is_file():
+            return ref
+        stem = re.sub(r"[^A-Za-z0-9._-]", "_", old.stem) or "file"
+        suffix = re.sub(r"[^A-Za-z0-9.]", "_", old.suffix)
+        new, k = old.with_name(stem + suffix), 1
+        while new.exists() and new != old:
+            new, k = old.with_name(f"{stem}_{k}{suffix}"), k + 1
+        old.rename(new)
+        done[old] = new
+    parent = PurePosixPath(name).parent
+    return str(parent / done[old].name) if str(parent) != "." else done[old].name
 
 
 def user_files(um: UserModel) -> UserFiles | None:

@@ -488,3 +488,44 @@ def test_a_user_model_named_outside_uri_characters_is_renamed_in_its_uri(
     assert f"model://{base.name}/user/my_pl_nt__.obj" in sdf and "plänt" not in sdf
     c = run_check(sdf_check, out / "worlds" / "field.sdf", out / "models")
     assert c.valid, c.stderr
+
+
+def test_references_a_loader_may_not_read_as_written_are_renamed_with_their_files(
+    tmp_path: Path, sdf_check
+) -> None:
+    """A COLLADA texture written ``leaf%20tex.png`` (a URI, for ``leaf tex.png``) and an OBJ's
+    ``mtllib my mat.mtl`` naming ``map_Kd leaf tex.png``: not every loader decodes the one or
+    keeps the spaces of the other (the export's own checker did neither). The copies and their
+    references take literal names, and the world checks."""
+    src = tmp_path / "dae"
+    shutil.copytree(CUTOUT, src)
+    textures = src / "materials" / "textures"
+    (textures / "leaf.png").rename(textures / "leaf tex.png")
+    dae = src / "meshes" / "plant.dae"
+    dae.write_text(dae.read_text().replace("textures/leaf.png", "textures/leaf%20tex.png"))
+    obj_src = tmp_path / "obj"
+    shutil.copytree(
+        Path(__file__).resolve().parents[2] / "data" / "crop_models" / "textured_obj", obj_src
+    )
+    (obj_src / "plant.mtl").rename(obj_src / "my mat.mtl")
+    (obj_src / "plant.png").rename(obj_src / "leaf tex.png")
+    obj = obj_src / "plant.obj"
+    obj.write_text(obj.read_text().replace("mtllib plant.mtl", "mtllib my mat.mtl"))
+    mtl = obj_src / "my mat.mtl"
+    mtl.write_text(mtl.read_text().replace("map_Kd plant.png", "map_Kd leaf tex.png"))
+    expect = {
+        "d": {"meshes/plant.dae": "<init_from>../materials/textures/leaf_tex.png</init_from>"},
+        "o": {"plant.obj": "mtllib my_mat.mtl", "my_mat.mtl": "map_Kd leaf_tex.png"},
+    }
+    for mesh, name in ((dae, "d"), (obj, "o")):
+        scn_dir = _quads_scenario(tmp_path / name, mesh)
+        out = tmp_path / name / "gz"
+        export(scn_dir, "gazebo", out, ExportOptions(plants="include"))
+        (base,) = [m for m in assign(load(scn_dir)).models if m.species == "corn"]
+        user = out / "models" / base.name / "user"
+        files = sorted(str(p.relative_to(user)) for p in user.rglob("*") if p.is_file())
+        assert not [f for f in files if " " in f or "%" in f], files
+        for rel, line in expect[name].items():
+            assert line in (user / rel).read_text(), (rel, line)
+        c = run_check(sdf_check, out / "worlds" / "field.sdf", out / "models")
+        assert c.valid, c.stderr
