@@ -44,7 +44,8 @@ class PPOHyperparams:
     normalize_advantage: bool = param(True, "normalise advantages per minibatch")
     ent_coef: float = param(0.0, "entropy bonus", 0.0, 10)
     vf_coef: float = param(0.5, "value-loss weight", 0.0, 100)
-    max_grad_norm: float = param(0.5, "gradient clip", 0.0, 1e6)
+    # SB3 scales every gradient by max_grad_norm / norm: at 0 nothing is learned
+    max_grad_norm: float = param(0.5, "gradient clip", 1e-6, 1e6)
     use_sde: bool = param(False, "state-dependent exploration")
     sde_sample_freq: int = param(-1, "gSDE noise resample period (-1: per rollout)", -1, 10**6)
     target_kl: float | None = param(None, "early-stop epochs above this KL (null: never)", 0, 10)
@@ -157,8 +158,6 @@ def load(env_id: str, overrides: dict[str, Any] | None = None) -> tuple[PPOHyper
             raise InputError(
                 "hyperparams.normalize.norm_reward", True, "allowed: false (not supported)"
             )
-    if hp.max_grad_norm <= 0:  # SB3 scales every gradient by max_grad_norm / norm: 0 learns nothing
-        raise InputError("hyperparams.max_grad_norm", hp.max_grad_norm, "allowed: above 0")
     if hp.batch_size < 2:  # SB3 normalises advantages over a minibatch: one sample is none
         raise InputError("hyperparams.batch_size", hp.batch_size, "allowed: at least 2")
     if hp.batch_size > hp.n_steps * hp.n_envs:
