@@ -23,7 +23,7 @@ import numpy as np
 
 import scenario_gen as sg
 from scenario_gen import Scenario
-from scenario_gen.errors import InputError
+from scenario_gen.errors import InputError, Notice
 from scenario_gen.generate import COUPLED_FIELDS, PATH_KEYS, check_fields_used, check_spec
 from scenario_gen.schema import coerce, field_info, is_integer_field, load_yaml, plain, to_mapping
 from scenario_gen.spec import ScenarioSpec
@@ -354,7 +354,7 @@ class RefusedDrawWarning(UserWarning):
     """Some randomized draws make a field the generator refuses (they are drawn again)."""
 
 
-class FixedFieldWarning(UserWarning):
+class FixedFieldWarning(Notice):
     """Every reset of an env drives the same field: nothing about the field is drawn per reset
     (``ScenarioSource.fixed_field``). A notice, once per env; silence it with
     ``warnings.filterwarnings("ignore", category=FixedFieldWarning)`` where that is meant."""

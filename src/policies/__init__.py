@@ -11,11 +11,12 @@ Policies see observations only.
 
 from __future__ import annotations
 
+import warnings
 from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from scenario_gen.errors import InputError
+from scenario_gen.errors import InputError, Notice
 
 from .base import Policy
 from .blind import Blind
@@ -158,4 +159,14 @@ def make_policy(spec: str, env: Any, **params: Any) -> Policy:
     elif name in TUNABLE and path:
         file = tuned_file(name) if path == TUNED_ARG else path
         kwargs = {**param_file(file, name), **kwargs}
-    return POLICIES[name](u.observation_space, u.action_space, u.interface, **kwargs)
+    policy = POLICIES[name](u.observation_space, u.action_space, u.interface, **kwargs)
+    trained_on = getattr(policy, "meta", {}).get("env_id")
+    if trained_on and u.spec is not None and trained_on != u.spec.id:
+        # the spaces matched (checked on loading), so it runs: a transfer, not a mistake
+        # the user should be left to find in the results
+        warnings.warn(
+            f"{spec} was trained on {trained_on}; it drives {u.spec.id} here",
+            Notice,
+            stacklevel=2,
+        )
+    return policy

@@ -24,6 +24,11 @@ class InputError(ValueError):
         return (type(self), (self.field, self.value, self.allowed))
 
 
+class Notice(UserWarning):
+    """Something the user should know that is not an error (the run goes on): the commands
+    print it as one line, ``agrinav COMMAND: note: ...``, once a command."""
+
+
 #: The scenario generator's historical name for the same type (one type, two names).
 ScenarioError = InputError
 

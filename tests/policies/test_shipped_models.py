@@ -56,3 +56,27 @@ def test_shipped_checkpoint_beats_random(env_id: str, path: str) -> None:
         assert min(ppo) > max(rand) + 50.0, (ppo, rand)
     finally:
         env.close()
+
+
+def test_a_checkpoint_driven_on_another_env_is_noted_not_silent() -> None:
+    """The spaces fit, so it runs; the user is told which env it learned, as a Notice the
+    commands print in one line."""
+    from scenario_gen.errors import Notice
+
+    from ..fields import TINY
+
+    env = gym.make("AgriNav/FieldRoute-v3", scenario_overrides=TINY)
+    try:
+        with pytest.warns(Notice, match="trained on AgriNav/FurrowFollow-v3; it drives Agri"):
+            make_policy(f"ppo:{shipped_model('AgriNav/FurrowFollow-v3')}", env)
+    finally:
+        env.close()
+    env = gym.make("AgriNav/FurrowFollow-v3", scenario_overrides=TINY)
+    try:
+        import warnings
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", Notice)
+            make_policy("ppo:shipped", env)  # its own env: nothing to say
+    finally:
+        env.close()

@@ -20,7 +20,7 @@ from collections.abc import Sequence
 from types import FrameType
 from typing import Any, NoReturn
 
-from scenario_gen.errors import InputError
+from scenario_gen.errors import InputError, Notice
 
 from . import bench, dataset, demo, export, export_policy, scenario, studio, train, tune
 from .args import StoreOnce, StoreTrueOnce
@@ -56,15 +56,14 @@ def _terminate(signum: int, _frame: FrameType | None) -> None:
 
 
 def _notes(command: str, show: Any) -> Any:
-    """``warnings.showwarning`` that prints agrinav_gym's notice (``FixedFieldWarning``) as
-    one line ``agrinav COMMAND: note: ...`` and leaves every other warning to ``show``."""
+    """``warnings.showwarning`` that prints the packages' notices (``Notice``, e.g. agrinav_gym's
+    ``FixedFieldWarning``) as one line ``agrinav COMMAND: note: ...`` and leaves every other
+    warning to ``show``."""
 
     said: set[str] = set()
 
     def showwarning(message: Any, category: Any, *args: Any, **kwargs: Any) -> None:
-        # looked up, not imported: the CLI starts without loading the simulator
-        scenarios = sys.modules.get("agrinav_gym.scenarios")
-        if scenarios is not None and issubclass(category, scenarios.FixedFieldWarning):
+        if issubclass(category, Notice):
             if str(message) not in said:  # once a command, however many envs it makes
                 said.add(str(message))
                 print(f"agrinav {command}: note: {message}", file=sys.stderr)
