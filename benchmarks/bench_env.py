@@ -43,9 +43,10 @@ import pybullet as p
 
 import agrinav_gym  # registers the envs
 from agrinav_gym.estimation.robot_localization import RobotLocalizationEkf
+from agrinav_gym.sim.quiet import quiet  # pybullet's racecar envs print from C and Python
 from baselines.suites import RTK_NAV2
 from common import drive, s_curve
-from pybullet_gym_shim import quiet, racecar_envs, sim_seconds
+from pybullet_gym_shim import racecar_envs, sim_seconds
 
 STEPS = 1000
 ENV_ID = "AgriNav/FurrowFollow-v3"

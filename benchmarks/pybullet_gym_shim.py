@@ -60,22 +60,6 @@ def _old_gym() -> Iterator[None]:
             sys.modules.pop(n, None)
 
 
-@contextlib.contextmanager
-def quiet() -> Iterator[None]:
-    """Silence C-level stdout (pybullet's racecar envs print from C and Python)."""
-    sys.stdout.flush()
-    fd = sys.stdout.fileno()
-    saved = os.dup(fd)
-    with open(os.devnull, "w") as null:
-        os.dup2(null.fileno(), fd)
-        try:
-            yield
-        finally:
-            sys.stdout.flush()
-            os.dup2(saved, fd)
-            os.close(saved)
-
-
 def racecar_envs() -> tuple[Any, Any]:
     """(RacecarGymEnv, RacecarZEDGymEnv) classes."""
     with _old_gym():

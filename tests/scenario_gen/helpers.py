@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import shutil
+from pathlib import Path
 from typing import Any
 
 from scenario_gen import ScenarioSpec, preset
@@ -31,3 +33,14 @@ def plane(slope_deg: float = 0.0, aspect_deg: float = 0.0, **overrides: Any) -> 
     }
     spec = small(**o)
     return spec.replace(overrides) if overrides else spec
+
+
+def url_encoded_leaf(cutout: Path, dest: Path) -> Path:
+    """A copy of the cut-out plant model whose leaf texture is named ``leaf tex.png`` and
+    referenced, as COLLADA's URIs write it, ``leaf%20tex.png``; returns the copy's mesh."""
+    shutil.copytree(cutout, dest)
+    textures = dest / "materials" / "textures"
+    (textures / "leaf.png").rename(textures / "leaf tex.png")
+    dae = dest / "meshes" / "plant.dae"
+    dae.write_text(dae.read_text().replace("textures/leaf.png", "textures/leaf%20tex.png"))
+    return dae

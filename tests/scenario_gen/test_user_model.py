@@ -17,7 +17,7 @@ from scenario_gen.models import inspect_model, load_model
 from scenario_gen.preview import preview_figure
 
 from ..data.crop_models.make_models import CUT, LEAF, OBJ_RGB, STEM
-from .helpers import small
+from .helpers import small, url_encoded_leaf
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "crop_models"
 CUTOUT = DATA / "cutout_plant"
@@ -338,12 +338,7 @@ def test_a_texture_referenced_as_exporters_write_it_is_loaded(
 def test_a_url_encoded_collada_texture_is_loaded(tmp_path: Path) -> None:
     """COLLADA's (and glTF's) references are URIs: a file named ``leaf tex.png`` is written
     ``leaf%20tex.png``; the leaf keeps its texture's colour."""
-    src = tmp_path / "plant"
-    shutil.copytree(CUTOUT, src)
-    textures = src / "materials" / "textures"
-    (textures / "leaf.png").rename(textures / "leaf tex.png")
-    dae = src / "meshes" / "plant.dae"
-    dae.write_text(dae.read_text().replace("textures/leaf.png", "textures/leaf%20tex.png"))
+    dae = url_encoded_leaf(CUTOUT, tmp_path / "plant")
     image = np.asarray(load_model(str(dae), 1.0).visual.material.image).reshape(-1, 4)
     assert (image[:, :3] == LEAF).all(axis=1).any()
 

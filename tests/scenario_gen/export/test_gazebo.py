@@ -497,12 +497,9 @@ def test_references_a_loader_may_not_read_as_written_are_renamed_with_their_file
     ``mtllib my mat.mtl`` naming ``map_Kd leaf tex.png``: not every loader decodes the one or
     keeps the spaces of the other (the export's own checker did neither). The copies and their
     references take literal names, and the world checks."""
-    src = tmp_path / "dae"
-    shutil.copytree(CUTOUT, src)
-    textures = src / "materials" / "textures"
-    (textures / "leaf.png").rename(textures / "leaf tex.png")
-    dae = src / "meshes" / "plant.dae"
-    dae.write_text(dae.read_text().replace("textures/leaf.png", "textures/leaf%20tex.png"))
+    from ..helpers import url_encoded_leaf
+
+    dae = url_encoded_leaf(CUTOUT, tmp_path / "dae")
     obj_src = tmp_path / "obj"
     shutil.copytree(
         Path(__file__).resolve().parents[2] / "data" / "crop_models" / "textured_obj", obj_src
