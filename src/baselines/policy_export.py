@@ -347,13 +347,18 @@ def _export_sb3(src: Source, out: Path, force: bool, command: str) -> dict[str, 
     model, norm = _sb3_model(src, hp)
     name = zoo_name(env_id)
     meta = src.loaded.meta
+    # the env as the policy reads it: a policy of fewer observations than the env's default
+    # (FieldRoute's and the depth policy's) fits only an env made with those (zoo's enjoy and
+    # the README's snippet both make it from these kwargs)
+    env_kwargs = dict(meta.get("env_kwargs") or {})
+    env_kwargs.setdefault("observations", sorted(src.loaded.policy.observation_space.spaces))
     config = OrderedDict(sorted(hpmod.to_zoo(hp).items()))
     args = OrderedDict(
         sorted(
             {
                 "algo": ZOO_ALGO,
                 "env": env_id,
-                "env_kwargs": meta.get("env_kwargs"),
+                "env_kwargs": env_kwargs,
                 "gym_packages": ["agrinav_gym"],
                 "n_timesteps": hp.n_timesteps,
                 "seed": meta.get("seed", 0),
@@ -380,7 +385,8 @@ def _export_sb3(src: Source, out: Path, force: bool, command: str) -> dict[str, 
             raise InputError(
                 "export", f"max abs difference {diff:.3g}", f"allowed: at most {TOLERANCE:g}"
             )
-        (tmp / "README.md").write_text(_sb3_readme(src, env_id, name, norm is not None, diff))
+        readme = _sb3_readme(src, env_id, name, norm is not None, diff, env_kwargs)
+        (tmp / "README.md").write_text(readme)
     rel = Path(ZOO_ALGO) / f"{name}_1"
     return {
         "model": str(out / rel / f"{name}.zip"),
@@ -391,7 +397,14 @@ def _export_sb3(src: Source, out: Path, force: bool, command: str) -> dict[str, 
     }
 
 
-def _sb3_readme(src: Source, env_id: str, name: str, normalized: bool, diff: float) -> str:
+def _sb3_readme(
+    src: Source,
+    env_id: str,
+    name: str,
+    normalized: bool,
+    diff: float,
+    env_kwargs: dict[str, Any],
+) -> str:
     run = f"{ZOO_ALGO}/{name}_1"
     has_adam = src.folder is not None and (src.folder / checkpoint.OPTIMIZER).is_file()
     adam = ", Adam's state (to train on)" if has_adam else ""
@@ -428,7 +441,9 @@ import agrinav_gym  # registers the AgriNav envs
 from stable_baselines3 import PPO
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
-venv = DummyVecEnv([lambda: gym.make("{env_id}")])
+# the env as the policy was trained on it: its observations (args.yml's env_kwargs)
+env_kwargs = {env_kwargs!r}
+venv = DummyVecEnv([lambda: gym.make("{env_id}", **env_kwargs)])
 {load_stats}model = PPO.load("{run}/{name}.zip", env=venv)
 obs = venv.reset()
 action, _ = model.predict(obs, deterministic=True)

@@ -243,3 +243,21 @@ def test_an_export_that_does_not_reproduce_the_policy_is_not_published(
         assert main(["export-policy", f"shipped:{FR}", "--to", to, "--out", str(out)]) == 2
         assert "max abs difference" in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []  # neither the folders nor their temporaries
+
+
+@pytest.mark.parametrize("env_id", [FR, "AgriNav/FurrowFollowDepth-v3"])
+def test_the_sb3_exports_own_readme_code_runs(tmp_path: Path, env_id: str) -> None:
+    """The README's snippet made the env with gym.make(ENV_ID) alone: a policy of fewer
+    observations than the env's default (FieldRoute's, the depth policy's) failed in
+    PPO.load. It makes the env from args.yml's env_kwargs, as zoo's enjoy does."""
+    import re
+    import subprocess
+
+    out = tmp_path / "sb3"
+    assert main(["export-policy", f"shipped:{env_id}", "--to", "sb3", "--out", str(out)]) == 0
+    (code,) = re.findall(r"```python\n(.*?)```", (out / "README.md").read_text(), re.S)
+    code += "\nassert venv.action_space.contains(action[0]), action\nprint('acted')\n"
+    done = subprocess.run(
+        [sys.executable, "-c", code], cwd=out, capture_output=True, text=True, timeout=300
+    )
+    assert done.returncode == 0 and done.stdout.strip().endswith("acted"), done.stderr[-2000:]
