@@ -334,6 +334,10 @@ def load(folder: str | Path) -> Loaded:
     with torch.no_grad():
         for name, t in targets.items():
             a = arrays[name]
+            if a.dtype.kind not in "fiu":  # strings or objects: no number to copy
+                raise InputError(
+                    "checkpoint", where, f"tensor {name} holds {a.dtype} values; allowed: numbers"
+                )
             if a.shape != tuple(t.shape) or not np.isfinite(a).all():
                 raise InputError(
                     "checkpoint",

@@ -67,6 +67,13 @@ def check_spaces(
     trained_obs: Any, env_obs: spaces.Dict, trained_act: Any, env_act: spaces.Box, where: str
 ) -> None:
     """A checkpoint only runs on the observations and actions it was trained on."""
+    if not isinstance(trained_obs, spaces.Dict):  # an SB3 model of another kind of env
+        raise InputError(
+            "policy",
+            f"ppo:{where}",
+            f"was trained on a {type(trained_obs).__name__} observation space; allowed: a "
+            "policy of an AgriNav env's Dict observations",
+        )
     for key, sp in trained_obs.spaces.items():
         mine = env_obs.spaces.get(key)
         if not isinstance(mine, spaces.Box):

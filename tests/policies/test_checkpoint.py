@@ -255,3 +255,35 @@ def test_a_corrupt_normalisation_count_is_refused(tmp_path: Path) -> None:
     (folder / "checkpoint.json").write_text(json.dumps(meta))
     with pytest.raises(InputError, match="count"):
         checkpoint.load(folder)
+
+
+def test_a_tensor_of_strings_is_refused_naming_it(tmp_path: Path) -> None:
+    """np.isfinite on a string array was a TypeError from deep inside the loader."""
+    d = _shipped_copy(tmp_path)
+    with np.load(d / checkpoint.WEIGHTS) as npz:
+        arrays = {k: npz[k] for k in npz.files}
+    name = sorted(arrays)[0]
+    arrays[name] = np.array(["a"] * arrays[name].size).reshape(arrays[name].shape)
+    np.savez(d / checkpoint.WEIGHTS, **arrays)
+    env = _env()
+    try:
+        with pytest.raises(InputError, match=f"tensor {name} holds <U1 values; allowed: numbers"):
+            make_policy(f"ppo:{d}", env)
+    finally:
+        env.close()
+
+
+def test_a_policy_of_another_kind_of_observation_is_refused_in_one_line() -> None:
+    """An SB3 model of a Box-observation env (CartPole) was an AttributeError traceback."""
+    from gymnasium import spaces
+
+    from policies.ppo import check_spaces
+
+    env = _env()
+    try:
+        u = env.unwrapped
+        box = spaces.Box(-1.0, 1.0, (4,))
+        with pytest.raises(InputError, match="trained on a Box observation space"):
+            check_spaces(box, u.observation_space, u.action_space, u.action_space, "cartpole")
+    finally:
+        env.close()
