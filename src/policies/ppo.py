@@ -76,7 +76,7 @@ def check_spaces(
         )
     for key, sp in trained_obs.spaces.items():
         mine = env_obs.spaces.get(key)
-        if not isinstance(mine, spaces.Box):
+        if not isinstance(mine, spaces.Box) or not isinstance(sp, spaces.Box):
             raise InputError(
                 "policy",
                 f"ppo:{where}",
