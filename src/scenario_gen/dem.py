@@ -264,6 +264,13 @@ class Dem:
         return float(lat), float(wrap_lon(float(lon)))  # a raster stored 0..360°
 
 
+#: said where a place is off the DEM but its coordinates read the other way round are on it
+SWAPPED = (
+    "; read as longitude for latitude it lies on the DEM: are the coordinates swapped? "
+    "(GeoJSON and KML give longitude first)"
+)
+
+
 #: A flat area is water when at most this share of the pixels around it lie lower: a lake's
 #: shore rises everywhere but at its outlet, while a terrace of a DEM stored in whole metres
 #: has its whole downhill side lower (about half its rim) and a flat hilltop all of it.
@@ -660,11 +667,8 @@ def load_geotiff(
                     raise InputError(
                         "field",
                         f"lon {need[0]:.5f}..{need[2]:.5f}, lat {need[1]:.5f}..{need[3]:.5f}",
-                        f"is off the DEM {p.name}"
-                        + ("; read as longitude for latitude it lies on the DEM: are the "
-                           "coordinates swapped? (GeoJSON and KML give longitude first)"
-                           if swapped else ""),
-                    )  # fmt: skip
+                        f"is off the DEM {p.name}" + (SWAPPED if swapped else ""),
+                    )
                 r0, r1, c0, c1 = win
                 what, hint = "the DEM window around the field", "; a smaller field or margin"
             pixels = (r1 - r0) * (c1 - c0)

@@ -18,7 +18,7 @@ from shapely.geometry.base import BaseGeometry
 
 from .arrays import FloatArray
 from .bounds import MAX_TERRAIN_SAMPLES
-from .dem import EMBEDDED_CREDIT, Dem, load_embedded, load_geotiff
+from .dem import EMBEDDED_CREDIT, SWAPPED, Dem, load_embedded, load_geotiff
 from .errors import InputError
 from .field import centroid_latlon
 from .geodesy import GeoFrame
@@ -82,13 +82,6 @@ def terrain_grid(
             f"allowed: at most {MAX_TERRAIN_SAMPLES:,} samples (lower the LoD or the margin)",
         )
     return x0, y0, nx, ny, spacing
-
-
-#: said where a place is off the DEM but its coordinates read the other way round are on it
-SWAPPED = (
-    "; read as longitude for latitude it lies on the DEM: are the coordinates swapped? "
-    "(GeoJSON and KML give longitude first)"
-)
 
 
 def _on_raster(dem: Any, lon: float, lat: float) -> bool:

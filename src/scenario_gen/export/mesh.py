@@ -18,7 +18,7 @@ from ..errors import InputError
 from ..model import Scenario
 from ..sources import export_terrain_mesh, save_mesh
 from .options import ExportOptions
-from .plantmodels import assign
+from .plantmodels import Assignment, assign
 from .tiles import rotations
 
 #: Triangles of the merged plants one export writes: a file holds them all in memory while it
@@ -27,9 +27,8 @@ from .tiles import rotations
 MAX_MERGED_TRIANGLES = 4_000_000
 
 
-def check_merged_size(scn: Scenario) -> int:
+def check_merged_size(a: Assignment) -> int:
     """The merged plants' triangles, refused past ``MAX_MERGED_TRIANGLES`` before any work."""
-    a = assign(scn)
     counts = np.bincount(a.model, minlength=len(a.models))
     total = sum(int(n) * len(pm.mesh.faces) for n, pm in zip(counts, a.models, strict=True))
     if total > MAX_MERGED_TRIANGLES:
@@ -43,13 +42,14 @@ def check_merged_size(scn: Scenario) -> int:
     return total
 
 
-def merged_plants(scn: Scenario) -> Any:
-    """Every plant's mesh at its pose and height, as one face-coloured trimesh (ENU, Z up)."""
+def merged_plants(scn: Scenario, a: Assignment | None = None) -> Any:
+    """Every plant's mesh at its pose and height, as one face-coloured trimesh (ENU, Z up);
+    ``a``: the plants' models, where the caller has them already."""
     import trimesh
 
     from .meshes import face_colours, opaque_faces
 
-    a = assign(scn)
+    a = assign(scn) if a is None else a
     p = scn.plants
     parts = []
     for m, pm in enumerate(a.models):
@@ -88,15 +88,16 @@ def export_mesh(scn: Scenario, out: Path, opts: ExportOptions) -> dict[str, Any]
     from .preview import render_export_preview
     from .readme import mesh_readme
 
-    if opts.mesh_plants:
-        check_merged_size(scn)
+    a = assign(scn) if opts.mesh_plants else None
+    if a is not None:
+        check_merged_size(a)
     files = []
     for fmt in opts.formats:
         name = f"terrain.{fmt}"
         export_terrain_mesh(scn.terrain, out / name)
         files.append(name)
     if opts.mesh_plants:
-        plants = merged_plants(scn)
+        plants = merged_plants(scn, a)
         if plants is not None:
             for fmt in opts.formats:
                 name = f"plants.{fmt}"

@@ -117,9 +117,10 @@ def test_merged_plants_past_the_budget_are_refused_before_anything_is_written(
     minutes): past the budget the export is one line naming the count, and leaves nothing."""
     from scenario_gen.errors import InputError
     from scenario_gen.export import mesh
+    from scenario_gen.export.plantmodels import assign
 
     _, src = dem
-    total = mesh.check_merged_size(load(src))
+    total = mesh.check_merged_size(assign(load(src)))
     monkeypatch.setattr(mesh, "MAX_MERGED_TRIANGLES", total - 1)
     out = tmp_path / "mesh"
     with pytest.raises(InputError, match=f"got '{total:,} triangles"):
