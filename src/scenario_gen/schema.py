@@ -324,6 +324,34 @@ _NoAliasLoader.add_implicit_resolver(
 )
 
 
+# YAML 1.1 (PyYAML) also reads ``36:32:57`` as the base-60 integer 131577 and ``1:30.5`` as
+# 90.5; a latitude written as degrees:minutes:seconds would be taken as a wrong number (or, at
+# ``0:32``, as a plausible one). YAML 1.2 dropped base 60: such a value is a string here, and a
+# field that wants a number refuses it by name.
+_BASE10 = {
+    "tag:yaml.org,2002:int": re.compile(
+        r"""^(?:[-+]?0b[0-1_]+
+        |[-+]?0[0-7_]+
+        |[-+]?(?:0|[1-9][0-9_]*)
+        |[-+]?0x[0-9a-fA-F_]+)$""",
+        re.X,
+    ),
+    "tag:yaml.org,2002:float": re.compile(
+        r"""^(?:[-+]?(?:[0-9][0-9_]*)\.[0-9_]*(?:[eE][-+][0-9]+)?
+        |\.[0-9][0-9_]*(?:[eE][-+][0-9]+)?
+        |[-+]?\.(?:inf|Inf|INF)
+        |\.(?:nan|NaN|NAN))$""",
+        re.X,
+    ),
+}
+_NoAliasLoader.yaml_implicit_resolvers = {
+    first: [
+        (tag, _BASE10[tag] if rx.match("1:30.5") or rx.match("1:30") else rx) for tag, rx in entries
+    ]
+    for first, entries in _NoAliasLoader.yaml_implicit_resolvers.items()
+}
+
+
 def parse_yaml(text: str, what: str, source: str | None = None) -> Any:
     """YAML text to plain data: size-bounded, aliases refused, depth-bounded; errors name
     ``source`` (the file) where given, else the text's start."""

@@ -51,6 +51,10 @@ def read_gps_waypoints(path: str | Path, what: str = "--waypoints") -> FloatArra
             f"allowed: a mapping with 'waypoints': a list of 2-{MAX_WAYPOINTS} "
             "{latitude, longitude, yaw} entries (Nav2's GPS waypoint format)",
         )
+    extra_top = sorted(str(k) for k in data if k != "waypoints")
+    if extra_top:
+        # Nav2's file holds the list alone: another key is a typo or a different file
+        raise InputError(what, extra_top, "unknown top-level keys; allowed: waypoints")
     out = np.empty((len(items), 3))
     for k, wp in enumerate(items):
         where = f"{what} waypoints[{k}]"
@@ -84,7 +88,10 @@ def read_gps_waypoints(path: str | Path, what: str = "--waypoints") -> FloatArra
 
 def _number(v: Any, where: str, lo: float, hi: float, nan_ok: bool = False) -> float:
     if isinstance(v, bool) or not isinstance(v, (int, float)):
-        raise InputError(where, v, f"allowed: a number in [{lo:g}, {hi:g}]")
+        hint = ""
+        if isinstance(v, str) and ":" in v and where.endswith(("latitude", "longitude")):
+            hint = " in decimal degrees (degrees:minutes:seconds is not read: 36:30:36 is 36.51)"
+        raise InputError(where, v, f"allowed: a number in [{lo:g}, {hi:g}]{hint}")
     try:
         x = float(v)
     except OverflowError:  # YAML reads integers of any length

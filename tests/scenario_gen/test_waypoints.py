@@ -275,3 +275,21 @@ def test_waypoints_past_the_terrain_grids_latitudes_get_no_site_advice(
     wps = [{"latitude": 89.9999, "longitude": 10.0}, {"latitude": 89.9999, "longitude": -170.0}]
     with pytest.raises(InputError, match="no site can hold them: .* beyond the ±85.06°"):
         generate(small(route={"waypoints": str(_write(tmp_path / "pole.yaml", wps))}), seed=0)
+
+
+def test_a_waypoint_file_with_another_top_level_key_is_refused(tmp_path: Path) -> None:
+    wps = [{"latitude": 0, "longitude": 0}, {"latitude": 0, "longitude": 1e-5}]
+    path = tmp_path / "extra.yaml"
+    path.write_text(yaml.safe_dump({"waypoints": wps, "datum": [36.5, -84.1]}))
+    with pytest.raises(InputError, match=r"\['datum'\].*unknown top-level keys"):
+        read_gps_waypoints(path)
+
+
+def test_degrees_minutes_seconds_are_refused_not_read_as_base_60(tmp_path: Path) -> None:
+    # YAML 1.1 reads 0:32 as the integer 32 (base 60): a plausible, wrong latitude
+    path = tmp_path / "dms.yaml"
+    path.write_text(
+        "waypoints:\n  - {latitude: 0:32, longitude: 12.5}\n  - {latitude: 0.5, longitude: 12.5}\n"
+    )
+    with pytest.raises(InputError, match=r"latitude.*'0:32'.*decimal degrees"):
+        read_gps_waypoints(path)

@@ -42,3 +42,23 @@ def test_a_command_line_value_in_exponent_form_reaches_the_env_config() -> None:
         assert env.unwrapped.cfg.gnss.fix.multipath_mtbf_s == 1e6
     finally:
         env.close()
+
+
+@pytest.mark.parametrize("text", ["36:32:57", "1:30", "-5:30", "1:30.5"])
+def test_base_60_is_a_string_as_in_yaml_1_2(text: str) -> None:
+    # YAML 1.1 read 36:32:57 as 131577: degrees:minutes:seconds taken as a wrong number
+    assert parse_yaml(f"x: {text}", "test")["x"] == text
+
+
+@pytest.mark.parametrize(
+    ("text", "value"),
+    [("12", 12), ("-3", -3), ("0x1F", 31), ("012", 10), ("1_000", 1000), ("-3.5", -3.5)],
+)
+def test_base_10_numbers_read_as_before(text: str, value: float) -> None:
+    got = parse_yaml(f"x: {text}", "test")["x"]
+    assert got == value and type(got) is type(value)
+
+
+def test_infinities_and_nan_read_as_before() -> None:
+    got = parse_yaml("a: .inf\nb: -.Inf\nc: .nan", "test")
+    assert got["a"] == float("inf") and got["b"] == float("-inf") and got["c"] != got["c"]
