@@ -29,7 +29,7 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
-from scenario_gen.errors import InputError
+from scenario_gen.errors import InputError, Notice
 from scenario_gen.schema import parse_json
 
 FORMAT = "agrinav-ppo"
@@ -533,6 +533,7 @@ def load_sb3_trusted(model_file: Path) -> Loaded:
             "normalised observations; allowed: the run folder as rl-baselines3-zoo wrote it, "
             "with its statistics",
         )
+    _check_actor_critic(model_file)
     try:
         model = PPO.load(model_file, device="cpu")
     except Exception as exc:  # a malformed zip fails anywhere in SB3's loader: one line
@@ -555,12 +556,57 @@ def load_sb3_trusted(model_file: Path) -> Loaded:
             raise InputError("policy", str(stats), "allowed: a pickled VecNormalize")
         if vn.norm_obs:
             norm = _sb3_normalizer(vn, obs_space, stats)
+    if stats is None and config is None:
+        # SB3's zip does not record VecNormalize: a normalised policy's statistics left behind
+        # would run it on raw observations (and drive nonsense) without a word
+        warnings.warn(
+            Notice(
+                f"no {SB3_STATS} beside {model_file}: the policy reads raw observations; if it "
+                f"was trained under VecNormalize, put its {SB3_STATS} in the same folder"
+            ),
+            stacklevel=2,
+        )
     meta = {
         "policy": type(model.policy).__name__,
         "num_timesteps": int(model.num_timesteps),
         "normalization_file": str(stats) if stats is not None else None,
     }
     return Loaded(model.policy, norm, meta)
+
+
+#: SB3 and sb3-contrib algorithms whose policies are not the actor-critic ``PPO.load`` builds
+#: (PPO's and A2C's are one class; a custom subclass of it is left to the loader)
+_OTHER_FAMILIES = frozenset(
+    {"sac", "td3", "ddpg", "dqn", "qrdqn", "tqc", "crossq", "ppo_recurrent"}
+)
+_SB3_PACKAGES = ("stable_baselines3", "sb3_contrib")
+MAX_SB3_DATA_BYTES = 16 << 20
+
+
+def _check_actor_critic(model_file: Path) -> None:
+    """Refuse, by name, an SB3 model of another algorithm family (SAC, TD3, DQN: their zips
+    fail inside ``PPO.load`` with a constructor's TypeError). The zip's ``data`` JSON names the
+    policy class's module without unpickling it; a zip that does not say is left to the
+    loader."""
+    try:
+        with zipfile.ZipFile(model_file) as zf:
+            info = zf.getinfo("data")
+            if info.file_size > MAX_SB3_DATA_BYTES:
+                return
+            data = json.loads(zf.read(info))
+        module = data["policy_class"]["__module__"]
+    except Exception:  # not SB3's layout: PPO.load says what is wrong with it
+        return
+    parts = module.split(".") if isinstance(module, str) else []
+    if len(parts) < 2 or parts[0] not in _SB3_PACKAGES or parts[1] not in _OTHER_FAMILIES:
+        return
+    family = "RecurrentPPO" if parts[1] == "ppo_recurrent" else parts[1].upper()
+    raise InputError(
+        "policy",
+        str(model_file),
+        f"is a {family} model ({module}); allowed: a PPO or A2C model (an actor-critic "
+        "policy, which agrinav runs as PPO)",
+    )
 
 
 def _sb3_normalizer(vn: Any, obs_space: Any, stats: Path) -> Normalizer:

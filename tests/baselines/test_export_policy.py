@@ -3,9 +3,11 @@ the project's policy does, written atomically; zoo runs read back with their nor
 
 from __future__ import annotations
 
+import json
 import shutil
 import sys
 import warnings
+import zipfile
 from pathlib import Path
 from typing import Any
 
@@ -133,6 +135,39 @@ def test_a_zoo_run_loads_with_its_normalisation_or_not_at_all(
         model.write_bytes(b"PK\x03\x04 not really a zip")  # malformed
         with pytest.raises(InputError, match="cannot be loaded as a Stable-Baselines3 PPO model"):
             _trusted(f"ppo:{model}", env)
+    finally:
+        env.close()
+
+
+def test_a_lone_zip_is_noted_and_another_algorithm_is_refused_by_name(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A normalised policy's zip copied without its vecnormalize.pkl ran on raw observations
+    without a word; a SAC or DQN zip failed inside PPO.load with a constructor's TypeError."""
+    from scenario_gen.errors import Notice
+
+    run = _export(tmp_path, "sb3", capsys) / "ppo" / f"{ZOO_ENV}_1"
+    lone = tmp_path / "lone" / "model.zip"
+    lone.parent.mkdir()
+    shutil.copy(run / f"{ZOO_ENV}.zip", lone)
+    env = _env()
+    try:
+        with pytest.warns(Notice, match=r"no vecnormalize\.pkl beside .*model\.zip"):
+            with warnings.catch_warnings():
+                warnings.filterwarnings("ignore", "loading .* with pickle")
+                policy = make_policy(f"ppo:{lone}", env, trust_checkpoint=True)
+        assert policy.normalize is None
+        other = tmp_path / "sac.zip"
+        with zipfile.ZipFile(lone) as src, zipfile.ZipFile(other, "w") as dst:
+            for item in src.infolist():
+                data = src.read(item)
+                if item.filename == "data":
+                    meta = json.loads(data)
+                    meta["policy_class"]["__module__"] = "stable_baselines3.sac.policies"
+                    data = json.dumps(meta).encode()
+                dst.writestr(item, data)
+        with pytest.raises(InputError, match=r"is a SAC model .*allowed: a PPO or A2C model"):
+            _trusted(f"ppo:{other}", env)
     finally:
         env.close()
 
