@@ -73,7 +73,9 @@ def check_output_dir(
         )
     if out.exists() and not out.is_dir():
         raise InputError(what, str(out), "exists and is not a directory")
-    if out.exists() and not overwrite:
+    # an empty folder (made ahead with mkdir) holds nothing to lose: it is taken as a new one
+    empty = out.exists() and _is_empty(out)
+    if out.exists() and not overwrite and not empty:
         raise InputError(
             what,
             str(out),
@@ -92,9 +94,20 @@ def check_output_dir(
                     f"holds this command's input {given}, which replacing it would delete; "
                     "choose another folder",
                 )
-        check_replaceable(out, what, kind)
+        if empty:
+            _check_protected(out, what)
+        else:
+            check_replaceable(out, what, kind)
     _check_parent(out, what)  # the names were checked above
     return out
+
+
+def _is_empty(folder: Path) -> bool:
+    try:
+        with os.scandir(folder) as entries:
+            return next(entries, None) is None
+    except OSError:  # unreadable: not known to be empty
+        return False
 
 
 def check_creatable(out: Path, what: str = "out") -> None:
@@ -174,13 +187,7 @@ def check_name_lengths(out: Path, what: str = "out") -> None:
 def check_replaceable(out: Path, what: str = "out", kind: str | None = None) -> None:
     """Refuse to replace ``out`` unless agrinav wrote it, as output of ``kind`` where that is
     given and the marker names one (see ``check_output_dir``)."""
-    real = out.resolve()
-    cwd = Path.cwd().resolve()
-    protected = {Path("/"), Path.home().resolve()}
-    if real in protected or real == cwd or real in cwd.parents:
-        raise InputError(
-            what, str(out), "is the current, home or root folder (or above it); never replaced"
-        )
+    _check_protected(out, what)
     if not (out / MARKER).is_file():
         raise InputError(
             what,
@@ -195,6 +202,16 @@ def check_replaceable(out: Path, what: str = "out", kind: str | None = None) -> 
             str(out),
             f"holds agrinav's {found} output; this command replaces only {kind} output "
             "(choose another folder)",
+        )
+
+
+def _check_protected(out: Path, what: str) -> None:
+    real = out.resolve()
+    cwd = Path.cwd().resolve()
+    protected = {Path("/"), Path.home().resolve()}
+    if real in protected or real == cwd or real in cwd.parents:
+        raise InputError(
+            what, str(out), "is the current, home or root folder (or above it); never replaced"
         )
 
 

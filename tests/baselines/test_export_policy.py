@@ -250,10 +250,24 @@ def test_a_folder_is_replaced_only_with_force(
 ) -> None:
     out = tmp_path / "onnx"
     out.mkdir()
+    (out / "mine.txt").write_text("mine")
     argv = ["export-policy", f"shipped:{FR}", "--to", "sb3", "--out", str(out)]
     assert main(argv) == 2 and "--force" in capsys.readouterr().err
+    assert main([*argv, "--force"]) == 2 and "not written by agrinav" in capsys.readouterr().err
+    assert [p.name for p in out.iterdir()] == ["mine.txt"]
     shutil.rmtree(out)
     assert main(argv) == 0 and main([*argv, "--force"]) == 0
+
+
+def test_an_empty_folder_made_ahead_is_written_into(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``mkdir out`` first was refused without --force ("exists") and with it ("not written by
+    agrinav"): an empty folder has nothing to lose."""
+    out = tmp_path / "onnx"
+    out.mkdir()
+    assert main(["export-policy", f"shipped:{FR}", "--to", "onnx", "--out", str(out)]) == 0
+    assert (out / "policy.onnx").is_file()
 
 
 def test_a_missing_onnx_names_the_extra(

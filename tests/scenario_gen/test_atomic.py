@@ -264,3 +264,20 @@ def test_a_symbolic_link_as_out_is_refused(tmp_path: Path) -> None:
             pass
     assert link.is_symlink() and (target / "f").is_file()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["dangling", "link", "target"]
+
+
+def test_an_empty_folder_is_taken_as_new_but_the_current_one_never(
+    tmp_path: Path, monkeypatch
+) -> None:
+    out = tmp_path / "made-ahead"
+    out.mkdir()
+    with output_dir(out) as tmp:  # no --force needed: nothing in it to lose
+        _write(tmp, "new")
+    assert (out / "data.txt").read_text() == "new"
+    empty = tmp_path / "here"
+    empty.mkdir()
+    monkeypatch.chdir(empty)
+    for force in (False, True):
+        with pytest.raises(InputError, match="current, home or root"), output_dir(".", force):
+            pass
+    assert list(empty.iterdir()) == []

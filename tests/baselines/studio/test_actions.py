@@ -65,6 +65,7 @@ def test_bad_input_writes_nothing(tmp_path: Path) -> None:
     s = _small(True)
     out = tmp_path / "scn"
     out.mkdir()
+    (out / "mine.txt").write_text("mine")
     with pytest.raises(InputError) as e:  # exists, no overwrite
         actions.generate_and_save(s, str(out))
     assert e.value.field == "out" and not field_file(out).exists()
