@@ -67,6 +67,18 @@ def check_env_id(env_id: Any, field: str = "env") -> str:
     raise InputError(field, env_id, f"allowed: a registered AgriNav env id ({', '.join(ids)})")
 
 
+def successor(env_id: Any) -> str | None:
+    """The registered id of a built-in env that ``env_id`` names at an older version
+    (``AgriNav/FieldRoute-v2`` -> ``AgriNav/FieldRoute-v3``); None for anything else."""
+    if not isinstance(env_id, str):
+        return None
+    m = re.fullmatch(rf"{NAMESPACE}/(\w+)-v(\d{{1,6}})", env_id)
+    d = _BY_NAME.get(m[1]) if m else None
+    if m is None or d is None or int(m[2]) >= d.version:
+        return None
+    return d.id
+
+
 def register_envs() -> None:
     """Register the built-in ids (idempotent: importing twice is harmless)."""
     for d in ENVS:

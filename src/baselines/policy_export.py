@@ -18,6 +18,7 @@ refused. The output folder appears whole or not at all (``scenario_gen.atomic.ou
 from __future__ import annotations
 
 import shlex
+import warnings
 from collections import OrderedDict
 from dataclasses import dataclass
 from pathlib import Path
@@ -30,7 +31,7 @@ from policies import SHIPPED, check_policy_spec, checkpoint, shipped_model
 from policies.checkpoint import Loaded
 from policies.spec import SHIPPED_ARG, PolicySpec
 from scenario_gen.atomic import check_output_dir, output_dir
-from scenario_gen.errors import InputError
+from scenario_gen.errors import InputError, Notice
 from scenario_gen.schema import from_mapping
 
 from . import hyperparams as hpmod
@@ -128,6 +129,43 @@ def _describe(src: Source) -> str:
     )
 
 
+def export_env_id(src: Source, required: bool = True) -> str | None:
+    """The env an export names: the checkpoint's, checked as every env id read from a file is
+    (an SB3 model names none: None where ``required`` is false). A checkpoint trained on an
+    older version of a built-in env (the shipped ones: ``-v2``) names the registered version,
+    with a note, once its spaces are checked against it: zoo can make only registered ids."""
+    import agrinav_gym
+    from agrinav_gym.registration import successor
+    from policies.ppo import check_spaces
+
+    if src.env_id is None and not required:
+        return None
+    newer = successor(src.env_id)
+    if newer is None:
+        return agrinav_gym.check_env_id(src.env_id, "checkpoint env_id")
+    space = src.loaded.policy.observation_space
+    kwargs = dict(src.loaded.meta.get("env_kwargs") or {})
+    kwargs.setdefault("observations", sorted(getattr(space, "spaces", {})))
+    try:
+        env = gym.make(newer, **kwargs)
+    except InputError as exc:
+        raise InputError(
+            "checkpoint env_kwargs", exc.value, f"do not make {newer}: {exc.allowed}"
+        ) from None
+    try:
+        u: Any = env.unwrapped  # an AgriNavEnv: a Dict observation space, a Box action space
+        check_spaces(
+            space, u.observation_space, src.loaded.policy.action_space, u.action_space, src.label
+        )
+    finally:
+        env.close()
+    warnings.warn(
+        Notice(f"{src.label} was trained on {src.env_id}; the export names {newer}"),
+        stacklevel=2,
+    )
+    return newer
+
+
 # ----------------------------------------------------------------------------------- ONNX
 
 
@@ -144,8 +182,9 @@ def _export_onnx(src: Source, out: Path, force: bool, command: str) -> dict[str,
     )
 
     meta = src.loaded.meta
+    env_id = export_env_id(src, required=False)
     props = {
-        "agrinav.env_id": src.env_id or "",
+        "agrinav.env_id": env_id or "",
         "agrinav.source": src.label,
         "agrinav.num_timesteps": str(meta.get("num_timesteps", "")),
         "agrinav.training_device": str(meta.get("device", "")),
@@ -162,7 +201,7 @@ def _export_onnx(src: Source, out: Path, force: bool, command: str) -> dict[str,
     with output_dir(out, force, "--out", "policy export", inputs=[src.path]) as tmp:
         (tmp / ONNX_FILE).write_bytes(model)
         (tmp / "README.md").write_text(
-            _onnx_readme(src, layout, space, diff, command, OPSET, OUTPUT)
+            _onnx_readme(src, env_id, layout, space, diff, command, OPSET, OUTPUT)
         )
     return {
         "onnx": str(out / ONNX_FILE),
@@ -183,6 +222,7 @@ def _fields_text(d: dict[str, Any]) -> str:
 
 def _onnx_readme(
     src: Source,
+    env_id: str | None,
     layout: list[dict[str, Any]],
     space: Any,
     diff: float,
@@ -203,7 +243,7 @@ def _onnx_readme(
         "float64 as VecNormalize does, with the statistics the policy was trained with"
     )
     feeds = ", ".join(f'"{d["name"]}": obs["{d["name"]}"][None]' for d in layout)
-    return f"""# {src.env_id or "PPO"} policy — ONNX
+    return f"""# {env_id or "PPO"} policy — ONNX
 
 `policy.onnx`: the actor of the PPO policy {_describe(src)}. Raw observations in, the
 deterministic action out; ONNX opset {opset}, IR version 8.
@@ -335,14 +375,14 @@ def _sb3_actions(model_file: Path, stats: Path | None, loaded: Loaded, obs: Any)
 def _export_sb3(src: Source, out: Path, force: bool, command: str) -> dict[str, Any]:
     import yaml
 
-    import agrinav_gym
     from policies.onnx_export import TOLERANCE, sample_observations, torch_actions
 
     if src.folder is None:
         raise InputError(
             FIELD, src.label, f"is a Stable-Baselines3 model already; allowed for sb3: {FORMS}"
         )
-    env_id = agrinav_gym.check_env_id(src.env_id, "checkpoint env_id")
+    env_id = export_env_id(src)
+    assert env_id is not None
     hp = _hyperparams(src)
     model, norm = _sb3_model(src, hp)
     name = zoo_name(env_id)

@@ -310,3 +310,40 @@ def test_the_sb3_exports_own_readme_code_runs(tmp_path: Path, env_id: str) -> No
         [sys.executable, "-c", code], cwd=out, capture_output=True, text=True, timeout=300
     )
     assert done.returncode == 0 and done.stdout.strip().endswith("acted"), done.stderr[-2000:]
+
+
+def test_a_checkpoint_of_an_older_env_version_exports_for_the_registered_one(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The shipped checkpoint's folder, given by path, names AgriNav/FieldRoute-v2 (what it was
+    trained on): --to sb3 refused it as unregistered; it now names v3, with a note, its spaces
+    checked against v3. An env id that is not an AgriNav one is refused for ONNX too (it was
+    written into the model's metadata and README as it stood)."""
+    from policies import shipped_model
+
+    folder = tmp_path / "ckpt"
+    shutil.copytree(shipped_model(FR), folder)
+    assert json.loads((folder / "checkpoint.json").read_text())["env_id"] == "AgriNav/FieldRoute-v2"
+    out = tmp_path / "sb3"
+    assert main(["export-policy", str(folder), "--to", "sb3", "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "trained on AgriNav/FieldRoute-v2; the export names AgriNav/FieldRoute-v3" in err
+    args = yaml.load(
+        (out / "ppo" / f"{ZOO_ENV}_1" / ZOO_ENV / "args.yml").read_text(), Loader=yaml.UnsafeLoader
+    )
+    assert args["env"] == FR
+    meta = json.loads((folder / "checkpoint.json").read_text())
+    meta["env_id"] = "os:system\n# x"
+    (folder / "checkpoint.json").write_text(json.dumps(meta))
+    onnx = ["export-policy", str(folder), "--to", "onnx", "--out", str(tmp_path / "onnx")]
+    assert main(onnx) == 2
+    assert "checkpoint env_id" in capsys.readouterr().err and not (tmp_path / "onnx").exists()
+
+
+def test_successor_names_only_older_versions_of_built_in_envs() -> None:
+    from agrinav_gym.registration import successor
+
+    assert successor("AgriNav/FieldRoute-v2") == FR
+    assert successor("AgriNav/FurrowFollow-v0") == "AgriNav/FurrowFollow-v3"
+    for other in (FR, "AgriNav/FieldRoute-v4", "AgriNav/Other-v1", "x:AgriNav/FieldRoute-v2", 3):
+        assert successor(other) is None
