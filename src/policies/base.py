@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import warnings
 from abc import ABC, abstractmethod
 from typing import Any, ClassVar
 
@@ -11,7 +12,7 @@ from gymnasium import spaces
 from numpy.typing import NDArray
 
 from agrinav_gym.interface import RobotInterface
-from scenario_gen.errors import InputError
+from scenario_gen.errors import InputError, Notice
 
 from .params import Param, check_params
 
@@ -70,6 +71,18 @@ class Policy(ABC):
         self.observation_space = observation_space
         self.action_space = action_space
         self.robot = robot
+
+    def note_above_robot(self, field: str, value: float, limit: float, unit: str) -> None:
+        """Say that a configured limit is past the robot's own, which the env clips every
+        command to (the controller plans with a speed it never gets)."""
+        if value > limit:
+            warnings.warn(
+                Notice(
+                    f"{self.name} {field} {value:g} {unit} is above the robot's {limit:g} "
+                    f"{unit}: the env clips the command to {limit:g}"
+                ),
+                stacklevel=3,
+            )
 
     def reset(self) -> None:  # noqa: B027  (stateless policies need nothing)
         pass

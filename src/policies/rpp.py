@@ -63,6 +63,7 @@ class RegulatedPurePursuit(Policy):
         mine = {k: v for k, v in locals().items() if k in self.PARAMS}
         check_params(self.name, self.PARAMS, mine, self.ORDERED)
         super().__init__(observation_space, action_space, robot, **params)
+        self.note_above_robot("desired_linear_vel", desired_linear_vel, robot.v_max, "m/s")
         self.v_des = min(desired_linear_vel, robot.v_max)
         self.t_look, self.l_min, self.l_max = lookahead_time, min_lookahead, max_lookahead
         self.r_min = min_radius

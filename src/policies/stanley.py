@@ -69,6 +69,7 @@ class Stanley(Policy):
             self.name, self.PARAMS, {k: v for k, v in locals().items() if k in self.PARAMS}
         )
         super().__init__(observation_space, action_space, robot, **params)
+        self.note_above_robot("desired_linear_vel", desired_linear_vel, robot.v_max, "m/s")
         self.v_des = min(desired_linear_vel, robot.v_max)
         self.k, self.k_soft, self.k_heading = k, k_soft, k_heading
         # PI form: the integral term reaches the proportional one after integral_time seconds

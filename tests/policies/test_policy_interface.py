@@ -1,4 +1,5 @@
 import math
+import warnings
 from pathlib import Path
 
 import gymnasium as gym
@@ -309,3 +310,25 @@ def test_a_parameter_files_suffix_is_read_in_any_case(tmp_path: Path) -> None:
     path = tmp_path / "BEST.YAML"
     path.write_text("desired_linear_vel: 0.4\n")
     assert check_policy_spec(f"rpp:{path}") == ("rpp", str(path))
+
+
+def test_a_speed_past_the_robots_is_noted_not_clipped_silently(tmp_path: Path) -> None:
+    import yaml
+
+    from scenario_gen.errors import Notice
+
+    env = gym.make("AgriNav/FurrowFollow-v3", scenario_overrides=TINY)
+    try:
+        v_max = env.unwrapped.interface.v_max
+        for name in ("rpp", "stanley"):
+            with pytest.warns(Notice, match=rf"{name} desired_linear_vel 2.5 m/s is above"):
+                make_policy(name, env, desired_linear_vel=2.5)
+        dwb = tmp_path / "fast.yaml"
+        dwb.write_text(yaml.safe_dump({"FollowPath": {"max_vel_x": 2.0 * v_max}}))
+        with pytest.warns(Notice, match=r"dwb FollowPath\.max_vel_x .* clips the command"):
+            make_policy(f"dwb:{dwb}", env)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", Notice)  # at the robot's own limit: nothing to say
+            make_policy("rpp", env, desired_linear_vel=v_max)
+    finally:
+        env.close()

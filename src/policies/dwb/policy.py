@@ -129,6 +129,12 @@ class DWB(Policy):
         self.footprint = pad_footprint(base, cm.footprint_padding)
         self.inscribed, self.circumscribed = footprint_radii(self.footprint)
         self.kin = kinematics(self.p, robot)
+        for key, limit, unit in (
+            ("max_vel_x", robot.v_max, "m/s"),
+            ("max_speed_xy", robot.v_max, "m/s"),
+            ("max_vel_theta", robot.w_max, "rad/s"),
+        ):
+            self.note_above_robot(f"FollowPath.{key}", getattr(self.kin, key), limit, unit)
         self.planner = LocalPlanner(self.p.FollowPath, self.kin, self.footprint)
         self.size = (int(cm.width / cm.resolution), int(cm.height / cm.resolution))
         self.project = (
