@@ -21,6 +21,7 @@ metres.
 from __future__ import annotations
 
 import math
+import warnings
 from pathlib import Path
 from typing import Any
 from urllib.parse import unquote
@@ -30,6 +31,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .arrays import FloatArray
+from .errors import Notice
 
 #: Texels of one atlas side at most; larger atlases are built from scaled-down parts.
 MAX_ATLAS = 4096
@@ -156,6 +158,17 @@ def _look(g: Any, gltf: bool = False) -> _Image | NDArray[np.uint8]:
         image, factor, mode, cutoff = _material(mat)
         if gltf and mode is None:
             mode = "OPAQUE"
+        if image is not None and (uv is None or len(uv) != len(g.vertices)):
+            # a map_Kd (or baseColorTexture) with no vt / TEXCOORD_0 to place it: trimesh keeps
+            # the image and nothing says it is not drawn
+            warnings.warn(
+                Notice(
+                    f"crop.model: a part with {len(g.faces):,} faces has a texture but no "
+                    "texture coordinates (OBJ vt, glTF TEXCOORD_0): drawn in its material's "
+                    "colour"
+                ),
+                stacklevel=2,
+            )
         if image is not None and uv is not None and len(uv) == len(g.vertices):
             rgba = np.asarray(_eight_bit(image).convert("RGBA"), np.float64)
             rgba = rgba * factor[None, None, :]

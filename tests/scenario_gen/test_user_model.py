@@ -504,3 +504,19 @@ def test_a_16_bit_grey_texture_keeps_its_grey(tmp_path: Path) -> None:
     tex = np.asarray(load_model(str(src / "plant.obj"), 1.0).visual.material.image.convert("RGB"))
     assert (tex.reshape(-1, 3) == 150).all(axis=1).any()
     assert not (tex.reshape(-1, 3) == 255).all(axis=1).any()
+
+
+def test_a_texture_without_texture_coordinates_is_noted(tmp_path: Path) -> None:
+    """An OBJ whose material has map_Kd but whose faces have no vt was drawn in the material's
+    colour without a word."""
+    from scenario_gen.errors import Notice
+
+    src = tmp_path / "obj"
+    shutil.copytree(DATA / "textured_obj", src)
+    obj = src / "plant.obj"
+    lines = [ln for ln in obj.read_text().splitlines() if not ln.startswith("vt")]
+    obj.write_text(
+        "\n".join(re.sub(r"(\d+)/\d+", r"\1", ln) if ln.startswith("f") else ln for ln in lines)
+    )
+    with pytest.warns(Notice, match="has a texture but no texture coordinates"):
+        load_model(str(obj), 1.0)
