@@ -93,6 +93,18 @@ class Dem:
     #: a window of a larger raster: its holes touching the window's edge, whose size is unknown
     #: (so never filled, whatever the limit); None for a whole raster
     open_holes: NDArray[np.bool_] | None = None
+    #: pixels whose bicubic height reads a nodata pixel ``fill_small_holes`` filled (the
+    #: filled pixels grown by 2: interpolated, not measured); None where nothing was filled
+    filled: NDArray[np.bool_] | None = None
+
+    def filled_fraction(self, lon: FloatArray, lat: FloatArray) -> float:
+        """The share of the points at lon/lat whose height reads a filled pixel."""
+        if self.filled is None or np.size(lon) == 0:
+            return 0.0
+        col, row = self.lonlat_to_pixel(lon, lat)
+        r = np.clip(np.rint(np.asarray(row) - 0.5), 0, self.shape[0] - 1).astype(np.intp)
+        c = np.clip(np.rint(np.asarray(col) - 0.5), 0, self.shape[1] - 1).astype(np.intp)
+        return float(self.filled[r, c].mean())
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -689,7 +701,10 @@ def load_geotiff(
     elev[~np.isfinite(elev)] = np.nan
     elev = clean_elevation(elev, tagged, str(path), (r0, c0), metres, linear)
     whole = (r0, c0) == (0, 0) and (r1, c1) == shape
+    before = ~np.isfinite(elev)
     elev = fill_small_holes(elev, fill_max_pixels, open_border=not whole)
+    # bicubic reads the 4 × 4 pixels around a point: within 2 of a filled pixel reads it
+    filled = ndimage.binary_dilation(before & np.isfinite(elev), np.ones((5, 5), bool))
     open_holes = None if whole else edge_holes(elev)
     if ellipsoidal:
         heights = Heights(ELLIPSOIDAL, "WGS 84", "", f"{p.name} declares a 3-D {crs.name}")
@@ -703,7 +718,7 @@ def load_geotiff(
         tr, heights = to_ellipsoidal(crs, vert, area_of(crs, cx, cy))
         if tr is not None:
             elev = elev + _geoid(tr, transform, elev.shape)
-    return Dem(elev, transform, crs, p.name, heights, open_holes)
+    return Dem(elev, transform, crs, p.name, heights, open_holes, filled if filled.any() else None)
 
 
 def _geoid(tr: Any, transform: Affine, shape: tuple[int, int]) -> FloatArray:

@@ -7,6 +7,7 @@ ENU heights at ENU points. ``build_terrain`` then samples it on the level-of-det
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -19,7 +20,7 @@ from shapely.geometry.base import BaseGeometry
 from .arrays import FloatArray
 from .bounds import MAX_TERRAIN_SAMPLES
 from .dem import EMBEDDED_CREDIT, SWAPPED, Dem, load_embedded, load_geotiff
-from .errors import InputError
+from .errors import InputError, Notice
 from .field import centroid_latlon
 from .geodesy import GeoFrame
 from .meshsurface import TriangleSurface
@@ -157,22 +158,34 @@ def _dem_site(
             raise InputError(exc.field, exc.value, exc.allowed + SWAPPED) from None
         raise
     geo = GeoFrame(lat, lon, alt)
-    return Site(
-        geo,
-        _dem_heights(dem, geo),
-        credit=credit,
-        info={
-            "dem": dem.source,
-            "dem_crs": dem.crs.to_string(),
-            "site": how,
-            "heights": dem.heights.to_dict(),
-        },
-    )
+    info = {
+        "dem": dem.source,
+        "dem_crs": dem.crs.to_string(),
+        "site": how,
+        "heights": dem.heights.to_dict(),
+    }
+    return Site(geo, _dem_heights(dem, geo, info), credit=credit, info=info)
 
 
-def _dem_heights(dem: Dem, geo: GeoFrame) -> HeightFn:
+def _dem_heights(dem: Dem, geo: GeoFrame, info: dict[str, Any]) -> HeightFn:
+    """The DEM's heights in ENU; the first call (the terrain grid) records in ``info`` the
+    share of it read from nodata pixels that ``terrain.fill_max_pixels`` filled, and notes it:
+    that ground is interpolated, not measured."""
+
     def heights(x: FloatArray, y: FloatArray) -> FloatArray:
         lat, lon, _ = geo.enu_to_geodetic(x, y, 0.0)
+        if "dem_filled_share" not in info and dem.filled is not None:
+            share = dem.filled_fraction(lon, lat)
+            info["dem_filled_share"] = round(share, 4)
+            if share > 0:
+                warnings.warn(
+                    Notice(
+                        f"{100 * share:.1f} % of the terrain grid lies over nodata holes of "
+                        f"{dem.source} that terrain.fill_max_pixels filled (interpolated "
+                        "heights, not measured; scenario.json info.dem_filled_share)"
+                    ),
+                    stacklevel=2,
+                )
         h = dem.sample_lonlat(lon, lat, "field")
         # Exact ENU height of the surface point (earth curvature included: -2 cm at 500 m).
         _, _, z = geo.geodetic_to_enu(lat, lon, h)

@@ -1,3 +1,4 @@
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -8,6 +9,7 @@ from rasterio.warp import Resampling, calculate_default_transform, reproject
 
 from scenario_gen import ScenarioError, generate
 from scenario_gen.dem import fill_small_holes, load_embedded
+from scenario_gen.errors import Notice
 
 from .helpers import plane, small
 
@@ -109,19 +111,22 @@ def test_small_nodata_holes_are_filled_and_large_ones_refused(tmp_path: Path) ->
     elev[5:20, 40:55] = -9999  # 225 pixels: refused under a field
     path = tmp_path / "holes.tif"
     _write_4326(path, elev, -84.2, 36.6, 1 / 1200, nodata=-9999)
-    filled = generate(
-        small(
-            terrain={
-                "source": "dem",
-                "path": str(path),
-                "site": "latlon",
-                "lat": 36.6 - 30.5 / 1200,
-                "lon": -84.2 + 30.5 / 1200,
-                "fill_max_pixels": 64,
-            }
-        ),
-        seed=0,
-    )
+    terrain = {"source": "dem", "path": str(path), "site": "latlon", "fill_max_pixels": 64}
+    with pytest.warns(Notice, match=r"% of the terrain grid lies over nodata holes"):
+        filled = generate(
+            small(terrain={**terrain, "lat": 36.6 - 30.5 / 1200, "lon": -84.2 + 30.5 / 1200}),
+            seed=0,
+        )
+    # recorded: the filled ground is interpolated, not measured (the small field's grid lies
+    # within 2 of the hole's 93 m pixels, all of which the bicubic surface reads)
+    assert filled.info["dem_filled_share"] == 1.0
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", Notice)
+        away = generate(
+            small(terrain={**terrain, "lat": 36.6 - 50.5 / 1200, "lon": -84.2 + 10.5 / 1200}),
+            seed=0,
+        )
+    assert away.info.get("dem_filled_share", 0.0) == 0.0  # absent: nothing filled near it
     assert np.isfinite(filled.terrain.heights).all()
     # the filled surface continues the plane (inverse-distance fill), to within a metre
     expect = 300 + 0.5 * 30.5 + 0.2 * 30.5
