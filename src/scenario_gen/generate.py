@@ -41,7 +41,7 @@ from .rowcurve import row_curve
 from .sources import Site, build_terrain, open_site
 from .spec import CropSpec, ObstacleSpec, ScenarioSpec, TerrainSpec
 from .terrain import Terrain
-from .waypoints import read_gps_waypoints, waypoint_route
+from .waypoints import note_legs_on_rows, read_gps_waypoints, waypoint_route
 
 #: Independent random streams, one per generation step, spawned from the seed so that changing
 #: one parameter (say the weed density) does not reshuffle every other random choice.
@@ -381,6 +381,8 @@ def generate(spec: ScenarioSpec, seed: int) -> Scenario:
             "route.waypoints",
             spec.terrain.source,
         )
+        crops = np.column_stack([lay.x, lay.y])[~lay.is_weed]
+        note_legs_on_rows(route, goals["route_goals"], crops, spec.layout.row_spacing)
     else:
         crops = np.column_stack([lay.x, lay.y])[~lay.is_weed]
         route = zigzag(lay.rows, spec.route, terrain, poly, crops)

@@ -15,6 +15,7 @@ the route spacing. A point is ``furrow`` where its leg runs along the rows (with
 from __future__ import annotations
 
 import math
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -24,7 +25,7 @@ from numpy.typing import NDArray
 
 from .arrays import FloatArray
 from .bounds import MAX_ROUTE_WAYPOINTS
-from .errors import InputError
+from .errors import InputError, Notice
 from .geodesy import MAX_SITE_LAT, GeoFrame
 from .routes import FURROW, HEADLAND, Route
 from .schema import load_yaml
@@ -188,6 +189,45 @@ def waypoint_route(
     )
     seg = np.where(np.asarray(along) & inside, FURROW, HEADLAND)
     return Route(np.column_stack([p, z]), seg, np.full(len(p), -1, np.int64)), goals
+
+
+def note_legs_on_rows(
+    route: Route, goals: list[int], crops: FloatArray, row_spacing: float
+) -> None:
+    """Note the furrow legs that run along a crop row instead of between two (a file of row
+    lines where lane centres were meant, or a route shifted by half a row): a robot on them
+    drives over the plants. A leg is on a row where the median sideways distance from its
+    points to their nearest plant is under a quarter of the row spacing (between rows it is
+    half the spacing)."""
+    from scipy.spatial import cKDTree
+
+    furrow = route.segment == FURROW
+    if len(crops) == 0 or not furrow.any():
+        return
+    tree = cKDTree(crops)
+    on_rows = []
+    for k in range(len(goals) - 1):
+        idx = np.arange(goals[k] + 1, goals[k + 1] + 1)
+        idx = idx[furrow[idx]]
+        if len(idx) < 2:
+            continue
+        p = route.xyz[idx, :2]
+        d = p[-1] - p[0]
+        u = d / max(float(np.hypot(*d)), 1e-9)
+        _, near = tree.query(p)
+        rel = crops[near] - p
+        side = float(np.median(np.abs(rel[:, 0] * u[1] - rel[:, 1] * u[0])))
+        if side < 0.25 * row_spacing:
+            on_rows.append(f"{k}→{k + 1} ({100 * side:.0f} cm)")
+    if on_rows:
+        warnings.warn(
+            Notice(
+                f"route.waypoints: the legs {', '.join(on_rows)} run along a crop row, not "
+                "between two (median sideways distance to the nearest plant; between rows it "
+                f"is {50 * row_spacing:.0f} cm): a robot on them drives over the plants"
+            ),
+            stacklevel=2,
+        )
 
 
 def _site_advice(wps: FloatArray, source: str) -> str:

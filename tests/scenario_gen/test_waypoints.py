@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import re
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -293,3 +294,29 @@ def test_degrees_minutes_seconds_are_refused_not_read_as_base_60(tmp_path: Path)
     )
     with pytest.raises(InputError, match=r"latitude.*'0:32'.*decimal degrees"):
         read_gps_waypoints(path)
+
+
+def test_legs_along_a_crop_row_are_noted_and_legs_between_rows_are_not(
+    field, tmp_path: Path
+) -> None:  # type: ignore[no-untyped-def]
+    from scenario_gen.errors import Notice
+
+    lanes = field.lanes
+    (a0, a1), (b0, b1) = (
+        (np.asarray(p, np.float64) for p in lanes[0]),
+        (np.asarray(p, np.float64) for p in lanes[1]),
+    )
+    d = (a1 - a0) / np.hypot(*(a1 - a0))
+    half = 0.5 * field.spec.layout.row_spacing * np.array([-d[1], d[0]])
+
+    def write(shift: np.ndarray, name: str) -> Path:
+        pts = [a0 + shift, a1 + shift, b1 + shift, b0 + shift]
+        lat, lon, _ = field.geo.enu_to_geodetic(*np.asarray(pts).T, 0.0)
+        wps = [{"latitude": float(a), "longitude": float(o)} for a, o in zip(lat, lon, strict=True)]
+        return _write(tmp_path / name, wps)
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", Notice)  # lane centres: nothing to say
+        generate(small(route={"waypoints": str(write(0 * half, "lanes.yaml"))}), seed=0)
+    with pytest.warns(Notice, match=r"legs 0→1 \(\d+ cm\), 2→3 \(\d+ cm\) run along a crop row"):
+        generate(small(route={"waypoints": str(write(half, "rows.yaml"))}), seed=0)
