@@ -350,8 +350,9 @@ def bench(
             finally:
                 release_episode_envs()
         records = [done[j.key] for j in jobs]
+        slugs = policy_slugs(list(dict.fromkeys(j.label for j in jobs)))
         for j in jobs:  # every episode's figure: the second seed is a field too
-            name = trajectory_name(cases[j.case].group, j.label, j.seed)
+            name = trajectory_name(cases[j.case].group, slugs[j.label], j.seed)
             (tmp / name).write_bytes(journal.blob(j.key, "png"))
         atomic_write_text(tmp / "results.json", json.dumps(records, indent=1))
         (tmp / "benchmark.md").write_text(table(records, suite_name, command))
@@ -397,8 +398,19 @@ def episode_seed(index: int, case: Case, k: int) -> int:
 
 
 def trajectory_name(group: str, policy: str, k: int) -> str:
-    """The trajectory figure of a suite's case, policy and k-th seed."""
+    """The trajectory figure of a suite's case, policy (its slug, ``policy_slugs``) and k-th
+    seed."""
     return f"traj_{_slug(group)}_{_slug(policy)}_{k:03d}.png"
+
+
+def policy_slugs(labels: list[str]) -> dict[str, str]:
+    """Each row label's file-name slug; labels that slug alike (``rpp:p_1.yaml`` and
+    ``rpp:p-1.yaml``) get their place in the list appended, so no figure overwrites another."""
+    slugs = [_slug(lab) for lab in labels]
+    return {
+        lab: f"{sl}-{i + 1}" if slugs.count(sl) > 1 else sl
+        for i, (lab, sl) in enumerate(zip(labels, slugs, strict=True))
+    }
 
 
 @dataclass(frozen=True)

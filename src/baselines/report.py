@@ -37,11 +37,12 @@ BOOTSTRAP = 2000  # resamples of the per-episode values for a 95 % percentile in
 
 def policy_labels(specs: Sequence[str]) -> list[str]:
     """Row labels: the policy name, ``dwb:CONFIG`` (nav2, furrow, tuned or the YAML file's
-    stem) for DWB, ``NAME:tuned`` for the shipped tuned parameters, ``NAME:FILE`` /
+    name) for DWB, ``NAME:tuned`` for the shipped tuned parameters, ``NAME:FILE`` /
     ``ppo:FOLDER`` for a user's parameters or checkpoint (even alone: a row labelled plain
     ``rpp`` or ``ppo`` is the defaults or the shipped model), ``ppo:shipped`` beside others."""
     from policies import SHIPPED_ARG, TUNED_ARG
     from policies.dwb import config_label
+    from policies.dwb.params import SHIPPED as DWB_SHIPPED
 
     parsed = [PolicySpec.parse(spec) for spec in specs]
     names = [p.name for p in parsed]
@@ -64,7 +65,7 @@ def policy_labels(specs: Sequence[str]) -> list[str]:
         if not clash:
             break
         for i, ((name, path), lab) in enumerate(zip(parsed, labels, strict=True)):
-            if lab in clash and path and name != "dwb":
+            if lab in clash and path and not (name == "dwb" and path in DWB_SHIPPED):
                 parts = Path(path.rstrip("/")).parts[-depth:]
                 labels[i] = f"{name}:{'/'.join(parts)}"
     if len(set(labels)) < len(labels):
@@ -156,7 +157,8 @@ def table(records: list[dict[str, Any]], suite_name: str, command: str) -> str:
         "over the episodes that **finished** the route only: a failed episode is a failure, not a "
         "short RMSE (`—`: none finished). `path_*` weigh each pose by the path driven around it "
         "(the headline); the paper's `rmse`, `mae`, `in_furrow_rmse`, `headland_rmse` weigh every "
-        "20 Hz pose, standing still included. Completion in % of the route, crops hit and "
+        "20 Hz pose, standing still included (`poses`: their number, over the same finished "
+        "episodes). Completion in % of the route, crops hit and "
         "obstacles hit (stones, litter, fallen stalks the footprint touched) per episode over "
         "every episode"
         + (
@@ -186,7 +188,7 @@ def table(records: list[dict[str, Any]], suite_name: str, command: str) -> str:
                 cells = [
                     _cell([r.get(m) for r in (done if m in ERRORS else rows)]) for m in metrics
                 ]
-                counts = [int(r["poses"]) for r in rows if r.get("poses") is not None]
+                counts = [int(r["poses"]) for r in done if r.get("poses") is not None]
                 poses = f"{statistics.fmean(counts):.0f}" if counts else "—"
                 lines.append(
                     f"| {g} | {p} | {len(done)}/{len(rows)} | "
@@ -249,11 +251,21 @@ def _pair_diffs(
 
 
 def _delta_cell(ci: tuple[float, float, float] | None, n: int, digits: int = 3) -> str:
-    """A paired difference's cell: signed mean [interval] (pairs), or — without pairs."""
+    """A paired difference's cell: signed mean [interval] (pairs), the mean alone for one pair
+    (an interval of one pair would "exclude 0" with nothing resolved), or — without pairs. An
+    interval that excludes 0 keeps as many digits as show it (``[-0.008, -0.00008]``, not a
+    bound printed as ``-0.000``)."""
     if ci is None:
         return "—"
-    m, lo, hi = (f"{v:+.{digits}f}" for v in ci)
-    return f"{m} [{lo}, {hi}] ({n})"
+    if n < 2:
+        return f"{ci[0]:+.{digits}f} ({n})"
+    lo, hi = ci[1], ci[2]
+    if lo > 0 or hi < 0:
+        near = min(abs(lo), abs(hi))
+        while digits < 9 and round(near, digits) == 0:
+            digits += 1
+    m, a, b = (f"{v:+.{digits}f}" for v in ci)
+    return f"{m} [{a}, {b}] ({n})"
 
 
 #: What the paired comparison of two scenario groups reports: the paper's per-pose in-furrow
@@ -506,28 +518,54 @@ def _paired_rates(records: list[dict[str, Any]], groups: list[str], pols: list[s
 
 
 FAILED_BELOW = 90.0  # mean completion (%) under which a policy counts as failing a group
+#: the share of episodes (%) a policy must finish in a group not to count as failing it (the
+#: benchmark's target for the tuned controllers and the learned route policy)
+FINISHED_AT_LEAST = 95.0
 
 
 def failures(records: list[dict[str, Any]], groups: list[str], pols: list[str]) -> list[str]:
     """One line per policy: the scenario groups where it does not finish the route."""
-    lines = [f"Where each policy fails (mean completion below {FAILED_BELOW:.0f} %):", ""]
+    lines = [
+        f"Where each policy fails (fewer than {FINISHED_AT_LEAST:.0f} % of the episodes finished, "
+        f"or a mean completion below {FAILED_BELOW:.0f} %):",
+        "",
+    ]
     for p in pols:
         bad = []
         for g in groups:
             rows = [r for r in records if r["scenario"] == g and r["policy"] == p]
             if rows:
+                share = 100.0 * sum(finished(r) for r in rows) / len(rows)
                 done = statistics.fmean(float(r["completion"]) for r in rows)
-                if done < FAILED_BELOW:
+                if share < FINISHED_AT_LEAST or not done >= FAILED_BELOW:
                     hit = statistics.fmean(float(r["crops_hit"]) for r in rows)
-                    bad.append(f"{g} ({done:.0f} % done, {hit:.1f} crops hit)")
+                    bad.append(
+                        f"{g} ({sum(finished(r) for r in rows)}/{len(rows)} finished, "
+                        f"{done:.0f} % done, {hit:.1f} crops hit)"
+                    )
         lines.append(f"- {p}: " + (", ".join(bad) if bad else "none"))
     return lines
 
 
+def bar_chart_values(
+    records: list[dict[str, Any]], group: str, policy: str, metric: str
+) -> list[float]:
+    """What one bar of ``bar_chart`` averages: as the table, cross-track errors over the
+    finished episodes only (a failed episode's short RMSE would read better than a finish)."""
+    return [
+        float(r[metric])
+        for r in records
+        if r["scenario"] == group
+        and r["policy"] == policy
+        and r.get(metric) is not None
+        and (metric not in ERRORS or finished(r))
+    ]
+
+
 def bar_chart(records: list[dict[str, Any]], path: Path, suite_name: str) -> None:
     """Mean ± std per scenario group and policy (error bars where a bar has two values or
-    more): in-furrow and headland cross-track error (the paper's split), max deviation,
-    completion and crops hit."""
+    more): in-furrow and headland cross-track error (the paper's split) and max deviation over
+    the finished episodes (no bar where none finished), completion and crops hit over all."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -552,12 +590,7 @@ def bar_chart(records: list[dict[str, Any]], path: Path, suite_name: str) -> Non
         for i, p in enumerate(pols):
             vals, errs = [], []
             for g in groups:
-                v = [
-                    float(r[metric])
-                    for r in records
-                    if r["scenario"] == g and r["policy"] == p and r[metric] is not None
-                ]
-                m, e = mean_err(v)
+                m, e = mean_err(bar_chart_values(records, g, p, metric))
                 vals.append(m)
                 errs.append(np.nan if e is None else e)  # no bar drawn for one value
             yerr = errs if np.isfinite(errs).any() else None
@@ -580,7 +613,11 @@ def bar_chart(records: list[dict[str, Any]], path: Path, suite_name: str) -> Non
         fontsize=8,
     )
     many = max(Counter((r["scenario"], r["policy"]) for r in records).values(), default=0) > 1
-    fig.suptitle(f"{suite_name} suite (" + ("mean ± std over seeds)" if many else "one seed)"))
+    fig.suptitle(
+        f"{suite_name} suite ("
+        + ("mean ± std over seeds" if many else "one seed")
+        + "; cross-track over the finished episodes)"
+    )
     fig.savefig(path, dpi=100)
 
 

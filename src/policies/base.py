@@ -72,6 +72,27 @@ class Policy(ABC):
         self.action_space = action_space
         self.robot = robot
 
+    def keep_params(self, values: dict[str, Any]) -> None:
+        """Remember the parameters as given, for ``changed_params``."""
+        self._given = {k: v for k, v in values.items() if k in self.PARAMS}
+
+    def changed_params(self, shown: tuple[str, ...]) -> str:
+        """``; name value, ...`` for the parameters off the constructor's defaults that the
+        description does not state already (a benchmark row names the config it ran)."""
+        import inspect
+
+        defaults = {
+            n: p.default
+            for n, p in inspect.signature(type(self).__init__).parameters.items()
+            if n in self.PARAMS
+        }
+        extra = [
+            f"{k} {'null' if v is None else format(v, 'g') if isinstance(v, float) else v}"
+            for k, v in getattr(self, "_given", {}).items()
+            if k not in shown and v != defaults.get(k)
+        ]
+        return f"; {', '.join(extra)}" if extra else ""
+
     def note_above_robot(self, field: str, value: float, limit: float, unit: str) -> None:
         """Say that a configured limit is past the robot's own, which the env clips every
         command to (the controller plans with a speed it never gets)."""

@@ -15,6 +15,15 @@ from .base import Obs, Policy
 from .geometry import local_plan, regulated_speed
 from .params import Param, check_params
 
+#: what ``RegulatedPurePursuit.describe`` states itself
+_RPP_SHOWN = (
+    "desired_linear_vel",
+    "lookahead_time",
+    "min_lookahead",
+    "max_lookahead",
+    "allow_reversing",
+)
+
 
 class RegulatedPurePursuit(Policy):
     """Nav2 defaults, with lookahead scaled by speed (0.3-0.9 m at 1.5 s of travel).
@@ -63,6 +72,7 @@ class RegulatedPurePursuit(Policy):
         mine = {k: v for k, v in locals().items() if k in self.PARAMS}
         check_params(self.name, self.PARAMS, mine, self.ORDERED)
         super().__init__(observation_space, action_space, robot, **params)
+        self.keep_params(mine)
         self.note_above_robot("desired_linear_vel", desired_linear_vel, robot.v_max, "m/s")
         self.v_des = min(desired_linear_vel, robot.v_max)
         self.t_look, self.l_min, self.l_max = lookahead_time, min_lookahead, max_lookahead
@@ -78,7 +88,9 @@ class RegulatedPurePursuit(Policy):
     def describe(self) -> str:
         return (
             f"rpp (Nav2 RPP-like: {self.v_des:g} m/s, lookahead {self.l_min:g}-{self.l_max:g} m "
-            f"over {self.t_look:g} s{', reversing at cusps' if self.reversing else ''})"
+            f"over {self.t_look:g} s{', reversing at cusps' if self.reversing else ''}"
+            + self.changed_params(_RPP_SHOWN)
+            + ")"
         )
 
     def act(self, obs: Obs) -> NDArray[np.float32]:

@@ -65,10 +65,10 @@ class Stanley(Policy):
         min_approach_vel: float = 0.05,
         **params: Any,
     ) -> None:
-        check_params(
-            self.name, self.PARAMS, {k: v for k, v in locals().items() if k in self.PARAMS}
-        )
+        mine = {k: v for k, v in locals().items() if k in self.PARAMS}
+        check_params(self.name, self.PARAMS, mine)
         super().__init__(observation_space, action_space, robot, **params)
+        self.keep_params(mine)
         self.note_above_robot("desired_linear_vel", desired_linear_vel, robot.v_max, "m/s")
         self.v_des = min(desired_linear_vel, robot.v_max)
         self.k, self.k_soft, self.k_heading = k, k_soft, k_heading
@@ -89,7 +89,9 @@ class Stanley(Policy):
     def describe(self) -> str:
         return (
             f"stanley (+ integral: {self.v_des:g} m/s, k {self.k:g}, k_heading "
-            f"{self.k_heading:g}, integral gain {self.k_i:.3g} /s)"
+            f"{self.k_heading:g}, integral gain {self.k_i:.3g} /s"
+            + self.changed_params(("desired_linear_vel", "k", "k_heading", "integral_time"))
+            + ")"
         )
 
     def act(self, obs: Obs) -> NDArray[np.float32]:

@@ -151,7 +151,7 @@ def test_the_planted_lane_column_appears_on_drifted_rows_for_finished_runs() -> 
     other = [dict(r, policy="q", planted_rmse=r["planted_rmse"] - 0.03) for r in (done, failed)]
     md = table([done, failed, *other], "t", "")
     pair = [line for line in md.splitlines() if line.startswith("| field | q |")][-1]
-    assert pair.endswith("| -0.030 [-0.030, -0.030] (1) |")
+    assert pair.endswith("| -0.030 (1) |")  # one pair: its value, no interval
     assert "planted_rmse" not in table([_rec("p", 0.1, "success", 100.0)], "t", "")
 
 
@@ -212,3 +212,52 @@ def test_groups_that_drove_the_same_seeds_are_paired_and_others_are_not() -> Non
     row = next(ln for ln in case_pairs(records, ["flat", "ridged"], ["dwb"]) if "| ridged" in ln)
     assert "(19)" in row and "(20)" in row
     assert case_pairs(records, ["flat", "other"], ["dwb"]) == []
+
+
+def test_the_chart_draws_cross_track_bars_of_finished_episodes_only() -> None:
+    """benchmark.png averaged every episode's error: a policy that never finished got an
+    in-furrow bar (its short runs' RMSE) where the table says —."""
+    from baselines.report import bar_chart_values
+
+    recs = [
+        _rec("p", 0.01, "success", 100.0),
+        {**_rec("p", 0.001, "progress", 10.0), "seed": 1},
+        _rec("never", 0.001, "crops_hit", 30.0),
+    ]
+    assert bar_chart_values(recs, "field", "p", "in_furrow_rmse") == [0.01]
+    assert bar_chart_values(recs, "field", "never", "max") == []
+    assert bar_chart_values(recs, "field", "p", "completion") == [100.0, 10.0]
+
+
+def test_one_pair_is_a_value_and_a_resolved_interval_keeps_its_sign() -> None:
+    from baselines.report import _delta_cell
+
+    # one pair: no interval that could "exclude 0"
+    assert _delta_cell((0.061, 0.061, 0.061), 1) == "+0.061 (1)"
+    # an upper bound of -8e-5 printed as -0.000 hid that the interval excludes 0
+    assert _delta_cell((-0.003, -0.008, -0.00008), 20) == "-0.0030 [-0.0080, -0.0001] (20)"
+    assert _delta_cell((0.01, -0.002, 0.02), 20) == "+0.010 [-0.002, +0.020] (20)"
+
+
+def test_a_group_a_policy_does_not_finish_is_a_failure_whatever_its_completion() -> None:
+    """A run past a missed waypoint reaches ≈ 100 % completion without finishing: it was
+    listed under "fails" as none."""
+    from baselines.report import failures
+
+    recs = []
+    for seed in range(4):
+        r = _rec("p", 0.1, "success", 99.0)
+        r.update(seed=seed, missed_waypoints=1)
+        recs.append(r)
+    lines = failures(recs, ["field"], ["p"])
+    assert lines[-1].startswith("- p: field (0/4 finished")
+    ok = [{**_rec("q", 0.1, "success", 100.0), "seed": s} for s in range(4)]
+    assert failures(ok, ["field"], ["q"])[-1] == "- q: none"
+
+
+def test_labels_that_slug_alike_get_figures_of_their_own() -> None:
+    from baselines.bench import policy_slugs, trajectory_name
+
+    slugs = policy_slugs(["rpp:p_1.yaml", "rpp:p-1.yaml", "dwb:furrow"])
+    names = {trajectory_name("g", s, 0) for s in slugs.values()}
+    assert len(names) == 3 and slugs["dwb:furrow"] == "dwb-furrow"

@@ -497,7 +497,13 @@ def test_bench_labels_tell_ppo_checkpoints_apart() -> None:
     assert policy_labels(["dwb:nav2", "dwb:furrow", "dwb:runs/my.yaml"]) == [
         "dwb:nav2",
         "dwb:furrow",
-        "dwb:my",
+        "dwb:my.yaml",
+    ]
+    # a user's file named as a shipped config is not that config
+    assert policy_labels(["dwb:mine/tuned.yaml", "dwb:tuned"]) == ["dwb:tuned.yaml", "dwb:tuned"]
+    assert policy_labels(["dwb:a/best.yaml", "dwb:b/best.yaml"]) == [
+        "dwb:a/best.yaml",
+        "dwb:b/best.yaml",
     ]
     assert policy_labels(["ppo:shipped", "ppo:runs/depth_ppo/"]) == ["ppo:shipped", "ppo:depth_ppo"]
     # the shipped tuned parameters say so, even alone: a default and a tuned row never share

@@ -332,3 +332,18 @@ def test_a_speed_past_the_robots_is_noted_not_clipped_silently(tmp_path: Path) -
             make_policy("rpp", env, desired_linear_vel=v_max)
     finally:
         env.close()
+
+
+def test_a_description_names_every_parameter_off_its_default() -> None:
+    """Two RPP rows of different parameter files both read "0.8 m/s, lookahead 0.3-0.9 m":
+    the benchmark's conditions could not tell them apart."""
+    env = gym.make("AgriNav/FurrowFollow-v3", scenario_overrides=TINY)
+    try:
+        plain = make_policy("rpp", env).describe()
+        assert ";" not in plain
+        rpp = make_policy("rpp", env, min_radius=3.0, approach_dist=2.0).describe()
+        assert rpp.endswith("; min_radius 3, approach_dist 2)")
+        st = make_policy("stanley", env, k_soft=0.5, integral_limit=0.2).describe()
+        assert st.endswith("; k_soft 0.5, integral_limit 0.2)")
+    finally:
+        env.close()

@@ -89,14 +89,15 @@ def resolved_config(p: DWBParams, robot: RobotInterface) -> dict[str, Any]:
 
 
 def config_label(params: str | Path | dict[str, Any] | None) -> str:
-    """How a benchmark row names the config: nav2, furrow, the YAML file's stem, or ``trial``
+    """How a benchmark row names the config: a shipped one's name (nav2, furrow, tuned), a
+    user's file by its file name (``tuned.yaml`` is not the shipped ``tuned``), or ``trial``
     for changes given as a mapping."""
     if params is None:
         return "furrow"
     if isinstance(params, dict):
         return "trial"
     text = str(params)
-    return text if text in SHIPPED else Path(text).stem
+    return text if text in SHIPPED else Path(text.rstrip("/")).name or text
 
 
 class DWB(Policy):
