@@ -16,7 +16,7 @@ from tqdm import tqdm
 
 from agrinav_gym.interface import OBSERVATION_KEYS
 from policies import check_policy_spec
-from policies.spec import PolicySpec
+from policies.spec import PolicySpec, policy_files
 from scenario_gen.atomic import atomic_write_text, check_output_dir, output_dir
 from scenario_gen.errors import InputError
 
@@ -144,13 +144,6 @@ def _make_env(
         return gym.make(env_id, **kw)
 
 
-def _policy_files(specs: Sequence[str]) -> list[Path]:
-    """The parameter files and checkpoint folders the policies read (an --out replaced with
-    --force must not hold them)."""
-    paths = (PolicySpec.parse(spec).arg for spec in specs)
-    return [Path(p) for p in paths if p and Path(p).exists()]
-
-
 def _check_trust(specs: Sequence[str], trust: bool, flag: str) -> None:
     """--trust-checkpoint loads PPO's pickled SB3 files: with no PPO it changed nothing."""
     if trust and not any(PolicySpec.parse(spec).name == "ppo" for spec in specs):
@@ -195,7 +188,7 @@ def run(
     _check_trust([policy], trust_checkpoint, "--policy")
     if video:
         check_video()
-    reads = _policy_files([policy])
+    reads = policy_files([policy])
     check_output_dir(out, force, "--out", kind="run", inputs=reads)
     # everything is checked before --out exists
     env = _make_env(env_id, scenario, render=video, max_steps=max_steps)
@@ -290,7 +283,7 @@ def bench(
         check_policy_spec(spec)
     _check_trust(policies, trust_checkpoint, "--policies")
     check_spread(workers, ray)
-    reads = _policy_files(policies)
+    reads = policy_files(policies)
     check_output_dir(out, force, "--out", kind="bench", inputs=reads)
     for ci in chosen:  # every policy must fit every case before any episode runs
         env = _make_env(cases[ci])

@@ -7,6 +7,8 @@ each argument may be is checked by ``policies.check_policy_spec``.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from pathlib import Path
 from typing import NamedTuple
 
 SEPARATOR = ":"
@@ -31,3 +33,10 @@ class PolicySpec(NamedTuple):
 
     def __str__(self) -> str:
         return f"{self.name}{SEPARATOR}{self.arg}" if self.arg else self.name
+
+
+def policy_files(specs: Sequence[str]) -> list[Path]:
+    """The parameter files and checkpoint folders the policies read (an ``--out`` replaced
+    with ``--force`` must not hold them)."""
+    paths = (PolicySpec.parse(spec).arg for spec in specs)
+    return [Path(p) for p in paths if p and Path(p).exists()]

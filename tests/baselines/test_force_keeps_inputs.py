@@ -70,3 +70,17 @@ def test_scenario_keeps_a_waypoint_file_that_lies_inside_its_out(
     wps = out / "w.yaml"
     wps.write_text("waypoints: [{latitude: 0, longitude: 0}, {latitude: 0, longitude: 1}]\n")
     _refused(capsys, ["scenario", "--waypoints", str(wps), "--out", str(out), "--force"], wps)
+
+
+def test_trajectories_keep_a_checkpoint_that_lies_inside_its_out(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    pytest.importorskip("minari")
+    from policies import shipped_model
+
+    out = tmp_path / "traj"
+    out.mkdir()
+    (out / ".agrinav-output").write_text("kind: dataset\n")  # an earlier dataset's folder
+    shutil.copytree(shipped_model("AgriNav/FurrowFollow-v3"), out / "ck")
+    argv = ["dataset", "trajectories", "--policy", f"ppo:{out / 'ck'}", "--episodes", "1"]
+    _refused(capsys, [*argv, "--out", str(out), "--force"], out / "ck" / "checkpoint.json")

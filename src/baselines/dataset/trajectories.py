@@ -81,6 +81,7 @@ def record(
     import agrinav_gym
     from agrinav_gym.rewards import REWARD_TERMS
     from policies import check_policy_spec, make_policy
+    from policies.spec import policy_files
 
     minari = _minari()
     from minari.data_collector.callbacks import StepDataCallback
@@ -90,7 +91,8 @@ def record(
     if not DATASET_ID.match(dataset_id):
         raise InputError("--dataset-id", dataset_id, "allowed: namespace/name-vN, lower case")
     check_policy_spec(policy)
-    check_output_dir(out, force, "--out", kind="dataset")
+    reads = policy_files([policy])  # a checkpoint inside --out: --force must not delete it
+    check_output_dir(out, force, "--out", kind="dataset", inputs=reads)
     agrinav_gym.check_env_id(env_id, "--env")
     env = gym.make(env_id)
     parts = tuple(sorted(REWARD_TERMS))
@@ -101,7 +103,7 @@ def record(
             data["info"] = fixed_info(info, parts)
             return data
 
-    with output_dir(out, force, "--out", kind="dataset") as tmp, _datasets_root(tmp):
+    with output_dir(out, force, "--out", kind="dataset", inputs=reads) as tmp, _datasets_root(tmp):
         # the collector's buffer folder goes inside the output's temporary folder, which the
         # next run on the same --out removes if this one is killed (it was ~/.minari/...)
         collector = minari.DataCollector(env, step_data_callback=FixedInfo, record_infos=True)
