@@ -184,7 +184,53 @@ def test_a_stopped_run_says_how_many_shards_it_kept(
         f"dataset: stopped; 1 of 2 shards are complete and kept in {out}: rerun the same "
         "command to resume"
     )
-    assert sorted(p.name for p in out.iterdir()) == ["dataset.json", shard_name(0)]
+    assert sorted(p.name for p in out.iterdir()) == [
+        ".agrinav-output",
+        "dataset.json",
+        shard_name(0),
+    ]
+
+
+def test_a_killed_card_write_leaves_no_file_and_a_finished_rerun_writes_nothing(
+    dataset: Path, tmp_path: Path
+) -> None:
+    out = tmp_path / "copy"
+    shutil.copytree(dataset, out)
+    assert (out / ".agrinav-output").is_file()  # an output folder as every command's
+    (out / ".mosaic.png.tmp-123").write_bytes(b"partial")  # a kill while the card was written
+    (out / shard_name(1)).unlink()
+    from baselines.dataset.card import write_card
+
+    spec = load_spec(None, TINY)
+    assert generate(spec, out, seed=7, frames=4, card=write_card) == 2
+    assert not list(out.glob(".*.tmp*"))
+    stamps = {f: (out / f).stat().st_mtime_ns for f in ("README.md", "mosaic.png")}
+    assert generate(spec, out, seed=7, frames=4, card=write_card) == 0
+    assert stamps == {f: (out / f).stat().st_mtime_ns for f in stamps}
+
+
+def test_frames_rounded_up_to_whole_shards_are_noted(tmp_path: Path) -> None:
+    from scenario_gen.errors import Notice
+
+    with pytest.warns(Notice, match=r"--frames 3 is written as 2 whole shard\(s\).*: 4 frames"):
+        assert generate(load_spec(None, TINY), tmp_path / "ds", seed=7, frames=3) == 4
+
+
+def test_the_loader_says_when_shards_are_missing(dataset: Path, tmp_path: Path) -> None:
+    from scenario_gen.errors import Notice
+
+    out = tmp_path / "copy"
+    shutil.copytree(dataset, out)
+    (out / shard_name(1)).unlink()
+    with pytest.warns(Notice, match=r"1 of the 2 shards dataset\.json lists are here"):
+        assert len(PerceptionDataset(out)) == 2
+
+
+def test_a_symbolic_link_as_out_is_refused(dataset: Path, tmp_path: Path) -> None:
+    link = tmp_path / "link"
+    link.symlink_to(dataset)
+    with pytest.raises(InputError, match="is a symbolic link"):
+        generate(load_spec(None, TINY), link, seed=7, frames=4)
 
 
 def test_a_folder_of_another_dataset_is_refused(dataset: Path, tmp_path: Path) -> None:
@@ -209,6 +255,10 @@ def test_a_folder_of_another_dataset_is_refused(dataset: Path, tmp_path: Path) -
         (["--frames", str(10**20)], "--frames: got 100000000000000000000"),
         # a field too short for its headlands: the rule's field and the spec's
         (["--set", "field_length=8"], "8 m long (spec.field_length)"),
+        # no scenario key: one field in every split, which the card calls disjoint
+        (["--set", "randomize={lighting.sun_azimuth_deg: [0, 90]}"], "holds no scenario key"),
+        # the env's draw would override spec.field_length, which the card states
+        (["--set", "randomize={field.length: [30, 40]}"], "set by spec.field_length"),
     ],
 )
 def test_bad_specs_exit_2_and_write_nothing(
@@ -324,7 +374,7 @@ def test_a_full_disk_is_one_error_and_leaves_no_partial_file(
     last = err.strip().splitlines()[-1]
     assert last.startswith("agrinav dataset: error: ") and "No space left" in last, last
     # whole shards only: no hidden temporary shard or card file
-    assert not [x for x in left if Path(x).name.startswith(".")], left
+    assert not [x for x in left if Path(x).name.startswith(".") and x != "./ds/.agrinav-output"]
     shards = [x for x in left if x.endswith(".tar")]
     assert len(shards) == kept, left
     if kept:

@@ -11,12 +11,13 @@ from __future__ import annotations
 import io
 import json
 import tarfile
+import warnings
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from scenario_gen.errors import InputError
+from scenario_gen.errors import InputError, Notice
 
 from .run import MANIFEST
 
@@ -56,7 +57,8 @@ class PerceptionDataset(_Base):
         self.parse_labels = parse_labels
         if not (self.root / MANIFEST).is_file():
             raise InputError("root", str(root), f"allowed: a dataset folder holding {MANIFEST}")
-        splits = json.loads((self.root / MANIFEST).read_text()).get("splits", {})
+        manifest = json.loads((self.root / MANIFEST).read_text())
+        splits = manifest.get("splits", {})
         if split is not None and split not in splits:
             allowed = ", ".join(splits) or "none (a dataset from before splits)"
             raise InputError("split", split, f"allowed: {allowed}")
@@ -71,6 +73,19 @@ class PerceptionDataset(_Base):
                     key, _, part = m.name.partition(".")
                     members.setdefault(key, {})[part] = m
             self.index += [(shard, k, v) for k, v in members.items() if set(PARTS) <= set(v)]
+        expected = splits[split]["shards"] if split is not None else None
+        total = len(expected) if expected is not None else manifest.get("shards")
+        found = len({shard for shard, _, _ in self.index})
+        if isinstance(total, int) and found < total:
+            # a run stopped mid-way keeps its whole shards: training on them is the user's call
+            warnings.warn(
+                Notice(
+                    f"{self.root}: {found} of the {total} shards {MANIFEST} lists"
+                    + (f" for split {split!r}" if split is not None else "")
+                    + " are here (an unfinished run: rerun its command to complete it)"
+                ),
+                stacklevel=2,
+            )
 
     def __len__(self) -> int:
         return len(self.index)

@@ -15,6 +15,7 @@ import io
 import json
 import math
 import tarfile
+import warnings
 from collections.abc import Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
@@ -119,6 +120,7 @@ def check(spec: PerceptionSpec) -> None:
     ``Randomization``), generate its first field and build the policy against it, before a
     file is written: a field the spec cannot lay out, or a checkpoint made for other
     observations, is refused here, not in a worker mid-run."""
+    from agrinav_gym.scenarios import FixedFieldWarning
     from policies import check_policy_spec, make_policy
 
     check_policy_spec(spec.policy)
@@ -126,9 +128,19 @@ def check(spec: PerceptionSpec) -> None:
         raise InputError(
             "spec.frame_every", spec.frame_every, "allowed: a divisor of the 20 Hz control rate"
         )
-    with field_rules(spec):
+    with field_rules(spec), warnings.catch_warnings():
+        warnings.simplefilter("ignore", FixedFieldWarning)  # refused below, in the spec's words
         env = make_env(spec, spec.camera_height[0], spec.camera_pitch_deg[0])
     try:
+        if env.unwrapped.source.fixed_field() is not None:
+            # the splits' disjoint seed ranges would draw one field for all three
+            raise InputError(
+                "spec.randomize",
+                sorted(spec.randomize),
+                "holds no scenario key, so every shard of every split would show the same "
+                "field; allowed: at least one scenario key (e.g. layout.plant_spacing, "
+                "crop.stage): its draws make each split's fields its own",
+            )
         with field_rules(spec):
             env.reset(seed=0)
         make_policy(spec.policy, env)

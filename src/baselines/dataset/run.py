@@ -7,14 +7,21 @@ import json
 import os
 import sys
 import time
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from tqdm import tqdm
 
-from scenario_gen.atomic import check_creatable, lock_output, make_parents, remove_empty
-from scenario_gen.errors import InputError
+from scenario_gen.atomic import (
+    check_creatable,
+    lock_output,
+    make_parents,
+    mark_output,
+    remove_empty,
+)
+from scenario_gen.errors import InputError, Notice
 from scenario_gen.schema import parse_json, to_mapping
 
 from ..parallel import Tasks, check_spread
@@ -22,6 +29,8 @@ from .perception import SPLIT_SEEDS, check, save_shard, shard_frames, split_of, 
 from .spec import SCHEMA_VERSION, PerceptionSpec
 
 MANIFEST = "dataset.json"
+#: what the dataset card (``card.write_card``) writes beside the shards
+CARD_FILES = ("README.md", "mosaic.png")
 
 
 def shard_name(i: int) -> str:
@@ -53,6 +62,13 @@ def prepare(spec: PerceptionSpec, out: Path, seed: int, frames: int) -> tuple[in
     if frames < 1:
         raise InputError("--frames", frames, "allowed: an integer >= 1")
     shards = -(-frames // spec.frames_per_shard)
+    if out.is_symlink():  # as every output folder: the link's target is what gets written
+        raise InputError(
+            "--out",
+            str(out),
+            f"is a symbolic link (to {os.readlink(out)}); allowed: a real folder path, e.g. "
+            "the folder it points to",
+        )
     if out.exists() and not out.is_dir():
         raise InputError("--out", str(out), "exists and is not a directory")
     man = out / MANIFEST
@@ -76,15 +92,26 @@ def prepare(spec: PerceptionSpec, out: Path, seed: int, frames: int) -> tuple[in
                     "--out",
                     str(out),
                     f"holds another dataset ({k} {have.get(k)!r}, this run {mine[k]!r}); "
-                    "allowed: the same spec, seed and --frames, or a new folder",
+                    "allowed: the same spec, seed and --frames (in whole shards of "
+                    "spec.frames_per_shard), or a new folder",
                 )
     check(spec)
+    if shards * spec.frames_per_shard != frames:
+        warnings.warn(
+            Notice(
+                f"--frames {frames} is written as {shards} whole shard(s) of "
+                f"spec.frames_per_shard {spec.frames_per_shard}: "
+                f"{shards * spec.frames_per_shard} frames"
+            ),
+            stacklevel=2,
+        )
     out.mkdir(parents=True, exist_ok=True)
     if not man.is_file():
         tmp = out / f".{MANIFEST}.tmp"
         tmp.write_text(json.dumps(_manifest(spec, seed, shards), indent=1, default=list))
         tmp.replace(man)
-    for stale in out.glob(".shard-*.tmp-*"):  # a killed run's partial shard
+        mark_output(out, "dataset")
+    for stale in out.glob(".*.tmp*"):  # a killed run's partial shard or card file
         stale.unlink(missing_ok=True)
     todo = [i for i in range(shards) if not (out / shard_name(i)).is_file()]
     return shards, todo
@@ -156,8 +183,8 @@ def _generate(
                 for _, n, _ in tasks.map(_work, jobs):
                     written += n
                     bar.update(n)
-        if card is not None:
-            card(out)
+        if card is not None and (todo or not all((out / f).is_file() for f in CARD_FILES)):
+            card(out)  # a finished dataset's rerun writes nothing
     except BaseException as exc:  # a full disk, a lost cluster, Ctrl-C: leave no partial file
         done = _clean_up(out, fresh, existed)
         if isinstance(exc, (KeyboardInterrupt, SystemExit)):  # Ctrl-C, SIGTERM: say what stays

@@ -92,6 +92,14 @@ def load_spec(path: str | Path | None, overrides: dict[str, Any] | None = None) 
     from agrinav_gym import check_env_id
 
     check_env_id(spec.env, "spec.env")  # gym.make would import a ``module:`` named here
+    if isinstance(spec.randomize, dict) and "field.length" in spec.randomize:
+        # the env's draw would override spec.field_length, which the card and manifest state
+        raise InputError(
+            "spec.randomize",
+            "field.length",
+            "is set by spec.field_length (one length for every field, as the card states); "
+            "allowed: spec.field_length",
+        )
     for name in ("camera_height", "camera_pitch_deg"):
         lo, hi = getattr(spec, name)
         if lo > hi:
