@@ -244,7 +244,9 @@ def test_nav2_export_runs_the_dwb_config_asked_for(scenario: Path, tmp_path: Pat
     assert fp["primary_controller"] == "dwb_core::DWBLocalPlanner"
     assert fp["max_vel_x"] == pytest.approx(0.4198)  # the tuned speed
     readme = (out / "README.md").read_text()
-    assert "`dwb:dwb_tuned_shim`" in readme and "RotationShimController stands in front" in readme
+    assert (
+        "`dwb:dwb_tuned_shim.yaml`" in readme and "RotationShimController stands in front" in readme
+    )
     assert "--to: got 'gis'; --dwb is for --to nav2 only" in _error(
         capsys,
         ["export", str(scenario), "--to", "gis", "--out", str(tmp_path / "g"), "--dwb", "tuned"],

@@ -85,6 +85,7 @@ def test_force_on_the_current_folder_deletes_nothing(
     monkeypatch.chdir(tmp_path)
     (tmp_path / "mine.txt").write_text("mine")
     (tmp_path / "other").mkdir()
+    (tmp_path / "other" / "theirs.txt").write_text("theirs")  # a user's folder, not agrinav's
     for out in (".", "other"):
         assert main(["scenario", "--preset", "default", "--out", out, "--force"]) == 2
         err = capsys.readouterr().err

@@ -475,7 +475,14 @@ def test_benchmark_names_where_a_policy_fails() -> None:
     from baselines.report import failures
 
     def rec(policy: str, group: str, completion: float, crops: int) -> dict[str, object]:
-        return {"policy": policy, "scenario": group, "completion": completion, "crops_hit": crops}
+        end = "success" if completion > 95 else "corridor"
+        return {
+            "policy": policy,
+            "scenario": group,
+            "completion": completion,
+            "crops_hit": crops,
+            "termination": end,
+        }
 
     records = [
         rec("dwb", "0.3 m", 99.0, 0),
@@ -486,7 +493,7 @@ def test_benchmark_names_where_a_policy_fails() -> None:
     ]
     lines = failures(records, ["0.3 m", "2.5 m"], ["dwb", "depth"])
     assert "- dwb: none" in lines
-    assert "- depth: 2.5 m (15 % done, 10.0 crops hit)" in lines
+    assert "- depth: 2.5 m (0/2 finished, 15 % done, 10.0 crops hit)" in lines
 
 
 def test_bench_labels_tell_ppo_checkpoints_apart() -> None:

@@ -78,7 +78,7 @@ def test_bad_dwb_configs_are_refused(tmp_path: Path) -> None:
         good = tmp_path / "mine.yaml"
         good.write_text("FollowPath: {sim_time: 2.0}\n")
         pi = make_policy(f"dwb:{good}", env)
-        assert pi.config == "mine" and pi.p.FollowPath.sim_time == 2.0
+        assert pi.config == "mine.yaml" and pi.p.FollowPath.sim_time == 2.0
     finally:
         env.close()
 
