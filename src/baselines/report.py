@@ -535,13 +535,12 @@ def failures(records: list[dict[str, Any]], groups: list[str], pols: list[str]) 
         for g in groups:
             rows = [r for r in records if r["scenario"] == g and r["policy"] == p]
             if rows:
-                share = 100.0 * sum(finished(r) for r in rows) / len(rows)
+                ends = sum(finished(r) for r in rows)
                 done = statistics.fmean(float(r["completion"]) for r in rows)
-                if share < FINISHED_AT_LEAST or not done >= FAILED_BELOW:
+                if 100.0 * ends < FINISHED_AT_LEAST * len(rows) or not done >= FAILED_BELOW:
                     hit = statistics.fmean(float(r["crops_hit"]) for r in rows)
                     bad.append(
-                        f"{g} ({sum(finished(r) for r in rows)}/{len(rows)} finished, "
-                        f"{done:.0f} % done, {hit:.1f} crops hit)"
+                        f"{g} ({ends}/{len(rows)} finished, {done:.0f} % done, {hit:.1f} crops hit)"
                     )
         lines.append(f"- {p}: " + (", ".join(bad) if bad else "none"))
     return lines

@@ -35,17 +35,21 @@ class Policy(ABC):
     ORDERED: ClassVar[tuple[tuple[str, str], ...]] = ()
 
     @classmethod
-    def check_file_params(cls, values: dict[str, Any]) -> None:
-        """A parameter file's values, checked against PARAMS (and ORDERED, with the
-        constructor's defaults for what the file leaves out) before anything is built."""
+    def defaults(cls) -> dict[str, Any]:
+        """The constructor's default of every parameter in PARAMS."""
         import inspect
 
-        defaults = {
+        return {
             n: p.default
             for n, p in inspect.signature(cls.__init__).parameters.items()
             if n in cls.PARAMS
         }
-        check_params(cls.name, cls.PARAMS, values, cls.ORDERED, defaults)
+
+    @classmethod
+    def check_file_params(cls, values: dict[str, Any]) -> None:
+        """A parameter file's values, checked against PARAMS (and ORDERED, with the
+        constructor's defaults for what the file leaves out) before anything is built."""
+        check_params(cls.name, cls.PARAMS, values, cls.ORDERED, cls.defaults())
 
     def __init__(
         self,
@@ -79,13 +83,7 @@ class Policy(ABC):
     def changed_params(self, shown: tuple[str, ...]) -> str:
         """``; name value, ...`` for the parameters off the constructor's defaults that the
         description does not state already (a benchmark row names the config it ran)."""
-        import inspect
-
-        defaults = {
-            n: p.default
-            for n, p in inspect.signature(type(self).__init__).parameters.items()
-            if n in self.PARAMS
-        }
+        defaults = self.defaults()
         extra = [
             f"{k} {'null' if v is None else format(v, 'g') if isinstance(v, float) else v}"
             for k, v in getattr(self, "_given", {}).items()

@@ -703,8 +703,9 @@ def load_geotiff(
     whole = (r0, c0) == (0, 0) and (r1, c1) == shape
     before = ~np.isfinite(elev)
     elev = fill_small_holes(elev, fill_max_pixels, open_border=not whole)
+    newly = before & np.isfinite(elev)
     # bicubic reads the 4 × 4 pixels around a point: within 2 of a filled pixel reads it
-    filled = ndimage.binary_dilation(before & np.isfinite(elev), np.ones((5, 5), bool))
+    filled = ndimage.binary_dilation(newly, np.ones((5, 5), bool)) if newly.any() else None
     open_holes = None if whole else edge_holes(elev)
     if ellipsoidal:
         heights = Heights(ELLIPSOIDAL, "WGS 84", "", f"{p.name} declares a 3-D {crs.name}")
@@ -718,7 +719,7 @@ def load_geotiff(
         tr, heights = to_ellipsoidal(crs, vert, area_of(crs, cx, cy))
         if tr is not None:
             elev = elev + _geoid(tr, transform, elev.shape)
-    return Dem(elev, transform, crs, p.name, heights, open_holes, filled if filled.any() else None)
+    return Dem(elev, transform, crs, p.name, heights, open_holes, filled)
 
 
 def _geoid(tr: Any, transform: Affine, shape: tuple[int, int]) -> FloatArray:
