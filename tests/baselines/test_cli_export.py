@@ -61,6 +61,15 @@ def test_bad_inputs_write_nothing(scenario: Path, tmp_path: Path, capsys) -> Non
             "--formats is for --to mesh only",
         ),
         (["export", str(scenario), "--to", "mesh", "--formats", "glb,,obj"], "no empty entry"),
+        # another target's flag at its own default value is refused as any other value
+        (
+            ["export", str(scenario), "--to", "gis", "--formats", "glb"],
+            "--formats is for --to mesh only",
+        ),
+        (
+            ["export", str(scenario), "--to", "mesh", "--plants", "auto"],
+            "--plants is for --to gazebo or nav2",
+        ),
         (["export", str(scenario), "--to", "nav2", "--dwb", ""], "--dwb: got ''"),
         (["export", str(scenario), "--to", "nav2", "--dwb", "bogus"], "--dwb: got 'bogus'"),
         (["export", str(scenario), "--to", "gis", "--dwb", "tuned"], "--dwb is for --to nav2"),

@@ -31,9 +31,9 @@ def add(sub: Any) -> None:
     ex.add_argument(
         "--plants",
         choices=("auto", "include", "tiles"),
-        default="auto",
         help="gazebo/nav2: one <include> per plant, or merged static tiles "
-        "(auto: tiles above --include-limit plants); obstacles alike: a model each, or tiles",
+        "(auto, the default: tiles above --include-limit plants); obstacles alike: a model "
+        "each, or tiles",
     )
     defaults = ExportOptions()
     ex.add_argument(
@@ -55,7 +55,6 @@ def add(sub: Any) -> None:
     )
     ex.add_argument(
         "--formats",
-        default="glb",
         type=separated(",", "formats"),
         help=f"mesh: comma-separated formats from {','.join(MESH_FORMATS)} (default glb)",
     )
@@ -74,10 +73,13 @@ def add(sub: Any) -> None:
 def run(args: argparse.Namespace) -> int:
     from scenario_gen.export import ExportOptions, export
 
+    # --plants and --formats default to None, not their values: given for another target,
+    # even as the default value, they are refused like every other flag
+    plants = args.plants or "auto"
     data: dict[str, Any] = {
-        "plants": args.plants,
+        "plants": plants,
         "heightmap": args.heightmap,
-        "formats": args.formats,
+        "formats": args.formats or ["glb"],
         "mesh_plants": args.with_plants,
     }
     if args.include_limit is not None:
@@ -96,27 +98,27 @@ def run(args: argparse.Namespace) -> int:
         data = nav2_options(dwb=args.dwb or "furrow", **data)
     elif args.dwb is not None:
         raise InputError("--to", args.to, "--dwb is for --to nav2 only")
-    mesh_only = {"--formats": args.formats != ["glb"], "--with-plants": args.with_plants}
+    mesh_only = {"--formats": args.formats is not None, "--with-plants": args.with_plants}
     _only_with(args.to, ("mesh",), mesh_only, "mesh")
     world_only = {
-        "--plants": args.plants != "auto",
+        "--plants": args.plants is not None,
         "--include-limit": args.include_limit is not None,
         "--tile-plants": args.tile_plants is not None,
         "--heightmap": args.heightmap,
     }
     _only_with(args.to, ("gazebo", "nav2"), world_only, "gazebo or nav2 (a Gazebo world)")
     # each tile flag shapes one kind of world: given for the other, it changed nothing
-    if args.plants == "include" and args.tile_plants is not None:
+    if plants == "include" and args.tile_plants is not None:
         raise InputError(
             "--tile-plants",
             args.tile_plants,
             "--plants include merges no tiles; allowed with --plants auto or tiles",
         )
-    if args.plants != "auto" and args.include_limit is not None:
+    if plants != "auto" and args.include_limit is not None:
         raise InputError(
             "--include-limit",
             args.include_limit,
-            f"is auto's limit, and --plants is {args.plants}; allowed with --plants auto",
+            f"is auto's limit, and --plants is {plants}; allowed with --plants auto",
         )
     opts = ExportOptions.from_dict(data)
     t0 = time.perf_counter()
