@@ -207,6 +207,8 @@ def tune(
     check_spread(workers, ray)
     check_output_dir(out, force, "--out", "tune")
     extra = ""
+    reads: list[Path] = []  # what the search reads: an --out replaced with --force must not hold it
+    v_max = None  # the robot's speed limit where the file sets one (DWB's trial 0 takes it)
     if env_kwargs is not None:
         from scenario_gen.schema import load_yaml
 
@@ -214,6 +216,10 @@ def tune(
         from .train import check_make_keywords
 
         given = load_yaml(env_kwargs, "--env-kwargs")
+        reads = [Path(env_kwargs)] + [
+            Path(v) for k in ("bank", "scenario") if isinstance(v := given.get(k), str)
+        ]
+        check_output_dir(out, force, "--out", "tune", inputs=reads)
         refuse_split_keys(given)
         check_make_keywords(given)
         if "observations" in given:  # each controller's own (training_env): not the file's
@@ -224,12 +230,14 @@ def tune(
                 f"{policy}); allowed: leave it out",
             )
         extra = json.dumps(given, sort_keys=True)
-        training_env(policy, extra).close()  # a bad file is refused before anything runs
+        probe = training_env(policy, extra)  # a bad file is refused before anything runs
+        v_max = probe.unwrapped.interface.v_max
+        probe.close()
     space = SEARCH[policy]
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     study = optuna.create_study(direction="minimize", sampler=optuna.samplers.TPESampler(seed=seed))
     # The published defaults are trial 0: the search can only match or beat them.
-    study.enqueue_trial(default_params(policy))
+    study.enqueue_trial(default_params(policy, v_max))
     rows: list[dict[str, Any]] = []
     identity = {
         "command": "tune",
@@ -243,7 +251,7 @@ def tune(
     if route_clock:  # absent otherwise: a journal from before the option still resumes
         identity["route_clock"] = True
     journal = Journal(out, identity)
-    with output_dir(out, force, "--out", "tune") as tmp:
+    with output_dir(out, force, "--out", "tune", inputs=reads) as tmp:
         done = journal.open(force, "--out")
         with Tasks(workers, ray) as tasks:
             bar = tqdm(range(trials), desc=f"tune {policy}", unit="trial")
@@ -279,8 +287,9 @@ def tune(
                     rows.append(
                         {
                             "trial": trial.number,
-                            **{k: round(v, 4) for k, v in params.items()},
-                            "score": round(value, 5),
+                            # as the trial ran: best.yaml reproduces its score exactly
+                            **params,
+                            "score": value,
                             "finished": sum(r["finished"] for r in records),
                             "episodes": len(records),
                             "crops_hit": sum(int(r["crops_hit"]) for r in records),
@@ -313,7 +322,7 @@ def tune(
             chosen = dwb_changes(chosen)
         header = (
             f"# {policy} parameters chosen by `agrinav tune` (trial {best['trial']} of "
-            f"{trials}, score {best['score']}: mean path RMSE of finished routes, 1 m per "
+            f"{trials}, score {best['score']:.5f}: mean path RMSE of finished routes, 1 m per "
             f"unfinished one, +{CROP_PENALTY} m per stalk) on {episodes} training fields"
             + (f" (env_kwargs merged from {Path(env_kwargs).name})" if env_kwargs else "")
             + (", on the test suites' route clock (20 s per metre)" if route_clock else "")
@@ -347,8 +356,10 @@ def policy_kwargs(policy: str, params: dict[str, float]) -> dict[str, Any]:
     return {"params": dwb_changes(params)} if policy in CONFIG_TUNED else dict(params)
 
 
-def default_params(policy: str) -> dict[str, float]:
-    """The controller's own defaults for the searched parameters (trial 0)."""
+def default_params(policy: str, v_max: float | None = None) -> dict[str, float]:
+    """The controller's own defaults for the searched parameters (trial 0); DWB's furrow
+    config leaves its speed limits to the robot: ``v_max`` (None: the robot config's
+    default)."""
     import inspect
 
     from policies import POLICIES
@@ -364,7 +375,8 @@ def default_params(policy: str) -> dict[str, float]:
             v: Any = values
             for part in dotted.split("."):
                 v = v[part]
-            out[dotted] = float(v) if v is not None else RobotConfig().v_max
+            robot = RobotConfig().v_max if v_max is None else v_max
+            out[dotted] = float(v) if v is not None else robot
         return out
 
     sig = inspect.signature(POLICIES[policy].__init__)

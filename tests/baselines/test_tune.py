@@ -31,6 +31,17 @@ def test_a_search_is_reproducible_starts_from_the_defaults_and_its_choice_runs(
     assert {k: float(rows[0][k]) for k in SEARCH["stanley"]} == default_params("stanley")
     best = yaml.safe_load((outs[0] / "best.yaml").read_text())
     assert set(best) == set(SEARCH["stanley"])
+    # the log holds the values each trial ran, not rounded (best.yaml is a row of it): the
+    # sampler replayed with the search's seed draws trial 1's parameters to the bit
+    import optuna
+
+    study = optuna.create_study(sampler=optuna.samplers.TPESampler(seed=0))
+    study.enqueue_trial(default_params("stanley"))
+    for row in rows:
+        trial = study.ask()
+        drawn = {n: trial.suggest_float(n, lo, hi) for n, (lo, hi) in SEARCH["stanley"].items()}
+        assert {k: float(row[k]) for k in drawn} == drawn
+        study.tell(trial, float(row["score"]))
     assert min(float(r["score"]) for r in rows) == pytest.approx(
         float(next(r["score"] for r in rows if all(float(r[k]) == best[k] for k in best)))
     )
@@ -61,6 +72,13 @@ def test_a_bad_parameter_file_is_one_clear_error(tmp_path: Path, content: str, n
             make_policy(f"stanley:{p}", env)
     finally:
         env.close()
+
+
+def test_dwbs_trial_0_takes_the_robots_own_speed_limit() -> None:
+    """The furrow config leaves max_vel_x to the robot: a file that sets the robot's v_max
+    gave trial 0 the default robot's 1 m/s instead."""
+    assert default_params("dwb")["FollowPath.max_vel_x"] == 1.0
+    assert default_params("dwb", 0.6)["FollowPath.max_vel_x"] == 0.6
 
 
 def test_dwb_gets_a_search_too_starting_from_its_furrow_config(tmp_path: Path) -> None:
@@ -129,6 +147,11 @@ def test_env_kwargs_put_more_geometry_in_the_searched_training_fields(tmp_path: 
     argv = ["tune", "--policy", "stanley", "--trials", "1", "--episodes", "1", "--out", str(out)]
     assert main([*argv, "--env-kwargs", str(file)]) == 0
     assert "env_kwargs merged from curved.yaml" in (out / "best.yaml").read_text()
+    # the file kept inside the search's own folder is its input: --force must not delete it
+    inside = out / "curved.yaml"
+    inside.write_text(yaml.safe_dump(extra))
+    assert main([*argv, "--env-kwargs", str(inside), "--force"]) == 2
+    assert inside.is_file()
     file.write_text("randomize: {layout.row_geometry: {choices: [straight, spiral]}}\n")
     assert main([*argv[:-1], str(tmp_path / "u"), "--env-kwargs", str(file)]) == 2
     assert not (tmp_path / "u").exists()
