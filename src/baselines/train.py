@@ -21,6 +21,7 @@ import shlex
 import shutil
 import sys
 import time
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from importlib import metadata
@@ -31,8 +32,8 @@ import numpy as np
 import yaml
 
 from policies import checkpoint
-from scenario_gen.atomic import check_creatable, lock_output
-from scenario_gen.errors import InputError
+from scenario_gen.atomic import check_creatable, lock_output, make_parents, remove_empty
+from scenario_gen.errors import InputError, Notice
 from scenario_gen.schema import to_mapping
 
 from . import hyperparams as hpmod
@@ -253,8 +254,22 @@ def prepare(run: TrainRun) -> tuple[hpmod.PPOHyperparams, hpmod.EnvSetup, dict[s
     try:  # every env kwarg is valid before the run starts
         if init is not None:
             _check_spaces(init, probe, run.init_from)
+        if run.resume is not None:
+            _check_spaces(checkpoint.load(run.resume), probe, run.resume, "--resume")
     finally:
         probe.close()
+    if run.resume is not None:
+        trained = checkpoint.read_meta(run.resume).get("env_kwargs")
+        if isinstance(trained, dict) and trained != kwargs:
+            changed = sorted(k for k in {*trained, *kwargs} if trained.get(k) != kwargs.get(k))
+            warnings.warn(
+                Notice(
+                    f"--resume {run.resume} was trained with other env_kwargs "
+                    f"({', '.join(changed)} differ): the run goes on in this command's env "
+                    "(--env-kwargs, --scenario)"
+                ),
+                stacklevel=2,
+            )
     # SB3 collects whole rollouts: asked for less than one, a run would train a whole one
     done = int(checkpoint.read_meta(run.resume).get("num_timesteps", 0)) if run.resume else 0
     rollout = hp.n_steps * hp.n_envs
@@ -270,17 +285,25 @@ def prepare(run: TrainRun) -> tuple[hpmod.PPOHyperparams, hpmod.EnvSetup, dict[s
     return hp, setup, kwargs
 
 
-def _check_spaces(init: Any, env: Any, folder: Path | None) -> None:
+def held_out(env_kwargs: dict[str, Any]) -> bool:
+    """Whether validation seeds draw fields training never sees: not on a bank or a saved
+    scenario folder, whose fields are the same whatever the seeds."""
+    scenario = env_kwargs.get("scenario")
+    folder = isinstance(scenario, str) and Path(scenario).is_dir()
+    return env_kwargs.get("bank") is None and not folder
+
+
+def _check_spaces(init: Any, env: Any, folder: Path | None, what: str = "--init-from") -> None:
     """A checkpoint to start from must see and act as the env does."""
-    for what, theirs, ours in (
+    for space, theirs, ours in (
         ("observation space", init.policy.observation_space, env.observation_space),
         ("action space", init.policy.action_space, env.action_space),
     ):
         if checkpoint.space_to_json(theirs) != checkpoint.space_to_json(ours):
             raise InputError(
-                "--init-from",
+                what,
                 str(folder),
-                f"its {what} is not the env's; allowed: a checkpoint of an env with the same "
+                f"its {space} is not the env's; allowed: a checkpoint of an env with the same "
                 "observations and actions",
             )
 
@@ -371,7 +394,22 @@ def log_evaluation(logger: Any, res: dict[str, float], step: int) -> None:
 def train(run: TrainRun, argv: list[str] | None = None) -> Path:
     hp, setup, kwargs = prepare(run)
     out = run.out
-    out.parent.mkdir(parents=True, exist_ok=True)
+    made = make_parents(out.absolute())
+    try:
+        return _locked(run, argv, hp, setup, kwargs)
+    except BaseException:
+        remove_empty(made)  # the parent folders this run made, when nothing was kept in them
+        raise
+
+
+def _locked(
+    run: TrainRun,
+    argv: list[str] | None,
+    hp: hpmod.PPOHyperparams,
+    setup: hpmod.EnvSetup,
+    kwargs: dict[str, Any],
+) -> Path:
+    out = run.out
     # A second run on the same --out is refused while this one holds the lock (both used to
     # exit 0, the second overwriting every checkpoint of the first).
     with lock_output(out.absolute(), "--out"):
@@ -433,7 +471,13 @@ def _train(
     norm = None
     if hp.normalize_obs:
         venv = norm = VecNormalize(venv, norm_obs=True, norm_reward=False, clip_obs=10.0)
-    model = PPO(env=venv, seed=run.seed, verbose=0, device=device, **hp.ppo_kwargs())
+    try:
+        model = PPO(env=venv, seed=run.seed, verbose=0, device=device, **hp.ppo_kwargs())
+    except TypeError as exc:  # a keyword the policy's classes do not take (extractor kwargs)
+        venv.close()
+        raise InputError(
+            "hyperparams.policy_kwargs", hp.policy_kwargs, f"cannot build the policy ({exc})"
+        ) from None
     formats = ["csv", *(["tensorboard"] if _has_tensorboard() else [])]
     model.set_logger(configure(str(out / "logs"), formats))
     if run.resume is not None:
@@ -444,6 +488,15 @@ def _train(
     # Training-time evaluation (the curve, the best checkpoint, any stop/continue decision)
     # sees validation fields only: the test seeds are agrinav bench's.
     eval_kwargs = {**kwargs, "scenario_seeds": list(setup.val_seeds)}
+    if not held_out(kwargs):
+        warnings.warn(
+            Notice(
+                f"--scenario {run.scenario}: a saved scenario or bank has no held-out split, so "
+                "the training-time evaluation drives the training fields (config.yml "
+                "validation_fields says so): its curve is not a held-out score"
+            ),
+            stacklevel=2,
+        )
     saver = _Saver(out, run, hp, setup, kwargs, device_record(device))
     history: list[dict[str, float]] = []
     t_start = time.perf_counter()
@@ -486,7 +539,8 @@ def _train(
             callback=callback,
             reset_num_timesteps=run.resume is None,
         )
-        evaluation(model)  # the final policy's, logged like the others
+        if not history or history[-1]["timesteps"] != int(model.num_timesteps):
+            evaluation(model)  # the final policy's, logged like the others
     except BaseException as exc:
         # an interrupt or error mid-run: closing the workers must not hide it behind an error
         # of theirs (a pipe a dying worker closed)
@@ -573,11 +627,16 @@ def _callback(
 
         def _on_step(self) -> bool:
             self.bar.update(self.training_env.num_envs)
+            return True
+
+        def _evaluate(self) -> None:
+            # between rollouts only, as the checkpoints: an evaluation inside a rollout scored
+            # weights updated on fewer steps than the label it carried
             if self.num_timesteps >= self.next_eval:
-                self.next_eval += run.eval_every
+                while self.next_eval <= self.num_timesteps:
+                    self.next_eval += run.eval_every
                 res = evaluation(self.model)
                 self.bar.set_postfix(rmse=f"{res['rmse']:.3f}", done=f"{res['completion']:.0f}%")
-            return True
 
         def _checkpoint(self) -> None:
             # between rollouts only: the weights and optimizer then hold every step counted
@@ -589,6 +648,7 @@ def _callback(
 
         def _on_rollout_start(self) -> None:  # the previous rollout's update is done
             self._checkpoint()
+            self._evaluate()
 
         def _on_training_end(self) -> None:
             self._checkpoint()
@@ -652,6 +712,11 @@ class _Saver:
             "env_kwargs": self.kwargs,
             "train_seeds": list(self.setup.train_seeds),
             "val_seeds": list(self.setup.val_seeds),
+            "validation_fields": (
+                "held out: fields of val_seeds"
+                if held_out(self.kwargs)
+                else "the training fields (a saved scenario or bank has no held-out split)"
+            ),
             "eval_seeds": list(self.setup.eval_seeds),
             "resumed_from": str(self.run.resume) if self.run.resume else None,
             "initialised_from": str(self.run.init_from) if self.run.init_from else None,

@@ -150,6 +150,11 @@ def policy_kwargs_from_json(d: Any, where: str = "checkpoint") -> dict[str, Any]
     if extractor is not None and not isinstance(extractor, dict):
         raise InputError(f"{field}.features_extractor_kwargs", extractor, "allowed: a mapping")
     arch = out.get("net_arch")
+    if isinstance(arch, dict) and (not arch or set(arch) - {"pi", "vf"}):
+        # SB3 reads only pi and vf: other keys left a network of no hidden layers silently
+        raise InputError(
+            f"{field}.net_arch", arch, "allowed: a list of layer sizes, or a mapping of pi, vf"
+        )
     if arch is not None:
         layers = list(arch.values()) if isinstance(arch, dict) else [arch]
         sizes = [n for group in layers for n in (group if isinstance(group, list) else [group])]

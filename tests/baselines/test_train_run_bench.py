@@ -71,7 +71,8 @@ def test_training_saves_safe_checkpoints_logs_and_resumes(
     assert (out / "learning_curve.png").is_file() and (out / "logs" / "progress.csv").is_file()
     assert list((out / "logs").glob("events.out.tfevents.*")), "TensorBoard event file"
     evals = json.loads((out / "evaluations.json").read_text())
-    assert [e["timesteps"] for e in evals] == [128, 256, 256]
+    # between rollouts, as the checkpoints: the final step is evaluated once
+    assert [e["timesteps"] for e in evals] == [128, 256]
     assert sorted(p.name for p in (out / "checkpoints").iterdir()) == [
         "step_0000000128",
         "step_0000000256",
@@ -90,6 +91,9 @@ def test_training_saves_safe_checkpoints_logs_and_resumes(
     assert config["env_kwargs"]["scenario"] == str(tiny_scenario.resolve())
     # the curve and checkpoint choice were made on validation fields, not the test range
     assert config["val_seeds"] == [500_000_000, 501_000_000] != config["eval_seeds"]
+    # ... but a saved scenario has no held-out split: the record says validation drove it
+    assert config["validation_fields"].startswith("the training fields")
+    assert "has no held-out split" in proc.stderr
     assert "agrinav train --env AgriNav/FurrowFollow-v3" in (out / "command.txt").read_text()
     csv = (out / "logs" / "progress.csv").read_text().splitlines()[0]
     assert "eval/rmse" in csv and "train/value_loss" in csv
@@ -99,7 +103,7 @@ def test_training_saves_safe_checkpoints_logs_and_resumes(
 
     events = EventAccumulator(str(out / "logs"))
     events.Reload()
-    assert [e.step for e in events.Scalars("eval/mean_reward")] == [128, 256, 256]
+    assert [e.step for e in events.Scalars("eval/mean_reward")] == [128, 256]
     assert config["device"] == "cpu" == json.loads((out / "checkpoint.json").read_text())["device"]
     assert not list(tmp_path.glob(".*tmp*")) and not list(out.glob(".*tmp*"))
 
@@ -157,6 +161,13 @@ def test_training_saves_safe_checkpoints_logs_and_resumes(
         [*common, "--timesteps", "384", "--out", str(bad), "--resume", str(broken)], capsys
     )
     assert "--resume" in err and not bad.exists()
+
+    # a resume into an env of other observations was a torch size-mismatch traceback
+    obs3 = tmp_path / "obs3.yaml"
+    obs3.write_text("observations: [gps, imu, odom]\n")
+    args = ["--timesteps", "384", "--out", str(bad), "--resume", step128, "--env-kwargs", str(obs3)]
+    err = _refused([*common, *args], capsys)
+    assert "--resume" in err and "observation space is not the env's" in err and not bad.exists()
 
 
 def test_a_run_starts_from_another_checkpoint_and_refuses_one_that_does_not_fit(
@@ -256,6 +267,10 @@ def test_ctrl_c_with_worker_processes_is_one_line_and_keeps_the_checkpoints(
         (["--hyperparams", "n_steps"], "key=value, e.g. learning_rate="),
         (["--hyperparams", "policy_kwargs={net_arch: [0]}"], "net_arch"),
         (["--hyperparams", "policy_kwargs={log_std_init: high}"], "log_std_init"),
+        # SB3 reads only pi and vf: {foo: [64]} trained a policy of no hidden layers
+        (["--hyperparams", "policy_kwargs={net_arch: {foo: [64]}}"], "mapping of pi, vf"),
+        # gSDE's noise matrix has no place in the checkpoint: the run would not load
+        (["--hyperparams", "use_sde=true"], "hyperparams.use_sde"),
         (["--hyperparams", "normalize={norm_obs: true, bogus: 3}"], "hyperparams.normalize"),
         (["--hyperparams", "normalize={norm_reward: true}"], "normalize.norm_reward"),
         (["--device", "tpu"], "--device"),
@@ -876,3 +891,18 @@ def test_evaluations_are_strict_json_with_null_for_what_was_not_measured() -> No
     text = evaluations_json([{"rmse": 0.05, "in_furrow_rmse": math.nan, "timesteps": 64}])
     assert "NaN" not in text
     assert json.loads(text) == [{"rmse": 0.05, "in_furrow_rmse": None, "timesteps": 64}]
+
+
+def test_extractor_keywords_the_policy_does_not_take_are_one_line_and_leave_no_folder(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A TypeError traceback from inside SB3's policy, and the empty parents of --out left."""
+    out = tmp_path / "np" / "a" / "b"
+    argv = ["train", "--env", "AgriNav/FurrowFollow-v3", "--n-envs", "1", "--out", str(out)]
+    argv += ["--timesteps", "64", "--no-warm-start"]
+    argv += ["--hyperparams", "n_steps=64", "batch_size=64"]
+    argv += ["policy_kwargs={features_extractor_kwargs: {foo: 1}}"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].startswith("agrinav train: error: hyperparams.policy_kwargs")
+    assert "cannot build the policy" in err[-1] and not (tmp_path / "np").exists()

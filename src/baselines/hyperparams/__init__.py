@@ -166,6 +166,13 @@ def load(env_id: str, overrides: dict[str, Any] | None = None) -> tuple[PPOHyper
             hp.batch_size,
             f"allowed: at most n_steps × n_envs = {hp.n_steps * hp.n_envs}",
         )
+    if hp.use_sde:  # its noise matrix has no place in the checkpoint: the run would not load
+        raise InputError(
+            "hyperparams.use_sde",
+            True,
+            "the checkpoint format holds a Gaussian policy's log_std vector, not gSDE's "
+            "matrix; allowed: false",
+        )
     setup: EnvSetup = from_mapping(EnvSetup, envs.get(env_id, {}), f"envs.yml {env_id}.")
     check_splits(setup, f"envs.yml {env_id}.")
     setup.warm(env_id)
