@@ -282,6 +282,15 @@ def prepare(run: TrainRun) -> tuple[hpmod.PPOHyperparams, hpmod.EnvSetup, dict[s
             f"collects whole); allowed: at least {done + rollout}, or a smaller "
             "--hyperparams n_steps or --n-envs",
         )
+    if (hp.n_timesteps - done) % rollout:
+        whole = done + -(-(hp.n_timesteps - done) // rollout) * rollout
+        warnings.warn(
+            Notice(
+                f"--timesteps {hp.n_timesteps} trains {whole} steps: PPO collects whole "
+                f"rollouts of n_steps {hp.n_steps} × n_envs {hp.n_envs}"
+            ),
+            stacklevel=2,
+        )
     return hp, setup, kwargs
 
 

@@ -906,3 +906,19 @@ def test_extractor_keywords_the_policy_does_not_take_are_one_line_and_leave_no_f
     err = capsys.readouterr().err.strip().splitlines()
     assert err[-1].startswith("agrinav train: error: hyperparams.policy_kwargs")
     assert "cannot build the policy" in err[-1] and not (tmp_path / "np").exists()
+
+
+def test_timesteps_that_end_inside_a_rollout_are_noted(tmp_path: Path) -> None:
+    from baselines.train import TrainRun, prepare
+    from scenario_gen.errors import Notice
+
+    run = TrainRun(
+        "AgriNav/FurrowFollow-v3",
+        tmp_path / "r",
+        timesteps=100,
+        n_envs=1,
+        overrides={"n_steps": 64, "batch_size": 64},
+    )
+    with pytest.warns(Notice, match=r"--timesteps 100 trains 128 steps"):
+        prepare(run)
+    assert not (tmp_path / "r").exists()
