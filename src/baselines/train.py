@@ -20,6 +20,7 @@ import os
 import shlex
 import shutil
 import sys
+import threading
 import time
 import warnings
 from collections.abc import Callable
@@ -556,9 +557,8 @@ def _train(
         bar = getattr(callback, "bar", None)
         if bar is not None:  # before the error's line, not after it
             bar.close()
-        with contextlib.suppress(Exception):
-            venv.close()
-        model.logger.close()
+        _bounded(venv.close)
+        _bounded(model.logger.close)
         if _diverged(exc):
             raise InputError(
                 "hyperparams.learning_rate",
@@ -574,6 +574,20 @@ def _train(
     saver.final(model, norm, history)
     learning_curve(history, out / "learning_curve.png", run.env_id)
     return out
+
+
+def _bounded(close: Callable[[], None], seconds: float = 15.0) -> None:
+    """A clean-up after an interrupt, given ``seconds``: the interrupt can land while a lock
+    is held (a worker's pipe, a log writer's queue), and a stop must not hang on it (an
+    error of the clean-up's own must not hide the one being raised either)."""
+
+    def run() -> None:
+        with contextlib.suppress(Exception):
+            close()
+
+    worker = threading.Thread(target=run, daemon=True)
+    worker.start()
+    worker.join(seconds)
 
 
 def _diverged(exc: BaseException) -> bool:
