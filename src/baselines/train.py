@@ -406,34 +406,23 @@ def train(run: TrainRun, argv: list[str] | None = None) -> Path:
     out = run.out
     made = make_parents(out.absolute())
     try:
-        return _locked(run, argv, hp, setup, kwargs)
+        # A second run on the same --out is refused while this one holds the lock (both used
+        # to exit 0, the second overwriting every checkpoint of the first).
+        with lock_output(out.absolute(), "--out"):
+            if out.exists() and (not out.is_dir() or any(out.iterdir())):
+                raise InputError("--out", str(out), "allowed: a new or empty directory")
+            created = not out.exists()
+            out.mkdir(parents=True, exist_ok=True)
+            try:
+                cmd = argv if argv is not None else sys.argv  # first: a stopped run says so too
+                (out / "command.txt").write_text(" ".join(shlex.quote(a) for a in cmd) + "\n")
+                return _train(run, argv, hp, setup, kwargs)
+            except BaseException:
+                _stopped(out, created)
+                raise
     except BaseException:
         remove_empty(made)  # the parent folders this run made, when nothing was kept in them
         raise
-
-
-def _locked(
-    run: TrainRun,
-    argv: list[str] | None,
-    hp: hpmod.PPOHyperparams,
-    setup: hpmod.EnvSetup,
-    kwargs: dict[str, Any],
-) -> Path:
-    out = run.out
-    # A second run on the same --out is refused while this one holds the lock (both used to
-    # exit 0, the second overwriting every checkpoint of the first).
-    with lock_output(out.absolute(), "--out"):
-        if out.exists() and (not out.is_dir() or any(out.iterdir())):
-            raise InputError("--out", str(out), "allowed: a new or empty directory")
-        created = not out.exists()
-        out.mkdir(parents=True, exist_ok=True)
-        try:
-            cmd = argv if argv is not None else sys.argv  # first: a stopped run says so too
-            (out / "command.txt").write_text(" ".join(shlex.quote(a) for a in cmd) + "\n")
-            return _train(run, argv, hp, setup, kwargs)
-        except BaseException:
-            _stopped(out, created)
-            raise
 
 
 def _stopped(out: Path, created: bool) -> None:
