@@ -174,10 +174,11 @@ def prepare(run: TrainRun) -> tuple[hpmod.PPOHyperparams, hpmod.EnvSetup, dict[s
     if run.timesteps is not None:
         overrides["n_timesteps"] = run.timesteps
     saved: dict[str, Any] = {}
+    meta: dict[str, Any] = checkpoint.read_meta(run.resume) if run.resume is not None else {}
     if run.resume is not None:
         # a resumed run goes on with the hyperparameters it was trained with (the command's
         # --hyperparams over them), not ppo.yml's: they may have been changed since
-        saved = checkpoint.read_meta(run.resume).get("hyperparams") or {}
+        saved = meta.get("hyperparams") or {}
         if not isinstance(saved, dict):
             raise InputError("--resume", str(run.resume), "its hyperparams are not a mapping")
         for key in RESUME_FIXED:
@@ -197,8 +198,8 @@ def prepare(run: TrainRun) -> tuple[hpmod.PPOHyperparams, hpmod.EnvSetup, dict[s
         raise InputError(
             "--init-from", str(run.init_from), "allowed: --resume or --init-from, not both"
         )
+    resumed = None
     if run.resume is not None:
-        meta = checkpoint.read_meta(run.resume)
         if meta.get("env_id") != run.env_id or meta.get("optimizer") is None:
             raise InputError(
                 "--resume",
@@ -207,7 +208,7 @@ def prepare(run: TrainRun) -> tuple[hpmod.PPOHyperparams, hpmod.EnvSetup, dict[s
             )
         # every file of the checkpoint read now, before --out exists: a truncated optimizer
         # state used to fail after the run folder was made
-        checkpoint.load(run.resume)
+        resumed = checkpoint.load(run.resume)
         checkpoint.read_npz(run.resume / checkpoint.OPTIMIZER, "--resume")
         done = int(meta.get("num_timesteps", 0))
         if hp.n_timesteps <= done:
@@ -255,12 +256,12 @@ def prepare(run: TrainRun) -> tuple[hpmod.PPOHyperparams, hpmod.EnvSetup, dict[s
     try:  # every env kwarg is valid before the run starts
         if init is not None:
             _check_spaces(init, probe, run.init_from)
-        if run.resume is not None:
-            _check_spaces(checkpoint.load(run.resume), probe, run.resume, "--resume")
+        if resumed is not None:
+            _check_spaces(resumed, probe, run.resume, "--resume")
     finally:
         probe.close()
     if run.resume is not None:
-        trained = checkpoint.read_meta(run.resume).get("env_kwargs")
+        trained = meta.get("env_kwargs")
         if isinstance(trained, dict) and trained != kwargs:
             changed = sorted(k for k in {*trained, *kwargs} if trained.get(k) != kwargs.get(k))
             warnings.warn(
@@ -272,7 +273,7 @@ def prepare(run: TrainRun) -> tuple[hpmod.PPOHyperparams, hpmod.EnvSetup, dict[s
                 stacklevel=2,
             )
     # SB3 collects whole rollouts: asked for less than one, a run would train a whole one
-    done = int(checkpoint.read_meta(run.resume).get("num_timesteps", 0)) if run.resume else 0
+    done = int(meta.get("num_timesteps", 0))
     rollout = hp.n_steps * hp.n_envs
     if hp.n_timesteps - done < rollout:
         raise InputError(
