@@ -111,7 +111,34 @@ def read_scene(path: Path) -> Any:
                         continue
             return bytes(super().get(name))
 
-    return trimesh.load(str(path), force="scene", resolver=Resolver(str(path), allow_anywhere=True))
+    # loaded unprocessed: trimesh's processing drops faces on NaN vertices without a word, so
+    # the caller sees the file as written (``bad_vertices``) before ``processed``
+    return trimesh.load(
+        str(path),
+        force="scene",
+        resolver=Resolver(str(path), allow_anywhere=True),
+        process=False,
+    )
+
+
+def bad_vertices(scene: Any) -> tuple[int, int]:
+    """How many of the scene's mesh vertices are NaN or infinite, and how many there are."""
+    import trimesh
+
+    meshes = [g for g in scene.geometry.values() if isinstance(g, trimesh.Trimesh)]
+    bad = sum(int((~np.isfinite(np.asarray(g.vertices))).any(axis=1).sum()) for g in meshes)
+    return bad, sum(len(g.vertices) for g in meshes)
+
+
+def processed(scene: Any) -> Any:
+    """``scene`` with each mesh processed as trimesh's loader does by default (vertices
+    merged), in place."""
+    import trimesh
+
+    for g in scene.geometry.values():
+        if isinstance(g, trimesh.Trimesh):
+            g.process()
+    return scene
 
 
 def one_mesh(scene: Any, unit: float = 1.0, gltf: bool = False) -> Any:

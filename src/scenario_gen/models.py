@@ -33,7 +33,7 @@ import numpy as np
 
 from .errors import InputError
 from .model_files import Bundle, bundle
-from .model_mesh import collada_unit, one_mesh, read_scene
+from .model_mesh import bad_vertices, collada_unit, one_mesh, processed, read_scene
 from .model_shape import ProxyShape, proxy_shape
 from .sources import MESH_SUFFIXES
 
@@ -324,6 +324,15 @@ def _read_mesh(p: Path, given: Path, up_axis: str = "auto") -> Any:
 
     try:
         scene = read_scene(p)
+        bad, total = bad_vertices(scene)
+        if bad:
+            raise InputError(
+                "crop.model",
+                str(given),
+                f"has NaN or infinite coordinates in {bad:,} of its {total:,} vertices; "
+                "allowed: finite coordinates (re-export it from the modelling tool)",
+            )
+        processed(scene)
         unit = collada_unit(p) if p.suffix.lower() == ".dae" else 1.0
         mesh = one_mesh(scene, unit, gltf=p.suffix.lower() in (".gltf", ".glb"))
     except InputError:
