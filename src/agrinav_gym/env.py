@@ -9,6 +9,7 @@ docs/design.md, "Where do I add ...?").
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import inspect
 import math
@@ -202,8 +203,19 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
             isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0
         ):
             raise InputError("seed", seed, "allowed: None or an integer >= 0")
-        super().reset(seed=None if seed is None else int(seed))
         opts = self._check_options(options)
+        # a reset that fails part way (a lane the drawn field lacks, a start off the terrain)
+        # leaves the env as before it, with the episode ended: nothing of it carries on
+        before = (self.scenario, copy.deepcopy(self._np_random), self._np_random_seed)
+        try:
+            return self._reset(seed, opts)
+        except BaseException:
+            self.scenario, self._np_random, self._np_random_seed = before
+            self._ended = True
+            raise
+
+    def _reset(self, seed: int | None, opts: dict[str, Any]) -> tuple[Obs, dict[str, Any]]:
+        super().reset(seed=None if seed is None else int(seed))
         rng = self.np_random
         self.scenario, env_values = self.source.sample(rng, self.scenario, opts.get("scenario"))
         self._check_ground(self.scenario)
@@ -694,8 +706,8 @@ class AgriNavEnv(gym.Env[Obs, NDArray[np.float32]], EzPickle):
             )
         if self._ended:
             raise gym.error.ResetNeeded(
-                "step() after the episode terminated or was truncated: call reset() first "
-                "(Gymnasium's contract)"
+                "step() after the episode terminated or was truncated (or its reset failed): "
+                "call reset() first (Gymnasium's contract)"
             )
         if type(action) is np.ndarray and action.shape == (2,) and action.dtype.kind == "f":
             a0, a1 = action.tolist()  # the usual action: checked without a copy

@@ -192,6 +192,23 @@ def test_huge_seeds_are_honoured(env: Any) -> None:
     assert all(np.array_equal(a[k], c[k]) for k in a) and b.keys() == a.keys()
 
 
+def test_an_env_dropped_without_close_gives_its_physics_client_back() -> None:
+    """Each pybullet client holds tens of MB: a forgotten env kept its one until exit."""
+    import gc
+
+    import pybullet as p
+
+    from .helpers import make
+
+    env = make()
+    env.reset(seed=0)
+    client = env.unwrapped.world.client
+    assert p.isConnected(physicsClientId=client)
+    del env
+    gc.collect()
+    assert not p.isConnected(physicsClientId=client)
+
+
 def test_use_after_close(env: Any) -> None:
     env.reset(seed=0)
     env.close()

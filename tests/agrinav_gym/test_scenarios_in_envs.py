@@ -182,11 +182,45 @@ def test_reset_options_switch_scenario_and_lane() -> None:
         env.close()
 
 
+def test_a_failed_reset_leaves_the_env_as_before_and_the_episode_ended() -> None:
+    """The scenario option was taken, and the world rebuilt, before the lane was checked: the
+    failed reset's field stayed for later resets and step() drove on in it."""
+    env = make()
+    try:
+        env.reset(seed=0)
+        before = env.unwrapped.scenario
+        for _ in range(5):
+            env.step(np.array([0.5, 0.0], np.float32))
+        other = sg.generate(sg.preset("mature-corn", **TINY), seed=1)
+        lanes = len(other.lanes)
+        with pytest.raises(ScenarioError, match="options.lane"):
+            env.reset(seed=3, options={"scenario": other, "lane": lanes + 5})
+        assert env.unwrapped.scenario is before
+        with pytest.raises(gym.error.ResetNeeded, match="reset failed"):
+            env.step(np.array([0.5, 0.0], np.float32))
+        # the stream is as before the failed call: an unseeded reset draws what it would have
+        obs, _ = env.reset()
+        twin = make()
+        try:
+            twin.reset(seed=0)
+            for _ in range(5):
+                twin.step(np.array([0.5, 0.0], np.float32))
+            expected, _ = twin.reset()
+        finally:
+            twin.close()
+        assert env.unwrapped.scenario is before
+        assert all(np.array_equal(obs[k], expected[k]) for k in obs)
+    finally:
+        env.close()
+
+
 @pytest.mark.parametrize(
     "kwargs,field",
     [
         ({"config": {"robot": {"v_maxx": 1.0}}}, "config.robot.v_maxx"),
         ({"config": {"robot": {"physics_hz": 250}}}, "config.robot.physics_hz"),
+        # too slow for the default soil's spring-damper: the rate is named, not the soil
+        ({"config": {"robot": {"physics_hz": 100}}}, "config.robot.physics_hz"),
         ({"config": {"gnss": {"rate_hz": 3}}}, "config.gnss.rate_hz"),
         ({"observations": ["lidar"]}, "observations"),
         ({"render_mode": "ascii"}, "render_mode"),

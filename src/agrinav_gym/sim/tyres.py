@@ -69,8 +69,12 @@ MIN_DAMPING_PER_OMEGA_DT = 0.65
 MAX_DAMPING_OMEGA_DT = 0.8
 
 
-def check_corner_stability(soil: SoilConfig, corner_mass: float, dt: float) -> None:
-    """Refuse soil values whose vertical spring-damper the physics step cannot integrate."""
+def check_corner_stability(
+    soil: SoilConfig, corner_mass: float, dt: float, rate_given: bool = False
+) -> None:
+    """Refuse soil values whose vertical spring-damper the physics step cannot integrate;
+    ``rate_given``: the physics rate, not the soil, is what the user changed (the error names
+    it)."""
     from scenario_gen.errors import InputError
 
     omega = math.sqrt(soil.vertical_stiffness / corner_mass)
@@ -83,6 +87,14 @@ def check_corner_stability(soil: SoilConfig, corner_mass: float, dt: float) -> N
         if zeta > 0:
             need = omega * max(MIN_DAMPING_PER_OMEGA_DT / zeta, zeta / MAX_DAMPING_OMEGA_DT)
             rate = f"; this damping and stiffness need robot.physics_hz >= {math.ceil(need)}"
+            if rate_given:
+                raise InputError(
+                    "config.robot.physics_hz",
+                    round(1.0 / dt),
+                    f"allowed with soil.damping_ratio {zeta:g} and vertical_stiffness "
+                    f"{soil.vertical_stiffness:g} N/m: at least {math.ceil(need)} (slower, the "
+                    "wheels' spring-damper rocks the robot over standing still)",
+                )
         raise InputError(
             "config.soil.damping_ratio",
             zeta,

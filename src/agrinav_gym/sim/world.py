@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 import os
 import sys
+import weakref
 from typing import Any
 
 import numpy as np
@@ -70,9 +71,20 @@ class World:
             )
         self.geometry = RobotGeometry.from_urdf()
         g = self.geometry
-        check_corner_stability(self.soil, 0.25 * g.mass, 1.0 / robot.physics_hz)
+        soil_default = SoilConfig()
+        check_corner_stability(
+            self.soil,
+            0.25 * g.mass,
+            1.0 / robot.physics_hz,
+            rate_given=(self.soil.damping_ratio, self.soil.vertical_stiffness)
+            == (soil_default.damping_ratio, soil_default.vertical_stiffness),
+        )
         check_bearing(self.soil)
         self.client = p.connect(p.GUI if gui else p.DIRECT)
+        # an env dropped without close() (a notebook cell run again, a sweep) gives its client
+        # back when it is collected: each one holds tens of MB
+        self._release = weakref.finalize(self, _disconnect, self.client)
+        self._release.atexit = False  # the process's exit frees it anyway
         self.tyres = TyreModel(self.soil, g.wheel_radius, 0.25 * g.mass, 1.0 / robot.physics_hz)
         self.skid_factor = (
             robot.skid_factor
@@ -288,11 +300,15 @@ class World:
 
     def close(self) -> None:
         if self.client >= 0:
-            try:
-                p.disconnect(physicsClientId=self.client)
-            except p.error:
-                pass
+            self._release()
             self.client = -1
+
+
+def _disconnect(client: int) -> None:
+    try:
+        p.disconnect(physicsClientId=client)
+    except p.error:
+        pass
 
 
 class TerrainPatch:
