@@ -37,6 +37,12 @@ MAX_WAYPOINTS = 10_000
 #: The shortest route the envs drive at their defaults (``task.success_tolerance`` 0.3 m +
 #: 1 m, agrinav_gym's reset rule): a shorter one made a scenario no env would reset on.
 MIN_ROUTE_M = 1.3
+#: waypoints closer than this are one point to an RTK receiver (u-blox ZED-F9P datasheet:
+#: 0.01 m + 1 ppm CEP, fixed), so the leg between them has no heading to plan or export
+MIN_LEG_M = 0.01
+#: a leg within this of a whole number of route spacings is that many points: a waypoint
+#: file read back from its export (lat/lon to 1e-9°, ≈ 0.1 mm) plans the same route
+WHOLE_SPACINGS_M = 1e-5
 
 
 def read_gps_waypoints(path: str | Path, what: str = "--waypoints") -> FloatArray:
@@ -124,22 +130,21 @@ def waypoint_route(
     (``rows.direction_at``: one angle for straight rows, the local tangent of curved or contour
     rows)."""
 
-    def swapped() -> str:  # asked only once a waypoint is refused
-        if not _on_terrain_swapped(wps, geo, terrain):
-            return ""
-        return (
-            "; every waypoint lies on the terrain with latitude and longitude swapped: check "
-            "which the file gives first"
-        )
+    def advice() -> str:  # asked only once a waypoint is refused
+        if _on_terrain_swapped(wps, geo, terrain):  # moving the site would be the wrong fix
+            return (
+                "every waypoint lies on the terrain with latitude and longitude swapped: check "
+                "which the file gives first"
+            )
+        return _site_advice(wps, terrain_source)
 
     # Nav2's GPS waypoints carry no altitude: take the datum's, not 0 (a point hundreds of
     # metres below the tangent plane lies millimetres off sideways at tens of metres).
     try:
         x, y = geo.local_enu(wps[:, 0], wps[:, 1], geo.alt, f"{what} waypoints")
     except InputError as exc:
-        advice = f"; {_site_advice(wps, terrain_source)}"
         raise InputError(
-            exc.field, exc.value, "off the terrain: " + exc.allowed + advice + swapped()
+            exc.field, exc.value, f"off the terrain: {exc.allowed}; {advice()}"
         ) from None
     xy = np.column_stack([x, y])
     inside = terrain.contains(xy[:, 0], xy[:, 1])
@@ -149,22 +154,25 @@ def waypoint_route(
             f"{what} waypoints[{k}]",
             [float(wps[k, 0]), float(wps[k, 1])],
             f"is {float(np.hypot(*xy[k])):.1f} m from the datum, off the terrain (the field's "
-            "site and its margin); allowed: waypoints on the scenario's terrain — "
-            + _site_advice(wps, terrain_source)
-            + swapped(),
+            "site and its margin); allowed: waypoints on the scenario's terrain — " + advice(),
         )
     legs = np.diff(xy, axis=0)
     length = np.hypot(legs[:, 0], legs[:, 1])
-    if (length < 1e-6).any():
-        k = int(np.flatnonzero(length < 1e-6)[0])
-        raise InputError(f"{what} waypoints[{k + 1}]", "the same point twice", "allowed: distinct")
+    if (length < MIN_LEG_M).any():
+        k = int(np.flatnonzero(length < MIN_LEG_M)[0])
+        raise InputError(
+            f"{what} waypoints[{k + 1}]",
+            f"{length[k] * 1000:.3g} mm from waypoints[{k}]",
+            f"allowed: at least {MIN_LEG_M * 100:g} cm from the one before (closer, they are one "
+            "point to an RTK fix, and the leg between them no heading): merge them",
+        )
     if length.sum() < MIN_ROUTE_M:
         raise InputError(
             what,
             f"{length.sum():.2f} m of route",
             f"allowed: at least {MIN_ROUTE_M:g} m (the envs' success tolerance 0.3 m + 1 m)",
         )
-    n_total = int(np.ceil(length / spacing).sum()) + 1
+    n_total = sum(_points(float(d), spacing) for d in length) + 1
     if n_total > MAX_ROUTE_WAYPOINTS:
         raise InputError(
             what,
@@ -174,7 +182,7 @@ def waypoint_route(
     pts, heading = [xy[:1]], [math.atan2(legs[0, 1], legs[0, 0])]
     goals = [0]
     for k in range(len(legs)):
-        n = max(math.ceil(length[k] / spacing), 1)
+        n = _points(float(length[k]), spacing)
         goals.append(goals[-1] + n)
         t = np.arange(1, n + 1) / n
         pts.append(xy[k] + t[:, None] * legs[k])
@@ -189,6 +197,14 @@ def waypoint_route(
     )
     seg = np.where(np.asarray(along) & inside, FURROW, HEADLAND)
     return Route(np.column_stack([p, z]), seg, np.full(len(p), -1, np.int64)), goals
+
+
+def _points(length: float, spacing: float) -> int:
+    """Route points on a leg ``length`` long at most ``spacing`` apart (its start not counted)."""
+    whole = round(length / spacing)
+    if whole >= 1 and abs(length - whole * spacing) < WHOLE_SPACINGS_M:
+        return whole
+    return max(math.ceil(length / spacing), 1)
 
 
 def note_legs_on_rows(

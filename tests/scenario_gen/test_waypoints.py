@@ -123,8 +123,9 @@ def test_a_plane_gets_datum_advice_for_waypoints_far_from_it(field, tmp_path: Pa
 def test_waypoints_with_latitude_and_longitude_swapped_get_a_hint(field, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
     wps = _corners(field)
     swapped = [{"latitude": w["longitude"], "longitude": w["latitude"]} for w in wps]
-    with pytest.raises(InputError, match="latitude and longitude swapped"):
+    with pytest.raises(InputError, match="latitude and longitude swapped") as hint:
         generate(small(route={"waypoints": str(_write(tmp_path / "s.yaml", swapped))}), seed=0)
+    assert "terrain.site" not in str(hint.value)  # not also "move the site to Antarctica"
     # a waypoint merely far away gets no such hint
     far = [*wps[:2], {"latitude": wps[2]["latitude"] + 0.01, "longitude": wps[2]["longitude"]}]
     with pytest.raises(InputError) as e:
@@ -320,3 +321,41 @@ def test_legs_along_a_crop_row_are_noted_and_legs_between_rows_are_not(
         generate(small(route={"waypoints": str(write(0 * half, "lanes.yaml"))}), seed=0)
     with pytest.warns(Notice, match=r"legs 0→1 \(\d+ cm\), 2→3 \(\d+ cm\) run along a crop row"):
         generate(small(route={"waypoints": str(write(half, "rows.yaml"))}), seed=0)
+
+
+def test_waypoints_closer_than_an_rtk_fix_resolves_are_refused_by_number(
+    field,  # type: ignore[no-untyped-def]
+    tmp_path: Path,
+) -> None:
+    """A leg of micrometres has no heading: the exported yaw of such a waypoint was noise."""
+    wps = _corners(field)
+    x, y, _ = field.geo.geodetic_to_enu(wps[1]["latitude"], wps[1]["longitude"], 0.0)
+    lat, lon, _ = field.geo.enu_to_geodetic(x + 0.004, y, 0.0)
+    near = [*wps[:2], {"latitude": float(lat), "longitude": float(lon)}, *wps[2:]]
+    with pytest.raises(InputError, match=r"waypoints\[2\].*mm from waypoints\[1\].*1 cm"):
+        generate(small(route={"waypoints": str(_write(tmp_path / "n.yaml", near))}), seed=0)
+
+
+def test_legs_of_whole_route_spacings_plan_the_same_points_after_a_round_trip(
+    field,  # type: ignore[no-untyped-def]
+    tmp_path: Path,
+) -> None:
+    """A 1 m leg is 20 spacings of 0.05 m; read back from lat/lon it is 1 m ± a micrometre,
+    which ceil() made 20 or 21 points, so the goals moved between the file and its export."""
+    (a0, a1) = field.lanes[0]
+    heading = np.asarray(a1) - np.asarray(a0)
+    heading /= np.hypot(*heading)
+    side = np.array([-heading[1], heading[0]])
+    start = np.asarray(a0) + 2.0 * heading
+    pts = [start, start + 1.0 * side, start + 1.0 * side + 1.0 * heading, start + 1.0 * heading]
+    results = []
+    for jitter in (0.0, 3e-7, -3e-7):  # metres along the first leg: float noise of a round trip
+        q = [pts[0], pts[1] + jitter * side, *pts[2:]]
+        lat, lon, _ = field.geo.enu_to_geodetic(*np.asarray(q).T, 0.0)
+        wps = [{"latitude": float(a), "longitude": float(b)} for a, b in zip(lat, lon, strict=True)]
+        path = _write(tmp_path / f"w{len(results)}.yaml", wps)
+        scn = generate(small(route={"waypoints": str(path)}), seed=0)
+        results.append(scn.info["route_goals"])
+    spacing = small().route.spacing
+    assert results[0] == [0, round(1.0 / spacing), round(2.0 / spacing), round(3.0 / spacing)]
+    assert results[1] == results[0] and results[2] == results[0]
