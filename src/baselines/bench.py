@@ -189,6 +189,8 @@ def run(
     if video:
         check_video()
     reads = policy_files([policy])
+    if scenario is not None and Path(scenario).exists():  # a folder or file, not a preset name
+        reads.append(Path(scenario))
     check_output_dir(out, force, "--out", kind="run", inputs=reads)
     # everything is checked before --out exists
     env = _make_env(env_id, scenario, render=video, max_steps=max_steps)

@@ -84,3 +84,15 @@ def test_trajectories_keep_a_checkpoint_that_lies_inside_its_out(
     shutil.copytree(shipped_model("AgriNav/FurrowFollow-v3"), out / "ck")
     argv = ["dataset", "trajectories", "--policy", f"ppo:{out / 'ck'}", "--episodes", "1"]
     _refused(capsys, [*argv, "--out", str(out), "--force"], out / "ck" / "checkpoint.json")
+
+
+def test_run_keeps_a_scenario_folder_that_lies_inside_its_out(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Only policy files were protected: ``run --force`` deleted its own --scenario folder."""
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / ".agrinav-output").write_text("run\n")  # an earlier run's folder
+    save(generate(preset("default", **TINY), 1), out / "field", preview=False)
+    argv = ["run", "--policy", "rpp", "--scenario", str(out / "field"), "--max-steps", "5"]
+    _refused(capsys, [*argv, "--out", str(out), "--force"], out / "field" / "scenario.json")
