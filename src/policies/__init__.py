@@ -102,10 +102,10 @@ def check_policy_spec(spec: Any) -> tuple[str, str]:
     if not isinstance(spec, str):
         raise InputError("policy", spec, f"allowed: {', '.join(POLICIES)} or ppo:PATH")
     name, path = PolicySpec.parse(spec)
-    if spec.endswith(SEPARATOR) and not path:
-        raise InputError("policy", spec, f"an empty ':' argument; allowed: {name} or {name}:ARG")
     if name not in POLICIES:
         raise InputError("policy", spec, f"allowed: {', '.join(POLICIES)} (ppo:PATH, ppo:shipped)")
+    if spec.endswith(SEPARATOR) and not path:
+        raise InputError("policy", spec, f"an empty ':' argument; allowed: {name} or {name}:ARG")
     if name == "ppo":
         if not path:
             raise InputError("policy", spec, "ppo needs a checkpoint: ppo:PATH or ppo:shipped")

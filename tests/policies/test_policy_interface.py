@@ -39,6 +39,9 @@ def test_missing_observation_and_unknown_policy_are_clear_errors() -> None:
             make_policy("mpc", env)
         with pytest.raises(ValueError, match="empty ':' argument"):
             make_policy("dwb:", env)
+        # no name at all: the policies are listed, not "allowed:  or :ARG"
+        with pytest.raises(ValueError, match="allowed: dwb, rpp"):
+            make_policy(":", env)
         with pytest.raises(ValueError, match="checkpoint"):
             make_policy("ppo", env)
     finally:
