@@ -314,6 +314,13 @@ def _plant(
         k = np.clip(np.searchsorted(rows.curve.t, t_k, side="right") - 1, 0, len(rows.curve.t) - 2)
         px, py = rows.to_enu(t_k + dt / (1.0 - s_k * rows.curve.kappa[k]), s_k + dl)
     ok = ~missing & shapely.contains_xy(field, px, py)
+    if n and missing.all():  # rows and lanes would stand on a field with no crop in it
+        raise InputError(
+            "layout.gap_prob" if spec.gap_prob >= 1.0 else "layout.gap_run_prob",
+            spec.gap_prob if spec.gap_prob >= 1.0 else spec.gap_run_prob,
+            f"leaves every one of the {n:,} plants out: a field with no crop; allowed: gaps "
+            "that leave plants (gap_prob below 1, fewer or shorter runs)",
+        )
     wx, wy = _weeds(area, spec.weed_density, rng_weeds)
     x = np.concatenate([px[ok], wx])
     y = np.concatenate([py[ok], wy])

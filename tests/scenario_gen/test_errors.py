@@ -53,6 +53,9 @@ def test_unknown_preset_lists_the_allowed_ones() -> None:
         ({"field": {"width": 0.5, "length": 0.5}}, "field"),
         ({"field": {"width": 1.2, "length": 30.0}}, "field"),  # one row: no lane at all
         ({"layout": {"plant_spacing": 50.0}}, "layout"),  # rows, but no crop along a lane
+        # every plant a gap: rows and lanes were reported over a field with no crop
+        ({"layout": {"gap_prob": 1.0}}, "layout.gap_prob"),
+        ({"layout": {"gap_run_prob": 1.0, "gap_run_mean": 10000.0}}, "layout.gap_run_prob"),
         ({"field": {"width": 2000.0, "length": 2500.0}}, "layout.plant_spacing/row_spacing"),
         ({"terrain": {"site": "latlon"}}, "terrain.lat/lon"),
         ({"terrain": {"source": "dem"}}, "terrain.path"),
