@@ -49,6 +49,7 @@ def _record(
         "scenario": scenario,
         "seed": ep.seed,
         **{k: ep.metrics.get(k) for k in METRICS},
+        "driven_m": ep.metrics.get("driven_m"),  # the path the distance-weighted errors weigh
         "obstacles_hit_by_kind": ep.metrics.get("obstacles_hit_by_kind"),
         **(
             {"missed_waypoints": ep.metrics["missed_waypoints"]}
@@ -204,7 +205,7 @@ def run(
                     ep = _video_episode(env, pi, seed, policy, tmp / "episode_000.webm")
                 else:
                     ep = run_episode(env, pi, seed + k, policy)
-                records.append(_record(ep, "run", name))
+                records.append(_record(ep, "run", name, env))
                 trajectory_figure(
                     ep, tmp / f"trajectory_{k:03d}.png", f"{policy} · {env_id} · seed {seed + k}"
                 )

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -175,7 +176,10 @@ def trajectory_figure(ep: Episode, path: Path, title: str) -> None:
     lc = LineCollection(list(seg), cmap="plasma", norm=Normalize(0, vmax), linewidths=2.5)
     lc.set_array(0.5 * (dist[:-1] + dist[1:]))
     ax.add_collection(lc)
-    fig.colorbar(lc, ax=ax, label="cross-track error (m)", shrink=0.85)
+    # the scale ends at the 99th percentile so one spike does not wash the rest out; the
+    # arrow says there is more above it
+    above = "max" if float(dist.max()) > vmax else "neither"
+    fig.colorbar(lc, ax=ax, label="cross-track error (m)", shrink=0.85, extend=above)
     ax.plot(*ep.poses[0], "o", color="black", ms=5, zorder=6, label="start")
     ax.plot(*ep.poses[-1], "s", color="black", ms=5, zorder=6, label=f"end: {ep.termination}")
     m = ep.metrics
@@ -183,11 +187,14 @@ def trajectory_figure(ep: Episode, path: Path, title: str) -> None:
     def f(v: Any) -> str:
         return "—" if v is None else f"{v:.3f}"
 
+    # completion rounded down: 99.6 % of a route that was not finished never reads 100 %
+    done = math.floor(10.0 * m["completion"]) / 10.0
     text = (
-        f"RMSE {f(m['rmse'])} m · MAE {f(m['mae'])} · max {f(m['max'])}\n"
-        f"in-furrow {f(m['in_furrow_rmse'])} · headland {f(m['headland_rmse'])} · "
-        f"completion {m['completion']:.0f} % · crops hit {m['crops_hit']} · "
-        f"ended: {ep.termination} after {ep.steps} steps"
+        f"path RMSE {f(m.get('path_rmse'))} m (per step {f(m['rmse'])}) · MAE {f(m['mae'])} · "
+        f"max {f(m['max'])}\n"
+        f"in-furrow {f(m.get('path_in_furrow_rmse'))} · headland "
+        f"{f(m.get('path_headland_rmse'))} · completion {done:.1f} % · "
+        f"crops hit {m['crops_hit']} · ended: {ep.termination} after {ep.steps} steps"
     )
     ax.set_title(f"{title}\n{text}", fontsize=9)
     ax.set_xlim(lo[0], hi[0])
@@ -195,8 +202,11 @@ def trajectory_figure(ep: Episode, path: Path, title: str) -> None:
     ax.set_aspect("equal")
     ax.set_xlabel("east (m)")
     ax.set_ylabel("north (m)")
-    ax.legend(loc="upper right", fontsize=7)
-    fig.tight_layout()
+    # along the figure's foot: inside the axes it covered the headland turn, where the
+    # largest errors are
+    handles, labels = ax.get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=6, fontsize=7, frameon=False)
+    fig.tight_layout(rect=(0.0, 0.3 / fig.get_figheight(), 1.0, 1.0))
     fig.savefig(path, dpi=110)
 
 

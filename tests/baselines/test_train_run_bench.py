@@ -399,6 +399,28 @@ def test_run_writes_metrics_plot_and_video(
     assert lines[-1].startswith(f"wrote {out.resolve()}")
 
 
+def test_run_records_what_bench_records_on_drifted_rows(tmp_path: Path) -> None:
+    """``run``'s metrics.json left out the planted-lane error (and the driven path) that a
+    bench record of the same episode holds."""
+    from scenario_gen import generate, preset, save
+
+    spec = preset(
+        "default",
+        field={"width": 6.0, "length": 8.0},
+        layout={"headland": 1.5, "drift_amplitude": 0.1},
+        terrain={"margin": 3.0},
+        route={"lead_in": 1.0},
+    )
+    save(generate(spec, 1), tmp_path / "drift", preview=False)
+    out = tmp_path / "run"
+    argv = ["run", "--policy", "rpp", "--scenario", str(tmp_path / "drift"), "--max-steps", "60"]
+    assert main([*argv, "--out", str(out)]) == 0
+    (record,) = json.loads((out / "metrics.json").read_text())
+    assert record["planted_rmse"] is not None and record["planted_rmse"] >= 0.0
+    assert 0.0 < record["driven_m"] < 60 * 0.05 * 2.0  # 60 steps of 0.05 s below 2 m/s
+    assert record["geometry"]["scenario_seed"] == 1
+
+
 def test_episode_seconds_leave_the_video_out(monkeypatch: pytest.MonkeyPatch) -> None:
     """``seconds`` is the episode's own time: what its frames take is ``render_seconds``."""
     import baselines.episodes as episodes
