@@ -18,6 +18,7 @@ reprojected, the pixels outside the terrain read NoData, not a 0 m border.
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 from typing import Any
 
@@ -112,9 +113,13 @@ def write_resampled(src: Path, dst: Path, crs: CRS, resolution: float | None = N
 
     with rasterio.open(src) as s:
         dst_crs = rasterio.crs.CRS.from_wkt(crs.to_wkt())
-        transform, w, h = calculate_default_transform(
-            s.crs, dst_crs, s.width, s.height, *s.bounds, resolution=resolution
-        )
+        grid = _across_antimeridian(s, crs) if crs.is_geographic else None
+        if grid is not None:
+            transform, w, h = grid
+        else:
+            transform, w, h = calculate_default_transform(
+                s.crs, dst_crs, s.width, s.height, *s.bounds, resolution=resolution
+            )
         profile = s.profile | {
             "crs": dst_crs,
             "transform": transform,
@@ -132,6 +137,32 @@ def write_resampled(src: Path, dst: Path, crs: CRS, resolution: float | None = N
             )
             d.update_tags(**s.tags())
             d.set_band_description(1, s.descriptions[0] or "")
+
+
+def _across_antimeridian(src: Any, crs: CRS) -> tuple[Any, int, int] | None:
+    """A longitude/latitude grid for ``src`` where its footprint crosses 180° (GDAL's own
+    choice is then 0 pixels wide): longitudes run on past 180° (or below −180°) from the
+    footprint's west edge; pixels as GDAL sizes them (the footprint's diagonal over the
+    source's). None where the footprint does not cross."""
+    from rasterio.transform import from_origin
+
+    n = 64  # points along each edge: the footprint's curved sides, to well under a pixel
+    t = np.linspace(0.0, 1.0, n)
+    w, h = src.width, src.height
+    cols = np.concatenate([t * w, np.full(n, w), t[::-1] * w, np.zeros(n)])
+    rows = np.concatenate([np.zeros(n), t * h, np.full(n, h), t[::-1] * h])
+    x, y = src.transform @ (cols, rows)
+    to = Transformer.from_crs(src.crs.to_wkt(), crs, always_xy=True)
+    lon, lat = (np.asarray(v, float) for v in to.transform(x, y))
+    ref = float(lon[0])
+    unwrapped = ref + (lon - ref + 180.0) % 360.0 - 180.0
+    if float(unwrapped.min()) >= -180.0 and float(unwrapped.max()) <= 180.0:
+        return None
+    west, east = float(unwrapped.min()), float(unwrapped.max())
+    south, north = float(lat.min()), float(lat.max())
+    res = math.hypot(east - west, north - south) / math.hypot(w, h)
+    width, height = math.ceil((east - west) / res), math.ceil((north - south) / res)
+    return from_origin(west, north, res, res), width, height
 
 
 def resampling_error(scn: Scenario, path: Path) -> float:

@@ -213,3 +213,42 @@ def test_geopackage_has_a_spatial_index(gis) -> None:
         sql = f"SELECT HasSpatialIndex('{name}', 'geom')"
         text = _run(gdal("ogrinfo"), "-q", str(out / "layers.gpkg"), "-sql", sql).stdout
         assert "HasSpatialIndex (Integer) = 1" in text, text
+
+
+def test_a_dem_across_the_antimeridian_exports_its_geographic_copy(tmp_path: Path) -> None:
+    """GDAL sizes a longitude/latitude grid over a footprint that crosses 180° at 0 pixels
+    wide: the export failed ("Attempt to create 493x0 dataset"). The copy runs its longitudes
+    on past 180° and holds the ground's heights."""
+    import rasterio
+    from rasterio.transform import from_origin
+
+    from scenario_gen import generate
+
+    from ..helpers import small
+
+    res, n = 2e-5, 200  # ≈ 2 m pixels, 400 m across, centred on 180° at 17° S
+    lon = 180.0 + (np.arange(n) - n / 2 + 0.5) * res
+    lat = -17.0 - (np.arange(n) - n / 2 + 0.5) * res
+    z = 50.0 + 300.0 * (lon[None, :] - 180.0) + 200.0 * (lat[:, None] + 17.0)  # a plane
+    dem = tmp_path / "dem.tif"
+    profile = {"driver": "GTiff", "width": n, "height": n, "count": 1, "dtype": "float32"}
+    transform = from_origin(180.0 - n / 2 * res, -17.0 + n / 2 * res, res, res)
+    with rasterio.open(dem, "w", crs="EPSG:4326", transform=transform, **profile) as ds:
+        ds.write(z.astype(np.float32), 1)
+    terrain = {"source": "dem", "path": str(dem), "site": "latlon", "lat": -17.0, "lon": 180.0}
+    scn = generate(small(terrain=terrain), seed=0)
+    from scenario_gen import save
+
+    save(scn, tmp_path / "scn", preview=False)
+    export(tmp_path / "scn", "gis", tmp_path / "gis", ExportOptions())
+    p = scn.plants
+    plat, plon, alt = scn.geo.enu_to_geodetic(p.x, p.y, scn.terrain.height_at(p.x, p.y))
+    assert plon.min() < -179.99 and plon.max() > 179.99  # the field itself crosses
+    with rasterio.open(tmp_path / "gis" / "terrain_dem_crs.tif") as ds:
+        assert ds.crs.to_epsg() == 4326
+        assert ds.bounds.left < 180.0 < ds.bounds.right  # one grid, on past 180°
+        got = np.array(
+            [v[0] for v in ds.sample(zip(np.where(plon < 0, plon + 360, plon), plat, strict=True))]
+        )
+    # a plane resampled bilinearly twice: what is left is float32 rounding of ≈ 50 m heights
+    assert np.abs(got - alt).max() < 0.01
