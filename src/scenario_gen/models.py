@@ -21,6 +21,7 @@ import hashlib
 import re
 import stat
 import tempfile
+import warnings
 import zipfile
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -31,9 +32,16 @@ from typing import Any
 
 import numpy as np
 
-from .errors import InputError
+from .errors import InputError, Notice
 from .model_files import Bundle, bundle
-from .model_mesh import bad_vertices, collada_unit, one_mesh, processed, read_scene
+from .model_mesh import (
+    bad_vertices,
+    collada_unit,
+    collada_up_axis,
+    one_mesh,
+    processed,
+    read_scene,
+)
 from .model_shape import ProxyShape, proxy_shape
 from .sources import MESH_SUFFIXES
 
@@ -240,6 +248,17 @@ def inspect_model(path: str | Path, scale: str = "stage", up_axis: str = "auto")
         native = _read_mesh(mesh_path, p, up_axis)
         lo, hi = native.bounds
         size = (float(hi[0] - lo[0]), float(hi[1] - lo[1]), float(hi[2] - lo[2]))
+        if max(size[:2]) > LYING_RATIO * size[2]:
+            up = resolved_up_axis(mesh_path, up_axis, p)
+            other = "z" if up == "y" else "y"
+            warnings.warn(
+                Notice(
+                    f"crop.model {p.name} stands {size[2]:.3g} tall and {max(size[:2]):.3g} "
+                    f"across along {up} (crop.model_up_axis {up_axis}): if it lies on its side, "
+                    f"set crop.model_up_axis={other}"
+                ),
+                stacklevel=2,
+            )
         shape = proxy_shape(_placed(native, 1.0))
         files: tuple[tuple[str, str], ...] = ()
         kept_as: str | None = None
@@ -300,11 +319,31 @@ def _unreadable(p: Path, exc: Exception) -> str:
     return f"{type(exc).__name__}: {exc}"
 
 
-def resolved_up_axis(p: Path, up_axis: str) -> str:
-    """``crop.model_up_axis`` for the mesh file ``p``: auto is y for glTF/GLB, z otherwise."""
+def resolved_up_axis(p: Path, up_axis: str, given: Path | None = None) -> str:
+    """``crop.model_up_axis`` for the mesh file ``p`` (``given`` names it): auto is y for
+    glTF/GLB (the format's rule), what a COLLADA file declares in ``<up_axis>``, z
+    otherwise."""
     if up_axis != "auto":
         return up_axis
-    return "y" if p.suffix.lower() in (".glb", ".gltf") else "z"
+    suffix = p.suffix.lower()
+    if suffix in (".glb", ".gltf"):
+        return "y"
+    if suffix == ".dae":
+        declared = collada_up_axis(p)
+        if declared == "X_UP":  # neither axis this project turns a model about
+            raise InputError(
+                "crop.model",
+                str(given or p),
+                "declares <up_axis>X_UP</up_axis>; allowed: a COLLADA file Y_UP or Z_UP "
+                "(re-export it), or crop.model_up_axis y or z to say which axis it stands along",
+            )
+        return "y" if declared == "Y_UP" else "z"
+    return "z"
+
+
+#: a model read this many times wider than tall most likely lies on its side (a maize plant
+#: is about as wide as tall; a spreading crop two or three times)
+LYING_RATIO = 4.0
 
 
 def _placed(mesh: Any, height: float) -> Any:
@@ -356,7 +395,7 @@ def _read_mesh(p: Path, given: Path, up_axis: str = "auto") -> Any:
         )
     if not float(getattr(mesh, "area", 0.0)) > 0.0:
         raise InputError("crop.model", str(given), "has no surface area (degenerate triangles)")
-    up = resolved_up_axis(p, up_axis)
+    up = resolved_up_axis(p, up_axis, given)
     if up == "y":
         mesh.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, [1, 0, 0]))
     lo, hi = mesh.bounds

@@ -203,8 +203,9 @@ class CropSpec:
     )
     model_up_axis: str = _f(
         "auto",
-        "the axis crop.model's file stands along: auto (y for glTF/GLB, as the format says; z "
-        "otherwise), y (e.g. an OBJ from Blender's default export), z",
+        "the axis crop.model's file stands along: auto (y for glTF/GLB, as the format says; "
+        "a COLLADA file's declared up_axis; z otherwise), y (e.g. an OBJ from Blender's "
+        "default export), z",
         choices=("auto", "y", "z"),
     )
 

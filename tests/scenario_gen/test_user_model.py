@@ -444,6 +444,43 @@ def test_a_y_up_obj_stands_up_when_the_spec_says_so(tmp_path: Path) -> None:
         inspect_model(p, "native", "x")
 
 
+def test_a_collada_file_stands_along_the_axis_it_declares(tmp_path: Path) -> None:
+    """``auto`` read every COLLADA file z up, so a Y_UP file (Blender's and SketchUp's
+    exports can be) lay on its side while the Gazebo export, reading the declaration, did
+    not reference it; X_UP is neither axis and is refused."""
+    shutil.copytree(CUTOUT, tmp_path / "m")
+    dae = tmp_path / "m" / "meshes" / "plant.dae"
+    text = dae.read_text()
+    assert "<up_axis>Z_UP</up_axis>" in text
+    as_z = inspect_model(dae, "native")
+    dae.write_text(text.replace("Z_UP", "Y_UP"))
+    declared = inspect_model(dae, "native")
+    assert declared.size == pytest.approx(inspect_model(dae, "native", "y").size, abs=1e-9)
+    assert declared.size[2] == pytest.approx(as_z.size[1], abs=1e-9)  # its y is up now
+    dae.write_text(text.replace("Z_UP", "X_UP"))
+    with pytest.raises(ScenarioError, match=r"crop.model.*X_UP.*crop.model_up_axis"):
+        inspect_model(dae, "native")
+    assert inspect_model(dae, "native", "z").size == pytest.approx(as_z.size, abs=1e-9)
+
+
+def test_a_model_far_wider_than_tall_is_noted_as_maybe_lying(tmp_path: Path) -> None:
+    import trimesh
+
+    from scenario_gen.errors import Notice
+
+    cone = trimesh.creation.cone(radius=0.2, height=2.0)  # 2 m along +y: 0.4 m "tall" as z up
+    cone.apply_transform(trimesh.transformations.rotation_matrix(-np.pi / 2, [1, 0, 0]))
+    p = tmp_path / "yup.obj"
+    p.write_text(trimesh.exchange.obj.export_obj(cone))
+    with pytest.warns(Notice, match="crop.model_up_axis=y"):
+        inspect_model(p, "native")
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", Notice)
+        inspect_model(p, "native", "y")  # stood up: nothing to note
+
+
 def test_a_truncated_gltf_is_named_as_such(tmp_path: Path) -> None:
     """Not trimesh's KeyError for a file name the user never wrote."""
     p = tmp_path / "plant.gltf"
