@@ -321,8 +321,8 @@ def _unreadable(p: Path, exc: Exception) -> str:
 
 def resolved_up_axis(p: Path, up_axis: str, given: Path | None = None) -> str:
     """``crop.model_up_axis`` for the mesh file ``p`` (``given`` names it): auto is y for
-    glTF/GLB (the format's rule), what a COLLADA file declares in ``<up_axis>``, z
-    otherwise."""
+    glTF/GLB (the format's rule), what a COLLADA file declares in ``<up_axis>`` (Y_UP,
+    the format's default, where it declares none), z otherwise."""
     if up_axis != "auto":
         return up_axis
     suffix = p.suffix.lower()
@@ -337,7 +337,8 @@ def resolved_up_axis(p: Path, up_axis: str, given: Path | None = None) -> str:
                 "declares <up_axis>X_UP</up_axis>; allowed: a COLLADA file Y_UP or Z_UP "
                 "(re-export it), or crop.model_up_axis y or z to say which axis it stands along",
             )
-        return "y" if declared == "Y_UP" else "z"
+        # none declared is Y_UP, COLLADA 1.4's default (as Gazebo's loader reads it too)
+        return "z" if declared == "Z_UP" else "y"
     return "z"
 
 

@@ -457,6 +457,8 @@ def test_a_collada_file_stands_along_the_axis_it_declares(tmp_path: Path) -> Non
     declared = inspect_model(dae, "native")
     assert declared.size == pytest.approx(inspect_model(dae, "native", "y").size, abs=1e-9)
     assert declared.size[2] == pytest.approx(as_z.size[1], abs=1e-9)  # its y is up now
+    dae.write_text(text.replace("<up_axis>Z_UP</up_axis>", ""))  # COLLADA's default: Y_UP
+    assert inspect_model(dae, "native").size == pytest.approx(declared.size, abs=1e-9)
     dae.write_text(text.replace("Z_UP", "X_UP"))
     with pytest.raises(ScenarioError, match=r"crop.model.*X_UP.*crop.model_up_axis"):
         inspect_model(dae, "native")
