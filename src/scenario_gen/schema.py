@@ -34,9 +34,11 @@ def param(
     lo: float | None = None,
     hi: float | None = None,
     choices: tuple[Any, ...] | None = None,
+    above: bool = False,
 ) -> Any:
-    """A config field: its default, what it means (with its unit) and what is allowed."""
-    meta = {"doc": doc, "lo": lo, "hi": hi, "choices": choices}
+    """A config field: its default, what it means (with its unit) and what is allowed
+    (``above``: ``lo`` itself is not)."""
+    meta = {"doc": doc, "lo": lo, "hi": hi, "choices": choices, "above": above}
     if isinstance(default, (dict, list)):
         frozen = default
         return dc_field(default_factory=lambda: _plain(frozen), metadata=meta)
@@ -177,7 +179,10 @@ def coerce(value: Any, tp: Any, meta: Any, path: str) -> Any:
             if choices is not None and k not in choices:
                 raise InputError(f"{path}.{k}", v, f"unknown key; allowed: {', '.join(choices)}")
             out[scalar(k, kt, {}, path)] = coerce(
-                v, vt, {"lo": meta.get("lo"), "hi": meta.get("hi")}, f"{path}.{k}"
+                v,
+                vt,
+                {"lo": meta.get("lo"), "hi": meta.get("hi"), "above": meta.get("above")},
+                f"{path}.{k}",
             )
         return out
     if origin is list:
@@ -217,7 +222,8 @@ def scalar(value: Any, tp: Any, meta: Any, path: str) -> Any:
     lo, hi, choices = meta.get("lo"), meta.get("hi"), meta.get("choices")
     if choices is not None and value not in choices:
         raise InputError(path, value, f"allowed: {describe(tp, meta)}")
-    if (lo is not None and value < lo) or (hi is not None and value > hi):
+    low = lo is not None and (value <= lo if meta.get("above") else value < lo)
+    if low or (hi is not None and value > hi):
         raise InputError(path, value, f"allowed: {describe(tp, meta)}")
     return value
 
@@ -243,10 +249,11 @@ def describe(tp: Any, meta: Any) -> str:
         tp, getattr(tp, "__name__", str(tp))
     )
     lo, hi = meta.get("lo"), meta.get("hi")
+    opening = "(" if meta.get("above") else "["
     if lo is not None and hi is not None:
-        return f"{name} in [{_num(lo)}, {_num(hi)}]"
+        return f"{name} in {opening}{_num(lo)}, {_num(hi)}]"
     if lo is not None:
-        return f"{name} >= {_num(lo)}"
+        return f"{name} {'>' if meta.get('above') else '>='} {_num(lo)}"
     return name
 
 

@@ -90,8 +90,8 @@ class FieldSpec:
         "layer of the field file holding the field (null: its only layer, or its only layer "
         "with polygons; a file with several is refused)",
     )
-    width: float = _f(30.0, "rectangle size across the rows, metres", 0, 5000)
-    length: float = _f(40.0, "rectangle size along the rows, metres", 0, 5000)
+    width: float = _f(30.0, "rectangle size across the rows, metres", 0, 5000, above=True)
+    length: float = _f(40.0, "rectangle size along the rows, metres", 0, 5000, above=True)
     angle_deg: float = _f(
         0.0, "rectangle long-side direction, degrees counter-clockwise from east", -360, 360
     )

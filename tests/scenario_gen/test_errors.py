@@ -29,6 +29,7 @@ from .helpers import small
         ({"route": {"spacing": 0.5}}, "route.spacing"),
         ({"wheels": 4}, "wheels"),
         ({"field": 3}, "field"),
+        ({"field": {"width": 0.0}}, "field.width"),  # (0, 5000]: the range says it now
     ],
 )
 def test_spec_errors_name_the_field(overrides: dict, field: str) -> None:
@@ -36,6 +37,8 @@ def test_spec_errors_name_the_field(overrides: dict, field: str) -> None:
         preset("default").replace(overrides)
     assert info.value.field == field
     assert "allowed" in str(info.value) or "unknown key" in str(info.value)
+    if field == "field.width":
+        assert "(0, 5000]" in str(info.value)
 
 
 def test_unknown_preset_lists_the_allowed_ones() -> None:

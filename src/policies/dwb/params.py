@@ -135,8 +135,8 @@ class PreferForwardParams:
     theta_scale: float = param(10.0, "score per rad/s of |ω|", 0, 1e3)
 
 
-def _robot(doc: str, lo: float, hi: float) -> Any:
-    return param(None, doc + " (null: the robot's own value)", lo, hi)
+def _robot(doc: str, lo: float, hi: float, above: bool = False) -> Any:
+    return param(None, doc + " (null: the robot's own value)", lo, hi, above=above)
 
 
 @dataclass(frozen=True)
@@ -146,14 +146,15 @@ class FollowPathParams:
     The robot is skid-steer: y velocities are 0 (Nav2's min/max_vel_y 0, one y sample)."""
 
     min_vel_x: float = param(0.0, "slowest forward speed sampled, m/s", -10, 10)
-    max_vel_x: float | None = _robot("fastest forward speed sampled, m/s", 0, 10)
+    # 0: a window the robot cannot move forward in, refused rather than driven standing
+    max_vel_x: float | None = _robot("fastest forward speed sampled, m/s", 0, 10, above=True)
     max_vel_theta: float | None = _robot("fastest yaw rate sampled, rad/s", 0, 20)
     min_speed_xy: float = param(
         0.0, "twists slower than this (and min_speed_theta) are skipped, m/s", 0, 10
     )
     max_speed_xy: float | None = _robot("twists faster than this are skipped, m/s", 0, 10)
     min_speed_theta: float = param(0.0, "see min_speed_xy, rad/s", 0, 20)
-    acc_lim_x: float | None = _robot("linear acceleration limit, m/s²", 0, 50)
+    acc_lim_x: float | None = _robot("linear acceleration limit, m/s²", 0, 50, above=True)
     decel_lim_x: float | None = _robot("linear deceleration limit (negative), m/s²", -50, 0)
     acc_lim_theta: float | None = _robot("angular acceleration limit, rad/s²", 0, 100)
     decel_lim_theta: float | None = _robot("angular deceleration limit (negative), rad/s²", -100, 0)
@@ -336,10 +337,6 @@ class DWBParams:
             raise InputError("dwb.FollowPath.critics", fp.critics, "allowed: each critic once")
         if not fp.critics:
             raise InputError("dwb.FollowPath.critics", fp.critics, "allowed: at least one critic")
-        # a window the robot cannot move forward in: refused, not driven as a robot that stands
-        for key in ("max_vel_x", "acc_lim_x"):
-            if getattr(fp, key) == 0:
-                raise InputError(f"dwb.FollowPath.{key}", 0, "allowed: above 0 (or null)")
         if fp.max_vel_x is not None and fp.min_vel_x > fp.max_vel_x:
             raise InputError(
                 "dwb.FollowPath.min_vel_x",
