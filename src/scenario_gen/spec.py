@@ -204,8 +204,8 @@ class CropSpec:
     model_up_axis: str = _f(
         "auto",
         "the axis crop.model's file stands along: auto (y for glTF/GLB, as the format says; "
-        "a COLLADA file's declared up_axis, Y_UP where none; z otherwise), y (e.g. an OBJ from Blender's "
-        "default export), z",
+        "a COLLADA file's declared up_axis, Y_UP where none; z otherwise), y (e.g. an OBJ "
+        "from Blender's default export), z",
         choices=("auto", "y", "z"),
     )
 
