@@ -384,6 +384,13 @@ def generate(spec: ScenarioSpec, seed: int) -> Scenario:
         crops = np.column_stack([lay.x, lay.y])[~lay.is_weed]
         note_legs_on_rows(route, goals["route_goals"], crops, spec.layout.row_spacing)
     else:
+        if spec.layout.rows is not None and spec.layout.rows < 2:  # named, not the field
+            raise InputError(
+                "layout.rows",
+                spec.layout.rows,
+                "a lane needs a crop row on each side; allowed: at least 2 (or null: as many "
+                "as fit), or a route through route.waypoints",
+            )
         crops = np.column_stack([lay.x, lay.y])[~lay.is_weed]
         route = zigzag(lay.rows, spec.route, terrain, poly, crops)
     obstacles = field_obstacles(spec.obstacles, poly, terrain, lodging, route, rng["obstacles"])

@@ -55,6 +55,7 @@ def test_unknown_preset_lists_the_allowed_ones() -> None:
         ({"layout": {"headland": 20.0}}, "layout.headland/edge_margin"),
         ({"field": {"width": 0.5, "length": 0.5}}, "field"),
         ({"field": {"width": 1.2, "length": 30.0}}, "field"),  # one row: no lane at all
+        ({"layout": {"rows": 1}}, "layout.rows"),  # one row asked for: that is named
         ({"layout": {"plant_spacing": 50.0}}, "layout"),  # rows, but no crop along a lane
         # every plant a gap: rows and lanes were reported over a field with no crop
         ({"layout": {"gap_prob": 1.0}}, "layout.gap_prob"),
