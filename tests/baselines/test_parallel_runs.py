@@ -239,3 +239,36 @@ def test_workers_far_beyond_the_cores_are_refused(
     assert main([*SMOKE, "--workers", "9", "--out", str(tmp_path / "b")]) == 2
     assert "allowed: at most 8 (4 per core of this machine's 2)" in capsys.readouterr().err
     assert not (tmp_path / "b").exists()
+
+
+def test_a_journal_of_other_code_is_not_resumed(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The package version was the identity's only word on the code: an edit in an editable
+    install between a killed run and its resume averaged episodes of two codes in one table."""
+    from baselines import journal as journal_mod
+
+    out = tmp_path / "bench"
+    argv = ["bench", "--suite", "smoke", "--policies", "rpp", "--seeds", "2", "--out", str(out)]
+    monkeypatch.setattr(journal_mod, "code_digest", lambda: "before-the-edit")
+    save = journal_mod.Journal.save
+    saved: list[str] = []
+
+    def stop_at_the_second(self: Any, key: str, *args: Any, **kwargs: Any) -> None:
+        if saved:
+            raise KeyboardInterrupt  # a Ctrl-C once one episode is kept
+        saved.append(key)
+        save(self, key, *args, **kwargs)
+
+    monkeypatch.setattr(journal_mod.Journal, "save", stop_at_the_second)
+    assert main(argv) == 130
+    partial = tmp_path / ".bench.partial"
+    assert (partial / f"{saved[0]}.json").is_file()
+    monkeypatch.setattr(journal_mod.Journal, "save", save)
+    capsys.readouterr()
+    monkeypatch.setattr(journal_mod, "code_digest", lambda: "after-the-edit")
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "the project's code changed since" in err and "--force" in err and not out.exists()
+    assert main([*argv, "--force"]) == 0
+    assert len(_records(out)) == 2 and not partial.exists()
