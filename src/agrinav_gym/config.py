@@ -129,7 +129,11 @@ class CameraConfig:
     subpixel: float = _f(0.08, "stereo subpixel accuracy s in σ = z²·s/(f·B)", 0.0, 1)
     baseline: float = _f(0.095, "stereo baseline B, m (D455 95 mm)", 0.01, 1)
     native_width: int = _f(
-        1280, "proxy: sensor width whose focal length sets the noise (mesh: the image's)", 64, 4096
+        1280,
+        "width of the sensor mode the image is resampled from: its focal length sets the "
+        "stereo noise (both camera models; D455 1280 × 720)",
+        64,
+        4096,
     )
     rate_hz: int = _f(
         20, "update rate, Hz (a divisor of control_hz where the env observes depth)", 1, 200

@@ -19,7 +19,7 @@ from agrinav_gym.sensors import d455
 from agrinav_gym.sensors.mesh_camera import MeshCamera
 from scenario_gen import Terrain, generate, preset
 
-from .helpers import TINY
+from .helpers import TINY, make_camera
 
 BASE = np.array([0.0, 0.0, 0.11])  # base_link on flat ground at z = 0
 
@@ -84,9 +84,14 @@ def test_depth_of_a_box_at_a_known_distance_follows_the_noise_law(renderer: str)
     assert z == pytest.approx(3.0, abs=1e-4)  # the box's near face, along the optical axis
     rng = np.random.default_rng(0)
     samples = np.array([cam.draw(np.eye(3), BASE, scene, rng).depth[6, 8] for _ in range(2500)])
-    sigma = z**2 * 0.08 / (cam.fx * 0.095)  # σ_z = z²·s/(f·B), f of this 16-px mode
+    # σ_z = z²·s/(f·B) with f of the 1280-px sensor mode the 16-px image is resampled from
+    # (the image's own f made the mesh camera's noise 80 × the proxy camera's here)
+    f = 0.5 * 1280 / math.tan(math.radians(87.0) / 2)
+    sigma = z**2 * 0.08 / (f * 0.095)
     assert samples.mean() == pytest.approx(z, abs=4 * sigma / math.sqrt(len(samples)))
     assert samples.std() == pytest.approx(sigma, rel=0.06)
+    proxy = make_camera({"camera_pitch_deg": 0.0}, {"width": 16, "height": 12})
+    assert cam.noise_sigma(np.array([z])) == pytest.approx(proxy.noise_sigma(np.array([z])))
 
 
 def test_noisy_frames_are_deterministic_per_seed(renderer: str) -> None:

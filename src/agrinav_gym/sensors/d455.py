@@ -7,8 +7,10 @@
   fx = fy ≈ 427 px with a slightly wider FOV, so the nominal FOVs are good to a few %). A
   smaller image for RL (64 × 48 by default) is the same FOV with the focal length scaled per
   axis (fx = 446.8 · 64/848 = 33.7 px).
-* Noise: σ_z = z² · s / (f · B), s ≈ 0.08 px subpixel, with **f the focal length of the mode
-  in use** — the disparity is measured in that mode's pixels.
+* Noise: σ_z = z² · s / (f · B), s ≈ 0.08 px subpixel, with **f the focal length of the
+  sensor mode** (``camera.native_width``: 1280 × 720 by default, fx 674 px) — the disparity
+  is measured in that mode's pixels; a smaller image for RL is resampled from that mode's
+  depth and keeps its noise (at 64 × 48, fx 33.7 px, it would be 20 × larger).
 * Pixels read 0 (invalid) where the stereo pair cannot match: nearer than ≈ 0.4 m, beyond 6 m,
   outside the right imager's field of view (the band on the image's left side at close range),
   and in the **occlusion shadow**: surface the left imager sees but the right one does not,
@@ -44,6 +46,13 @@ NEAREST_OCCLUDER = 0.4
 def focal_848() -> float:
     """Horizontal focal length of the 848 × 480 depth mode from the 87° HFOV, pixels."""
     return 0.5 * REFERENCE_MODE[0] / math.tan(math.radians(DEPTH_HFOV_DEG) / 2)
+
+
+def noise_focal(native_width: int, hfov_deg: float = DEPTH_HFOV_DEG) -> float:
+    """The focal length (pixels) the stereo noise is measured in: the sensor mode's,
+    ``native_width`` wide. An output image smaller than that mode is resampled from its
+    depth, so its pixels do not make the disparity coarser."""
+    return 0.5 * native_width / math.tan(math.radians(hfov_deg) / 2)
 
 
 def noise_sigma(

@@ -18,8 +18,6 @@ error law σ_z = z²·s / (f·B) with the native sensor's focal length; pixels o
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numpy.typing import NDArray
 
@@ -35,6 +33,7 @@ from ..render.mesh_scene import MeshScene
 from ..render.proxy_geometry import ProxyGeometry
 from ..render.proxy_plants import PlantField
 from ..render.shading import SOIL_RGB, Lighting
+from . import d455
 from .camera import DepthFrame, FieldView, corner_pixels
 
 #: the proxy's flat colours by class (OTHER: sky; SOIL is shaded; ROBOT is never drawn here;
@@ -69,7 +68,7 @@ class DepthCamera(Lighting):
         self._scene: tuple[Terrain, MeshScene] | None = None
         self._cylinders: tuple[PlantField, int] | None = None
         self._proxy: ProxyGeometry | None = None
-        self.f_native = 0.5 * cfg.native_width / math.tan(math.radians(cfg.hfov_deg) / 2)
+        self.f_native = d455.noise_focal(cfg.native_width, cfg.hfov_deg)
         self._init_lighting(SOIL_RGB)
 
     def noise_sigma(self, z: FloatArray) -> FloatArray:

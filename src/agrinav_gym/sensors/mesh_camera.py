@@ -82,7 +82,10 @@ class MeshCamera(Lighting):
         self.color = d455.color_model(model)
         self.color_rays = PixelRays.of(self.color)
         self.right = np.asarray(d455.offset_model(model, cfg.baseline).position, float)
-        self.fx = model.fx  # the focal length of the mode in use sets the noise
+        self.fx = model.fx  # the image's: the stereo geometry (shadows) is in its pixels
+        # the sensor mode's sets the noise, as the proxy camera's does: a 64 × 48 image is
+        # resampled from that mode, not matched in its own pixels (20 × the noise)
+        self.f_noise = d455.noise_focal(cfg.native_width, cfg.hfov_deg)
         self.threads = threads
         self._init_lighting(SOIL_RGB)
         self._robot: dict[str, tuple[FloatArray, NDArray[np.int32]] | None] = {}
@@ -104,7 +107,7 @@ class MeshCamera(Lighting):
         return native.available() and self.model.width * self.model.height >= RASTER_MIN_PIXELS
 
     def noise_sigma(self, z: FloatArray) -> FloatArray:
-        return d455.noise_sigma(z, self.fx, self.cfg.subpixel, self.cfg.baseline)
+        return d455.noise_sigma(z, self.f_noise, self.cfg.subpixel, self.cfg.baseline)
 
     # ------------------------------------------------------------------ rendering
     def render(
@@ -246,7 +249,7 @@ class MeshCamera(Lighting):
             bad[:] = 0
         depth = np.empty(n, np.float32)
         pixels = np.empty((n, 3), np.uint8)
-        k_sigma = c.subpixel / (self.fx * c.baseline)
+        k_sigma = c.subpixel / (self.f_noise * c.baseline)
         robot = None
         if rgb and self._robot_hits("color") is not None:
             pr = robot_prototype(False)
