@@ -281,10 +281,12 @@ class GnssConfig:
 @dataclass(frozen=True)
 class ImuConfig:
     gyro_noise_deg_s_rthz: float = _f(0.01, "gyro noise density, °/s/√Hz (MTi-300)", 0, 10)
-    gyro_bias_deg_h: float = _f(10.0, "gyro in-run bias stability, °/h", 0, 1e4)
+    gyro_bias_deg_h: float = _f(
+        10.0, "gyro bias std, °/h (Gauss-Markov; MTi-300 in-run bias stability)", 0, 1e4
+    )
     accel_noise_ug_rthz: float = _f(60.0, "accelerometer noise density, µg/√Hz", 0, 1e5)
-    accel_bias_ug: float = _f(15.0, "accelerometer bias stability, µg", 0, 1e5)
-    bias_tau_s: float = _f(300.0, "correlation time of the bias random walk, s", 1, 1e6)
+    accel_bias_ug: float = _f(15.0, "accelerometer bias std, µg (Gauss-Markov)", 0, 1e5)
+    bias_tau_s: float = _f(300.0, "correlation time of the Gauss-Markov biases, s", 1, 1e6)
     roll_pitch_rms_deg: float = _f(0.2, "orientation estimate error, roll/pitch RMS", 0, 10)
     heading_rms_deg: float = _f(1.0, "orientation estimate error, heading RMS", 0, 45)
     orientation_tau_s: float = _f(10.0, "correlation time of the orientation error, s", 0.05, 1e5)
