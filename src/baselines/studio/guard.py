@@ -31,6 +31,12 @@ Send = Callable[[Message], Awaitable[None]]
 ASGIApp = Callable[[Scope, Receive, Send], Awaitable[None]]
 
 COOKIE = "agrinav_studio"
+
+
+def cookie_name(port: int) -> str:
+    """The access cookie of the studio on ``port``: browsers keep cookies per host, not per
+    port, so two studios open at once would overwrite one name and lock each other out."""
+    return f"{COOKIE}_{port}"
 #: A crop model zip of the size the bounds allow, with room for the form's envelope.
 MAX_BODY = 64 * 1024 * 1024
 LOCAL_HOSTS = ("127.0.0.1", "localhost", "[::1]")
@@ -65,9 +71,11 @@ class Guard:
         token: str,
         hosts: frozenset[str],
         max_body: int = MAX_BODY,
+        port: int | None = None,
     ) -> None:
         self.app, self.token, self.hosts, self.max_body = app, token, hosts, max_body
         self.origins = frozenset(f"http://{h}" for h in hosts)
+        self.cookie = cookie_name(port) if port is not None else COOKIE
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         kind = scope["type"]
@@ -86,7 +94,7 @@ class Guard:
         extra = list(SECURITY_HEADERS)
         if _matches(query.get("token", []), self.token):
             # The tokened visit: later requests (assets, socket.io) carry the cookie instead.
-            extra.append(_hdr(f"{COOKIE}={self.token}; Path=/; HttpOnly; SameSite=Strict"))
+            extra.append(_hdr(f"{self.cookie}={self.token}; Path=/; HttpOnly; SameSite=Strict"))
         await self.app(scope, receive, _with_headers(send, extra))
 
     def refusal(
@@ -100,7 +108,7 @@ class Guard:
             return 403, "cross-origin request refused"
         if not (
             _matches(query.get("token", []), self.token)
-            or _matches(_cookies(headers.get("cookie", "")).get(COOKIE, []), self.token)
+            or _matches(_cookies(headers.get("cookie", "")).get(self.cookie, []), self.token)
         ):
             return 403, "open the address `agrinav studio` printed: it carries the access token"
         if scope["type"] == "http" and scope.get("method") in ("POST", "PUT", "PATCH"):

@@ -12,7 +12,7 @@ from urllib.parse import urlsplit
 import pytest
 
 from baselines.studio import actions
-from baselines.studio.guard import COOKIE, MAX_BODY
+from baselines.studio.guard import MAX_BODY, cookie_name
 from baselines.studio.session import Session
 from scenario_gen.errors import InputError
 
@@ -54,12 +54,18 @@ def test_the_printed_address_opens_the_page_and_sets_a_strict_cookie(server: str
     host = f"127.0.0.1:{parts.port}"
     status, headers, body = _request(server, f"/?{parts.query}", {"Host": host})
     assert status == 200 and b"AgriNav studio" in body
-    assert f"{COOKIE}=" in headers["set-cookie"] and "SameSite=Strict" in headers["set-cookie"]
+    # named for the port: a second studio's cookie on 127.0.0.1 does not replace this one's
+    assert f"{cookie_name(parts.port)}=" in headers["set-cookie"]
+    assert "SameSite=Strict" in headers["set-cookie"]
     assert headers["x-frame-options"] == "DENY"
     assert "frame-ancestors 'none'" in headers["content-security-policy"]
     cookie = headers["set-cookie"].split(";")[0]
     status, _, _ = _request(server, "/", {"Host": f"localhost:{parts.port}", "Cookie": cookie})
     assert status == 200  # the cookie stands for the token afterwards
+    value = cookie.split("=", 1)[1]
+    other = f"{cookie_name(parts.port + 1)}={value}"  # the name another port's studio sets
+    status, _, _ = _request(server, "/", {"Host": f"localhost:{parts.port}", "Cookie": other})
+    assert status == 403
 
 
 def test_a_rebinding_page_is_refused(server: str) -> None:
