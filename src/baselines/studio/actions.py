@@ -25,12 +25,25 @@ POLICIES = ("dwb", "rpp", "stanley", "blind", "ppo:shipped")
 RUN_ENV = "AgriNav/FieldRoute-v3"
 
 
+#: the workspace's folder of uploaded crop models (``Studio.models_dir``)
+MODELS_DIR = "models"
+
+
 def inside_workspace(out: str, workspace: Path) -> None:
-    """Refuse an output folder outside ``workspace`` (the page writes nowhere else)."""
+    """Refuse an output folder outside ``workspace`` (the page writes nowhere else), or in its
+    folder of uploaded models: a scenario saved there, then overwritten, took the models."""
     target = Path(os.path.abspath(out)).resolve()
     root = workspace.resolve()
     if target == root or not target.is_relative_to(root):
         raise InputError("out", out, f"allowed: a folder inside the studio's workspace {root}")
+    models = root / MODELS_DIR
+    if target == models or target.is_relative_to(models):
+        raise InputError(
+            "out",
+            out,
+            f"is the uploaded crop models' folder {models}; allowed: another folder of the "
+            "workspace",
+        )
 
 
 def generate_and_save(

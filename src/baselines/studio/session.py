@@ -126,6 +126,8 @@ class Session:
 def field_file(out: str | Path) -> Path:
     """Where the drawn field is written: next to the scenario folder, not inside it."""
     p = Path(out)
+    if not str(out).strip() or p.name in ("", ".", ".."):  # "/", ".": no name to put it beside
+        raise InputError("out", str(out), "allowed: a folder path")
     return p.with_name(p.name + ".field.geojson")
 
 

@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from . import layers
+from .actions import MODELS_DIR
 from .preview import SiteCache
 from .session import Session, Terrain
 
@@ -50,4 +51,4 @@ class Studio:
 
     @property
     def models_dir(self) -> Path:
-        return self.workspace / "models"
+        return self.workspace / MODELS_DIR

@@ -118,3 +118,18 @@ def test_the_page_writes_only_inside_its_workspace(tmp_path: Path) -> None:
     (work / "link").symlink_to(tmp_path)  # a link out of the workspace is outside too
     with pytest.raises(InputError):
         actions.generate_and_save(s, str(work / "link" / "scn"), workspace=work)
+
+
+def test_the_uploaded_models_folder_is_no_output_folder(tmp_path: Path) -> None:
+    """A scenario saved as <workspace>/models took it over, and overwriting it deleted every
+    uploaded model."""
+    work = tmp_path / "work"
+    (work / actions.MODELS_DIR).mkdir(parents=True)
+    kept = work / actions.MODELS_DIR / "plant.obj"
+    kept.write_text("v 0 0 0\n")
+    s = Session(seed=1)
+    for out in (work / actions.MODELS_DIR, work / actions.MODELS_DIR / "scn"):
+        with pytest.raises(InputError, match="uploaded crop models"):
+            actions.generate_and_save(s, str(out), overwrite=True, workspace=work)
+    assert kept.read_text() == "v 0 0 0\n"
+    assert sorted(p.name for p in (work / actions.MODELS_DIR).iterdir()) == ["plant.obj"]

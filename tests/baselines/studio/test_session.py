@@ -38,6 +38,15 @@ def test_the_copied_command_makes_the_pages_spec() -> None:
     assert s.spec().layout.jitter_lateral == 1e-05
 
 
+@pytest.mark.parametrize("out", ["", "   ", "/", ".", "runs/.."])
+def test_an_output_folder_with_no_name_is_refused_in_the_command_box(out: str) -> None:
+    """With a drawn field, "/" was a ValueError from pathlib in the page's command box."""
+    s = Session(seed=1)
+    s.set_field(Polygon([(-84.2, 36.6), (-84.1998, 36.6), (-84.1998, 36.6003), (-84.2, 36.6)]))
+    with pytest.raises(InputError, match="a folder path"):
+        s.command(out, force=False)
+
+
 def test_set_checks_like_the_cli_and_keeps_the_last_good_value() -> None:
     s = Session()
     s.set("layout.row_spacing", 0.8)
