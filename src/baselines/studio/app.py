@@ -290,7 +290,9 @@ class Page:
     async def on_geojson(self, e: events.UploadEventArguments) -> None:
         try:
             data = parse_json(await e.file.read(), "field", e.file.name)
-            geom = fields.combine(fields.polygons_of(data))
+            # off the event loop: a file of thousands of polygons takes seconds to merge, and
+            # every open tab would freeze meanwhile
+            geom = await run.io_bound(fields.field_of, data)
             if geom is None:
                 raise InputError("field", e.file.name, "holds no Polygon or MultiPolygon")
             self.s.set_field(geom)

@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 from typing import Any
 
+import numpy as np
 import shapely
 from shapely.geometry import MultiPolygon, Polygon, mapping, shape
 from shapely.geometry.base import BaseGeometry
@@ -59,11 +60,20 @@ def polygons_of(data: Any) -> list[Polygon]:
     return out
 
 
+def field_of(data: Any) -> BaseGeometry | None:
+    """The field a GeoJSON object draws (``polygons_of`` then ``combine``)."""
+    return combine(polygons_of(data))
+
+
 def combine(polys: list[Polygon]) -> BaseGeometry | None:
     """One field from drawn polygons: those nested an odd number of times are holes."""
     if not polys:
         return None
-    depth = [sum(o.contains(p) for j, o in enumerate(polys) if j != i) for i, p in enumerate(polys)]
+    # how many others contain each: pairs from an R-tree (every pair tested was seconds of a
+    # frozen page for a few thousand polygons)
+    outer, inner = shapely.STRtree(polys).query(polys, predicate="contains")
+    other = outer != inner
+    depth = np.bincount(inner[other], minlength=len(polys)).tolist()
     geom = shapely.union_all([p for p, d in zip(polys, depth, strict=True) if d == 0])
     for level in range(1, max(depth) + 1):  # holes, then islands in holes, ...
         ring = shapely.union_all([p for p, d in zip(polys, depth, strict=True) if d == level])
