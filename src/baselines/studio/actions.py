@@ -154,7 +154,14 @@ def install_model(upload: Path, name: str, models_dir: Path, height: float) -> P
     with tempfile.TemporaryDirectory(prefix="agrinav-model-") as tmp:
         probe = Path(tmp) / safe
         shutil.copyfile(upload, probe)
-        load_model(probe, height)
+        try:
+            load_model(probe, height)
+        except InputError as exc:  # in the uploaded file's name, not the temporary copy's
+            raise InputError(
+                exc.field,
+                safe if str(exc.value) == str(probe) else exc.value,
+                exc.allowed.replace(str(probe), safe).replace(tmp, "the upload"),
+            ) from None
     models_dir.mkdir(parents=True, exist_ok=True)
     target = models_dir / safe
     tmp_target = models_dir / f".{safe}.tmp"

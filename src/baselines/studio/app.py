@@ -387,9 +387,7 @@ def serve(studio: Studio, port: int, host: str = "127.0.0.1", token: str | None 
     token = token or guard.new_token()
     extra = () if host in ("127.0.0.1", "0.0.0.0", "::") else (host,)
     core.sio.eio.cors_allowed_origins = guard.allowed_origins(port, extra)
-    app.add_middleware(
-        guard.Guard, token=token, hosts=guard.allowed_hosts(port, extra), port=port
-    )
+    app.add_middleware(guard.Guard, token=token, hosts=guard.allowed_hosts(port, extra), port=port)
     app.add_static_files("/studio/static", STATIC)
 
     @app.get("/studio/layer/{key}.png")

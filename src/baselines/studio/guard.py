@@ -37,6 +37,8 @@ def cookie_name(port: int) -> str:
     """The access cookie of the studio on ``port``: browsers keep cookies per host, not per
     port, so two studios open at once would overwrite one name and lock each other out."""
     return f"{COOKIE}_{port}"
+
+
 #: A crop model zip of the size the bounds allow, with room for the form's envelope.
 MAX_BODY = 64 * 1024 * 1024
 LOCAL_HOSTS = ("127.0.0.1", "localhost", "[::1]")

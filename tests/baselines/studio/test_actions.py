@@ -109,6 +109,12 @@ def test_model_upload_is_checked_like_the_cli(tmp_path: Path) -> None:
         actions.install_model(bad, "plant.zip", models, 1.0)
     assert e.value.field == "crop.model" and "zip-slip" in str(e.value)
     assert not models.exists()
+    garbage = tmp_path / "up0"
+    garbage.write_bytes(b"not a mesh")
+    with pytest.raises(InputError) as e:
+        actions.install_model(garbage, "leaf.glb", models, 1.0)
+    # named as uploaded: the server's temporary copy means nothing to the page's user
+    assert e.value.value == "leaf.glb" and "agrinav-model-" not in str(e.value), str(e.value)
     with pytest.raises(InputError):
         actions.install_model(bad, "plant.exe", models, 1.0)
     good = _zip(tmp_path / "up2", {"plant/stem.obj": OBJ})
