@@ -619,12 +619,20 @@ class EnvConfig:
         # The tyres' vertical springs are integrated explicitly at the physics rate: a 6.5 kg
         # wheel on stiffness k oscillates at √(k/m); keep √(k/m)·Δt ≤ 1 (stable below 2).
         k_max, k = 6.5 * r.physics_hz**2, self.soil.vertical_stiffness
+        need = math.ceil(math.sqrt(k / 6.5))
+        if k > k_max and k == SoilConfig().vertical_stiffness:  # the rate is what was changed
+            raise InputError(
+                "config.robot.physics_hz",
+                r.physics_hz,
+                f"allowed with soil.vertical_stiffness {k:g} N/m: at least {need} (slower, the "
+                "tyres' vertical springs are not integrated stably)",
+            )
         if k > k_max:
             raise InputError(
                 "config.soil.vertical_stiffness",
                 self.soil.vertical_stiffness,
                 f"allowed: at most {k_max:.3g} N/m at robot.physics_hz {r.physics_hz} (this "
-                f"stiffness's springs need physics_hz >= {math.ceil(math.sqrt(k / 6.5))})",
+                f"stiffness's springs need physics_hz >= {need})",
             )
         if self.gnss.latency_s > self.localisation.history_s:
             raise InputError(

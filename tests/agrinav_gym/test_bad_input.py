@@ -261,20 +261,31 @@ def test_one_observation_name_is_one_observation() -> None:
 
 
 def test_a_physics_rate_too_low_for_the_soil_names_the_rate_it_needs() -> None:
-    # the default stiffness is what refuses a low physics_hz: the message says what would pass
-    config = {"robot": {"physics_hz": 40, "control_hz": 10}}
+    # the default stiffness is what refuses a low physics_hz: the rate the user changed is
+    # named, with what would pass
+    config: dict[str, Any] = {"robot": {"physics_hz": 40, "control_hz": 10}}
     with pytest.raises(InputError) as info:
         gym.make(ID, config=config).close()
-    assert info.value.field == "config.soil.vertical_stiffness"
-    assert "robot.physics_hz 40" in str(info.value) and "physics_hz >= 97" in str(info.value)
+    assert info.value.field == "config.robot.physics_hz" and info.value.value == 40
+    assert "vertical_stiffness 60000" in str(info.value) and "at least 97" in str(info.value)
     # above it the corner damping is what refuses, and names the rate it needs in turn
     config["robot"]["physics_hz"] = 100
     with pytest.raises(InputError) as info:
         gym.make(ID, config=config).close()
-    assert info.value.field == "config.soil.damping_ratio"
-    assert "robot.physics_hz 100" in str(info.value) and "physics_hz >= 148" in str(info.value)
+    assert info.value.field == "config.robot.physics_hz" and info.value.value == 100
+    assert "damping_ratio 0.3" in str(info.value) and "at least 148" in str(info.value)
     config["robot"]["physics_hz"] = 150  # what the messages asked for (a multiple of 10)
     gym.make(ID, config=config, scenario_overrides=TINY).close()
+    # a soil value the user changed is named, with the rate it would need
+    stiff = {"robot": {"physics_hz": 120}, "soil": {"vertical_stiffness": 1.5e5}}
+    with pytest.raises(InputError) as info:
+        gym.make(ID, config=stiff).close()
+    assert info.value.field == "config.soil.vertical_stiffness"
+    assert "physics_hz >= 152" in str(info.value)  # √(1.5e5 / 6.5) = 151.9
+    soft = {"soil": {"damping_ratio": 0.1}}
+    with pytest.raises(InputError) as info:
+        gym.make(ID, config=soft).close()
+    assert info.value.field == "config.soil.damping_ratio"
 
 
 def test_the_camera_rate_is_checked_only_where_there_is_a_camera() -> None:
