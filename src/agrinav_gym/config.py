@@ -97,6 +97,11 @@ class SoilConfig:
         0.05, "soil viscosity time of the shear deflection (damps stiction at rest), s", 0.0, 1.0
     )
 
+    def at_defaults(self, *names: str) -> bool:
+        """Whether the fields ``names`` hold their defaults: a check that fails with them so
+        names the physics rate, which the user changed, instead of the soil."""
+        return all(getattr(self, n) == getattr(SoilConfig, n) for n in names)
+
 
 #: the plantings the proxy camera's parameters are fitted on (``render.proxy_params``)
 PROXY_PLANTINGS = ("ridged", "flat")
@@ -620,7 +625,7 @@ class EnvConfig:
         # wheel on stiffness k oscillates at √(k/m); keep √(k/m)·Δt ≤ 1 (stable below 2).
         k_max, k = 6.5 * r.physics_hz**2, self.soil.vertical_stiffness
         need = math.ceil(math.sqrt(k / 6.5))
-        if k > k_max and k == SoilConfig().vertical_stiffness:  # the rate is what was changed
+        if k > k_max and self.soil.at_defaults("vertical_stiffness"):
             raise InputError(
                 "config.robot.physics_hz",
                 r.physics_hz,

@@ -71,13 +71,11 @@ class World:
             )
         self.geometry = RobotGeometry.from_urdf()
         g = self.geometry
-        soil_default = SoilConfig()
         check_corner_stability(
             self.soil,
             0.25 * g.mass,
             1.0 / robot.physics_hz,
-            rate_given=(self.soil.damping_ratio, self.soil.vertical_stiffness)
-            == (soil_default.damping_ratio, soil_default.vertical_stiffness),
+            rate_given=self.soil.at_defaults("damping_ratio", "vertical_stiffness"),
         )
         check_bearing(self.soil)
         self.client = p.connect(p.GUI if gui else p.DIRECT)
