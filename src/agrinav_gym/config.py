@@ -99,7 +99,7 @@ class SoilConfig:
 
     def at_defaults(self, *names: str) -> bool:
         """Whether the fields ``names`` hold their defaults: a check that fails with them so
-        names the physics rate, which the user changed, instead of the soil."""
+        names what the user changed (the physics rate, another soil value) instead."""
         return all(getattr(self, n) == getattr(SoilConfig, n) for n in names)
 
 

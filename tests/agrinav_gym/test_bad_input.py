@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from agrinav_gym import InputError
+from agrinav_gym.robot import RobotGeometry
 
 from .helpers import TINY
 
@@ -286,6 +287,16 @@ def test_a_physics_rate_too_low_for_the_soil_names_the_rate_it_needs() -> None:
     with pytest.raises(InputError) as info:
         gym.make(ID, config=soft).close()
     assert info.value.field == "config.soil.damping_ratio"
+    # a stiffness the springs integrate but the default damping cannot hold still: the
+    # stiffness is named, with the most it may be (ζ = 0.65·ω·dt: ω = 0.3 / 0.65 · 240 Hz)
+    stiffer = {"soil": {"vertical_stiffness": 2e5}}
+    with pytest.raises(InputError) as info:
+        gym.make(ID, config=stiffer).close()
+    assert info.value.field == "config.soil.vertical_stiffness" and info.value.value == 2e5
+    corner = 0.25 * RobotGeometry.from_urdf().mass
+    assert f"at most {corner * (0.3 / 0.65 * 240) ** 2:.0f} N/m" in str(info.value)
+    soil = {"soil": {"vertical_stiffness": 0.99 * corner * (0.3 / 0.65 * 240) ** 2}}
+    gym.make(ID, config=soil, scenario_overrides=TINY).close()
 
 
 def test_the_camera_rate_is_checked_only_where_there_is_a_camera() -> None:

@@ -69,39 +69,48 @@ MIN_DAMPING_PER_OMEGA_DT = 0.65
 MAX_DAMPING_OMEGA_DT = 0.8
 
 
-def check_corner_stability(
-    soil: SoilConfig, corner_mass: float, dt: float, rate_given: bool = False
-) -> None:
-    """Refuse soil values whose vertical spring-damper the physics step cannot integrate;
-    ``rate_given``: the physics rate, not the soil, is what the user changed (the error names
-    it)."""
+def check_corner_stability(soil: SoilConfig, corner_mass: float, dt: float) -> None:
+    """Refuse soil values whose vertical spring-damper the physics step cannot integrate. The
+    error names what the user changed: the physics rate when the soil holds its defaults, the
+    stiffness when only it was changed, else the damping."""
     from scenario_gen.errors import InputError
 
     omega = math.sqrt(soil.vertical_stiffness / corner_mass)
     r = omega * dt
     lo, hi = MIN_DAMPING_PER_OMEGA_DT * r, MAX_DAMPING_OMEGA_DT / r
     zeta = soil.damping_ratio
-    if not lo <= zeta <= hi:
-        # both bounds narrow as dt grows: a faster physics rate is the other way out
-        rate = ""
-        if zeta > 0:
-            need = omega * max(MIN_DAMPING_PER_OMEGA_DT / zeta, zeta / MAX_DAMPING_OMEGA_DT)
-            rate = f"; this damping and stiffness need robot.physics_hz >= {math.ceil(need)}"
-            if rate_given:
-                raise InputError(
-                    "config.robot.physics_hz",
-                    round(1.0 / dt),
-                    f"allowed with soil.damping_ratio {zeta:g} and vertical_stiffness "
-                    f"{soil.vertical_stiffness:g} N/m: at least {math.ceil(need)} (slower, the "
-                    "wheels' spring-damper rocks the robot over standing still)",
-                )
-        raise InputError(
-            "config.soil.damping_ratio",
-            zeta,
-            f"allowed with vertical_stiffness {soil.vertical_stiffness:g} N/m at robot."
-            f"physics_hz {round(1.0 / dt)}: {lo:.2f}..{hi:.2f} (outside it the robot rocks "
-            f"itself over standing still){rate}",
-        )
+    if lo <= zeta <= hi:
+        return
+    # both bounds narrow as dt grows: a faster physics rate is the other way out
+    rate = ""
+    if zeta > 0:
+        need = omega * max(MIN_DAMPING_PER_OMEGA_DT / zeta, zeta / MAX_DAMPING_OMEGA_DT)
+        rate = f"; this damping and stiffness need robot.physics_hz >= {math.ceil(need)}"
+        if soil.at_defaults("damping_ratio", "vertical_stiffness"):
+            raise InputError(
+                "config.robot.physics_hz",
+                round(1.0 / dt),
+                f"allowed with soil.damping_ratio {zeta:g} and vertical_stiffness "
+                f"{soil.vertical_stiffness:g} N/m: at least {math.ceil(need)} (slower, the "
+                "wheels' spring-damper rocks the robot over standing still)",
+            )
+        if soil.at_defaults("damping_ratio"):
+            # both bounds cap ω for a given ζ: ζ >= a·ω·dt and ζ <= b / (ω·dt)
+            w_max = min(zeta / MIN_DAMPING_PER_OMEGA_DT, MAX_DAMPING_OMEGA_DT / zeta) / dt
+            raise InputError(
+                "config.soil.vertical_stiffness",
+                soil.vertical_stiffness,
+                f"allowed with damping_ratio {zeta:g} at robot.physics_hz {round(1.0 / dt)}: "
+                f"at most {corner_mass * w_max**2:.0f} N/m (stiffer, the wheels' spring-damper "
+                f"rocks the robot over standing still){rate}",
+            )
+    raise InputError(
+        "config.soil.damping_ratio",
+        zeta,
+        f"allowed with vertical_stiffness {soil.vertical_stiffness:g} N/m at robot."
+        f"physics_hz {round(1.0 / dt)}: {lo:.2f}..{hi:.2f} (outside it the robot rocks "
+        f"itself over standing still){rate}",
+    )
 
 
 def check_bearing(soil: SoilConfig) -> None:
