@@ -70,3 +70,36 @@ def test_contour_interval_is_nice() -> None:
     assert layers.nice_interval(13.0) == 2.0
     assert layers.nice_interval(840.0) == 100.0
     assert layers.nice_interval(0.3) == 0.05
+
+
+def test_the_studio_keeps_recent_layer_images_and_terrains_within_bounds(tmp_path: Path) -> None:
+    """A drawing session renders a new detail layer each time the field moves and may switch
+    terrains: the server keeps the newest within its budget, not every one ever made."""
+    from baselines.studio import shared
+    from baselines.studio.session import Terrain
+
+    studio = shared.Studio(preset="default", terrain=Terrain(), workspace=tmp_path)
+    size = 1024 * 1024
+    count = 3 * shared.IMAGE_BYTES // size
+    bounds = ((0.0, 0.0), (1.0, 1.0))
+    urls = [
+        studio.image_url(layers.Layer(i.to_bytes(4, "big") * (size // 4), bounds, 0, 1, 1))
+        for i in range(count)
+    ]
+    kept = sum(len(png) for png in studio.images.values())
+    assert kept <= shared.IMAGE_BYTES and len(studio.images) >= shared.IMAGE_BYTES // size - 1
+    # the newest are those kept, and a layer served again is the newest once more
+    newest = [u.split("/")[-1][:-4] for u in urls[-len(studio.images) :]]
+    assert list(studio.images) == newest
+    first_kept = newest[0]
+    studio.image_url(layers.Layer(studio.images[first_kept], bounds, 0, 1, 1))
+    assert list(studio.images)[-1] == first_kept
+
+    session = studio.new_session()
+    opened = []
+    for slope in range(shared.ELEVATIONS + 2):
+        session.set("terrain.source", "plane")
+        session.set("terrain.slope_deg", float(slope))
+        opened.append(studio.elevation(session))
+    assert len(studio.elevations) == shared.ELEVATIONS
+    assert studio.elevation(session) is opened[-1]  # the newest stays open
