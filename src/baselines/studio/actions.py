@@ -8,6 +8,7 @@ it was.
 from __future__ import annotations
 
 import dataclasses
+import filecmp
 import json
 import os
 import shutil
@@ -163,8 +164,17 @@ def install_model(upload: Path, name: str, models_dir: Path, height: float) -> P
                 exc.allowed.replace(str(probe), safe).replace(tmp, "the upload"),
             ) from None
     models_dir.mkdir(parents=True, exist_ok=True)
+    # Another model of the same name is kept, not replaced: a field drawn with it, and the
+    # equivalent command shown for it, name that file. The same model again is that file.
+    stem, suffix = Path(safe).stem, Path(safe).suffix
     target = models_dir / safe
-    tmp_target = models_dir / f".{safe}.tmp"
+    n = 1
+    while target.exists() and not filecmp.cmp(target, upload, shallow=False):
+        n += 1
+        target = models_dir / f"{stem}-{n}{suffix}"
+    if target.exists():
+        return target
+    tmp_target = models_dir / f".{target.name}.tmp"
     shutil.copyfile(upload, tmp_target)
     tmp_target.replace(target)
     return target

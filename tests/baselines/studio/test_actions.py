@@ -123,6 +123,14 @@ def test_model_upload_is_checked_like_the_cli(tmp_path: Path) -> None:
     s = Session()
     s.set("crop.model", str(kept))
     assert s.spec().crop.model == str(kept)
+    # another model of the same name is kept beside it, the same one again is that file
+    other = _zip(tmp_path / "up3", {"plant/stem.obj": OBJ + b"f 1 2 3\n"})
+    second = actions.install_model(other, "plant.zip", models, 1.0)
+    assert second == models / "plant-2.zip" and second.read_bytes() == other.read_bytes()
+    assert kept.read_bytes() == good.read_bytes()
+    assert actions.install_model(good, "plant.zip", models, 1.0) == kept
+    assert actions.install_model(other, "plant.zip", models, 1.0) == second
+    assert sorted(p.name for p in models.iterdir()) == ["plant-2.zip", "plant.zip"]
 
 
 def test_run_and_export_need_a_saved_scenario(tmp_path: Path) -> None:
