@@ -22,12 +22,16 @@ from scenario_gen.errors import InputError
 from scenario_gen.generate import growth_of
 from scenario_gen.preview import OBSTACLE_LABELS
 from scenario_gen.schema import parse_json
+from scenario_gen.sources import MESH_SUFFIXES
 
 from . import actions, fields, guard, layers
 from .card import ScenarioCard
 from .preview import Preview, layout_preview
 from .shared import Studio
 from .widgets import SECTIONS, Form
+
+#: what the field upload takes (a GeoJSON object, whatever the file is called)
+GEOJSON_SUFFIXES = (".geojson", ".json")
 
 STATIC = Path(__file__).parent / "static"
 OSM = "https://tile.openstreetmap.org/{z}/{x}/{y}.png"
@@ -123,10 +127,12 @@ class Page:
                         label="load GeoJSON",
                         auto_upload=True,
                         on_upload=self.on_geojson,
+                        on_rejected=lambda: self._rejected("field", GEOJSON_SUFFIXES),
                         max_file_size=guard.MAX_BODY,
-                    ).props('accept=".geojson,.json" flat dense data-key="upload-geojson"').classes(
-                        "w-56"
-                    )
+                    ).props(
+                        f'accept="{",".join(GEOJSON_SUFFIXES)}" flat dense '
+                        'data-key="upload-geojson"'
+                    ).classes("w-56")
                     ui.button("clear field", on_click=self.on_clear_field).props("flat dense")
             for section, title in SECTIONS:
                 exp = ui.expansion(title, value=section == "layout").classes("w-full")
@@ -154,10 +160,23 @@ class Page:
             label="upload a model (.zip or mesh)",
             auto_upload=True,
             on_upload=self.on_model_upload,
+            on_rejected=lambda: self._rejected("crop.model", (*MESH_SUFFIXES, ".zip")),
             max_file_size=guard.MAX_BODY,
         ).props(
-            'accept=".zip,.glb,.gltf,.obj,.ply,.dae,.stl" flat dense data-key="upload-model"'
+            f'accept="{",".join((*MESH_SUFFIXES, ".zip"))}" flat dense data-key="upload-model"'
         ).classes("w-full")
+
+    def _rejected(self, where: str, suffixes: tuple[str, ...]) -> None:
+        """The browser refused a file before sending it (its type or size): say so, where the
+        upload's own errors go, instead of nothing."""
+        self.form.show(
+            InputError(
+                where,
+                "the chosen file",
+                f"allowed: {', '.join(suffixes)}, at most {guard.MAX_BODY // 2**20} MiB",
+            ),
+            sticky=True,
+        )
 
     def _model_options(self) -> dict[str, str]:
         opts = {"": "built-in model of the species"}

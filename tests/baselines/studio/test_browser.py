@@ -167,5 +167,15 @@ def test_studio_end_to_end(tmp_path: Path) -> None:
             "document.querySelector('[data-error=\"field\"]').innerText.includes('off the DEM')"
         )
         shot(page, tmp_path, "off-terrain")
+
+        # a file the model upload does not take is refused by the browser: said where the
+        # upload's own errors go, not passed over in silence
+        fbx = tmp_path / "plant.fbx"
+        fbx.write_bytes(b"Kaydara FBX Binary  \x00")
+        field(page, "upload-model").locator("input[type=file]").set_input_files(str(fbx))
+        page.wait_for_function(
+            "document.querySelector('[data-key=\"crop.model\"]')"
+            ".closest('.q-field').textContent.includes('allowed: .glb')"
+        )
     leaked = outside_localhost(requests, url)
     assert requests and not leaked, leaked
