@@ -45,10 +45,10 @@ class ScenarioCard:
                 {"data-key": "seed", "hint": "generation seed · an integer in [0, 2**63)"}
             )
             self.form.widgets["seed"] = self.seed
+            # the folder follows the scenario's name until the user types one of their own
+            self._auto_out = str(self.studio.workspace / self.s.spec().name)
             self.out = ui.input(
-                "output folder",
-                value=str(self.studio.workspace / self.s.spec().name),
-                on_change=lambda _: self.update_command(),
+                "output folder", value=self._auto_out, on_change=lambda _: self.update_command()
             ).classes("w-full")
             self.out.without_auto_validation()
             self.out.props.update({"data-key": "out"})
@@ -91,6 +91,9 @@ class ScenarioCard:
 
     def update_command(self) -> None:
         try:
+            if self.out.value == self._auto_out:
+                self._auto_out = str(self.studio.workspace / self.s.spec().name)
+                self.out.set_value(self._auto_out)  # no-op when the name is the same
             self.command.set_content(self.s.command(self.out.value, bool(self.overwrite.value)))
         except (InputError, AttributeError):
             pass  # built before the scenario card exists, or a refused value: keep the last

@@ -101,12 +101,22 @@ def test_studio_end_to_end(tmp_path: Path) -> None:
         set_number(page, "route.lanes", "1")
         page.wait_for_timeout(300)
 
+        # the output folder follows the scenario's name until a folder is typed
+        out_value = "document.querySelector('[data-key=\"out\"]').value"
+        field(page, "name").fill("north-plot")
+        page.wait_for_function(f"{out_value} === {json.dumps(str(work / 'north-plot'))}")
+
         # out-of-range spacing: the error sits under that field and nothing is written
         set_number(page, "layout.row_spacing", "0.01")
         wait_field(page, "layout.row_spacing", "got 0.01")
         assert "allowed: a number in [0.05, 50]" in field_text(page, "layout.row_spacing")
         out = work / "scn"
         field(page, "out").fill(str(out))
+        field(page, "name").fill("south-plot")
+        page.wait_for_function(
+            "document.querySelector('[data-key=\"command\"]').innerText.includes('south-plot')"
+        )
+        assert page.evaluate(out_value) == str(out)  # the folder typed stays
         field(page, "generate").click()
         page.wait_for_function("document.body.innerText.includes('nothing was written')")
         shot(page, tmp_path, "bad-spacing")
