@@ -555,6 +555,13 @@ def height_unit(vert: CRS | None, band_unit: str, crs: CRS, declared: str, where
     where metres is a guess that turns a 3° field into 10°, so the user must say."""
     own = band_unit.strip()
     if vert is not None and vert.axis_info:
+        if vert.axis_info[0].direction.lower() == "down":
+            raise InputError(
+                "terrain.path",
+                where,
+                f"declares depths ({vert.name}: positive downwards), not elevations; allowed: "
+                "a DEM of heights (a vertical CRS whose axis is up)",
+            )
         factor = unit_factor(vert)
         if declared != "auto" and abs(VERTICAL_UNITS[declared] - factor) > 1e-9:
             raise InputError(

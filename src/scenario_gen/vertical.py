@@ -25,6 +25,7 @@ reference in ``info["heights"]``.
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import asdict, dataclass
 from typing import Any
 
@@ -112,15 +113,37 @@ def unit_factor(vert: CRS | None) -> float:
     return float(vert.axis_info[0].unit_conversion_factor or 1.0)
 
 
+def in_metres(vert: CRS) -> CRS:
+    """``vert`` with its axis in metres, upwards (its datum and geoid model kept): how a
+    scenario's heights, always metres, are described. NAVD88 height (ftUS) EPSG:6360 gives
+    NAVD88 height EPSG:5703; a datum with no metre CRS of its own gets one built on it."""
+    from pyproj.crs import VerticalCRS
+
+    axis = vert.axis_info[0] if vert.axis_info else None
+    if axis is None or (axis.unit_conversion_factor == 1.0 and axis.direction == "up"):
+        return vert
+    geoid = vert.to_json_dict().get("geoid_model", {}).get("name")
+    # EPSG names a datum's metre CRS as its other units' without the unit ("NAVD88 height
+    # (ftUS)", "NAVD88 depth": "NAVD88 height"), which is how PROJ finds it
+    name = re.sub(r"\s*\([^)]*\)\s*$", "", vert.name).replace(" depth", " height")
+    built = VerticalCRS(name=name, datum=vert.datum, geoid_model=geoid)
+    found = built.list_authority(min_confidence=100)
+    if found:
+        return CRS.from_authority(found[0].auth_name, found[0].code)
+    return VerticalCRS(name=f"{name} (metre)", datum=vert.datum, geoid_model=geoid)
+
+
 def to_ellipsoidal(
     horiz: CRS, vert: CRS, area: AreaOfInterest | None
 ) -> tuple[Transformer | None, Heights]:
     """The transformation from (horizontal x, y, orthometric height) to WGS84 ellipsoidal
     height over ``area``, local grids only, and the heights it gives; (None, orthometric
     Heights naming why) when there is none."""
-    name = vert.name
-    code = vert.to_string()
-    compound = CompoundCRS(f"{horiz.name} + {name}", [horiz, vert])
+    # kept, the heights are in metres whatever the file's unit: recorded as such
+    metric = in_metres(vert)
+    name = metric.name
+    code = metric.to_string() if metric.to_epsg() else metric.to_wkt()
+    compound = CompoundCRS(f"{horiz.name} + {vert.name}", [horiz, vert])
     tr = best_transformer(
         compound, CRS.from_epsg(4979), area, tolerance_m=math.inf, local_only=True
     )
@@ -129,7 +152,7 @@ def to_ellipsoidal(
     if "ballpark" in tr.description.lower():
         why = f"not converted: PROJ knows no transformation from {name} to ellipsoidal heights"
         return None, Heights(ORTHOMETRIC, name, code, why)
-    note = f"converted from {name} ({code}) with PROJ: {tr.description}"
+    note = f"converted from {vert.name} ({vert.to_string()}) with PROJ: {tr.description}"
     return tr, Heights(ELLIPSOIDAL, "WGS 84", "", note)
 
 

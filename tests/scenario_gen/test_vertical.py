@@ -111,9 +111,37 @@ def test_vertical_feet_become_metres(tmp_path) -> None:
     ft = 1200.0 / 3937.0  # US survey foot
     plain = load_geotiff(_dem(tmp_path / "plain.tif", "EPSG:4326"), 64)
     dem = load_geotiff(_dem(tmp_path / "ft.tif", "EPSG:4326+6360", scale=ft), 64)
-    assert dem.heights.crs == "EPSG:6360"
     if dem.heights.reference == ORTHOMETRIC:  # no GEOID18 grid here
         np.testing.assert_allclose(dem.elevation, plain.elevation, atol=1e-3)
+        # the heights kept are metres: recorded in NAVD88's metre CRS, not the file's feet
+        assert dem.heights.crs == "EPSG:5703" and dem.heights.datum == "NAVD88 height"
+
+
+def test_a_gis_export_of_a_dem_in_feet_declares_the_metres_it_writes(tmp_path) -> None:
+    """Its GeoTIFFs hold metres: their vertical CRS and band unit say so, and the export read
+    back as a DEM gives the scenario's heights (the DEM's feet CRS made them 0.3048 × less)."""
+    _no_real_grid()
+    ft = 1200.0 / 3937.0
+    tif = _dem(tmp_path / "ft.tif", "EPSG:4326+6360", scale=ft)
+    terrain = {"source": "dem", "path": str(tif), "site": "latlon", "lat": LAT, "lon": LON}
+    scn = generate(small(terrain=terrain), seed=0)
+    save(scn, tmp_path / "scn", preview=False)
+    export(tmp_path / "scn", "gis", tmp_path / "gis", ExportOptions())
+    for name in ("terrain.tif", "terrain_utm.tif", "terrain_dem_crs.tif"):
+        with rasterio.open(tmp_path / "gis" / name) as ds:
+            vert = CRS.from_wkt(ds.crs.to_wkt()).sub_crs_list[1]
+            assert vert.to_epsg() == 5703 and vert.axis_info[0].unit_name == "metre", name
+            assert ds.units == ("metre",), name
+    back = load_geotiff(tmp_path / "gis" / "terrain.tif", 64)
+    lat, lon, alt = scn.geo.enu_to_geodetic(scn.plants.x, scn.plants.y, scn.plants.z)
+    np.testing.assert_allclose(back.sample_lonlat(lon, lat, "plants"), alt, atol=0.05)
+
+
+def test_a_raster_of_depths_is_refused(tmp_path) -> None:
+    tif = _dem(tmp_path / "depth.tif", "EPSG:4326+6357")  # NAVD88 depth: positive down
+    with pytest.raises(InputError, match="declares depths") as e:
+        load_geotiff(tif, 64)
+    assert e.value.field == "terrain.path"
 
 
 def _band(path: Path, **meta: tuple) -> Path:

@@ -36,7 +36,7 @@ from ..geojson import (
     row_features,
 )
 from ..model import Scenario
-from ..vertical import ORTHOMETRIC, of_scenario
+from ..vertical import ORTHOMETRIC, in_metres, of_scenario
 from .crs import enu_crs_error, local_crs, utm_epsg
 from .gpkg import Layer, write_gpkg
 
@@ -53,7 +53,8 @@ def with_heights(scn: Scenario, crs: CRS) -> CRS:
     h = of_scenario(scn.info)
     if h.reference != ORTHOMETRIC or not h.crs:
         return crs
-    vert = CRS.from_user_input(h.crs)
+    vert = in_metres(CRS.from_user_input(h.crs))  # the values are metres (older records
+    # name the DEM's own vertical CRS, in feet where it was)
     return CompoundCRS(f"{crs.name} + {vert.name}", [crs, vert])
 
 
@@ -95,6 +96,7 @@ def write_geotiff(scn: Scenario, path: Path, crs: CRS) -> None:
         heights = of_scenario(scn.info).label()
         ds.write(alt, 1)
         ds.set_band_description(1, f"elevation (m): {heights}")
+        ds.units = ("metre",)  # GDAL's band unit: a CRS in feet says nothing of the values
         ds.update_tags(
             AGRINAV_HEIGHTS=heights,
             AGRINAV_SCENARIO=scn.spec.name,
@@ -137,6 +139,7 @@ def write_resampled(src: Path, dst: Path, crs: CRS, resolution: float | None = N
             )
             d.update_tags(**s.tags())
             d.set_band_description(1, s.descriptions[0] or "")
+            d.units = s.units
 
 
 def _across_antimeridian(src: Any, crs: CRS) -> tuple[Any, int, int] | None:
