@@ -207,6 +207,10 @@ def _points(length: float, spacing: float) -> int:
     return max(math.ceil(length / spacing), 1)
 
 
+#: legs a note names one by one (a file of a thousand waypoints is a count past these)
+NOTE_LEGS = 8
+
+
 def note_legs_on_rows(
     route: Route, goals: list[int], crops: FloatArray, row_spacing: float
 ) -> None:
@@ -236,9 +240,12 @@ def note_legs_on_rows(
         if side < 0.25 * row_spacing:
             on_rows.append(f"{k}→{k + 1} ({100 * side:.0f} cm)")
     if on_rows:
+        shown = ", ".join(on_rows[:NOTE_LEGS])
+        if len(on_rows) > NOTE_LEGS:
+            shown += f" and {len(on_rows) - NOTE_LEGS} more ({len(on_rows)} in all)"
         warnings.warn(
             Notice(
-                f"route.waypoints: the legs {', '.join(on_rows)} run along a crop row, not "
+                f"route.waypoints: the legs {shown} run along a crop row, not "
                 "between two (median sideways distance to the nearest plant; between rows it "
                 f"is {50 * row_spacing:.0f} cm): a robot on them drives over the plants"
             ),

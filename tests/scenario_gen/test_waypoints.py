@@ -298,7 +298,7 @@ def test_degrees_minutes_seconds_are_refused_not_read_as_base_60(tmp_path: Path)
 
 
 def test_legs_along_a_crop_row_are_noted_and_legs_between_rows_are_not(
-    field, tmp_path: Path
+    field, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:  # type: ignore[no-untyped-def]
     from scenario_gen.errors import Notice
 
@@ -320,6 +320,12 @@ def test_legs_along_a_crop_row_are_noted_and_legs_between_rows_are_not(
         warnings.simplefilter("error", Notice)  # lane centres: nothing to say
         generate(small(route={"waypoints": str(write(0 * half, "lanes.yaml"))}), seed=0)
     with pytest.warns(Notice, match=r"legs 0→1 \(\d+ cm\), 2→3 \(\d+ cm\) run along a crop row"):
+        generate(small(route={"waypoints": str(write(half, "rows.yaml"))}), seed=0)
+    # a file of many such legs is a count past the first few, not a line of each
+    import scenario_gen.waypoints as wp
+
+    monkeypatch.setattr(wp, "NOTE_LEGS", 1)
+    with pytest.warns(Notice, match=r"legs 0→1 \(\d+ cm\) and 1 more \(2 in all\) run along"):
         generate(small(route={"waypoints": str(write(half, "rows.yaml"))}), seed=0)
 
 
