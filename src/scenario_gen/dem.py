@@ -33,13 +33,14 @@ import numpy as np
 from affine import Affine
 from numpy.typing import NDArray
 from pyproj import CRS, Geod, Transformer
+from pyproj.transformer import AreaOfInterest
 from scipy import ndimage
 
 from .antimeridian import wrap_lon
 from .arrays import FloatArray
 from .bounds import MAX_DEM_PIXELS
 from .errors import InputError
-from .geodesy import area_of
+from .geodesy import MAX_SHIFT_M, area_of, best_transformer
 from .vertical import (
     ELLIPSOIDAL,
     NOT_DECLARED,
@@ -96,6 +97,9 @@ class Dem:
     #: pixels whose bicubic height reads a nodata pixel ``fill_small_holes`` filled (the
     #: filled pixels grown by 2: interpolated, not measured); None where nothing was filled
     filled: NDArray[np.bool_] | None = None
+    #: where the DEM is used (lon/lat): PROJ's transformations to and from WGS84 are the ones
+    #: for this area (a datum has many, each for its region); None: PROJ's choice anywhere
+    area: AreaOfInterest | None = None
 
     def filled_fraction(self, lon: FloatArray, lat: FloatArray) -> float:
         """The share of the points at lon/lat whose height reads a filled pixel."""
@@ -115,10 +119,14 @@ class Dem:
         return ~np.isfinite(self.elevation)
 
     def to_lonlat(self) -> Transformer:
-        return Transformer.from_crs(self.crs, "EPSG:4326", always_xy=True)
+        return Transformer.from_crs(
+            self.crs, "EPSG:4326", always_xy=True, area_of_interest=self.area
+        )
 
     def from_lonlat(self) -> Transformer:
-        return Transformer.from_crs("EPSG:4326", self.crs, always_xy=True)
+        return Transformer.from_crs(
+            "EPSG:4326", self.crs, always_xy=True, area_of_interest=self.area
+        )
 
     def pixel_to_crs(self, col: FloatArray, row: FloatArray) -> tuple[FloatArray, FloatArray]:
         a, b, c, d, e, f = tuple(self.transform)[:6]
@@ -458,6 +466,14 @@ def raster_side_x(crs: CRS, transform: Affine, shape: tuple[int, int], x: FloatA
     return x + 360.0 * np.round((mid - x) / 360.0)
 
 
+def lonlat_area(bbox: tuple[float, float, float, float]) -> AreaOfInterest:
+    """PROJ's area of interest for a lon/lat box (west, south, east, north; a box run on past
+    ±180° crosses the antimeridian: west > east)."""
+    w, s, e, n = (float(v) for v in bbox)
+    w, e = wrap_lon(w), wrap_lon(e)
+    return AreaOfInterest(w, max(s, -90.0), e, min(n, 90.0))
+
+
 def lonlat_window(
     transform: Affine,
     crs: CRS,
@@ -474,7 +490,10 @@ def lonlat_window(
     lat = np.concatenate(
         [np.full(21, lat0), lat0 + (lat1 - lat0) * f, np.full(21, lat1), lat0 + (lat1 - lat0) * f]
     )
-    x, y = Transformer.from_crs("EPSG:4326", crs, always_xy=True).transform(lon, lat)
+    to_crs = Transformer.from_crs(
+        "EPSG:4326", crs, always_xy=True, area_of_interest=lonlat_area(bbox)
+    )
+    x, y = to_crs.transform(lon, lat)
     x = raster_side_x(crs, transform, shape, np.asarray(x))
     col, row = Dem(np.zeros((2, 2)), transform, crs, "").crs_to_pixel(x, np.asarray(y))
     if not (np.isfinite(col).all() and np.isfinite(row).all()):
@@ -667,6 +686,7 @@ def load_geotiff(
                 )
             shape = (ds.height, ds.width)
             check_georeference(ds.transform, crs, shape, str(path))
+            area = _placement_area(ds.transform, crs, shape, need, str(path))
             if need is None:
                 r0, r1, c0, c1 = 0, ds.height, 0, ds.width
                 what = f"the whole DEM ({why_whole})"
@@ -726,7 +746,33 @@ def load_geotiff(
         tr, heights = to_ellipsoidal(crs, vert, area_of(crs, cx, cy))
         if tr is not None:
             elev = elev + _geoid(tr, transform, elev.shape)
-    return Dem(elev, transform, crs, p.name, heights, open_holes, filled)
+    return Dem(elev, transform, crs, p.name, heights, open_holes, filled, area)
+
+
+def _placement_area(
+    transform: Affine,
+    crs: CRS,
+    shape: tuple[int, int],
+    need: tuple[float, float, float, float] | None,
+    where: str,
+) -> AreaOfInterest | None:
+    """The lon/lat box the DEM is used over (the field's, else the raster's), once PROJ's best
+    transformation to WGS84 there is known to be installed or good to ``MAX_SHIFT_M``: a DEM
+    is refused, as a field file is, rather than placed metres off (NAD27 without its grids)."""
+    area: AreaOfInterest | None
+    if need is not None:
+        area = lonlat_area(need)
+    else:
+        rows, cols = shape
+        grid = Dem(np.zeros((2, 2)), transform, crs, "")
+        corners = np.array([0.0, cols, 0.0, cols]), np.array([0.0, 0.0, rows, rows])
+        area = area_of(crs, *grid.pixel_to_crs(*corners))
+    tr = best_transformer(crs, CRS.from_epsg(4326), area, tolerance_m=MAX_SHIFT_M)
+    if isinstance(tr, str):
+        raise InputError(
+            "terrain.path", where, f"cannot be placed in WGS84 lon/lat ({crs.name}): {tr}"
+        )
+    return area
 
 
 def _geoid(tr: Any, transform: Affine, shape: tuple[int, int]) -> FloatArray:

@@ -35,16 +35,13 @@ from shapely.validation import explain_validity
 from .antimeridian import joined_across
 from .errors import InputError
 from .field import MAX_NESTING, geometries
-from .geodesy import area_of, best_transformer
+from .geodesy import MAX_SHIFT_M, area_of, best_transformer
 from .schema import parse_json
 
 MAX_FIELD_BYTES = 64 * 2**20
 MAX_FIELD_FEATURES = 100_000
 #: layers searched for polygons when field.layer is not set (each KML folder is a re-read)
 MAX_SCAN_LAYERS = 16
-#: the accuracy a transformation to WGS84 must have (PROJ's statement) when a better one's grid
-#: is missing: NAD83 (4 m), OSGB36 (2 m) pass, NAD27 without its grids (10 m) does not
-MAX_SHIFT_M = 5.0
 PATH_FIELD = "field.geojson"
 LAYER_FIELD = "field.layer"
 JSON_SUFFIXES = (".geojson", ".json")

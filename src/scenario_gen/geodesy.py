@@ -78,6 +78,12 @@ def area_of(crs: CRS, x: ArrayLike, y: ArrayLike) -> AreaOfInterest | None:
     )
 
 
+#: the accuracy a transformation to WGS84 must have (PROJ's statement) when a better one's grid
+#: is missing, for a field file and a DEM alike: NAD83 (4 m), OSGB36 (2 m) pass, NAD27 without
+#: its grids (7-10 m) does not
+MAX_SHIFT_M = 5.0
+
+
 def best_transformer(
     src: CRS,
     dst: CRS,
@@ -116,7 +122,7 @@ def best_transformer(
     accuracy = best.accuracy if "ballpark" not in best.description.lower() else -1.0
     if 0.0 <= accuracy <= tolerance_m:
         return best
-    ops = group.unavailable_operations[:1]
+    ops = _regional(group.unavailable_operations, area)[:1]
     grids = [g.short_name for op in ops for g in op.grids if not g.available]
     names = ", ".join(grids) or "of its best transformation"
     without = f"{accuracy:g} m" if accuracy >= 0 else "an unknown accuracy (a ballpark)"
@@ -125,6 +131,24 @@ def best_transformer(
         f"{without} (copy the grid into {get_user_data_dir()}, or fetch it once with "
         f"`pyproj sync --file {grids[0] if grids else 'NAME'}`)"
     )
+
+
+def _regional(ops: list[Any], area: AreaOfInterest | None) -> list[Any]:
+    """``ops`` whose area of use holds ``area``'s centre, the most local first (PROJ sorts by
+    accuracy: a Canadian grid's box reaches Iowa, but Iowa's own grid is what covers it)."""
+    if area is None:
+        return ops
+    x = 0.5 * (area.west_lon_degree + area.east_lon_degree)
+    y = 0.5 * (area.south_lat_degree + area.north_lat_degree)
+
+    def size(op: Any) -> float:
+        a = op.area_of_use
+        if a is None:
+            return math.inf
+        w, s, e, n = a.bounds
+        return (e - w) * (n - s) if w <= x <= e and s <= y <= n else math.inf
+
+    return sorted(ops, key=size)
 
 
 @dataclass(frozen=True)

@@ -435,3 +435,32 @@ def test_a_local_crs_and_a_gcp_only_raster_are_named_for_what_they_are(
         generate(small(terrain={"source": "dem", "path": str(gcps)}), seed=0)
     # the georeference is refused in one line, without rasterio's warning before it
     assert not [w for w in recwarn if "geotransform" in str(w.message)]
+
+
+def test_a_dem_whose_datum_needs_a_missing_grid_is_refused_naming_its_regions_grid(
+    tmp_path: Path,
+) -> None:
+    """NAD27 in Iowa: without its grids PROJ's best is good to 7 m and its candidates
+    disagree by more, so the DEM is refused as a field file in that CRS is, naming the grid
+    that covers Iowa (a Canadian grid's box reaches 42° N too, and PROJ lists it first)."""
+    from pyproj import CRS, Transformer
+
+    from scenario_gen.dem import load_geotiff
+    from scenario_gen.geodesy import best_transformer
+
+    if not isinstance(best_transformer(CRS(26715), CRS(4326)), str):
+        pytest.skip("this machine has the NAD27 grids")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)  # pyproj: best not available
+        x0, y0 = Transformer.from_crs(4326, 26715, always_xy=True).transform(-93.0, 42.0)
+    path = tmp_path / "nad27.tif"
+    with rasterio.open(
+        path, "w", driver="GTiff", height=60, width=60, count=1, dtype="float32",
+        crs="EPSG:26715", transform=from_origin(x0 - 300.0, y0 + 300.0, 10.0, 10.0),
+    ) as ds:  # fmt: skip
+        ds.write(np.full((60, 60), 300.0, np.float32), 1)
+    for need in (None, (-93.001, 41.999, -92.999, 42.001)):
+        with pytest.raises(ScenarioError, match="cannot be placed in WGS84") as e:
+            load_geotiff(path, 64, need)
+        assert e.value.field == "terrain.path" and "us_noaa_conus.tif" in str(e.value)
+        assert "ca_nrc" not in str(e.value)
