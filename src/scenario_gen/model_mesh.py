@@ -86,6 +86,82 @@ def spellings(name: str) -> list[str]:
     return out
 
 
+#: glTF extensions that change how a file's geometry is stored: trimesh reads none of them
+#: (compressed buffers it cannot decode, integer coordinates it does not scale), so a file
+#: that requires one is refused, naming how to write it without
+GLTF_GEOMETRY_EXTENSIONS = {
+    "KHR_draco_mesh_compression": "Draco-compressed geometry",
+    "EXT_meshopt_compression": "meshoptimizer-compressed buffers",
+    "KHR_mesh_quantization": "quantized (integer) vertex attributes",
+    "EXT_mesh_gpu_instancing": "GPU-instanced nodes",
+}
+
+
+def gltf_document(path: Path) -> dict[str, Any] | None:
+    """The JSON of a ``.gltf`` or ``.glb`` file (None where it cannot be parsed: the loader
+    then says what is wrong with it)."""
+    import json
+    import struct
+
+    try:
+        data = path.read_bytes()
+        if data[:4] == b"glTF":
+            (length,) = struct.unpack_from("<I", data, 12)
+            if data[16:20] != b"JSON":
+                return None
+            doc = json.loads(data[20 : 20 + length])
+        else:
+            doc = json.loads(data)
+    except (OSError, ValueError, struct.error):
+        return None
+    return doc if isinstance(doc, dict) else None
+
+
+def check_gltf(path: Path, given: Path) -> None:
+    """Refuse a glTF whose geometry is stored in a way trimesh does not read; note what of
+    its look is drawn otherwise than the file says (a texture transform, a second UV set)."""
+    from .errors import InputError
+
+    doc = gltf_document(path)
+    if doc is None:
+        return
+    required = [str(e) for e in doc.get("extensionsRequired") or []]
+    geometry = [e for e in required if e in GLTF_GEOMETRY_EXTENSIONS]
+    if geometry:
+        what = ", ".join(f"{e} ({GLTF_GEOMETRY_EXTENSIONS[e]})" for e in geometry)
+        raise InputError(
+            "crop.model",
+            str(given),
+            f"requires the glTF extension {what}, which the loader does not read; allowed: "
+            "plain accessors (e.g. `gltf-transform copy IN OUT` decodes Draco and meshopt, "
+            "`gltf-transform dequantize IN OUT` undoes quantization)",
+        )
+    transformed, second_uv = set(), set()
+    for i, mat in enumerate(doc.get("materials") or []):
+        if not isinstance(mat, dict):
+            continue
+        tex = (mat.get("pbrMetallicRoughness") or {}).get("baseColorTexture")
+        if not isinstance(tex, dict):
+            continue
+        name = str(mat.get("name") or f"#{i}")
+        if "KHR_texture_transform" in (tex.get("extensions") or {}):
+            transformed.add(name)
+        if tex.get("texCoord", 0) not in (0, None):
+            second_uv.add(name)
+    for names, what in (
+        (transformed, "KHR_texture_transform (offset, scale, rotation) is not applied"),
+        (second_uv, "their texture's TEXCOORD_n set other than 0 is not read: TEXCOORD_0 maps it"),
+    ):
+        if names:
+            warnings.warn(
+                Notice(
+                    f"crop.model {given.name}: material(s) {', '.join(sorted(names))}: {what}, "
+                    "so their texture is drawn otherwise than the file shows it"
+                ),
+                stacklevel=3,
+            )
+
+
 def read_scene(path: Path) -> Any:
     """The file as a trimesh Scene, referenced files resolved from its folder as
     ``model_files.bundle`` checked them (``spellings``): trimesh asks for a reference as
@@ -147,6 +223,8 @@ def one_mesh(scene: Any, unit: float = 1.0, gltf: bool = False) -> Any:
     glTF file's, whose materials without an ``alphaMode`` are opaque (the glTF 2.0 default)."""
     import trimesh
 
+    for g in scene.geometry.values():
+        _vertex_colours_as_look(g)
     parts = [g for g in scene.dump(concatenate=False) if len(getattr(g, "faces", ())) > 0]
     if not parts:
         return trimesh.Trimesh()
@@ -213,6 +291,50 @@ def _look(g: Any, gltf: bool = False) -> _Image | NDArray[np.uint8]:
         return np.asarray(np.round(vc[np.asarray(g.faces)].mean(axis=1)), np.uint8)
     fc = np.asarray(visual.face_colors, np.uint8)
     return fc if fc.shape == (n, 4) else np.tile(np.array([128, 128, 128, 255], np.uint8), (n, 1))
+
+
+def _vertex_colours_as_look(g: Any) -> None:
+    """A glTF part's COLOR_0 (trimesh keeps it beside the material, and drops it when the scene
+    is flattened) as its vertex colours: it multiplies the base colour. Over a texture it is
+    not drawn, and a note says so."""
+    import trimesh
+
+    visual = getattr(g, "visual", None)
+    if getattr(visual, "kind", None) != "texture":
+        return
+    store = getattr(visual, "vertex_attributes", None)
+    vc = store.get("color") if store is not None else None
+    if vc is None or len(vc) != len(g.vertices):
+        return
+    mat = getattr(visual, "material", None)
+    image, factor, _, _ = _material(mat)
+    if image is not None:
+        warnings.warn(
+            Notice(
+                f"crop.model: a part with {len(g.faces):,} faces has vertex colours (glTF "
+                "COLOR_0) over a texture: drawn with the texture alone"
+            ),
+            stacklevel=3,
+        )
+        return
+    rgba = _unit_colours(np.asarray(vc)) * (_material_colour(mat) * factor)[None, :]
+    g.visual = trimesh.visual.ColorVisuals(
+        mesh=g, vertex_colors=np.clip(np.round(rgba), 0, 255).astype(np.uint8)
+    )
+
+
+def _unit_colours(vc: NDArray[Any]) -> FloatArray:
+    """Vertex colours as RGBA in [0, 1]: glTF stores them as floats or normalized integers,
+    with or without alpha."""
+    kind = vc.dtype.kind
+    out = vc.astype(np.float64)
+    if kind in "ui":
+        out /= float(np.iinfo(vc.dtype).max)
+    if out.ndim != 2 or out.shape[1] not in (3, 4):
+        return np.ones((len(vc), 4))
+    if out.shape[1] == 3:
+        out = np.column_stack([out, np.ones(len(out))])
+    return np.clip(out, 0.0, 1.0)
 
 
 def _eight_bit(image: Any) -> Any:

@@ -36,6 +36,7 @@ from .errors import InputError, Notice
 from .model_files import Bundle, bundle
 from .model_mesh import (
     bad_vertices,
+    check_gltf,
     collada_unit,
     collada_up_axis,
     one_mesh,
@@ -362,6 +363,8 @@ def _read_mesh(p: Path, given: Path, up_axis: str = "auto") -> Any:
     it)."""
     import trimesh
 
+    if p.suffix.lower() in (".gltf", ".glb"):
+        check_gltf(p, given)
     try:
         scene = read_scene(p)
         bad, total = bad_vertices(scene)

@@ -571,3 +571,104 @@ def test_a_texture_without_texture_coordinates_is_noted(tmp_path: Path) -> None:
     )
     with pytest.warns(Notice, match="has a texture but no texture coordinates"):
         load_model(str(obj), 1.0)
+
+
+def _glb(path: Path, attributes: dict[str, np.ndarray], material: dict, **top: object) -> Path:
+    """A one-quad glTF binary (y up, 0.5 × 1 m) with the given vertex attributes, material and
+    top-level members (extensionsRequired, ...)."""
+    import struct
+
+    blob, views, accessors = b"", [], []
+    kinds = {np.float32: 5126, np.uint8: 5121, np.uint16: 5123}
+    types = {1: "SCALAR", 2: "VEC2", 3: "VEC3", 4: "VEC4"}
+    for arr in [*attributes.values(), np.array([0, 1, 2, 0, 2, 3], np.uint16)]:
+        blob += b"\0" * (-len(blob) % 4)
+        views.append({"buffer": 0, "byteOffset": len(blob), "byteLength": arr.nbytes})
+        blob += arr.tobytes()
+        acc = {
+            "bufferView": len(views) - 1,
+            "componentType": kinds[arr.dtype.type],
+            "count": len(arr),
+            "type": types[arr.shape[1] if arr.ndim == 2 else 1],
+        }
+        if arr.dtype == np.uint8:
+            acc["normalized"] = True
+        if arr.ndim == 2 and arr.shape[1] == 3:
+            acc |= {"min": arr.min(0).tolist(), "max": arr.max(0).tolist()}
+        accessors.append(acc)
+    blob += b"\0" * (-len(blob) % 4)
+    names = list(attributes)
+    doc = {
+        "asset": {"version": "2.0"},
+        "scene": 0,
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0}],
+        "meshes": [
+            {
+                "primitives": [
+                    {
+                        "attributes": {k: i for i, k in enumerate(names)},
+                        "indices": len(names),
+                        "material": 0,
+                    }
+                ]
+            }
+        ],
+        "materials": [material],
+        "accessors": accessors,
+        "bufferViews": views,
+        "buffers": [{"byteLength": len(blob)}],
+        **top,
+    }
+    js = json.dumps(doc).encode()
+    js += b" " * (-len(js) % 4)
+    head = struct.pack("<4sII", b"glTF", 2, 28 + len(js) + len(blob))
+    path.write_bytes(head + struct.pack("<I4s", len(js), b"JSON") + js)
+    with path.open("ab") as f:
+        f.write(struct.pack("<I4s", len(blob), b"BIN\0") + blob)
+    return path
+
+
+QUAD = np.array([[-0.25, 0, 0], [0.25, 0, 0], [0.25, 1, 0], [-0.25, 1, 0]], np.float32)
+
+
+def test_gltf_vertex_colours_multiply_the_base_colour(tmp_path: Path) -> None:
+    """glTF's COLOR_0 (a vertex-painted or photogrammetry plant): the faces take it times the
+    base colour; it was dropped (the plant drawn white)."""
+    colours = np.array([[0, 0, 255, 255]] * 4, np.uint8)
+    half = {"pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 0.5, 1.0]}}
+    path = _glb(tmp_path / "painted.glb", {"POSITION": QUAD, "COLOR_0": colours}, half)
+    mesh = load_model(str(path), 1.0, up_axis="y")
+    assert np.asarray(mesh.visual.face_colors)[:, :3].tolist() == [[0, 0, 128]] * 2
+
+
+def test_a_gltf_requiring_a_geometry_extension_is_refused_naming_it(tmp_path: Path) -> None:
+    """Draco, meshopt and quantized files: trimesh reads their buffers as plain floats (or not
+    at all), so they are refused by the extension's name, with how to write them plainly."""
+    for ext in ("KHR_mesh_quantization", "KHR_draco_mesh_compression"):
+        path = _glb(
+            tmp_path / f"{ext}.glb",
+            {"POSITION": QUAD},
+            {},
+            extensionsUsed=[ext],
+            extensionsRequired=[ext],
+        )
+        with pytest.raises(ScenarioError, match=f"requires the glTF extension {ext}") as e:
+            inspect_model(path)
+        assert e.value.field == "crop.model" and "gltf-transform" in str(e.value)
+
+
+def test_a_gltf_texture_drawn_otherwise_than_its_file_says_is_noted(tmp_path: Path) -> None:
+    """A texture transform (Blender writes one for any Mapping node) or a second UV set: the
+    texture is mapped by TEXCOORD_0 as it is, and a note says so."""
+    from scenario_gen.errors import Notice
+
+    uv = np.array([[0, 1], [1, 1], [1, 0], [0, 0]], np.float32)
+    shift = {"extensions": {"KHR_texture_transform": {"offset": [0.5, 0.0]}}}
+    for name, tex in (("shifted", shift), ("second-uv", {"texCoord": 1})):
+        material = {"name": name, "pbrMetallicRoughness": {"baseColorTexture": {"index": 0, **tex}}}
+        path = _glb(tmp_path / f"{name}.glb", {"POSITION": QUAD, "TEXCOORD_0": uv}, material)
+        with pytest.warns(Notice, match=f"material\\(s\\) {name}: .*drawn otherwise"):
+            from scenario_gen.model_mesh import check_gltf
+
+            check_gltf(path, path)
