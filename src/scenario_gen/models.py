@@ -286,7 +286,8 @@ def _measured_shape(path: str, sha256: str, up_axis: str) -> ProxyShape:
 
 
 def load_model(path: str | Path, height: float, up_axis: str = "auto") -> Any:
-    """A user model scaled uniformly to ``height`` metres, base centred at the origin, +z up,
+    """A user model scaled uniformly to ``height`` metres, standing on its ``base_point`` at
+    the origin, +z up,
     with its file's colours and textures (an RGBA atlas: alpha 0 marks cut-outs)."""
     p = Path(path)
     _check_file(p)
@@ -297,14 +298,15 @@ def load_model(path: str | Path, height: float, up_axis: str = "auto") -> Any:
 
 def native_bounds(
     path: str | Path, up_axis: str = "auto"
-) -> tuple[tuple[float, ...], tuple[float, ...]]:
-    """The model's bounding box as read (metres, +z up), before it is placed and scaled: what
-    an exporter that references the file itself needs to place it."""
+) -> tuple[tuple[float, ...], tuple[float, ...], tuple[float, float, float]]:
+    """The model's bounding box and ``base_point`` as read (metres, +z up), before it is
+    placed and scaled: what an exporter that references the file itself needs to place it."""
     p = Path(path)
     _check_file(p)
     with _mesh_of(p) as (mesh_path, _, _):
-        lo, hi = _read_mesh(mesh_path, p, up_axis).bounds
-    return tuple(float(v) for v in lo), tuple(float(v) for v in hi)
+        mesh = _read_mesh(mesh_path, p, up_axis)
+    lo, hi = mesh.bounds
+    return tuple(float(v) for v in lo), tuple(float(v) for v in hi), base_point(mesh)
 
 
 def _unreadable(p: Path, exc: Exception) -> str:
@@ -348,12 +350,28 @@ def resolved_up_axis(p: Path, up_axis: str, given: Path | None = None) -> str:
 LYING_RATIO = 4.0
 
 
+#: the slice at the foot of a model whose vertices place it: its lowest 2 % of height (a
+#: stalk's foot; a head's or a pot's bottom)
+BASE_SLICE = 0.02
+
+
+def base_point(mesh: Any) -> tuple[float, float, float]:
+    """Where a model stands on its plant's position: the median x, y of the vertices in its
+    lowest ``BASE_SLICE`` of height (a stalk's foot, wherever its leaves reach: the bounding
+    box's centre put a one-sided plant's stalk up to half a metre off its plant), at its
+    lowest z."""
+    v = np.asarray(mesh.vertices, np.float64)
+    z0, z1 = float(v[:, 2].min()), float(v[:, 2].max())
+    foot = v[v[:, 2] <= z0 + BASE_SLICE * (z1 - z0)]
+    return float(np.median(foot[:, 0])), float(np.median(foot[:, 1])), z0
+
+
 def _placed(mesh: Any, height: float) -> Any:
-    """A copy of ``mesh`` with its base centred at the origin, scaled to ``height``."""
+    """A copy of ``mesh`` standing at the origin on its ``base_point``, scaled to ``height``."""
     out = mesh.copy()
-    lo, hi = out.bounds
-    extent = float(hi[2] - lo[2])
-    out.apply_translation([-(lo[0] + hi[0]) / 2, -(lo[1] + hi[1]) / 2, -lo[2]])
+    x, y, z = base_point(out)
+    extent = float(out.bounds[1][2] - out.bounds[0][2])
+    out.apply_translation([-x, -y, -z])
     out.apply_scale(height / extent)
     return out
 

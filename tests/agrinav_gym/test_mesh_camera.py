@@ -275,7 +275,8 @@ def test_alpha_cutouts_let_rays_through(renderer: str) -> None:
     from ..data.crop_models.make_models import CUT
 
     cam = camera(cam={"width": 160, "height": 120}, renderer=renderer)
-    x_quad = 1.5 - 0.03  # the model's base is centred: its quad lies 3 cm in front of 1.5 m
+    # the model stands on its stem's foot (x 0.05 in its file): its quad lies 5 cm in front
+    x_quad = 1.5 - 0.05
     kw: dict[str, Any] = {"rgb": True, "labels": True, "stereo": False}
     f = cam.draw(np.eye(3), BASE, _cutout_scene(), None, **kw)
     bare = cam.draw(np.eye(3), BASE, MeshScene(flat()), None, **kw)
@@ -302,7 +303,7 @@ def test_alpha_cutouts_hide_nothing_from_the_stereo_pair() -> None:
     quarters a ground pixel is invalid exactly where the segment from the right imager to it
     crosses the leaf's opaque strip."""
     cam = camera(cam={"width": 160, "height": 120}, renderer="raycast")
-    x_quad = 1.5 - 0.03
+    x_quad = 1.5 - 0.05
     with_plant = cam.draw(np.eye(3), BASE, _cutout_scene(), None).depth.ravel()
     bare = cam.draw(np.eye(3), BASE, MeshScene(flat()), None).depth.ravel()
     _, cut, _ = _on_quad(cam, cam.rays, x_quad)

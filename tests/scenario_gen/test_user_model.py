@@ -672,3 +672,22 @@ def test_a_gltf_texture_drawn_otherwise_than_its_file_says_is_noted(tmp_path: Pa
             from scenario_gen.model_mesh import check_gltf
 
             check_gltf(path, path)
+
+
+def test_a_one_sided_plant_stands_on_its_stalks_foot(tmp_path: Path) -> None:
+    """A stalk at x 0.3 with one 0.8 m leaf towards +x: placed by its bounding box's centre the
+    stalk stood 0.4 m off the plant's position (in the lane, for 1 m rows), while crop contact,
+    the proxy's core and the dataset's stem points are at that position."""
+    import trimesh
+
+    stalk = trimesh.creation.cylinder(radius=0.01, height=1.0, sections=12)
+    stalk.apply_translation([0.3, 0.0, 0.5])
+    leaf = trimesh.Trimesh([[0.3, 0, 0.5], [1.1, 0.0, 0.6], [1.1, 0.05, 0.6]], [[0, 1, 2]])
+    p = tmp_path / "one-sided.obj"
+    p.write_text(trimesh.exchange.obj.export_obj(trimesh.util.concatenate([stalk, leaf])))
+    placed = load_model(p, 2.0)
+    v = np.asarray(placed.vertices)
+    foot = v[v[:, 2] < 0.01]
+    assert np.allclose(foot[:, :2].mean(axis=0), 0.0, atol=1e-6)
+    assert v[:, 2].min() == pytest.approx(0.0) and v[:, 2].max() == pytest.approx(2.0)
+    assert v[:, 0].max() == pytest.approx(2.0 * 0.8, abs=0.03)  # the leaf reaches 1.6 m out

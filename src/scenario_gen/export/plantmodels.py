@@ -13,9 +13,10 @@ copied into the base model's ``user/`` folder in their own layout, byte for byte
 references not every loader reads as written (``_literal_references``) (a COLLADA
 file's ``../materials/textures`` beside its ``meshes/``, an OBJ's material library and maps, an
 archive's members), the visual naming the mesh with the ``<scale>`` and ``<pose>`` that put
-its base centre on the plant and make it the plant's height. Other formats (glTF, GLB, PLY,
-COLLADA in another or no up axis, which Gazebo would turn, and any model declared y-up by
-``crop.model_up_axis``) become a COLLADA mesh and its texture as the catalog models do.
+its foot (``models.base_point``) on the plant and make it the plant's height. Other formats
+(glTF, GLB, PLY, COLLADA in another or no up axis, which Gazebo would turn, and any model
+declared y-up by ``crop.model_up_axis``) become a COLLADA mesh and its texture as the catalog
+models do.
 
 Collision proxy: a stem cylinder of the catalog's stem radius at the model's growth times the
 plant's scale — the circle agrinav_gym counts crop contact with — as tall as the plant. Weeds
@@ -63,16 +64,14 @@ class UserFiles:
     mesh: str  # the mesh's path inside the base model's folder (user/...), URI-safe
     lo: tuple[float, ...]  # its bounding box as Gazebo reads it (metres, +z up)
     hi: tuple[float, ...]
+    base: tuple[float, float, float]  # where it stands (``models.base_point``), as read
     original: str | None = None  # the mesh's own path under user/ where ``mesh`` renames it
 
     def placement(self, height: float) -> tuple[float, FloatArray]:
         """Uniform scale and offset (before the plant's rotation) that stand the mesh on the
         plant's base point, ``height`` tall."""
         s = height / (self.hi[2] - self.lo[2])
-        centre = np.array(
-            [(self.lo[0] + self.hi[0]) / 2, (self.lo[1] + self.hi[1]) / 2, self.lo[2]]
-        )
-        return s, -s * centre
+        return s, -s * np.asarray(self.base, np.float64)
 
     def copy_into(self, folder: Path) -> None:
         """The model's files under ``folder``/user/ in their own layout, byte for byte but for
@@ -194,11 +193,11 @@ def user_files(um: UserModel) -> UserFiles | None:
             up = collada_up_axis(um.path)
         if up != "Z_UP":
             return None
-    lo, hi = native_bounds(um.path, um.up_axis)
+    lo, hi, base = native_bounds(um.path, um.up_axis)
     # gz-common's URIPath::Valid refuses non-ASCII (and older releases spaces, ?, = and &):
     # the mesh's own path gets names of letters, digits and ._- only
     safe = PurePosixPath(*(re.sub(r"[^A-Za-z0-9._-]", "_", part) for part in mesh.parts))
-    return UserFiles(um, f"{USER_DIR}/{safe}", lo, hi, None if safe == mesh else str(mesh))
+    return UserFiles(um, f"{USER_DIR}/{safe}", lo, hi, base, None if safe == mesh else str(mesh))
 
 
 @dataclass(frozen=True, eq=False)

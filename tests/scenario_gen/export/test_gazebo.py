@@ -343,7 +343,10 @@ def test_user_collada_model_is_referenced_with_its_textures(tmp_path, sdf_check)
         lo, hi = native.bounds * s + pose[:3]
         assert lo[2] == pytest.approx(0.0, abs=1e-5)
         assert hi[2] == pytest.approx(base.height * SCALE_STEP**step, rel=1e-5)
-        assert np.allclose((lo[:2] + hi[:2]) / 2, 0.0, atol=1e-5)
+        # on its stem's foot (the test plant's stem stands at x 0.05 in its file, its leaf
+        # quad at 0), not on its bounding box's centre
+        foot = np.array([0.05, 0.0]) * s + pose[:2]
+        assert np.allclose(foot, 0.0, atol=1e-5), foot
     # merged tiles: the user's plants stay visuals of that mesh, none is flattened into STL
     tiled = tmp_path / "tiles"
     export(tmp_path / "scn", "gazebo", tiled, ExportOptions(plants="tiles", tile_plants=4))
@@ -368,9 +371,9 @@ def test_user_collada_model_is_referenced_with_its_textures(tmp_path, sdf_check)
         corners = np.array(np.meshgrid(*native.bounds.T, indexing="ij")).reshape(3, -1).T
         world = (r @ (corners * s).T).T + xyz
         assert s * float(np.ptp(native.bounds[:, 2])) == pytest.approx(p.height[i], rel=1e-5)
-        # the mesh's base centre lies on the plant's base point, its axis along the plant's
-        centre = np.array([*native.bounds.mean(axis=0)[:2], native.bounds[0, 2]])
-        assert np.allclose(r @ (centre * s) + xyz, [p.x[i], p.y[i], p.z[i]], atol=1e-4)
+        # the mesh's stem foot lies on the plant's base point, its axis along the plant's
+        foot = np.array([0.05, 0.0, native.bounds[0, 2]])
+        assert np.allclose(r @ (foot * s) + xyz, [p.x[i], p.y[i], p.z[i]], atol=1e-4)
         want = rotations(p.roll[i : i + 1], p.pitch[i : i + 1], p.yaw[i : i + 1])[0]
         assert np.allclose(r, want, atol=1e-6)
         top = (world - xyz) @ want[:, 2]  # heights of the box corners along the plant's axis
