@@ -164,18 +164,32 @@ def _renamed(folder: Path, ref: str, decode: bool, done: dict[Path, Path]) -> st
         return ref
     name = (unquote(ref) if decode else ref).replace("\\", "/")
     old = Path(os.path.normpath(folder / name))
+    # the folders on the way take literal names too ("tex ures/c.png"): the file is copied
+    # there, its folder left as it was for whatever else names it
+    parent = PurePosixPath(*(_literal_part(q) for q in PurePosixPath(name).parent.parts))
     if old not in done:
         if not old.is_file():
             return ref
         stem = re.sub(r"[^A-Za-z0-9._-]", "_", old.stem) or "file"
         suffix = re.sub(r"[^A-Za-z0-9.]", "_", old.suffix)
-        new, k = old.with_name(stem + suffix), 1
+        at = Path(os.path.normpath(folder / parent))
+        new, k = at / (stem + suffix), 1
         while new.exists() and new != old:
-            new, k = old.with_name(f"{stem}_{k}{suffix}"), k + 1
-        old.rename(new)
+            new, k = at / f"{stem}_{k}{suffix}", k + 1
+        if at == old.parent:
+            old.rename(new)
+        else:
+            at.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(old, new)
         done[old] = new
-    parent = PurePosixPath(name).parent
     return str(parent / done[old].name) if str(parent) != "." else done[old].name
+
+
+def _literal_part(part: str) -> str:
+    """A folder name any loader reads as written (``..`` and ``.`` kept)."""
+    if part in ("..", "."):
+        return part
+    return re.sub(r"[^A-Za-z0-9._-]", "_", part) or "folder"
 
 
 def user_files(um: UserModel) -> UserFiles | None:

@@ -529,3 +529,29 @@ def test_references_a_loader_may_not_read_as_written_are_renamed_with_their_file
             assert line in (user / rel).read_text(), (rel, line)
         c = run_check(sdf_check, out / "worlds" / "field.sdf", out / "models")
         assert c.valid, c.stderr
+
+
+def test_a_texture_folder_named_outside_literal_characters_gets_a_literal_copy(
+    tmp_path: Path, sdf_check
+) -> None:
+    """``../materials/tex tures/leaf.png``: a folder with a space is as unreadable to some
+    loaders as a file name with one; the texture is copied into a literal folder beside it
+    and the reference names the copy (the original stays for whatever else names it)."""
+    src = tmp_path / "user"
+    shutil.copytree(CUTOUT, src)
+    (src / "materials" / "textures").rename(src / "materials" / "tex tures")
+    dae = src / "meshes" / "plant.dae"
+    dae.write_text(dae.read_text().replace("textures/", "tex%20tures/"))
+    scn_dir = _quads_scenario(tmp_path, dae)
+    out = tmp_path / "gz"
+    export(scn_dir, "gazebo", out, ExportOptions(plants="include"))
+    (base,) = [m for m in assign(load(scn_dir)).models if m.species == "corn"]
+    user = out / "models" / base.name / "user"
+    text = (user / "meshes" / "plant.dae").read_text()
+    assert "<init_from>../materials/tex_tures/leaf.png</init_from>" in text
+    assert "<init_from>../materials/tex_tures/stem.png</init_from>" in text
+    for name in ("leaf.png", "stem.png"):
+        copied = user / "materials" / "tex_tures" / name
+        assert copied.read_bytes() == (src / "materials" / "tex tures" / name).read_bytes()
+    c = run_check(sdf_check, out / "worlds" / "field.sdf", out / "models")
+    assert c.valid, c.stderr
