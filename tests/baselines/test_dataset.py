@@ -504,3 +504,40 @@ def test_a_trajectory_recording_says_each_note_once(
     err = capsys.readouterr().err
     assert err.count("every reset drives one field") == 1, err[-3000:]
     assert "code_permalink" not in err and "author_email" not in err
+
+
+def test_a_plants_top_keypoint_lies_on_its_axis_and_labels_reach_as_far_as_a_camera_sees() -> None:
+    """On a 10° slope the plants stand on the ground's normal (plants.csv roll and pitch, as
+    the cameras draw them): the top keypoint is base + R·(0, 0, height), not straight above
+    the base (21 cm apart for 1.2 m maize). By default the labels reach the cameras' corner
+    rays at their range, past the 8 m that left plants the image shows unlabelled."""
+    import math
+
+    from agrinav_gym.config import EnvConfig
+    from agrinav_gym.render.plant_meshes import rotation_rpy
+    from agrinav_gym.robot import RobotGeometry, robot_interface
+    from agrinav_gym.sensors.d455 import color_model
+    from baselines.dataset.labels import camera_reach, plants, to_camera
+    from scenario_gen import generate as generate_scenario
+
+    from ..scenario_gen.helpers import plane
+
+    scn = generate_scenario(plane(10.0, crop={"stage": 3}), 0)
+    depth = robot_interface(EnvConfig(), RobotGeometry.from_urdf()).camera
+    cams = {"depth": depth, "rgb": color_model(depth)}
+    p = scn.plants
+    i = int(np.argmin(np.hypot(p.x, p.y)))
+    pos = np.array([p.x[i] - 2.0, p.y[i], p.z[i]])  # 2 m short of the plant, looking at it
+    (r,) = [r for r in plants(scn, pos, np.eye(3), cams, None, 8.0) if r["id"] == i]
+    axis = rotation_rpy(p.roll[i], p.pitch[i], p.yaw[i])[:, 2]
+    assert math.degrees(math.acos(axis[2])) == pytest.approx(10.0, abs=0.5)  # the slope's tilt
+    base = np.array([p.x[i], p.y[i], p.z[i]])
+    want = to_camera((base + p.height[i] * axis)[None, :], pos, np.eye(3), depth)[0]
+    assert np.allclose(r["top_3d"], want, atol=1e-3)
+    upright = to_camera((base + np.array([0.0, 0.0, p.height[i]]))[None, :], pos, np.eye(3), depth)[
+        0
+    ]
+    assert np.linalg.norm(want - upright) > 0.15  # what the label was: 0.2 m off
+    reach = camera_reach(cams)
+    hx, hy = 0.5 * depth.width / depth.fx, 0.5 * depth.height / depth.fy
+    assert reach >= depth.max_range * math.sqrt(1 + hx * hx + hy * hy) > 8.5

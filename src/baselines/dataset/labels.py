@@ -16,6 +16,7 @@ from numpy.typing import NDArray
 
 from agrinav_gym.interface import CameraModel
 from agrinav_gym.render.classes import CROP, OBSTACLE, WEED
+from agrinav_gym.render.plant_meshes import rotation_rpy
 from scenario_gen import Scenario
 from scenario_gen.arrays import FloatArray
 
@@ -132,17 +133,21 @@ def plants(
     reach: float,
     semantic: NDArray[np.uint8] | None = None,
 ) -> list[dict[str, Any]]:
-    """Stems (crops) and weeds near the camera: base and top keypoints in 3-D (depth camera
-    frame) and 2-D, instance id (= row of plants.csv), species, stage, height, and how many
-    pixels of the instance image show the plant (its crop and weed pixels where ``semantic``
-    is given: an obstacle's pixels carry an obstacle's id)."""
+    """Stems (crops) and weeds near the camera: base and top keypoints (the top on the plant's
+    axis, which leans with the ground) in 3-D (depth camera frame) and 2-D, instance id (= row
+    of plants.csv), species, stage, height, and how many pixels of the instance image show the
+    plant (its crop and weed pixels where ``semantic`` is given: an obstacle's pixels carry an
+    obstacle's id)."""
     p = scn.plants
     near = np.flatnonzero(np.hypot(p.x - pos[0], p.y - pos[1]) < reach)
     if len(near) == 0:
         return []
     counts = _pixel_counts(instance, semantic, (CROP, WEED), len(p))
     base = np.column_stack([p.x[near], p.y[near], p.z[near]])
-    top = base + np.column_stack([np.zeros((len(near), 2)), p.height[near]])
+    # along the plant's own axis: it stands on the ground's normal (plants.csv roll, pitch),
+    # as the cameras draw it, not straight up (21 cm apart at the top on a 10° slope)
+    axis = rotation_rpy(p.roll[near], p.pitch[near], p.yaw[near])[:, :, 2]
+    top = base + axis * p.height[near][:, None]
     out = []
     proj: dict[str, tuple[FloatArray, FloatArray, NDArray[np.bool_], NDArray[np.bool_]]] = {}
     q_base = q_top = np.zeros((0, 3))
@@ -230,9 +235,10 @@ def obstacles(
     mesh projects into a camera's image within its range — or show in the instance image:
     id (= row of obstacles.csv), kind, the 3-D box in the depth camera's body frame
     (``centre``; ``size`` = length, width, height; ``yaw``: the box's heading about the
-    vertical relative to the camera's, both taken in the horizontal plane — the box stands
-    upright to gravity, not to the pitched camera; and its 8 ``corners``, exact whatever the
-    ground's slope and the camera's pitch), the 2-D bounding box of its mesh in each camera
+    vertical relative to the camera's, both taken in the horizontal plane — the box is the
+    obstacle's own, tilted with the ground it lies on, so these three make an upright box on
+    level ground only; and its 8 ``corners``, exact whatever the ground's slope and the
+    camera's pitch), the 2-D bounding box of its mesh in each camera
     (``bbox_2d_<camera>``: [u0, v0, u1, v1] pixels, None outside the image) and
     ``visible_pixels``: its obstacle pixels in the depth camera's semantic and instance
     images."""
@@ -280,6 +286,18 @@ def obstacles(
         for name in cams:
             rec[f"bbox_2d_{name}"] = boxes[name]
         out.append(rec)
+    return out
+
+
+def camera_reach(cams: dict[str, CameraModel]) -> float:
+    """How far from base_link, horizontally, any camera's image reaches within its range: its
+    corner rays out to ``max_range`` along the optical axis, plus where it sits (a bound for
+    any pitch). Labels within it cover every plant an image can show."""
+    out = 0.0
+    for cam in cams.values():
+        tx, ty = (cam.width / 2) / cam.fx, (cam.height / 2) / cam.fy
+        offset = float(np.hypot(*np.asarray(cam.T_base_optical)[:2, 3]))
+        out = max(out, cam.max_range * math.sqrt(1.0 + tx * tx + ty * ty) + offset)
     return out
 
 

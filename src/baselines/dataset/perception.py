@@ -29,7 +29,7 @@ from agrinav_gym.interface import OBS_DEPTH, OBS_GPS, OBS_IMU, OBS_ODOM, OBSERVA
 from scenario_gen.atomic import atomic_write
 from scenario_gen.errors import InputError
 
-from .labels import camera_dict, lane_offset, obstacles, plants, row_lines
+from .labels import camera_dict, camera_reach, lane_offset, obstacles, plants, row_lines
 from .spec import SCHEMA_VERSION, PerceptionSpec
 
 #: Scenario seeds of dataset fields, one range per split: disjoint from each other and from the
@@ -201,6 +201,7 @@ def _frame(
     where: tuple[str, int, int, int],  # split, episode, reset seed, step
 ) -> Frame:
     split, episode, reset_seed, step = where
+    reach = spec.label_range if spec.label_range is not None else camera_reach(cams)
     scn, st = u.scenario, u.state
     pos, rot = np.asarray(st.pos, np.float64), np.asarray(st.rot, np.float64)
     yaw = float(st.rpy[2])
@@ -235,9 +236,9 @@ def _frame(
         "cameras": {name: camera_dict(c) for name, c in cams.items()},
         "lane": lane_offset(scn, pos[:2], yaw),
         "route_cte": round(float(info["cte"]), 4),  # the env's own cross-track error, m
-        "rows": row_lines(scn, pos, rot, cams, spec.label_range),
-        "plants": plants(scn, pos, rot, cams, instance, spec.label_range, semantic),
-        "obstacles": obstacles(scn, pos, rot, cams, semantic, instance, spec.label_range),
+        "rows": row_lines(scn, pos, rot, cams, reach),
+        "plants": plants(scn, pos, rot, cams, instance, reach, semantic),
+        "obstacles": obstacles(scn, pos, rot, cams, semantic, instance, reach),
     }
     # the env hands out copies (observations.Depth), so a frame may be encoded while it steps on
     depth = np.asarray(obs[OBS_DEPTH], np.float32).reshape(spec.height, spec.width)

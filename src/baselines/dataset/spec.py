@@ -19,8 +19,10 @@ from scenario_gen.schema import from_mapping, load_yaml, param, to_mapping
 
 #: Bumped when a frame's files or label fields change meaning (docs/datasets.md).
 #: 2: splits (train/validation/test fields by scenario seed range); 3: obstacles (semantic
-#: class 5, their instance ids, the labels' ``obstacles``)
-SCHEMA_VERSION = 3
+#: class 5, their instance ids, the labels' ``obstacles``); 4: a plant's top keypoint on its
+#: axis (leaning with the ground, as drawn; it was straight above the base), labels as far as
+#: a camera sees by default (``label_range`` null)
+SCHEMA_VERSION = 4
 
 #: The default domain randomization: scenario and env keys, over ranges the generator accepts.
 DEFAULT_RANDOMIZE: dict[str, Any] = {
@@ -69,8 +71,13 @@ class PerceptionSpec:
     camera_pitch_deg: tuple[float, float] = param(
         (15.0, 35.0), "range of the camera's pitch below the horizon per field", -30, 90
     )
-    label_range: float = param(
-        8.0, "plants and row points farther than this are not labelled, m", 1, 50
+    label_range: float | None = param(
+        None,
+        "plants, obstacles and row points farther than this from base_link (horizontally) are "
+        "not labelled, m; null: as far as a camera's image reaches within its range (the "
+        "D455's corner rays: about 9.5 m)",
+        1,
+        50,
     )
 
     def digest(self) -> str:
