@@ -356,14 +356,15 @@ BASE_SLICE = 0.02
 
 
 def base_point(mesh: Any) -> tuple[float, float, float]:
-    """Where a model stands on its plant's position: the median x, y of the vertices in its
-    lowest ``BASE_SLICE`` of height (a stalk's foot, wherever its leaves reach: the bounding
-    box's centre put a one-sided plant's stalk up to half a metre off its plant), at its
-    lowest z."""
+    """Where a model stands on its plant's position: the centre of the box of its vertices in
+    its lowest ``BASE_SLICE`` of height (a stalk's foot, wherever its leaves reach: the whole
+    model's box put a one-sided plant's stalk up to half a metre off its plant), at its lowest
+    z. A box, not a mean: a seam's duplicated vertices weigh nothing."""
     v = np.asarray(mesh.vertices, np.float64)
     z0, z1 = float(v[:, 2].min()), float(v[:, 2].max())
     foot = v[v[:, 2] <= z0 + BASE_SLICE * (z1 - z0)]
-    return float(np.median(foot[:, 0])), float(np.median(foot[:, 1])), z0
+    lo, hi = foot[:, :2].min(axis=0), foot[:, :2].max(axis=0)
+    return float(0.5 * (lo[0] + hi[0])), float(0.5 * (lo[1] + hi[1])), z0
 
 
 def _placed(mesh: Any, height: float) -> Any:
