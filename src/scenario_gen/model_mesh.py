@@ -117,9 +117,10 @@ def gltf_document(path: Path) -> dict[str, Any] | None:
     return doc if isinstance(doc, dict) else None
 
 
-def check_gltf(path: Path, given: Path) -> None:
-    """Refuse a glTF whose geometry is stored in a way trimesh does not read; note what of
-    its look is drawn otherwise than the file says (a texture transform, a second UV set)."""
+def check_gltf(path: Path, given: Path, field: str = "crop.model", look: bool = True) -> None:
+    """Refuse a glTF whose geometry is stored in a way trimesh does not read (``field`` names
+    the file); note what of its look is drawn otherwise than the file says (a texture
+    transform, a second UV set) where ``look``."""
     from .errors import InputError
 
     doc = gltf_document(path)
@@ -130,12 +131,14 @@ def check_gltf(path: Path, given: Path) -> None:
     if geometry:
         what = ", ".join(f"{e} ({GLTF_GEOMETRY_EXTENSIONS[e]})" for e in geometry)
         raise InputError(
-            "crop.model",
+            field,
             str(given),
             f"requires the glTF extension {what}, which the loader does not read; allowed: "
             "plain accessors (e.g. `gltf-transform copy IN OUT` decodes Draco and meshopt, "
             "`gltf-transform dequantize IN OUT` undoes quantization)",
         )
+    if not look:
+        return
     transformed, second_uv = set(), set()
     for i, mat in enumerate(doc.get("materials") or []):
         if not isinstance(mat, dict):

@@ -18,12 +18,13 @@ from numpy.typing import NDArray
 from shapely.geometry.base import BaseGeometry
 
 from .arrays import FloatArray
-from .bounds import MAX_TERRAIN_SAMPLES
+from .bounds import MAX_ENU_HEIGHT_M, MAX_PLANE_RADIUS_M, MAX_TERRAIN_SAMPLES
 from .dem import EMBEDDED_CREDIT, SWAPPED, Dem, load_embedded, load_geotiff
 from .errors import InputError, Notice
 from .field import centroid_latlon
 from .geodesy import GeoFrame
 from .meshsurface import TriangleSurface
+from .model_mesh import check_gltf, collada_unit, collada_up_axis
 from .spec import TerrainSpec
 from .terrain import Terrain, grid_for_bounds
 from .vertical import DATUM_HEIGHTS
@@ -243,6 +244,9 @@ def load_mesh_vertices(
         raise InputError(
             "terrain.path", str(path), f"is {size:,} bytes; allowed: at most {MAX_MESH_BYTES:,}"
         )
+    suffix = p.suffix.lower()
+    if suffix in (".glb", ".gltf"):
+        check_gltf(p, p, "terrain.path", look=False)
     try:
         mesh: Any = trimesh.load(p, force="mesh", process=False)
     except Exception as exc:  # trimesh raises many types for malformed files
@@ -250,17 +254,59 @@ def load_mesh_vertices(
             "terrain.path", str(path), f"cannot be read as a mesh ({exc.__class__.__name__}: {exc})"
         ) from None
     v = np.asarray(getattr(mesh, "vertices", np.empty((0, 3))), dtype=np.float64)
+    faces = np.asarray(getattr(mesh, "faces", np.empty((0, 3))), dtype=np.int64)
+    if len(faces) == 0 and _points_only(p):
+        raise InputError(
+            "terrain.path",
+            str(path),
+            "holds points and no triangles (a point cloud?); "
+            "allowed: a triangle mesh of the ground (mesh the cloud first, e.g. a DEM from it)",
+        )
     if len(v) < 3 or v.ndim != 2 or v.shape[1] != 3 or not np.isfinite(v).all():
         raise InputError("terrain.path", str(path), "holds no usable vertices")
-    faces = np.asarray(getattr(mesh, "faces", np.empty((0, 3))), dtype=np.int64)
     if faces.ndim != 2 or faces.shape[1] != 3 or len(faces) == 0:
         raise InputError("terrain.path", str(path), "holds no triangles (a point cloud?)")
     if faces.min() < 0 or faces.max() >= len(v):
         raise InputError("terrain.path", str(path), "has faces indexing missing vertices")
-    up = up_axis if up_axis != "auto" else ("y" if p.suffix.lower() in (".glb", ".gltf") else "z")
+    if suffix == ".dae":
+        v = v * collada_unit(p)  # <unit meter="0.01">: trimesh reads the numbers as written
+    up = _mesh_up_axis(p, up_axis)
     if up == "y":  # glTF: +Y up, +Z toward the viewer -> east = X, north = -Z, up = Y
         v = np.column_stack([v[:, 0], -v[:, 2], v[:, 1]])
     return v, faces
+
+
+def _mesh_up_axis(p: Path, up_axis: str) -> str:
+    """``terrain.up_axis`` for the file: auto is y for glTF (the format's rule), a COLLADA
+    file's declared ``<up_axis>`` (Y_UP where it declares none, COLLADA's default), z else."""
+    if up_axis != "auto":
+        return up_axis
+    suffix = p.suffix.lower()
+    if suffix in (".glb", ".gltf"):
+        return "y"
+    if suffix == ".dae":
+        declared = collada_up_axis(p)
+        if declared == "X_UP":
+            raise InputError(
+                "terrain.path",
+                str(p),
+                "declares <up_axis>X_UP</up_axis>; allowed: Y_UP or Z_UP (re-export it), or "
+                "terrain.up_axis y or z to say which axis is up",
+            )
+        return "z" if declared == "Z_UP" else "y"
+    return "z"
+
+
+def _points_only(p: Path) -> bool:
+    """Whether the file holds a point cloud (and no triangles): trimesh's ``force="mesh"``
+    reads one as an empty mesh."""
+    import trimesh
+
+    try:
+        scene: Any = trimesh.load(p, force="scene", process=False)
+    except Exception:  # it failed to read as a mesh too: that error is said
+        return False
+    return any(isinstance(g, trimesh.PointCloud) for g in scene.geometry.values())
 
 
 def _mesh_site(spec: TerrainSpec) -> Site:
@@ -278,6 +324,28 @@ def _mesh_site(spec: TerrainSpec) -> Site:
             "terrain.path", str(spec.path), "holds no triangle that is not vertical (no ground)"
         )
     name = Path(str(spec.path)).name
+    centre = _ground_centre(surface)
+    far = math.hypot(*centre)
+    if far > MAX_PLANE_RADIUS_M:
+        # the frame is the datum's tangent plane: far out it drops below the ground (0.2 km
+        # at 50 km) and its axes turn; a mesh that far is in projected coordinates (UTM)
+        raise InputError(
+            "terrain.path",
+            str(spec.path),
+            f"has its ground {far / 1000:,.1f} km from its origin (terrain.datum's point); "
+            f"allowed: within {MAX_PLANE_RADIUS_M / 1000:g} km, in metres east, north, up of "
+            "the datum (a mesh in projected coordinates, e.g. UTM, shifted so that its origin "
+            "is the datum)",
+        )
+    zc = surface.heights(np.array([centre[0]]), np.array([centre[1]]))[0]
+    if abs(float(zc[0])) > MAX_ENU_HEIGHT_M:
+        raise InputError(
+            "terrain.path",
+            str(spec.path),
+            f"has its ground {float(zc[0]):,.0f} m above its origin (terrain.datum's altitude); "
+            f"allowed: within {MAX_ENU_HEIGHT_M:,.0f} m (heights relative to the datum: put the "
+            "ground's altitude in terrain.datum, not in the mesh)",
+        )
 
     def heights(x: FloatArray, y: FloatArray) -> FloatArray:
         z, covered = surface.heights(x, y)
@@ -291,8 +359,6 @@ def _mesh_site(spec: TerrainSpec) -> Site:
             )
         return z
 
-    lo, hi = v[:, :2].min(axis=0), v[:, :2].max(axis=0)
-    centre = (float((lo[0] + hi[0]) / 2), float((lo[1] + hi[1]) / 2))
     return Site(
         geo,
         heights,
@@ -304,6 +370,29 @@ def _mesh_site(spec: TerrainSpec) -> Site:
             "heights": DATUM_HEIGHTS.to_dict(),
         },
     )
+
+
+def _ground_centre(surface: TriangleSurface) -> tuple[float, float]:
+    """Where a field is laid out on a mesh by default: the centre of the box of its ground
+    (its non-vertical triangles, so an unused vertex moves nothing) where ground lies there,
+    else the area-weighted median of its triangles (a stray triangle far off, an L-shaped
+    tile)."""
+    a, b, c = surface.a, surface.b, surface.c
+    pts = np.concatenate([a, b, c])[:, :2]
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    mid = 0.5 * (lo + hi)
+    _, covered = surface.heights(mid[:1], mid[1:])
+    if covered.all():
+        return float(mid[0]), float(mid[1])
+    area = 0.5 * np.abs(surface.det)
+    cen = (a + b + c)[:, :2] / 3.0
+
+    def median(x: FloatArray) -> float:
+        order = np.argsort(x, kind="stable")
+        cum = np.cumsum(area[order])
+        return float(x[order][np.searchsorted(cum, 0.5 * cum[-1])])
+
+    return median(cen[:, 0]), median(cen[:, 1])
 
 
 def export_terrain_mesh(terrain: Terrain, path: str | Path) -> None:

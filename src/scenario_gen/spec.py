@@ -72,7 +72,10 @@ class TerrainSpec:
         choices=("auto", "m", "ft", "us_ft"),
     )
     up_axis: str = _f(
-        "auto", "mesh up axis (auto: y for glTF/GLB, z otherwise)", choices=("auto", "y", "z")
+        "auto",
+        "mesh up axis (auto: y for glTF/GLB, a COLLADA file's declared up_axis, Y_UP where "
+        "none; z otherwise)",
+        choices=("auto", "y", "z"),
     )
 
 

@@ -151,3 +151,109 @@ def test_mesh_with_a_hole_refuses_a_field_over_the_hole(source, tmp_path: Path) 
             ),
             seed=0,
         )
+
+
+def _tile(z0: float = 0.0, offset: tuple[float, float] = (0.0, 0.0), n: int = 31) -> tuple:
+    """A 60 × 60 m tile of z = 0.05 x + 0.02 y (+ z0), its vertices ``offset`` east, north."""
+    s = np.linspace(-30.0, 30.0, n)
+    x, y = np.meshgrid(s + offset[0], s + offset[1])
+    v = np.column_stack([x.ravel(), y.ravel(), (0.05 * x + 0.02 * y).ravel() + z0])
+    k = np.arange(n * n).reshape(n, n)
+    a, b, c, d = k[:-1, :-1].ravel(), k[:-1, 1:].ravel(), k[1:, :-1].ravel(), k[1:, 1:].ravel()
+    f = np.concatenate([np.column_stack([a, b, d]), np.column_stack([a, d, c])])
+    return v, f
+
+
+def _mesh_spec(path: Path, **terrain: object):  # type: ignore[no-untyped-def]
+    t = {"source": "mesh", "path": str(path), "datum": [42.6, -5.57, 830.0], "margin": 2.0}
+    return small(terrain=t | terrain).replace({"furrows.enabled": False, "furrows.roughness": 0.0})
+
+
+def test_a_collada_terrain_honours_its_unit_and_up_axis(tmp_path: Path) -> None:
+    """COLLADA files say their unit and up axis (SketchUp: inches, Maya: Y_UP): the tile in
+    centimetres, y up, is the same ground as in metres, z up (it was read 100x too large, and
+    a Y_UP file lay on its side)."""
+    import trimesh
+
+    from scenario_gen.sources import save_mesh
+
+    v, f = _tile()
+    plain = tmp_path / "m.dae"
+    save_mesh(trimesh.Trimesh(v, f, process=False), plain)
+    cm = tmp_path / "cm.dae"
+    yup = np.column_stack([v[:, 0], v[:, 2], -v[:, 1]]) * 100.0
+    text = trimesh.Trimesh(yup, f, process=False).export(file_type="dae").decode()
+    assert "<up_axis>Y_UP</up_axis>" in text
+    cm.write_text(text.replace("<asset>", '<asset><unit meter="0.01" name="centimeter"/>', 1))
+    a, _ = load_mesh_vertices(plain)
+    b, _ = load_mesh_vertices(cm)
+
+    def rows(x: np.ndarray) -> np.ndarray:  # the writer may order vertices its own way
+        return x[np.lexsort(np.round(x, 3).T[::-1])]
+
+    assert np.allclose(rows(a), rows(v), atol=1e-4) and np.allclose(rows(b), rows(v), atol=1e-4)
+    scn = generate(_mesh_spec(cm), seed=0)
+    p = scn.plants
+    assert np.allclose(p.z, 0.05 * p.x + 0.02 * p.y, atol=0.01)
+
+
+def test_a_mesh_far_from_its_datum_is_refused_at_generation(tmp_path: Path) -> None:
+    """A UTM-placed tile (or one 12 km up) made a folder that loading then refused; the frame
+    is the datum's tangent plane, so it is refused when made, saying what to shift."""
+    import trimesh
+
+    for name, (v, f) in {
+        "utm": _tile(offset=(500_000.0, 4_000_000.0)),
+        "far": _tile(offset=(50_000.0, 0.0)),
+        "high": _tile(z0=12_000.0),
+    }.items():
+        path = tmp_path / f"{name}.ply"
+        trimesh.Trimesh(v, f, process=False).export(path)
+        with pytest.raises(ScenarioError, match="terrain.path") as e:
+            generate(_mesh_spec(path), seed=0)
+        assert ("km from its origin" in str(e.value)) == (name != "high"), str(e.value)
+
+
+def test_the_default_field_lies_on_the_meshs_ground_whatever_else_it_holds(
+    tmp_path: Path,
+) -> None:
+    """An unused vertex 100 m off (PLY keeps them) moved the field 20 m, a stray triangle
+    500 m off put it off the mesh: the field is laid out on the ground's own extent."""
+    import trimesh
+
+    v, f = _tile()
+    clean = tmp_path / "clean.ply"
+    trimesh.Trimesh(v, f, process=False).export(clean)
+    ref = generate(_mesh_spec(clean), seed=0).plants
+    stray = tmp_path / "stray.ply"
+    extra = np.array(
+        [[100.0, 0.0, 0.0], [500.0, 500.0, 0.0], [501.0, 500.0, 0.0], [500.0, 501.0, 0.0]]
+    )
+    n = len(v)
+    trimesh.Trimesh(
+        np.concatenate([v, extra]), np.concatenate([f, [[n + 1, n + 2, n + 3]]]), process=False
+    ).export(stray)
+    got = generate(_mesh_spec(stray), seed=0).plants
+    assert abs(float(np.mean(got.x) - np.mean(ref.x))) < 1.0
+    assert abs(float(np.mean(got.y) - np.mean(ref.y))) < 1.0
+
+
+def test_a_point_cloud_or_a_quantized_gltf_is_refused_for_what_it_is(tmp_path: Path) -> None:
+    import json
+    import struct
+
+    import trimesh
+
+    cloud = tmp_path / "lidar.ply"
+    trimesh.PointCloud(_tile()[0]).export(cloud)
+    with pytest.raises(ScenarioError, match="a point cloud"):
+        load_mesh_vertices(cloud)
+    doc = {"asset": {"version": "2.0"}, "extensionsRequired": ["KHR_mesh_quantization"]}
+    js = json.dumps(doc).encode() + b" " * (-len(json.dumps(doc)) % 4)
+    glb = tmp_path / "q.glb"
+    glb.write_bytes(
+        struct.pack("<4sII", b"glTF", 2, 20 + len(js)) + struct.pack("<I4s", len(js), b"JSON") + js
+    )
+    with pytest.raises(ScenarioError, match="KHR_mesh_quantization") as e:
+        load_mesh_vertices(glb)
+    assert e.value.field == "terrain.path"
