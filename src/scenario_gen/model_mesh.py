@@ -165,6 +165,32 @@ def check_gltf(path: Path, given: Path, field: str = "crop.model", look: bool = 
             )
 
 
+def file_up_axis(p: Path, up_axis: str, field: str, key: str, given: Path | None = None) -> str:
+    """The up axis (``key``'s value, e.g. ``crop.model_up_axis``) of the mesh file ``p``
+    (``field`` and ``given`` name it in an error): auto is y for glTF/GLB (the format's rule),
+    what a COLLADA file declares in ``<up_axis>`` (Y_UP, the format's default, where it
+    declares none), z otherwise."""
+    from .errors import InputError
+
+    if up_axis != "auto":
+        return up_axis
+    suffix = p.suffix.lower()
+    if suffix in (".glb", ".gltf"):
+        return "y"
+    if suffix == ".dae":
+        declared = collada_up_axis(p)
+        if declared == "X_UP":  # neither axis this project turns a mesh about
+            raise InputError(
+                field,
+                str(given or p),
+                "declares <up_axis>X_UP</up_axis>; allowed: a COLLADA file Y_UP or Z_UP "
+                f"(re-export it), or {key} y or z to say which axis is up",
+            )
+        # none declared is Y_UP, COLLADA 1.4's default (as Gazebo's loader reads it too)
+        return "z" if declared == "Z_UP" else "y"
+    return "z"
+
+
 def read_scene(path: Path) -> Any:
     """The file as a trimesh Scene, referenced files resolved from its folder as
     ``model_files.bundle`` checked them (``spellings``): trimesh asks for a reference as

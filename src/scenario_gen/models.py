@@ -38,7 +38,7 @@ from .model_mesh import (
     bad_vertices,
     check_gltf,
     collada_unit,
-    collada_up_axis,
+    file_up_axis,
     one_mesh,
     processed,
     read_scene,
@@ -323,26 +323,9 @@ def _unreadable(p: Path, exc: Exception) -> str:
 
 
 def resolved_up_axis(p: Path, up_axis: str, given: Path | None = None) -> str:
-    """``crop.model_up_axis`` for the mesh file ``p`` (``given`` names it): auto is y for
-    glTF/GLB (the format's rule), what a COLLADA file declares in ``<up_axis>`` (Y_UP,
-    the format's default, where it declares none), z otherwise."""
-    if up_axis != "auto":
-        return up_axis
-    suffix = p.suffix.lower()
-    if suffix in (".glb", ".gltf"):
-        return "y"
-    if suffix == ".dae":
-        declared = collada_up_axis(p)
-        if declared == "X_UP":  # neither axis this project turns a model about
-            raise InputError(
-                "crop.model",
-                str(given or p),
-                "declares <up_axis>X_UP</up_axis>; allowed: a COLLADA file Y_UP or Z_UP "
-                "(re-export it), or crop.model_up_axis y or z to say which axis it stands along",
-            )
-        # none declared is Y_UP, COLLADA 1.4's default (as Gazebo's loader reads it too)
-        return "z" if declared == "Z_UP" else "y"
-    return "z"
+    """``crop.model_up_axis`` for the mesh file ``p`` (``given`` names it):
+    ``model_mesh.file_up_axis``'s rule."""
+    return file_up_axis(p, up_axis, "crop.model", "crop.model_up_axis", given)
 
 
 #: a model read this many times wider than tall most likely lies on its side (a maize plant

@@ -24,7 +24,7 @@ from .errors import InputError, Notice
 from .field import centroid_latlon
 from .geodesy import GeoFrame
 from .meshsurface import TriangleSurface
-from .model_mesh import check_gltf, collada_unit, collada_up_axis
+from .model_mesh import check_gltf, collada_unit, file_up_axis
 from .spec import TerrainSpec
 from .terrain import Terrain, grid_for_bounds
 from .vertical import DATUM_HEIGHTS
@@ -270,31 +270,10 @@ def load_mesh_vertices(
         raise InputError("terrain.path", str(path), "has faces indexing missing vertices")
     if suffix == ".dae":
         v = v * collada_unit(p)  # <unit meter="0.01">: trimesh reads the numbers as written
-    up = _mesh_up_axis(p, up_axis)
+    up = file_up_axis(p, up_axis, "terrain.path", "terrain.up_axis")
     if up == "y":  # glTF: +Y up, +Z toward the viewer -> east = X, north = -Z, up = Y
         v = np.column_stack([v[:, 0], -v[:, 2], v[:, 1]])
     return v, faces
-
-
-def _mesh_up_axis(p: Path, up_axis: str) -> str:
-    """``terrain.up_axis`` for the file: auto is y for glTF (the format's rule), a COLLADA
-    file's declared ``<up_axis>`` (Y_UP where it declares none, COLLADA's default), z else."""
-    if up_axis != "auto":
-        return up_axis
-    suffix = p.suffix.lower()
-    if suffix in (".glb", ".gltf"):
-        return "y"
-    if suffix == ".dae":
-        declared = collada_up_axis(p)
-        if declared == "X_UP":
-            raise InputError(
-                "terrain.path",
-                str(p),
-                "declares <up_axis>X_UP</up_axis>; allowed: Y_UP or Z_UP (re-export it), or "
-                "terrain.up_axis y or z to say which axis is up",
-            )
-        return "z" if declared == "Z_UP" else "y"
-    return "z"
 
 
 def _points_only(p: Path) -> bool:

@@ -75,7 +75,7 @@ class PerceptionSpec:
         None,
         "plants, obstacles and row points farther than this from base_link (horizontally) are "
         "not labelled, m; null: as far as a camera's image reaches within its range (the "
-        "D455's corner rays: about 9.5 m)",
+        "D455's corner rays: about 9.4 m)",
         1,
         50,
     )
