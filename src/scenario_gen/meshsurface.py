@@ -76,18 +76,29 @@ class TriangleSurface:
 
     def heights(self, x: FloatArray, y: FloatArray) -> tuple[FloatArray, NDArray[np.bool_]]:
         """(z, covered): the surface height at each point, and whether a triangle lies under it
-        (z is NaN where none does)."""
+        (z is NaN where none does). Where surfaces are stacked, the topmost."""
+        z, _, covered = self.layers(x, y)
+        return z, covered
+
+    def layers(
+        self, x: FloatArray, y: FloatArray
+    ) -> tuple[FloatArray, FloatArray, NDArray[np.bool_]]:
+        """(top, bottom, covered): the highest and lowest surface at each point (equal where
+        the mesh is one layer; NaN where no triangle lies under it)."""
         x = np.asarray(x, np.float64).ravel()
         y = np.asarray(y, np.float64).ravel()
-        z = np.full(len(x), np.nan)
+        top, bottom = np.full(len(x), np.nan), np.full(len(x), np.nan)
         for s in range(0, len(x), _CHUNK):
-            z[s : s + _CHUNK] = self._chunk(x[s : s + _CHUNK], y[s : s + _CHUNK])
-        return z, np.isfinite(z)
+            top[s : s + _CHUNK], bottom[s : s + _CHUNK] = self._chunk(
+                x[s : s + _CHUNK], y[s : s + _CHUNK]
+            )
+        return top, bottom, np.isfinite(top)
 
-    def _chunk(self, x: FloatArray, y: FloatArray) -> FloatArray:
+    def _chunk(self, x: FloatArray, y: FloatArray) -> tuple[FloatArray, FloatArray]:
         out = np.full(len(x), np.nan)
+        low = np.full(len(x), np.nan)
         if self.count == 0:
-            return out
+            return out, low
         gx = np.floor((x - self.lo[0]) / self.cell[0]).astype(np.int64)
         gy = np.floor((y - self.lo[1]) / self.cell[1]).astype(np.int64)
         inside = (gx >= 0) & (gy >= 0) & (gx < self.shape[0]) & (gy < self.shape[1])
@@ -104,4 +115,5 @@ class TriangleSurface:
         hit = (l0 >= -_EDGE_TOL) & (l1 >= -_EDGE_TOL) & (l2 >= -_EDGE_TOL)
         zz = l0 * a[:, 2] + l1 * b[:, 2] + l2 * c[:, 2]
         np.fmax.at(out, pt[hit], zz[hit])
-        return out
+        np.fmin.at(low, pt[hit], zz[hit])
+        return out, low

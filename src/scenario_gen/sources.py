@@ -327,7 +327,17 @@ def _mesh_site(spec: TerrainSpec) -> Site:
         )
 
     def heights(x: FloatArray, y: FloatArray) -> FloatArray:
-        z, covered = surface.heights(x, y)
+        z, low, covered = surface.layers(x, y)
+        if np.any(z - low > LAYER_GAP_M):
+            warnings.warn(
+                Notice(
+                    f"terrain.path {name}: the field's ground holds surfaces stacked more than "
+                    f"{LAYER_GAP_M:g} m apart (a roof, a tree crown, the crop of a "
+                    "photogrammetry tile): the topmost is taken as the ground; cut the mesh to "
+                    "the bare ground (a DTM) where that is not it"
+                ),
+                stacklevel=2,
+            )
         if not covered.all():
             i = int(np.argmin(covered))
             raise InputError(
@@ -349,6 +359,11 @@ def _mesh_site(spec: TerrainSpec) -> Site:
             "heights": DATUM_HEIGHTS.to_dict(),
         },
     )
+
+
+#: surfaces of a terrain mesh stacked further apart than this over one point are two layers
+#: (a roof over the ground), not a ridge's or a furrow's relief folded by the mesher
+LAYER_GAP_M = 0.5
 
 
 def _ground_centre(surface: TriangleSurface) -> tuple[float, float]:

@@ -257,3 +257,34 @@ def test_a_point_cloud_or_a_quantized_gltf_is_refused_for_what_it_is(tmp_path: P
     with pytest.raises(ScenarioError, match="KHR_mesh_quantization") as e:
         load_mesh_vertices(glb)
     assert e.value.field == "terrain.path"
+
+
+def test_a_second_layer_over_the_field_is_noted_and_taken_as_the_ground(tmp_path: Path) -> None:
+    """A roof (or a crown, or a photogrammetry tile's crop) over the ground: the topmost
+    surface is the ground, and a note says so; a one-layer tile gets no note."""
+    import warnings
+
+    import trimesh
+
+    from scenario_gen.errors import Notice
+
+    v, f = _tile()
+    clean = tmp_path / "clean.ply"
+    trimesh.Trimesh(v, f, process=False).export(clean)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", Notice)
+        generate(_mesh_spec(clean), seed=0)
+    roof = np.array([[-2.0, -2.0, 3.0], [2.0, -2.0, 3.0], [2.0, 2.0, 3.0], [-2.0, 2.0, 3.0]])
+    n = len(v)
+    shed = tmp_path / "shed.ply"
+    trimesh.Trimesh(
+        np.concatenate([v, roof]),
+        np.concatenate([f, [[n, n + 1, n + 2], [n, n + 2, n + 3]]]),
+        process=False,
+    ).export(shed)
+    with pytest.warns(Notice, match="stacked more than 0.5 m apart"):
+        scn = generate(_mesh_spec(shed), seed=0)
+    p = scn.plants
+    # a grid cell (0.11 m) and more inside the roof's edge, where the terrain grid is all roof
+    on_roof = (np.abs(p.x) < 1.75) & (np.abs(p.y) < 1.75)
+    assert on_roof.any() and np.allclose(p.z[on_roof], 3.0, atol=0.01)
